@@ -1,0 +1,180 @@
+"""Motion-cueing quality metrics: RMSE, Pearson CC, performance index, statistics, limits.
+
+Signals have shape (T, 6) (time, channel) with the channels of y:
+[w_x, w_y, w_z, f_x, f_y, a_z]. The performance index of equation (10) is
+PI = sum_k (RMSE_k - CC_k), minimum -6 (perfect rendering), lower is better.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import scipy.stats
+
+from mca_drake.input_checks import as_float_array, same_shapes
+from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+
+CHANNELS = ("w_x", "w_y", "w_z", "f_x", "f_y", "a_z")
+# Relative spread below which a channel counts as constant for the correlation.
+_CONSTANT_RTOL = 1e-12
+
+
+def _signals(target, achieved) -> tuple[np.ndarray, np.ndarray]:
+    target = as_float_array("target", target)
+    achieved = as_float_array("achieved", achieved)
+    same_shapes(target=target, achieved=achieved)
+    if target.ndim != 2 or target.shape[0] < 2:
+        raise ValueError(
+            f"signals must have shape (T, channels) with T >= 2; got {target.shape}"
+        )
+    return target, achieved
+
+
+def rmse(target, achieved) -> np.ndarray:
+    """Root-mean-square error per channel: shape (C,) for signals of shape (T, C)."""
+    target, achieved = _signals(target, achieved)
+    return np.sqrt(np.mean((achieved - target) ** 2, axis=0))
+
+
+def _is_constant(x: np.ndarray) -> np.ndarray:
+    scale = np.maximum(np.max(np.abs(x), axis=0), 1.0)
+    return np.ptp(x, axis=0) <= _CONSTANT_RTOL * scale
+
+
+def pearson_cc(target, achieved) -> np.ndarray:
+    """Pearson correlation coefficient per channel, shape (C,), in [-1, 1].
+
+    Defined for constant channels too (where Pearson's formula divides by zero):
+    1 when both signals are constant and equal (a perfectly rendered still channel),
+    0 when at least one is constant otherwise (no co-variation to measure).
+    """
+    target, achieved = _signals(target, achieved)
+    t = target - target.mean(axis=0)
+    a = achieved - achieved.mean(axis=0)
+    constant = _is_constant(target) | _is_constant(achieved)
+    denominator = np.sqrt(np.sum(t * t, axis=0) * np.sum(a * a, axis=0))
+    cc = np.divide(
+        np.sum(t * a, axis=0), denominator, out=np.zeros(target.shape[1]), where=~constant
+    )
+    equal = constant & np.all(np.isclose(target, achieved, rtol=1e-12, atol=1e-12), axis=0)
+    cc[equal] = 1.0
+    return np.clip(cc, -1.0, 1.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class TrackingScore:
+    """Per-channel RMSE and CC and the performance index PI = sum(RMSE - CC)."""
+
+    rmse: np.ndarray
+    cc: np.ndarray
+
+    @property
+    def pi(self) -> float:
+        return float(np.sum(self.rmse - self.cc))
+
+
+def tracking_score(target, achieved) -> TrackingScore:
+    """RMSE, CC and PI of `achieved` against `target`, both shape (T, 6)."""
+    target, achieved = _signals(target, achieved)
+    if target.shape[1] != len(CHANNELS):
+        raise ValueError(f"signals must have {len(CHANNELS)} channels {CHANNELS}; got {target.shape}")
+    return TrackingScore(rmse=rmse(target, achieved), cc=pearson_cc(target, achieved))
+
+
+def performance_index(target, achieved) -> float:
+    """PI of equation (10): sum over the six channels of RMSE - CC. Minimum -6."""
+    return tracking_score(target, achieved).pi
+
+
+@dataclasses.dataclass(frozen=True)
+class RankSumResult:
+    """Wilcoxon rank-sum test: z statistic, two-sided p-value, medians of both samples."""
+
+    z: float
+    p: float
+    median_a: float
+    median_b: float
+
+    def significant(self, alpha: float = 0.05) -> bool:
+        """Whether the two distributions differ at level `alpha`."""
+        return self.p < alpha
+
+
+def wilcoxon_rank_sum(pi_a, pi_b) -> RankSumResult:
+    """Two-sided Wilcoxon rank-sum test between two sets of PIs (the paper's test).
+
+    Args:
+        pi_a, pi_b: 1-D arrays of performance indices, at least 2 each.
+    """
+    a = as_float_array("pi_a", pi_a)
+    b = as_float_array("pi_b", pi_b)
+    if a.ndim != 1 or b.ndim != 1 or a.size < 2 or b.size < 2:
+        raise ValueError(f"need two 1-D samples of at least 2; got shapes {a.shape}, {b.shape}")
+    z, p = scipy.stats.ranksums(a, b)
+    return RankSumResult(float(z), float(p), float(np.median(a)), float(np.median(b)))
+
+
+def normalized_joint_usage(values, lower, upper) -> np.ndarray:
+    """Joint values mapped to [-1, 1] by their limits, keeping 0 at 0 (the neutral pose).
+
+    Positive values are divided by `upper`, negative ones by |lower|, so asymmetric limits
+    (Table I joints 2 and 3) still map each limit to +-1 and a magnitude above 1 is a
+    violation (the paper's Fig. 5). Requires lower < 0 < upper.
+
+    Args:
+        values: shape (..., 6).
+        lower, upper: shape (6,).
+    """
+    values = as_float_array("values", values, last_dim=NUM_JOINTS)
+    lower = as_float_array("lower", lower, last_dim=NUM_JOINTS)
+    upper = as_float_array("upper", upper, last_dim=NUM_JOINTS)
+    if not (np.all(lower < 0) and np.all(upper > 0)):
+        raise ValueError(f"limits must straddle zero; got lower {lower}, upper {upper}")
+    return np.where(values >= 0, values / upper, values / -lower)
+
+
+@dataclasses.dataclass(frozen=True)
+class JointUsage:
+    """Normalised joint usage (each (T, 6), see `normalized_joint_usage`) and violations."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+
+    def violations(self, tolerance: float = 1e-9) -> dict[str, int]:
+        """Number of samples (time steps) with any joint beyond its limit, per limit type."""
+        return {
+            name: int(np.sum(np.any(np.abs(usage) > 1.0 + tolerance, axis=-1)))
+            for name, usage in (("q", self.q), ("qd", self.qd), ("qdd", self.qdd))
+        }
+
+    def peak(self) -> dict[str, np.ndarray]:
+        """Largest |usage| per joint, per limit type (shape (6,) each)."""
+        return {
+            name: np.max(np.abs(usage), axis=0)
+            for name, usage in (("q", self.q), ("qd", self.qd), ("qdd", self.qdd))
+        }
+
+
+def joint_usage(q, qd, qdd, robot: KR500 | None = None) -> JointUsage:
+    """Joint positions, velocities and accelerations normalised by the Table I limits.
+
+    Args:
+        q, qd, qdd: trajectories, shape (T, 6) each (rad, rad/s, rad/s^2).
+    """
+    robot = robot if robot is not None else load_kr500()
+    q = as_float_array("q", q, last_dim=NUM_JOINTS)
+    qd = as_float_array("qd", qd, last_dim=NUM_JOINTS)
+    qdd = as_float_array("qdd", qdd, last_dim=NUM_JOINTS)
+    same_shapes(q=q, qd=qd, qdd=qdd)
+    return JointUsage(
+        q=normalized_joint_usage(q, robot.q_min, robot.q_max),
+        qd=normalized_joint_usage(qd, -robot.qd_max, robot.qd_max),
+        qdd=normalized_joint_usage(qdd, -robot.qdd_max, robot.qdd_max),
+    )
+
+
+def limit_violations(q, qd, qdd, robot: KR500 | None = None, tolerance: float = 1e-9) -> dict:
+    """Samples outside the Table I limits, per limit type: {"q": n, "qd": n, "qdd": n}."""
+    return joint_usage(q, qd, qdd, robot).violations(tolerance)

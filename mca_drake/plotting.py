@@ -1,0 +1,66 @@
+"""Figures a motion-cueing engineer looks at. Every function returns a matplotlib Figure;
+`save_figure` writes it atomically. Uses the non-interactive Agg backend unless a notebook
+already chose one."""
+
+from __future__ import annotations
+
+import io
+import os
+
+import matplotlib
+
+if "ipykernel" not in matplotlib.get_backend().lower() and "inline" not in (
+    matplotlib.get_backend().lower()
+):
+    matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from mca_drake.atomic_io import atomic_write_bytes  # noqa: E402
+from mca_drake.metrics import CHANNELS  # noqa: E402
+
+CHANNEL_LABELS = (
+    "roll rate w_x [rad/s]",
+    "pitch rate w_y [rad/s]",
+    "yaw rate w_z [rad/s]",
+    "surge f_x [m/s²]",
+    "sway f_y [m/s²]",
+    "heave a_z [m/s²]",
+)
+
+
+def plot_outputs(times, achieved, target=None, title: str = "", achieved_label: str = "achieved"):
+    """Six panels (one per channel of y) against time; `target` is drawn under `achieved`.
+
+    Args:
+        times: shape (T,), s.
+        achieved: shape (T, 6), the channels of y.
+        target: optional shape (T, 6).
+    """
+    times = np.asarray(times, dtype=float)
+    achieved = np.asarray(achieved, dtype=float)
+    if achieved.shape != (times.size, len(CHANNELS)):
+        raise ValueError(f"achieved must have shape ({times.size}, 6); got {achieved.shape}")
+    fig, axes = plt.subplots(3, 2, figsize=(11, 7), sharex=True)
+    for k, ax in enumerate(axes.T.ravel()):
+        if target is not None:
+            ax.plot(times, np.asarray(target)[:, k], color="0.6", lw=1.2, label="target")
+        ax.plot(times, achieved[:, k], color="C0", lw=1.0, label=achieved_label)
+        ax.set_ylabel(CHANNEL_LABELS[k], fontsize=8)
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    axes[0, 0].legend(fontsize=8, loc="upper right")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> None:
+    """Writes `fig` as PNG (or the format of the suffix) atomically and closes it."""
+    buffer = io.BytesIO()
+    fmt = os.path.splitext(str(path))[1].lstrip(".") or "png"
+    fig.savefig(buffer, format=fmt, dpi=dpi)
+    plt.close(fig)
+    atomic_write_bytes(path, buffer.getvalue())

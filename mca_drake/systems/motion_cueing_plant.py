@@ -1,0 +1,117 @@
+"""MotionCueingPlant: the analytical joint-space motion-cueing plant as a Drake system."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+
+from mca_drake.input_checks import as_float_array
+from mca_drake.kinematics import head_pose, plant_output
+from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.torch_plant import DEFAULT_DT
+
+
+class MotionCueingPlant(LeafSystem):
+    """The exact plant of equation (1): one double integrator per joint, output y in H.
+
+    .. pydrake_system::
+
+        name: MotionCueingPlant
+        input_ports:
+        - joint_acceleration
+        output_ports:
+        - state
+        - inertial_output
+        - head_pose
+
+    Discrete state x = [q, qd] (12), updated every `time_step` with the exact zero-order-hold
+    step q += h qd + h^2/2 u, qd += h u, where u is `joint_acceleration` (rad/s^2, 6) sampled
+    at the update time. `state` is x; `inertial_output` is y(q, qd, u) =
+    [w_x, w_y, w_z, f_x, f_y, a_z] (rad/s, m/s^2; direct feedthrough of u); `head_pose` is
+    X_WH as a RigidTransform. The plant is ideal: it does not enforce joint limits, so
+    evaluations can count violations.
+
+    Args:
+        robot: the KR500 description (default models/kr500.urdf).
+        time_step: control period h, s (default 0.01).
+        initial_state: default [q, qd], shape (12,); default zeros (the neutral pose, at rest).
+    """
+
+    def __init__(
+        self,
+        robot: KR500 | None = None,
+        time_step: float = DEFAULT_DT,
+        initial_state: np.ndarray | None = None,
+    ):
+        super().__init__()
+        if not time_step > 0:
+            raise ValueError(f"time_step must be positive; got {time_step}")
+        self._robot = robot if robot is not None else load_kr500()
+        self._time_step = float(time_step)
+        x0 = np.zeros(2 * NUM_JOINTS) if initial_state is None else initial_state
+        x0 = as_float_array("initial_state", x0, last_dim=2 * NUM_JOINTS)
+        if x0.shape != (2 * NUM_JOINTS,):
+            raise ValueError(f"initial_state must have shape (12,); got {x0.shape}")
+
+        self._joint_acceleration_port = self.DeclareVectorInputPort(
+            "joint_acceleration", NUM_JOINTS
+        )
+        self._state_index = self.DeclareDiscreteState(x0)
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            period_sec=self._time_step, offset_sec=0.0, update=self._update
+        )
+        self._state_port = self.DeclareStateOutputPort("state", self._state_index)
+        self._inertial_output_port = self.DeclareVectorOutputPort(
+            "inertial_output", NUM_JOINTS, self._calc_inertial_output
+        )
+        self._head_pose_port = self.DeclareAbstractOutputPort(
+            "head_pose",
+            lambda: AbstractValue.Make(RigidTransform()),
+            self._calc_head_pose,
+            prerequisites_of_calc={self.xd_ticket()},
+        )
+
+    @property
+    def robot(self) -> KR500:
+        """The robot description this plant was built with."""
+        return self._robot
+
+    @property
+    def time_step(self) -> float:
+        """The control period, s."""
+        return self._time_step
+
+    def SetJointState(self, context: Context, q: np.ndarray, qd: np.ndarray) -> None:
+        """Sets x = [q, qd] in this system's `context` (rad, rad/s, shape (6,) each)."""
+        q = as_float_array("q", q, last_dim=NUM_JOINTS).reshape(NUM_JOINTS)
+        qd = as_float_array("qd", qd, last_dim=NUM_JOINTS).reshape(NUM_JOINTS)
+        context.SetDiscreteState(self._state_index, np.concatenate([q, qd]))
+
+    def _acceleration(self, context: Context) -> np.ndarray:
+        u = self._joint_acceleration_port.Eval(context)
+        if not np.all(np.isfinite(u)):
+            raise RuntimeError(
+                f"MotionCueingPlant: joint_acceleration is not finite at t = {context.get_time()}"
+                f" s: {u}"
+            )
+        return u
+
+    def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
+        x = context.get_discrete_state(self._state_index).value()
+        u = self._acceleration(context)
+        h = self._time_step
+        q, qd = x[:NUM_JOINTS], x[NUM_JOINTS:]
+        discrete_state.set_value(
+            self._state_index, np.concatenate([q + h * qd + (0.5 * h * h) * u, qd + h * u])
+        )
+
+    def _calc_inertial_output(self, context: Context, output: BasicVector) -> None:
+        x = context.get_discrete_state(self._state_index).value()
+        u = self._acceleration(context)
+        output.SetFromVector(plant_output(x[:NUM_JOINTS], x[NUM_JOINTS:], u, self._robot))
+
+    def _calc_head_pose(self, context: Context, output: AbstractValue) -> None:
+        q = context.get_discrete_state(self._state_index).value()[:NUM_JOINTS]
+        output.set_value(RigidTransform(head_pose(q, self._robot)))

@@ -1,0 +1,114 @@
+"""Metrics on hand-computable cases."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.stats
+
+from mca_drake import metrics
+
+T = np.linspace(0.0, 10.0, 1001)
+
+
+def six(signal):
+    return np.tile(np.asarray(signal)[:, None], (1, 6))
+
+
+def test_identical_signals_give_minus_six():
+    y = six(np.sin(T))
+    assert metrics.performance_index(y, y) == pytest.approx(-6.0, abs=1e-12)
+
+
+def test_identical_signals_with_a_still_channel_give_minus_six():
+    y = six(np.sin(T))
+    y[:, 2] = 0.0  # e.g. no yaw at all, rendered as no yaw at all
+    assert metrics.performance_index(y, y) == pytest.approx(-6.0, abs=1e-12)
+
+
+def test_constant_offset_has_rmse_offset_and_cc_one():
+    y = six(np.sin(T))
+    score = metrics.tracking_score(y, y + 0.5)
+    np.testing.assert_allclose(score.rmse, 0.5, atol=1e-12)
+    np.testing.assert_allclose(score.cc, 1.0, atol=1e-12)
+    assert score.pi == pytest.approx(6 * 0.5 - 6, abs=1e-10)
+
+
+def test_known_rmse_and_correlation():
+    """sin vs -sin: CC = -1, RMSE = 2 * rms(sin) = 2 / sqrt(2) over whole periods."""
+    t = np.arange(0, 2 * np.pi * 10, 2 * np.pi * 10 / 100000)
+    target = six(np.sin(t))
+    score = metrics.tracking_score(target, -target)
+    np.testing.assert_allclose(score.cc, -1.0, atol=1e-12)
+    np.testing.assert_allclose(score.rmse, np.sqrt(2.0), rtol=1e-9)
+
+
+def test_quadrature_signals_are_uncorrelated():
+    t = np.arange(0, 2 * np.pi * 5, 2 * np.pi * 5 / 20000)
+    np.testing.assert_allclose(metrics.pearson_cc(six(np.sin(t)), six(np.cos(t))), 0.0, atol=1e-9)
+
+
+def test_cc_matches_scipy_on_random_signals(rng):
+    a, b = rng.normal(size=(2, 500, 6))
+    b = 0.4 * a + b
+    expected = [scipy.stats.pearsonr(a[:, k], b[:, k]).statistic for k in range(6)]
+    np.testing.assert_allclose(metrics.pearson_cc(a, b), expected, atol=1e-12)
+
+
+def test_zero_motion_against_a_moving_target():
+    """Doing nothing: RMSE = rms(target), CC defined as 0 (not NaN)."""
+    target = six(2.0 * np.sin(T))
+    score = metrics.tracking_score(target, np.zeros_like(target))
+    assert np.all(np.isfinite(score.cc))
+    np.testing.assert_allclose(score.cc, 0.0)
+    np.testing.assert_allclose(score.rmse, np.sqrt(np.mean((2 * np.sin(T)) ** 2)), rtol=1e-12)
+
+
+def test_wilcoxon_rank_sum_matches_scipy_and_detects_shift(rng):
+    a = rng.normal(-2.0, 0.2, size=10)
+    b = rng.normal(-1.0, 0.2, size=10)
+    result = metrics.wilcoxon_rank_sum(a, b)
+    z, p = scipy.stats.ranksums(a, b)
+    assert (result.z, result.p) == pytest.approx((z, p))
+    assert result.significant()
+    # complete separation of 10 vs 10: U = 0, z = -(100/2) / sqrt(10*10*21/12)
+    assert result.z == pytest.approx(-50 / np.sqrt(175.0))
+    same = metrics.wilcoxon_rank_sum(a, a)
+    assert same.p == pytest.approx(1.0) and not same.significant()
+
+
+def test_normalized_usage_keeps_neutral_and_maps_limits(robot):
+    q = np.array([robot.q_max, robot.q_min, np.zeros(6), robot.q_max / 2])
+    usage = metrics.normalized_joint_usage(q, robot.q_min, robot.q_max)
+    np.testing.assert_allclose(usage, [np.ones(6), -np.ones(6), np.zeros(6), np.full(6, 0.5)])
+
+
+def test_violation_counts_per_limit_type(robot):
+    n = 10
+    q, qd, qdd = np.zeros((n, 6)), np.zeros((n, 6)), np.zeros((n, 6))
+    q[3, 1] = robot.q_max[1] + 0.01  # one sample over on joint 2
+    q[4, 2] = robot.q_min[2] - 0.01  # one under on joint 3
+    qd[7, :] = robot.qd_max * 1.5  # one sample, all joints: still one sample
+    qdd[2, 5] = robot.qdd_max[5]  # exactly at the limit: not a violation
+    assert metrics.limit_violations(q, qd, qdd, robot) == {"q": 2, "qd": 1, "qdd": 0}
+    peak = metrics.joint_usage(q, qd, qdd, robot).peak()
+    np.testing.assert_allclose(peak["qd"], 1.5)
+
+
+@pytest.mark.parametrize(
+    ("target", "achieved", "match"),
+    [
+        (np.zeros((10, 6)), np.zeros((10, 5)), "shapes must match"),
+        (np.zeros((10, 5)), np.zeros((10, 5)), "must have 6 channels"),
+        (np.zeros((1, 6)), np.zeros((1, 6)), "T >= 2"),
+        (np.full((10, 6), np.nan), np.zeros((10, 6)), "target has non-finite"),
+    ],
+)
+def test_bad_signals_are_reported(target, achieved, match):
+    with pytest.raises(ValueError, match=match):
+        metrics.tracking_score(target, achieved)
+
+
+def test_bad_rank_sum_input():
+    with pytest.raises(ValueError, match="at least 2"):
+        metrics.wilcoxon_rank_sum([1.0], [1.0, 2.0])
