@@ -14,7 +14,7 @@ from mca_drake import __version__
 def _print_outputs_table(result, every_s: float = 1.0) -> None:
     from mca_drake.metrics import CHANNELS
 
-    step = max(int(round(every_s / (result.times[1] - result.times[0]))), 1)
+    step = max(round(every_s / (result.times[1] - result.times[0])), 1)
     print(f"{'t [s]':>7} " + " ".join(f"{c:>9}" for c in CHANNELS))
     for k in range(0, result.times.size, step):
         print(f"{result.times[k]:7.2f} " + " ".join(f"{v:9.4f}" for v in result.outputs[k]))

@@ -20,9 +20,7 @@ def as_float_array(name: str, value, *, last_dim: int | None = None) -> np.ndarr
     except (TypeError, ValueError) as err:
         raise ValueError(f"{name} must be numeric: {err}") from err
     if last_dim is not None and (array.ndim == 0 or array.shape[-1] != last_dim):
-        raise ValueError(
-            f"{name} must have shape (..., {last_dim}); got shape {array.shape}"
-        )
+        raise ValueError(f"{name} must have shape (..., {last_dim}); got shape {array.shape}")
     check_finite(name, array)
     return array
 

@@ -68,7 +68,9 @@ def run_plant_demo(
         "plant": "analytical",
         "reference": "demo joint motion",
         "duration_s": scenario.duration_s,
-        "output_peak": {c: float(v) for c, v in zip(CHANNELS, np.abs(outputs).max(axis=0), strict=True)},
+        "output_peak": {
+            c: float(v) for c, v in zip(CHANNELS, np.abs(outputs).max(axis=0), strict=True)
+        },
         "output_rms": {
             c: float(v) for c, v in zip(CHANNELS, np.sqrt((outputs**2).mean(axis=0)), strict=True)
         },

@@ -173,9 +173,12 @@ def _motion(q, qd, qdd, robot: KR500 | None, with_tangents: bool) -> _Motion:
         n = _NUM_TANGENTS
         # [i, k] = Z_k x (.)_i, kept where joint k moves the thing fixed on link i-1 (k < i).
         before = np.tril(np.ones((NUM_JOINTS, NUM_JOINTS)), k=-1)[..., None]
-        Z_i, Z_k, O_i, O_k = Z[..., :, None, :], Z[..., None, :, :], O[..., :, None, :], O[
-            ..., None, :, :
-        ]
+        Z_i, Z_k, O_i, O_k = (
+            Z[..., :, None, :],
+            Z[..., None, :, :],
+            O[..., :, None, :],
+            O[..., None, :, :],
+        )
         dZ = np.zeros((*lead, NUM_JOINTS, n, 3))
         dO = np.zeros((*lead, NUM_JOINTS, n, 3))
         dZ[..., :NUM_JOINTS, :] = before * np.cross(Z_k, Z_i)
@@ -183,9 +186,9 @@ def _motion(q, qd, qdd, robot: KR500 | None, with_tangents: bool) -> _Motion:
         dr = np.zeros((*lead, n, 3))
         dr[..., :NUM_JOINTS, :] = np.cross(Z, r_value[..., None, :] - O)
         dR = np.zeros((*lead, n, 3, 3))
-        dR[..., :NUM_JOINTS, :, :] = np.cross(Z[..., :, None, :], np.swapaxes(R, -1, -2)[
-            ..., None, :, :
-        ]).swapaxes(-1, -2)  # column j of [Z_k]x R is Z_k x R[:, j]
+        dR[..., :NUM_JOINTS, :, :] = np.cross(
+            Z[..., :, None, :], np.swapaxes(R, -1, -2)[..., None, :, :]
+        ).swapaxes(-1, -2)  # column j of [Z_k]x R is Z_k x R[:, j]
         dqd = np.zeros((*lead, NUM_JOINTS, n))
         dqd[..., :, NUM_JOINTS:] = np.eye(NUM_JOINTS)
 

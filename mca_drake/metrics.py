@@ -25,9 +25,7 @@ def _signals(target, achieved) -> tuple[np.ndarray, np.ndarray]:
     achieved = as_float_array("achieved", achieved)
     same_shapes(target=target, achieved=achieved)
     if target.ndim != 2 or target.shape[0] < 2:
-        raise ValueError(
-            f"signals must have shape (T, channels) with T >= 2; got {target.shape}"
-        )
+        raise ValueError(f"signals must have shape (T, channels) with T >= 2; got {target.shape}")
     return target, achieved
 
 
@@ -78,7 +76,9 @@ def tracking_score(target, achieved) -> TrackingScore:
     """RMSE, CC and PI of `achieved` against `target`, both shape (T, 6)."""
     target, achieved = _signals(target, achieved)
     if target.shape[1] != len(CHANNELS):
-        raise ValueError(f"signals must have {len(CHANNELS)} channels {CHANNELS}; got {target.shape}")
+        raise ValueError(
+            f"signals must have {len(CHANNELS)} channels {CHANNELS}; got {target.shape}"
+        )
     return TrackingScore(rmse=rmse(target, achieved), cc=pearson_cc(target, achieved))
 
 

@@ -13,11 +13,11 @@ if "ipykernel" not in matplotlib.get_backend().lower() and "inline" not in (
     matplotlib.get_backend().lower()
 ):
     matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from mca_drake.atomic_io import atomic_write_bytes  # noqa: E402
-from mca_drake.metrics import CHANNELS  # noqa: E402
+from mca_drake.atomic_io import atomic_write_bytes
+from mca_drake.metrics import CHANNELS
 
 CHANNEL_LABELS = (
     "roll rate w_x [rad/s]",

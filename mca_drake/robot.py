@@ -112,7 +112,7 @@ class KR500:
 
 
 def _split_dh_origin(X: np.ndarray, what: str) -> tuple[float, float, float, float]:
-    """(a, d, alpha, offset) from X = Tz(d) Tx(a) Rx(alpha) Rz(offset); raises if not of that form."""
+    """(a, d, alpha, offset) of X = Tz(d) Tx(a) Rx(alpha) Rz(offset); raises if X is not so."""
     R, p = X[:3, :3], X[:3, 3]
     if abs(p[1]) > _STRUCTURE_TOL or abs(R[0, 2]) > _STRUCTURE_TOL:
         raise ValueError(
@@ -170,18 +170,23 @@ def _load_cached(path: str) -> KR500:
     def limits(getter) -> np.ndarray:
         return np.array([float(getter(j)[0]) for j in joints])
 
-    qd_lo, qd_hi = limits(lambda j: j.velocity_lower_limits()), limits(
-        lambda j: j.velocity_upper_limits()
+    qd_lo, qd_hi = (
+        limits(lambda j: j.velocity_lower_limits()),
+        limits(lambda j: j.velocity_upper_limits()),
     )
-    qdd_lo, qdd_hi = limits(lambda j: j.acceleration_lower_limits()), limits(
-        lambda j: j.acceleration_upper_limits()
+    qdd_lo, qdd_hi = (
+        limits(lambda j: j.acceleration_lower_limits()),
+        limits(lambda j: j.acceleration_upper_limits()),
     )
     if not (np.allclose(qd_lo, -qd_hi) and np.allclose(qdd_lo, -qdd_hi)):
         raise ValueError(f"{path}: velocity and acceleration limits must be symmetric")
     if not np.all(np.isfinite(qdd_hi)):
         raise ValueError(f"{path}: every joint needs drake:acceleration on its <limit>")
     effort = np.array(
-        [plant.get_joint_actuator(a_idx).effort_limit() for a_idx in plant.GetJointActuatorIndices()]
+        [
+            plant.get_joint_actuator(a_idx).effort_limit()
+            for a_idx in plant.GetJointActuatorIndices()
+        ]
     )
     robot = KR500(
         urdf_path=Path(path),

@@ -38,6 +38,46 @@ def _check(name: str, tensor: torch.Tensor, last_dim: int) -> None:
         raise ValueError(f"{name} has non-finite entries")
 
 
+Vec3 = tuple[torch.Tensor, torch.Tensor, torch.Tensor]
+
+
+def _add(a: Vec3, b: Vec3) -> Vec3:
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+def _cross(a: Vec3, p: tuple[float, float, float]) -> Vec3:
+    """a x p for a constant vector p (zero components skipped)."""
+    px, py, pz = p
+    return (a[1] * pz - a[2] * py, a[2] * px - a[0] * pz, a[0] * py - a[1] * px)
+
+
+def _rigid_acceleration(w: Vec3, w_dot: Vec3, p: tuple[float, float, float]) -> Vec3:
+    """Acceleration of a point at constant offset p on a body: w_dot x p + w x (w x p)."""
+    if p == (0.0, 0.0, 0.0):
+        return (0.0, 0.0, 0.0)  # type: ignore[return-value]
+    wp = _cross(w, p)
+    a = _cross(w_dot, p)
+    return (
+        a[0] + w[1] * wp[2] - w[2] * wp[1],
+        a[1] + w[2] * wp[0] - w[0] * wp[2],
+        a[2] + w[0] * wp[1] - w[1] * wp[0],
+    )
+
+
+def _rotate_dh(v: Vec3, c, s, ca: float, sa: float) -> Vec3:
+    """Rx(alpha)^T Rz(theta)^T v: a vector of frame i-1 expressed in DH frame i."""
+    x = c * v[0] + s * v[1]
+    y = c * v[1] - s * v[0]
+    return (x, ca * y + sa * v[2], ca * v[2] - sa * y)
+
+
+def _apply(R_T: list[list[float]], v: Vec3) -> Vec3:
+    """R^T v for a constant rotation R given as rows (so (R^T v)_k = sum_j R[j][k] v_j)."""
+    return tuple(  # type: ignore[return-value]
+        sum(R_T[j][k] * v[j] for j in range(3) if R_T[j][k] != 0.0) for k in range(3)
+    )
+
+
 class TorchPlant(nn.Module):
     """Exact analytical KR500 motion-cueing plant (equation 1) as a torch module.
 
@@ -77,7 +117,15 @@ class TorchPlant(nn.Module):
         buffer("sin_alpha", np.sin(dh.alpha))
         buffer("R_6H", robot.R_6H)
         buffer("p_6H", robot.p_6H)
-        buffer("gravity_W", np.array([0.0, 0.0, -GRAVITY]))
+        # Constants of the recursive output computation, as Python floats (dtype-free).
+        self._cos_alpha = [float(v) for v in np.cos(dh.alpha)]
+        self._sin_alpha = [float(v) for v in np.sin(dh.alpha)]
+        self._p_link = [
+            (float(a), float(d * np.sin(al)), float(d * np.cos(al)))
+            for a, d, al in zip(dh.a, dh.d, dh.alpha, strict=True)
+        ]
+        self._p_6H = tuple(float(v) for v in robot.p_6H)
+        self._R_6H = [[float(v) for v in row] for row in robot.R_6H]
 
     # ----------------------------------------------------------------- state transition
     def step(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
@@ -126,10 +174,10 @@ class TorchPlant(nn.Module):
         c, s = torch.cos(theta), torch.sin(theta)
         ca, sa = self.cos_alpha.expand_as(c), self.sin_alpha.expand_as(c)
         zero = torch.zeros_like(c)
-        # rotation and translation of every DH link transform at once, (..., 6, 3, 3) and (..., 6, 3)
-        A_R = torch.stack(
-            [c, -s * ca, s * sa, s, c * ca, -c * sa, zero, sa, ca], dim=-1
-        ).unflatten(-1, (3, 3))
+        # rotations (..., 6, 3, 3) and translations (..., 6, 3) of all DH link transforms
+        A_R = torch.stack([c, -s * ca, s * sa, s, c * ca, -c * sa, zero, sa, ca], dim=-1).unflatten(
+            -1, (3, 3)
+        )
         A_p = torch.stack([self.dh_a * c, self.dh_a * s, self.dh_d.expand_as(c)], dim=-1)
         R = [torch.eye(3, dtype=q.dtype, device=q.device).expand(*q.shape[:-1], 3, 3)]
         p = [torch.zeros_like(A_p[..., 0, :])]
@@ -160,29 +208,33 @@ class TorchPlant(nn.Module):
         return self._output(x, u)
 
     def _output(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        qd, qdd = x[..., NUM_JOINTS:, None], u[..., :, None]  # (..., 6, 1)
-        R, p = self.dh_frames(x[..., :NUM_JOINTS])
-        Z, O = R[..., :NUM_JOINTS, :, 2], p[..., :NUM_JOINTS, :]  # (..., 6, 3)
-        R_WH, r = R[..., -1, :, :], p[..., -1, :]
-        w = qd * Z  # angular velocity contributed by each joint
-        omega_upto = torch.cumsum(w, dim=-2)
-        omega_before = omega_upto - w
-        omega = omega_upto[..., -1, :]
-        w_dot = qdd * Z + qd * torch.linalg.cross(omega_before, Z, dim=-1)
-        moment = torch.linalg.cross(O, w, dim=-1)
-        v_origin_upto = torch.cumsum(moment, dim=-2)
-        O_dot = v_origin_upto - moment + torch.linalg.cross(omega_before, O, dim=-1)
-        r_dot = v_origin_upto[..., -1, :] + torch.linalg.cross(omega, r, dim=-1)
-        r_rel = r[..., None, :] - O
-        r_ddot = (
-            torch.linalg.cross(w_dot, r_rel, dim=-1)
-            + torch.linalg.cross(w, r_dot[..., None, :] - O_dot, dim=-1)
-        ).sum(dim=-2)
-        # Into H: v_H = R_WH^T v_W, written as v_W @ R_WH.
-        omega_H = (omega[..., None, :] @ R_WH)[..., 0, :]
-        a_H = (r_ddot[..., None, :] @ R_WH)[..., 0, :]
-        g_H = (self.gravity_W @ R_WH)  # (..., 3)
-        return torch.cat([omega_H, a_H[..., :2] - g_H[..., :2], a_H[..., 2:]], dim=-1)
+        # Recursive Newton-Euler forward pass in the moving DH frames: angular velocity,
+        # angular acceleration and origin acceleration of frame i, expressed in frame i.
+        # Vectors are (x, y, z) tuples of (...)-shaped tensors: elementwise kernels, no
+        # batched 3x3 matmuls (which are slow in torch for tiny matrices). Starting the base
+        # at acceleration -g_W gives the specific force f directly (the gravity trick);
+        # the vector -g_W = (0, 0, g) carried along gives a_z = f_z - (R_WH^T (0, 0, g))_z.
+        qd, qdd = x[..., NUM_JOINTS:].unbind(-1), u.unbind(-1)
+        theta = x[..., :NUM_JOINTS] + self.dh_offset
+        cos, sin = torch.cos(theta).unbind(-1), torch.sin(theta).unbind(-1)
+        zero = torch.zeros_like(qd[0])
+        g = torch.full_like(qd[0], GRAVITY)
+        w, w_dot, acc, up = (zero, zero, zero), (zero, zero, zero), (zero, zero, g), (zero, zero, g)
+        for i in range(NUM_JOINTS):
+            # Joint i turns about z of frame i-1: w += qd z; w_dot += qdd z + qd (w x z).
+            w_dot = (w_dot[0] + qd[i] * w[1], w_dot[1] - qd[i] * w[0], w_dot[2] + qdd[i])
+            w = (w[0], w[1], w[2] + qd[i])
+            # Express in frame i: v_i = Rx(alpha_i)^T Rz(theta_i)^T v_(i-1).
+            c, s, ca, sa = cos[i], sin[i], self._cos_alpha[i], self._sin_alpha[i]
+            w, w_dot, acc, up = (_rotate_dh(v, c, s, ca, sa) for v in (w, w_dot, acc, up))
+            # Origin of frame i sits at p = (a, d sin(alpha), d cos(alpha)) in frame i.
+            acc = _add(acc, _rigid_acceleration(w, w_dot, self._p_link[i]))
+        acc = _add(acc, _rigid_acceleration(w, w_dot, self._p_6H))
+        R = self._R_6H  # rows of R_6H^T are the columns of R_6H
+        omega_H = _apply(R, w)
+        f_H = _apply(R, acc)
+        up_H_z = sum(R[k][2] * up[k] for k in range(3) if R[k][2] != 0.0)
+        return torch.stack([*omega_H, f_H[0], f_H[1], f_H[2] - up_H_z], dim=-1)
 
     def forward(self, x0: torch.Tensor, U: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Open-loop rollout: x0 (B, 12), U (B, T, 6) -> (X (B, T+1, 12), Y (B, T, 6))."""

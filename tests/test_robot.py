@@ -46,9 +46,7 @@ def test_neutral_pose_inside_limits(robot):
 
 def test_masses_are_kr500_class(drake_plant):
     context = drake_plant.CreateDefaultContext()
-    links = sum(
-        drake_plant.GetBodyByName(f"link_{i}").get_mass(context) for i in range(1, 7)
-    )
+    links = sum(drake_plant.GetBodyByName(f"link_{i}").get_mass(context) for i in range(1, 7))
     cabin = drake_plant.GetBodyByName("cabin").get_mass(context)
     assert 2200 <= links <= 2600
     assert 550 <= cabin <= 650
@@ -74,7 +72,7 @@ def test_non_dh_urdf_is_rejected(tmp_path):
     bad = text[:origin_at] + "1.3 0.2 0.0" + text[end:]
     path = tmp_path / "bad.urdf"
     path.write_text(bad)
-    with pytest.raises(ValueError, match="joint_3.*not of DH form"):
+    with pytest.raises(ValueError, match=r"joint_3.*not of DH form"):
         load_kr500(path)
 
 

@@ -41,8 +41,14 @@ def test_rollout_equals_exact_double_integrator_loop(plant64, robot, rng):
         np.testing.assert_allclose(
             Y[:, t].numpy(), kinematics.plant_output(x[:, :6], x[:, 6:], U[:, t], robot), atol=1e-10
         )
-        x = np.concatenate([x[:, :6] + h * x[:, 6:] + 0.5 * h * h * U[:, t], x[:, 6:] + h * U[:, t]], 1)
-        np.testing.assert_allclose(plant64.step(torch.tensor(X[:, t].numpy()), torch.tensor(U[:, t])).numpy(), x, atol=1e-12)
+        x = np.concatenate(
+            [x[:, :6] + h * x[:, 6:] + 0.5 * h * h * U[:, t], x[:, 6:] + h * U[:, t]], 1
+        )
+        np.testing.assert_allclose(
+            plant64.step(torch.tensor(X[:, t].numpy()), torch.tensor(U[:, t])).numpy(),
+            x,
+            atol=1e-12,
+        )
     np.testing.assert_allclose(X[:, T].numpy(), x, atol=1e-12)
 
 
@@ -52,7 +58,9 @@ def test_constant_acceleration_closed_form(plant64):
     x0 = torch.cat([torch.full((6,), 0.1), torch.full((6,), -0.2)]).double()[None]
     X = plant64.rollout_states(x0, u.expand(1, T_steps, 6))
     t = T_steps * plant64.dt
-    np.testing.assert_allclose(X[0, -1, :6].numpy(), (0.1 - 0.2 * t + u * t * t / 2).numpy(), atol=1e-12)
+    np.testing.assert_allclose(
+        X[0, -1, :6].numpy(), (0.1 - 0.2 * t + u * t * t / 2).numpy(), atol=1e-12
+    )
     np.testing.assert_allclose(X[0, -1, 6:].numpy(), (-0.2 + u * t).numpy(), atol=1e-12)
 
 
@@ -88,7 +96,10 @@ def test_float32_is_close_to_float64(robot, rng):
 @settings(max_examples=25, deadline=None)
 @given(batch=st.integers(1, 5), horizon=st.integers(1, 40))
 def test_rollout_shapes(plant64, batch, horizon):
-    X, Y = plant64(torch.zeros(batch, 12, dtype=torch.float64), torch.zeros(batch, horizon, 6, dtype=torch.float64))
+    X, Y = plant64(
+        torch.zeros(batch, 12, dtype=torch.float64),
+        torch.zeros(batch, horizon, 6, dtype=torch.float64),
+    )
     assert X.shape == (batch, horizon + 1, 12)
     assert Y.shape == (batch, horizon, 6)
     # at rest in the neutral pose nothing is felt (y = 0)

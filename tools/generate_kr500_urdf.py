@@ -60,6 +60,7 @@ COLORS = {
 def origin(X: RigidTransform) -> str:
     rpy = RollPitchYaw(X.rotation()).vector()
     p = X.translation()
+
     def fmt(values) -> str:
         # repr keeps every digit: the DH numbers must survive the round trip exactly.
         return " ".join(repr(float(v) + 0.0) for v in values)
@@ -100,7 +101,7 @@ def cylinder_between(start, end, radius, material, tag="visual") -> str:
     X = RigidTransform(R, center)
     mat = f'<material name="{material}"/>' if tag == "visual" else ""
     return (
-        f"    <{tag}>{origin(X)}<geometry><cylinder radius=\"{radius}\" length=\"{length:.12g}\"/>"
+        f'    <{tag}>{origin(X)}<geometry><cylinder radius="{radius}" length="{length:.12g}"/>'
         f"</geometry>{mat}</{tag}>"
     )
 
@@ -137,9 +138,15 @@ def link_inertial(i: int) -> str:
 def inertial(m, com, inertia) -> str:
     c = [f"{float(v):.12g}" for v in com]
     inertia_xml = " ".join(
-        f'i{a}{b}="{float(inertia[k, l]):.12g}"'
-        for a, b, k, l in (("x", "x", 0, 0), ("x", "y", 0, 1), ("x", "z", 0, 2),
-                           ("y", "y", 1, 1), ("y", "z", 1, 2), ("z", "z", 2, 2))
+        f'i{a}{b}="{float(inertia[row, col]):.12g}"'
+        for a, b, row, col in (
+            ("x", "x", 0, 0),
+            ("x", "y", 0, 1),
+            ("x", "z", 0, 2),
+            ("y", "y", 1, 1),
+            ("y", "z", 1, 2),
+            ("z", "z", 2, 2),
+        )
     )
     return (
         f'    <inertial><origin xyz="{c[0]} {c[1]} {c[2]}" rpy="0 0 0"/>'
@@ -199,8 +206,9 @@ def main() -> None:
     cx, cy, cz = CABIN_CENTER
     sx, sy, sz = CABIN_SIZE
     box = np.array([sx, sy, sz])
-    I_cabin = np.diag([CABIN_MASS / 12 * (box[(k + 1) % 3] ** 2 + box[(k + 2) % 3] ** 2)
-                       for k in range(3)])
+    I_cabin = np.diag(
+        [CABIN_MASS / 12 * (box[(k + 1) % 3] ** 2 + box[(k + 2) % 3] ** 2) for k in range(3)]
+    )
     out += [
         '  <link name="cabin">',
         inertial(CABIN_MASS, np.zeros(3), I_cabin),
