@@ -1,0 +1,1 @@
+"""Vehicle motion: recordings (CSV), JSBSim flights, references y_ref, open-loop excitation."""
