@@ -45,6 +45,55 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_flight(args: argparse.Namespace) -> int:
+    from mca_drake.references.jsbsim_flight import fly
+    from mca_drake.references.recording import save_recording
+
+    recording = fly(args.vehicle, args.minutes * 60.0, args.seed, progress=not args.quiet)
+    save_recording(args.out, recording)
+    print(
+        f"{args.vehicle} flight, seed {args.seed}: {recording.duration_s:.0f} s at "
+        f"{recording.rate_hz:.0f} Hz written to {args.out}"
+    )
+    if args.plot:
+        from mca_drake.plotting import plot_recording, save_figure
+
+        save_figure(plot_recording(recording), args.plot)
+        print(f"plot written to {args.plot}")
+    return 0
+
+
+def _cmd_plot_recording(args: argparse.Namespace) -> int:
+    from mca_drake.plotting import plot_recording, save_figure
+    from mca_drake.references.recording import load_recording
+
+    recording = load_recording(args.recording)
+    out = args.out or str(args.recording).rsplit(".", 1)[0] + ".png"
+    save_figure(plot_recording(recording, title=str(args.recording)), out)
+    print(f"plot written to {out}")
+    return 0
+
+
+def _cmd_dataset_open_loop(args: argparse.Namespace) -> int:
+    from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
+
+    config = ExcitationConfig(
+        repetitions=args.repetitions,
+        duration_s=args.duration,
+        horizon=args.horizon,
+        seed=args.seed,
+        initial_state_fraction=args.initial_state_fraction,
+    )
+    dataset = generate_excitation_dataset(config, progress=not args.quiet)
+    dataset.save(args.out)
+    print(
+        f"{len(dataset)} segments of {config.horizon} steps "
+        f"({dataset.metadata['kept_steps']} of {dataset.metadata['simulated_steps']} simulated "
+        f"steps kept) in {dataset.metadata['generation_wall_s']:.1f} s, written to {args.out}"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mca-drake", description="Motion cueing for a KUKA KR500 motion simulator, on Drake."
@@ -68,6 +117,39 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--json", help="write the result summary to this JSON file")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_cmd_run)
+
+    flight = sub.add_parser("flight", help="fly a JSBSim aircraft and record the pilot's IMU")
+    flight.add_argument("--vehicle", default="light", help="light (c172p) or jet (global5000)")
+    flight.add_argument("--minutes", type=float, default=15.0, help="flight length, min")
+    flight.add_argument("--seed", type=int, default=0, help="seed of the scripted pilot")
+    flight.add_argument("--out", default="flight.csv", help="recording CSV to write")
+    flight.add_argument("--plot", help="also write a PNG of the six channels")
+    flight.add_argument("--quiet", action="store_true", help="no progress bar")
+    flight.set_defaults(func=_cmd_flight)
+
+    plot = sub.add_parser("plot-recording", help="plot a recording CSV (six channels, PNG)")
+    plot.add_argument("recording", help="recording CSV (t, omega_x..z, f_x..z)")
+    plot.add_argument("--out", help="PNG to write (default: next to the recording)")
+    plot.set_defaults(func=_cmd_plot_recording)
+
+    dataset = sub.add_parser("dataset", help="generate training and test datasets")
+    dataset_sub = dataset.add_subparsers(dest="dataset_kind", required=True)
+    open_loop = dataset_sub.add_parser(
+        "open-loop", help="open-loop excitation dataset (Algorithm 1; defaults: paper size)"
+    )
+    open_loop.add_argument("--repetitions", type=int, default=100)
+    open_loop.add_argument("--duration", type=float, default=20.0, help="s per simulation")
+    open_loop.add_argument("--horizon", type=int, default=256, help="n_p, steps per segment")
+    open_loop.add_argument("--seed", type=int, default=0)
+    open_loop.add_argument(
+        "--initial-state-fraction",
+        type=float,
+        default=1.0,
+        help="draw initial states from this fraction of the limits",
+    )
+    open_loop.add_argument("--out", default="open_loop.npz")
+    open_loop.add_argument("--quiet", action="store_true")
+    open_loop.set_defaults(func=_cmd_dataset_open_loop)
     return parser
 
 
@@ -77,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     np.set_printoptions(precision=4, suppress=True)
     try:
         return args.func(args)
-    except (ValueError, FileNotFoundError) as err:
+    except (ValueError, FileNotFoundError, RuntimeError) as err:
         print(f"mca-drake: error: {err}", file=sys.stderr)
         return 2
 

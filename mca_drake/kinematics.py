@@ -234,7 +234,11 @@ def head_pose_derivatives(
     dF = [[R_dot, r_dot], [0, 0]] with R_dot = [omega]x R; ddF = [[R_ddot, r_ddot], [0, 0]]
     with R_ddot = ([alpha]x + [omega]x [omega]x) R.
     """
-    motion = head_motion(q, qd, qdd, robot)
+    return pose_derivatives_from_motion(head_motion(q, qd, qdd, robot))
+
+
+def pose_derivatives_from_motion(motion: HeadMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(F, dF, ddF) of an already computed `HeadMotion` (see `head_pose_derivatives`)."""
     F = motion.X_WH
     R = F[..., :3, :3]
     W = _skew(motion.omega_W)
@@ -244,6 +248,15 @@ def head_pose_derivatives(
     ddF[..., :3, :3] = (_skew(motion.alpha_W) + W @ W) @ R
     ddF[..., :3, 3] = motion.a_W
     return F, dF, ddF
+
+
+def output_from_motion(motion: HeadMotion) -> np.ndarray:
+    """The plant output y of an already computed `HeadMotion`, shape (..., 6)."""
+    R = motion.X_WH[..., :3, :3]
+    omega_H = np.einsum("...ji,...j->...i", R, motion.omega_W)
+    f_H = np.einsum("...ji,...j->...i", R, motion.a_W - GRAVITY_W)
+    a_H_z = np.einsum("...j,...j->...", R[..., :, 2], motion.a_W)
+    return np.concatenate([omega_H, f_H[..., :2], a_H_z[..., None]], axis=-1)
 
 
 def _rotate_to_head(R: np.ndarray, dR: np.ndarray | None, v: _Jet) -> _Jet:

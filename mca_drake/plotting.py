@@ -64,3 +64,29 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> None:
     fig.savefig(buffer, format=fmt, dpi=dpi)
     plt.close(fig)
     atomic_write_bytes(path, buffer.getvalue())
+
+
+RECORDING_LABELS = (
+    "omega_x [rad/s]",
+    "omega_y [rad/s]",
+    "omega_z [rad/s]",
+    "f_x [m/s²]",
+    "f_y [m/s²]",
+    "f_z [m/s²]",
+)
+
+
+def plot_recording(recording, title: str = ""):
+    """The six channels of a vehicle recording (angular velocity, specific force) vs time."""
+    data = np.column_stack([recording.omega, recording.f])
+    fig, axes = plt.subplots(3, 2, figsize=(11, 7), sharex=True)
+    for k, ax in enumerate(axes.T.ravel()):
+        ax.plot(recording.t, data[:, k], color="C1" if k >= 3 else "C0", lw=0.8)
+        ax.set_ylabel(RECORDING_LABELS[k], fontsize=8)
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    meta = ", ".join(f"{k}: {v}" for k, v in recording.metadata.items() if k in ("vehicle", "seed"))
+    fig.suptitle(title or f"Recording ({meta})" if meta else title or "Recording")
+    fig.tight_layout()
+    return fig

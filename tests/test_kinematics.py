@@ -172,3 +172,13 @@ def test_bad_input_is_reported(robot, q, qd, qdd, match):
         kinematics.plant_output(q, qd, qdd, robot)
     with pytest.raises(ValueError, match=match):
         kinematics.plant_output_jacobians(q, qd, qdd, robot)
+
+
+def test_output_from_motion_equals_plant_output(robot, rng):
+    q, qd, qdd = random_joint_states(rng, robot, 50)
+    motion = kinematics.head_motion(q, qd, qdd, robot)
+    np.testing.assert_allclose(
+        kinematics.output_from_motion(motion),
+        kinematics.plant_output(q, qd, qdd, robot),
+        atol=1e-12,
+    )

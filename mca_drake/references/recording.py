@@ -97,7 +97,7 @@ class Recording:
         n = int(np.floor(self.duration_s / h + 1e-9)) + 1
         t = self.t[0] + h * np.arange(n)
         if self.t.size == n and np.allclose(self.t, t, rtol=0, atol=1e-9):
-            return dataclasses.replace(self, t=t)
+            return dataclasses.replace(self, metadata=dict(self.metadata))  # already uniform
         columns = [np.interp(t, self.t, c) for c in np.column_stack([self.omega, self.f]).T]
         data = np.column_stack(columns)
         return Recording(t, data[:, :3], data[:, 3:], dict(self.metadata))

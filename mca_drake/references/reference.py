@@ -1,0 +1,112 @@
+"""Motion-cueing references: a recording scaled and gravity-compensated into y_ref.
+
+    y_ref = [s_w omega_x, s_w omega_y, s_w omega_z, s_f f_x, s_f f_y, s_f (f_z - 9.81)]
+
+so that level unaccelerated flight asks for y_ref = 0, what the simulator feels at rest in its
+neutral pose. The defaults s_w = s_f = 0.5 are the customary starting point for motion
+cueing of aircraft on a robot whose accelerations are far below the vehicle's; optional
+per-channel limits clip (or softly saturate) what is asked of the robot.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from mca_drake.kinematics import GRAVITY
+from mca_drake.metrics import CHANNELS
+from mca_drake.references.recording import DEFAULT_RATE_HZ, Recording
+
+DEFAULT_ANGULAR_SCALE = 0.5
+DEFAULT_FORCE_SCALE = 0.5
+
+
+@dataclasses.dataclass
+class ReferenceScaling:
+    """How a recording becomes a reference."""
+
+    # Scale s_w on angular velocity (dimensionless).
+    angular_scale: float = DEFAULT_ANGULAR_SCALE
+    # Scale s_f on specific force (dimensionless).
+    force_scale: float = DEFAULT_FORCE_SCALE
+    # Per-channel bound on |y_ref| after scaling (rad/s, m/s^2), six values; empty: none.
+    limits: tuple[float, ...] = ()
+    # "clip" (hard) or "tanh" (smooth: limit * tanh(y / limit)).
+    limit_mode: str = "clip"
+
+    def validate(self) -> None:
+        if not (self.angular_scale >= 0 and self.force_scale >= 0):
+            raise ValueError("scale factors must be non-negative")
+        if self.limits and (len(self.limits) != 6 or min(self.limits) <= 0):
+            raise ValueError(f"limits must be six positive values; got {self.limits}")
+        if self.limit_mode not in ("clip", "tanh"):
+            raise ValueError(f"unknown limit_mode '{self.limit_mode}'; valid: clip, tanh")
+
+
+@dataclasses.dataclass
+class Reference:
+    """A motion-cueing reference sampled uniformly.
+
+    Attributes:
+        y: target outputs, shape (T, 6), channels `mca_drake.metrics.CHANNELS`.
+        time_step: sample period, s.
+        name: where it came from (a file name, a vehicle and seed).
+    """
+
+    y: np.ndarray
+    time_step: float = 1.0 / DEFAULT_RATE_HZ
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        self.y = np.asarray(self.y, dtype=float)
+        if self.y.ndim != 2 or self.y.shape[1] != len(CHANNELS) or self.y.shape[0] < 1:
+            raise ValueError(f"reference y must have shape (T, 6); got {self.y.shape}")
+        if not np.all(np.isfinite(self.y)):
+            raise ValueError("reference y has non-finite values")
+        if not self.time_step > 0:
+            raise ValueError(f"time_step must be positive; got {self.time_step}")
+
+    @property
+    def times(self) -> np.ndarray:
+        """Sample times k * time_step, s, shape (T,)."""
+        return self.time_step * np.arange(self.y.shape[0])
+
+    @property
+    def duration_s(self) -> float:
+        return self.time_step * (self.y.shape[0] - 1)
+
+    def truncated(self, duration_s: float) -> Reference:
+        """The first `duration_s` seconds (all of it if shorter)."""
+        n = min(round(duration_s / self.time_step) + 1, self.y.shape[0])
+        return Reference(self.y[:n], self.time_step, self.name)
+
+
+def reference_from_recording(
+    recording: Recording, scaling: ReferenceScaling | None = None, name: str = ""
+) -> Reference:
+    """Scales and gravity-compensates a recording into a reference (see module docstring).
+
+    The recording must be uniformly sampled (`Recording.resampled`; `load_recording` does it).
+    """
+    scaling = scaling or ReferenceScaling()
+    scaling.validate()
+    steps = np.diff(recording.t)
+    if not np.allclose(steps, steps[0], rtol=1e-6, atol=1e-9):
+        raise ValueError("recording is not uniformly sampled; call recording.resampled() first")
+    y = np.column_stack(
+        [
+            scaling.angular_scale * recording.omega,
+            scaling.force_scale * recording.f[:, :2],
+            scaling.force_scale * (recording.f[:, 2] - GRAVITY),
+        ]
+    )
+    if scaling.limits:
+        limits = np.asarray(scaling.limits)
+        y = (
+            np.clip(y, -limits, limits)
+            if scaling.limit_mode == "clip"
+            else limits * np.tanh(y / limits)
+        )
+    label = name or ", ".join(f"{k}={v}" for k, v in recording.metadata.items() if k != "format")
+    return Reference(y, float(steps[0]), label)

@@ -1,0 +1,145 @@
+"""SegmentDataset: n_p-long plant trajectories (U, X, Y, F, dF, ddF) and their file format.
+
+Both the open-loop excitation dataset (Algorithm 1) and the closed-loop NMPC dataset are
+collections of segments, as the paper's equation (12) defines them:
+
+    U   (J, n_p, 6)      joint accelerations u_t, rad/s^2
+    X   (J, n_p, 12)     states x_t = [q_t, qd_t] at the start of each step
+    Y   (J, n_p, 6)      outputs y_t = y(x_t, u_t) (the paper's y_(t+1))
+    F   (J, n_p, 4, 4)   head pose F(q_t)
+    dF  (J, n_p, 4, 4)   its first time derivative
+    ddF (J, n_p, 4, 4)   its second time derivative (with u_t)
+
+plus optional extra per-segment arrays (e.g. the reference R (J, n_p, 6) of a closed-loop
+run) and a `source` table naming where each segment came from. Files are `.npz` (numpy's
+zip of arrays, no pickle) with a JSON metadata entry, written atomically.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.metadata
+import io
+import itertools
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from mca_drake.atomic_io import atomic_write_bytes
+
+CORE_ARRAYS = ("U", "X", "Y", "F", "dF", "ddF")
+_SHAPES = {"U": (6,), "X": (12,), "Y": (6,), "F": (4, 4), "dF": (4, 4), "ddF": (4, 4)}
+FORMAT = "mca-drake segments v1"
+
+
+@dataclasses.dataclass
+class SegmentDataset:
+    """A set of J trajectory segments of n_p steps (see the module docstring for shapes).
+
+    Attributes:
+        arrays: name -> array with leading shape (J, n_p); at least the CORE_ARRAYS.
+        source: (J, k) integer table identifying each segment's origin; its column names
+            are `metadata["source_columns"]`.
+        metadata: JSON-serialisable description: configuration, seeds, versions.
+    """
+
+    arrays: dict[str, np.ndarray]
+    source: np.ndarray
+    metadata: dict
+
+    def __post_init__(self) -> None:
+        missing = [k for k in CORE_ARRAYS if k not in self.arrays]
+        if missing:
+            raise ValueError(f"segment dataset lacks arrays {missing}")
+        J, n_p = self.arrays["U"].shape[:2]
+        for name, array in self.arrays.items():
+            expected = (J, n_p, *_SHAPES[name]) if name in _SHAPES else None
+            if array.shape[:2] != (J, n_p) or (expected and array.shape != expected):
+                raise ValueError(
+                    f"array {name} has shape {array.shape}; expected {expected or (J, n_p, '...')}"
+                )
+        if self.source.shape[0] != J:
+            raise ValueError(f"source has {self.source.shape[0]} rows for {J} segments")
+
+    def __len__(self) -> int:
+        return self.arrays["U"].shape[0]
+
+    @property
+    def horizon(self) -> int:
+        """n_p, the number of steps per segment."""
+        return self.arrays["U"].shape[1]
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        # Convenience: dataset.U, dataset.X, ... (only called for missing attributes).
+        arrays = self.__dict__.get("arrays", {})
+        if name in arrays:
+            return arrays[name]
+        raise AttributeError(name)
+
+    def subset(self, index: np.ndarray) -> SegmentDataset:
+        """The segments at `index` (an integer array or boolean mask)."""
+        return SegmentDataset(
+            {k: v[index] for k, v in self.arrays.items()}, self.source[index], dict(self.metadata)
+        )
+
+    def split(
+        self, fractions: tuple[float, ...] = (0.7, 0.2, 0.1), seed: int = 0
+    ) -> tuple[SegmentDataset, ...]:
+        """Shuffles with `seed` and splits by `fractions` (default train:val:test 70:20:10)."""
+        if not np.isclose(sum(fractions), 1.0) or min(fractions) < 0:
+            raise ValueError(f"fractions must be non-negative and sum to 1; got {fractions}")
+        order = np.random.default_rng(seed).permutation(len(self))
+        bounds = np.round(np.cumsum((0.0, *fractions)) * len(self)).astype(int)
+        return tuple(self.subset(order[a:b]) for a, b in itertools.pairwise(bounds))
+
+    @staticmethod
+    def concatenate(parts: list[SegmentDataset], metadata: dict | None = None) -> SegmentDataset:
+        """Joins datasets with the same arrays and horizon."""
+        if not parts:
+            raise ValueError("nothing to concatenate")
+        names = set(parts[0].arrays)
+        for part in parts:
+            if set(part.arrays) != names or part.horizon != parts[0].horizon:
+                raise ValueError("datasets to concatenate must share arrays and horizon")
+        return SegmentDataset(
+            {k: np.concatenate([p.arrays[k] for p in parts]) for k in parts[0].arrays},
+            np.concatenate([p.source for p in parts]),
+            metadata if metadata is not None else dict(parts[0].metadata),
+        )
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Writes an .npz file atomically (no pickled objects inside)."""
+        buffer = io.BytesIO()
+        meta = json.dumps({"format": FORMAT, **self.metadata})
+        np.savez(buffer, source=self.source, metadata_json=np.array(meta), **self.arrays)
+        return atomic_write_bytes(path, buffer.getvalue())
+
+    @staticmethod
+    def load(path: str | os.PathLike) -> SegmentDataset:
+        """Reads a file written by `save`; raises ValueError if it is not one."""
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"segment dataset not found: {path}")
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                metadata = json.loads(str(data["metadata_json"]))
+                arrays = {k: data[k] for k in data.files if k not in ("source", "metadata_json")}
+                source = data["source"]
+        except (OSError, KeyError, ValueError) as err:
+            raise ValueError(f"{path} is not a segment dataset file: {err}") from err
+        if metadata.get("format") != FORMAT:
+            raise ValueError(f"{path}: unknown format {metadata.get('format')!r}; want {FORMAT}")
+        return SegmentDataset(arrays, source, metadata)
+
+
+def package_versions() -> dict[str, str]:
+    """Versions of the packages that shape generated data (for dataset metadata)."""
+    versions = {}
+    for name in ("mca-drake", "numpy", "scipy", "drake", "torch", "jsbsim"):
+        try:
+            versions[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            versions[name] = "not installed"
+    return versions
