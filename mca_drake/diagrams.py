@@ -103,3 +103,62 @@ def MakePlantDemoDiagram(
     diagram.set_name("plant_demo")
     handles = dict(plant=plant, output_log=output_log, state_log=state_log, input_log=input_log)
     return diagram, handles
+
+
+MCA_NAMES = ("nmpc-rti", "nmpc-converged")
+
+
+def AddMca(builder: DiagramBuilder, mca: str, robot: KR500, time_step: float = DEFAULT_DT):
+    """Adds the motion cueing algorithm named `mca` to `builder` and returns it.
+
+    Every MCA has input ports `state` (12) and `reference` (6) and the output port
+    `joint_acceleration` (6). Valid names: MCA_NAMES.
+    """
+    from mca_drake.nmpc import NmpcConfig
+    from mca_drake.systems.nmpc_controller import NmpcController
+
+    if mca in ("nmpc-rti", "nmpc-converged"):
+        config = NmpcConfig(mode=mca.removeprefix("nmpc-"), time_step=time_step)
+        return builder.AddNamedSystem("mca", NmpcController(config, robot))
+    raise ValueError(f"unknown MCA '{mca}'; valid: {', '.join(MCA_NAMES)}")
+
+
+def MakeAnalyticalClosedLoop(
+    reference, mca: str, robot: KR500 | None = None, time_step: float = DEFAULT_DT
+) -> tuple[Diagram, dict]:
+    """ReferenceSource -> MCA -> MotionCueingPlant, the MCA fed the plant state, with logs.
+
+    Logs (100 Hz VectorLogSinks): `reference_log`, `state_log` (x_n at t_n) and
+    `command_log`. Publishing happens before the control update at the same instant, so
+    the command logged at t_(n+1) is u_n, the one applied over [t_n, t_(n+1)).
+
+    Returns:
+        (diagram, handles) with the systems `source`, `mca`, `plant` and the three logs.
+    """
+    from mca_drake.systems import ReferenceSource
+
+    robot = robot if robot is not None else load_kr500()
+    builder = DiagramBuilder()
+    source = builder.AddNamedSystem("reference_source", ReferenceSource(reference))
+    controller = AddMca(builder, mca, robot, time_step)
+    plant = builder.AddNamedSystem("plant", MotionCueingPlant(robot=robot, time_step=time_step))
+    builder.Connect(source.GetOutputPort("reference"), controller.GetInputPort("reference"))
+    builder.Connect(plant.GetOutputPort("state"), controller.GetInputPort("state"))
+    builder.Connect(
+        controller.GetOutputPort("joint_acceleration"), plant.GetInputPort("joint_acceleration")
+    )
+    handles = dict(source=source, mca=controller, plant=plant)
+    for name, port in (
+        ("reference_log", source.GetOutputPort("reference")),
+        ("state_log", plant.GetOutputPort("state")),
+        ("command_log", controller.GetOutputPort("joint_acceleration")),
+    ):
+        handles[name] = LogVectorOutput(port, builder, time_step)
+        handles[name].set_name(name)
+    if controller.HasOutputPort("statistics"):
+        handles["statistics_log"] = LogVectorOutput(
+            controller.GetOutputPort("statistics"), builder, time_step
+        )
+    diagram = builder.Build()
+    diagram.set_name(f"closed_loop_{mca}")
+    return diagram, handles

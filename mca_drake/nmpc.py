@@ -1,0 +1,474 @@
+"""Nonlinear MPC motion cueing on the exact joint-space plant, on Drake's MathematicalProgram.
+
+Optimal control problem over a horizon of N intervals of a non-uniform grid (short intervals
+first, longer later: downsampling), with u_k (6) constant over interval k of duration T_k:
+
+    minimise   sum_k w_k ( ||y(x_k, u_k) - r_k||^2_Wy + lambda_u ||u_k||^2 + lambda_q ||q_k||^2 )
+               + lambda_qN ||q_N||^2 + lambda_qdN ||qd_N||^2
+    subject to x_(k+1) = exact double-integrator step of duration T_k     (linear)
+               -qdd_max <= u_k <= qdd_max
+               q_min <= q_k <= q_max, |qd_k| <= qd_max                  (k = 1..N)
+               stoppability: the robot can brake to rest inside [q_min, q_max] with
+               its acceleration limits, qd^2 <= 2 qdd_max (q_max - q) for qd > 0 (and
+               mirrored), enforced by chords of that parabola: a linear, conservative
+               (inner) approximation, exact at the chord ends.
+
+w_k = T_k / horizon, so the cost approximates the time average of the paper's loss
+(equation 9: output tracking, 0.1 u^2, washout q^2). The dynamics are linear, so the states
+are condensed out: the decision variables are U = (u_0, ..., u_(N-1)) only and every
+constraint is linear in U with a matrix fixed at build time; only the bounds move with x_0.
+The cost is nonlinear through y; each Gauss-Newton QP linearises y with the exact Jacobians
+of `mca_drake.kinematics`. Because the constraints are exact and linear, every QP iterate is
+feasible, and a backtracking line search on the true cost makes the `converged` mode a
+descent method that stops at a KKT point of the nonlinear program.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+import scipy.sparse as sp
+from pydrake.solvers import (
+    ClarabelSolver,
+    MathematicalProgram,
+    OsqpSolver,
+    SolverOptions,
+)
+
+from mca_drake.kinematics import plant_output, plant_output_jacobians
+from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+
+NU = NUM_JOINTS
+QP_SOLVERS = ("auto", "clarabel", "osqp")
+MODES = ("rti", "converged")
+
+
+@dataclasses.dataclass
+class NmpcConfig:
+    """NMPC settings; the weights default to the paper's loss (equation 9)."""
+
+    # Solve mode: "rti" (one Gauss-Newton QP per step) or "converged" (iterate to tolerance).
+    mode: str = "rti"
+    # Control period, s.
+    time_step: float = 0.01
+    # Prediction horizon in control periods (256 x 0.01 s = 2.56 s, the paper's).
+    horizon_steps: int = 256
+    # Number of intervals of the non-uniform grid over the horizon.
+    nodes: int = 20
+    # Weights of the six output channels (w_x, w_y, w_z, f_x, f_y, a_z) in ||y - r||^2.
+    output_weights: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
+    # Weight of ||u||^2 (rad/s^2)^-2.
+    input_weight: float = 0.1
+    # Washout weight on ||q||^2.
+    washout_weight: float = 1.0
+    # Terminal weights on ||q_N||^2 and ||qd_N||^2.
+    terminal_position_weight: float = 1.0
+    terminal_velocity_weight: float = 1.0
+    # Chords per side and joint approximating the stoppability parabola (0: no constraint).
+    stoppability_chords: int = 3
+    # QP solver: "clarabel" (interior point, accurate), "osqp" (ADMM with solution polishing,
+    # fast) or "auto" (osqp for rti, clarabel for converged).
+    qp_solver: str = "auto"
+    # OSQP's absolute and relative tolerance (polishing then recovers the active set).
+    osqp_tolerance: float = 1e-5
+    # converged mode: maximum Gauss-Newton iterations and stopping tolerances.
+    max_iterations: int = 50
+    step_tolerance: float = 1e-7
+    cost_tolerance: float = 1e-10
+
+    def validate(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"unknown NMPC mode '{self.mode}'; valid: {', '.join(MODES)}")
+        if self.qp_solver not in QP_SOLVERS:
+            valid = ", ".join(QP_SOLVERS)
+            raise ValueError(f"unknown QP solver '{self.qp_solver}'; valid: {valid}")
+        if not 1 <= self.nodes <= self.horizon_steps:
+            raise ValueError(f"nodes must be in [1, horizon_steps]; got {self.nodes}")
+        if len(self.output_weights) != 6 or min(self.output_weights) < 0:
+            raise ValueError("output_weights must be six non-negative values")
+        if min(self.input_weight, self.washout_weight) < 0 or not self.time_step > 0:
+            raise ValueError("weights must be non-negative and time_step positive")
+
+
+def make_grid(horizon_steps: int, nodes: int) -> np.ndarray:
+    """Interval lengths in control periods, shape (nodes,): non-decreasing integers that start
+    at 1 and sum to `horizon_steps`, growing geometrically (short intervals first)."""
+    if nodes == horizon_steps:
+        return np.ones(nodes, dtype=int)
+    if nodes == 1:
+        return np.array([horizon_steps])
+    # ratio rho with sum_k rho^k = horizon_steps, by bisection
+    lo, hi = 1.0, 10.0
+    for _ in range(100):
+        rho = 0.5 * (lo + hi)
+        total = (rho**nodes - 1) / (rho - 1)
+        lo, hi = (rho, hi) if total < horizon_steps else (lo, rho)
+    lengths = np.maximum(np.floor(rho ** np.arange(nodes)).astype(int), 1)
+    # hand the rounding remainder to the longest intervals, keeping the order non-decreasing
+    k = nodes - 1
+    while lengths.sum() < horizon_steps:
+        lengths[k] += 1
+        k = k - 1 if k > 0 and lengths[k - 1] + 1 <= lengths[k] else nodes - 1
+    while lengths.sum() > horizon_steps:  # floor never overshoots, but guard anyway
+        lengths[np.argmax(lengths)] -= 1
+    return np.sort(lengths)
+
+
+@dataclasses.dataclass(frozen=True)
+class SolveResult:
+    """Outcome of one NMPC solve.
+
+    Attributes:
+        U: the plan, shape (N, 6), rad/s^2 (u_k over interval k).
+        cost: the true (nonlinear) cost of U.
+        iterations: Gauss-Newton QPs solved.
+        success: whether the QPs succeeded (else U is a fallback).
+        solve_time_s: wall-clock time of the solve.
+        message: why a solve failed.
+    """
+
+    U: np.ndarray
+    cost: float
+    iterations: int
+    success: bool
+    solve_time_s: float
+    message: str = ""
+
+
+class MotionCueingOcp:
+    """The condensed optimal control problem, built once; solved from (x0, references).
+
+    Args:
+        config: the NMPC settings.
+        robot: the KR500 description (default models/kr500.urdf).
+    """
+
+    def __init__(self, config: NmpcConfig | None = None, robot: KR500 | None = None):
+        self.config = config or NmpcConfig()
+        self.config.validate()
+        self.robot = robot if robot is not None else load_kr500()
+        cfg, r = self.config, self.robot
+        self.interval_steps = make_grid(cfg.horizon_steps, cfg.nodes)
+        N = self.N = self.interval_steps.size
+        T = self.durations = self.interval_steps * cfg.time_step  # (N,)
+        self.node_times = np.concatenate([[0.0], np.cumsum(T)])  # (N + 1,)
+        self.node_steps = np.concatenate([[0], np.cumsum(self.interval_steps)])
+        self.weights = T / T.sum()
+        # Condensing: q_k = q0 + t_k qd0 + sum_j Sq[k, j] u_j; qd_k = qd0 + sum_j Sqd[k, j] u_j
+        t = self.node_times
+        Sq, Sqd = np.zeros((N + 1, N)), np.zeros((N + 1, N))
+        for k in range(1, N + 1):
+            for j in range(k):
+                Sqd[k, j] = T[j]
+                Sq[k, j] = (t[k] - t[j + 1]) * T[j] + 0.5 * T[j] ** 2
+        self.Sq, self.Sqd = Sq, Sqd
+        eye = np.eye(NU)
+        self._Gq = np.kron(Sq, eye)  # (6(N+1), 6N): d q_k / d U
+        self._Gqd = np.kron(Sqd, eye)
+
+        # Constraint rows, fixed: A U + (x0 terms) within bounds, for nodes 1..N.
+        rows, self._row_q0, self._row_qd0, lower, upper = [], [], [], [], []
+        for k in range(1, N + 1):
+            Aq, Aqd = self._Gq[6 * k : 6 * k + 6], self._Gqd[6 * k : 6 * k + 6]
+            rows += [Aq, Aqd]
+            # q_k = q0 + t_k qd0 + Aq U, qd_k = qd0 + Aqd U
+            self._row_q0 += [eye, np.zeros((6, 6))]
+            self._row_qd0 += [t[k] * eye, eye]
+            lower += [r.q_min, -r.qd_max]
+            upper += [r.q_max, r.qd_max]
+            for side in (+1.0, -1.0):
+                for v_a, v_b in self._chords():
+                    # Upper side (side = +1): the chord of q_max - v^2 / (2 a) over
+                    # [v_a, v_b] gives q + slope qd <= q_max + v_a v_b / (2 a); the lower side
+                    # is its mirror image (q -> -q, qd -> -qd). The extra h/2 in the slope
+                    # covers the discrete-time braking distance qd^2 / (2 a) + qd h / 2.
+                    a = r.qdd_max
+                    slope = (v_a + v_b) / (2 * a) + 0.5 * cfg.time_step
+                    offset = v_a * v_b / (2 * a)
+                    rows.append(side * (Aq + slope[:, None] * Aqd))
+                    self._row_q0.append(side * eye)
+                    self._row_qd0.append(side * (t[k] * eye + np.diag(slope)))
+                    lower.append(np.full(6, -np.inf))
+                    upper.append((r.q_max if side > 0 else -r.q_min) + offset)
+        self.A = np.vstack(rows)
+        self._A_q0, self._A_qd0 = np.vstack(self._row_q0), np.vstack(self._row_qd0)
+        self._lower0, self._upper0 = np.concatenate(lower), np.concatenate(upper)
+
+        # Constant quadratic terms: input and washout (over nodes 0..N-1) and terminal cost.
+        w6 = np.repeat(self.weights, NU)
+        Gq_nodes = self._Gq[: 6 * N]
+        self._H_const = 2 * (
+            cfg.input_weight * np.diag(w6)
+            + cfg.washout_weight * Gq_nodes.T @ (w6[:, None] * Gq_nodes)
+            + cfg.terminal_position_weight * self._Gq[6 * N :].T @ self._Gq[6 * N :]
+            + cfg.terminal_velocity_weight * self._Gqd[6 * N :].T @ self._Gqd[6 * N :]
+        )
+        self._W_rows = np.tile(np.asarray(cfg.output_weights, float), N) * w6
+
+        self._u_max = np.tile(r.qdd_max, N)
+        self._build_program()
+
+    def _build_program(self) -> None:
+        """The sparse QP of one Gauss-Newton step, built once. Variables: u_0..u_(N-1) and
+        x_1..x_N (multiple shooting keeps every matrix sparse; condensing would make the
+        constraint matrix dense and the QP ten times slower)."""
+        cfg, r, N = self.config, self.robot, self.N
+        prog = self.prog = MathematicalProgram()
+        self.U_var = prog.NewContinuousVariables(N, NU, "u")
+        self.X_var = prog.NewContinuousVariables(N, 2 * NU, "x")  # x_1..x_N
+        u_all, x_all = self.U_var.reshape(-1), self.X_var.reshape(-1)
+        prog.AddBoundingBoxConstraint(-self._u_max, self._u_max, u_all)
+        prog.AddBoundingBoxConstraint(np.tile(r.x_min, N), np.tile(r.x_max, N), x_all)
+        # Dynamics x_(k+1) = Phi_k x_k + Gamma_k u_k; the first row block carries x_0 in its
+        # bounds. Columns: [u (6N), x (12N)].
+        nz = 6 * N + 12 * N
+        rows, cols, vals = [], [], []
+
+        def put(r0, c0, block):
+            ii, jj = np.nonzero(block)
+            rows.extend(r0 + ii)
+            cols.extend(c0 + jj)
+            vals.extend(block[ii, jj])
+
+        eye6 = np.eye(NU)
+        self._Phi = []
+        for k, T in enumerate(self.durations):
+            Phi = np.block([[eye6, T * eye6], [np.zeros((6, 6)), eye6]])
+            Gamma = np.vstack([0.5 * T * T * eye6, T * eye6])
+            self._Phi.append(Phi)
+            r0 = 12 * k
+            put(r0, 6 * N + 12 * k, np.eye(12))  # x_(k+1)
+            put(r0, 6 * k, -Gamma)
+            if k > 0:
+                put(r0, 6 * N + 12 * (k - 1), -Phi)
+        A_eq = sp.csc_matrix((vals, (rows, cols)), shape=(12 * N, nz))
+        self._dynamics = prog.AddLinearEqualityConstraint(
+            A_eq, np.zeros(12 * N), np.concatenate([u_all, x_all])
+        ).evaluator()
+        # Stoppability chords on every node: rows side * (q_j + slope_j qd_j) <= bound_j.
+        chords = self._chords()
+        if chords:
+            rows, cols, vals, upper = [], [], [], []
+            n_rows = 0
+            for k in range(N):
+                for side in (+1.0, -1.0):
+                    for v_a, v_b in chords:
+                        slope = (v_a + v_b) / (2 * r.qdd_max) + 0.5 * cfg.time_step
+                        offset = v_a * v_b / (2 * r.qdd_max)
+                        for j in range(NU):
+                            rows += [n_rows, n_rows]
+                            cols += [12 * k + j, 12 * k + 6 + j]
+                            vals += [side, side * slope[j]]
+                            upper.append((r.q_max[j] if side > 0 else -r.q_min[j]) + offset[j])
+                            n_rows += 1
+            A_stop = sp.csc_matrix((vals, (rows, cols)), shape=(n_rows, 12 * N))
+            prog.AddLinearConstraint(A_stop, np.full(n_rows, -np.inf), np.array(upper), x_all)
+        # Gauss-Newton stage costs: node 0 on u_0 (x_0 is given), nodes k >= 1 on [x_k, u_k].
+        self._stage_costs = [
+            prog.AddQuadraticCost(np.eye(6), np.zeros(6), self.U_var[0], is_convex=True)
+        ]
+        for k in range(1, N):
+            v = np.concatenate([self.X_var[k - 1], self.U_var[k]])
+            self._stage_costs.append(
+                prog.AddQuadraticCost(np.eye(18), np.zeros(18), v, is_convex=True)
+            )
+        self._stage_costs = [c.evaluator() for c in self._stage_costs]
+        terminal = 2 * np.diag(
+            [cfg.terminal_position_weight] * 6 + [cfg.terminal_velocity_weight] * 6
+        )
+        prog.AddQuadraticCost(terminal, np.zeros(12), self.X_var[-1], is_convex=True)
+        solver = cfg.qp_solver
+        if solver == "auto":
+            solver = "osqp" if cfg.mode == "rti" else "clarabel"
+        self.qp_solver_name = solver
+        self._solver = ClarabelSolver() if solver == "clarabel" else OsqpSolver()
+        self._options = SolverOptions()
+        if solver == "osqp":
+            sid = self._solver.solver_id()
+            for name, value in (
+                ("eps_abs", cfg.osqp_tolerance),
+                ("eps_rel", cfg.osqp_tolerance),
+                ("max_iter", 20000),
+                ("polishing", 1),
+                ("verbose", 0),
+            ):
+                self._options.SetOption(sid, name, value)
+
+    def _chords(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        n = self.config.stoppability_chords
+        if n == 0:
+            return []
+        v = self.robot.qd_max[None, :] * np.linspace(0.0, 1.0, n + 1)[:, None]
+        return [(v[i], v[i + 1]) for i in range(n)]
+
+    # ----------------------------------------------------------------- evaluation
+    def states(self, x0: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Node positions and velocities for plan U (N, 6): q, qd each (N + 1, 6)."""
+        q0, qd0 = x0[:NU], x0[NU:]
+        q = q0 + self.node_times[:, None] * qd0 + self.Sq @ U
+        qd = qd0 + self.Sqd @ U
+        return q, qd
+
+    def cost(self, x0: np.ndarray, U: np.ndarray, refs: np.ndarray) -> float:
+        """The true nonlinear cost of plan U (N, 6) for references refs (N, 6)."""
+        cfg = self.config
+        q, qd = self.states(x0, U)
+        y = plant_output(q[:-1], qd[:-1], U, self.robot)
+        e = (y - refs) ** 2 @ np.asarray(cfg.output_weights, float)
+        stage = e + cfg.input_weight * (U**2).sum(1) + cfg.washout_weight * (q[:-1] ** 2).sum(1)
+        terminal = cfg.terminal_position_weight * (q[-1] ** 2).sum() + (
+            cfg.terminal_velocity_weight * (qd[-1] ** 2).sum()
+        )
+        return float(self.weights @ stage + terminal)
+
+    def constraint_bounds(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds lb <= A U <= ub for the current state (shape (rows,) each)."""
+        shift = self._A_q0 @ x0[:NU] + self._A_qd0 @ x0[NU:]
+        return self._lower0 - shift, self._upper0 - shift
+
+    def is_feasible(self, x0: np.ndarray, U: np.ndarray, tol: float = 1e-7) -> bool:
+        """Whether plan U satisfies every constraint from state x0."""
+        lb, ub = self.constraint_bounds(x0)
+        AU = self.A @ U.reshape(-1)
+        return bool(
+            np.all(AU >= lb - tol)
+            and np.all(AU <= ub + tol)
+            and np.all(np.abs(U.reshape(-1)) <= self._u_max + tol)
+        )
+
+    def gauss_newton_terms(self, x0, U, refs) -> tuple[np.ndarray, np.ndarray]:
+        """Hessian H (6N, 6N) and gradient g (6N,) of the Gauss-Newton model at U."""
+        cfg, N = self.config, self.N
+        q, qd = self.states(x0, U)
+        jac = plant_output_jacobians(q[:-1], qd[:-1], U, self.robot)
+        # J[k, :, j, :] = d y_k / d u_j = Sq[k,j] dy/dq_k + Sqd[k,j] dy/dqd_k (+ dy/du_k, j = k)
+        J = np.einsum("kj,kab->kajb", self.Sq[:N], jac.dy_dq) + np.einsum(
+            "kj,kab->kajb", self.Sqd[:N], jac.dy_dqd
+        )
+        J[np.arange(N), :, np.arange(N), :] += jac.dy_dqdd
+        J = J.reshape(6 * N, 6 * N)
+        residual = (jac.y - refs).reshape(-1)
+        WJ = self._W_rows[:, None] * J
+        H = 2 * J.T @ WJ + self._H_const
+        # gradient of the true cost at U (exact: Gauss-Newton changes only the Hessian)
+        Uf = U.reshape(-1)
+        q_nodes = q[:-1].reshape(-1)
+        w6 = np.repeat(self.weights, NU)
+        g = (
+            2 * WJ.T @ residual
+            + 2 * cfg.input_weight * w6 * Uf
+            + 2 * cfg.washout_weight * self._Gq[: 6 * N].T @ (w6 * q_nodes)
+            + 2 * cfg.terminal_position_weight * self._Gq[6 * N :].T @ q[-1]
+            + 2 * cfg.terminal_velocity_weight * self._Gqd[6 * N :].T @ qd[-1]
+        )
+        return H, g
+
+    # ----------------------------------------------------------------- solving
+    def _update_qp(self, x0: np.ndarray, U: np.ndarray, refs: np.ndarray) -> np.ndarray:
+        """Linearises y around plan U from x0 and loads the QP; returns the node states
+        (N + 1, 12) of U."""
+        cfg, N = self.config, self.N
+        q, qd = self.states(x0, U)
+        jac = plant_output_jacobians(q[:-1], qd[:-1], U, self.robot)
+        W = np.asarray(cfg.output_weights, float)
+        x_bar = np.concatenate([q, qd], axis=1)
+        c = jac.y - refs  # residual at the linearisation point
+        for k in range(N):
+            w = self.weights[k]
+            Ju = jac.dy_dqdd[k]
+            if k == 0:
+                J, v_bar, reg = Ju, U[0], cfg.input_weight * np.ones(6)
+            else:
+                J = np.hstack([jac.dy_dq[k], jac.dy_dqd[k], Ju])
+                v_bar = np.concatenate([x_bar[k], U[k]])
+                reg = np.concatenate(
+                    [cfg.washout_weight * np.ones(6), np.zeros(6), cfg.input_weight * np.ones(6)]
+                )
+            WJ = W[:, None] * J
+            Q = 2 * w * (J.T @ WJ + np.diag(reg))
+            b = 2 * w * WJ.T @ (c[k] - J @ v_bar)
+            self._stage_costs[k].UpdateCoefficients(Q, b, 0.0, is_convex=True)
+        first = self._Phi[0] @ x0
+        bounds = np.zeros(12 * N)
+        bounds[:12] = first
+        self._dynamics.set_bounds(bounds, bounds)
+        return x_bar
+
+    def _solve_qp(self, U: np.ndarray, x_bar: np.ndarray):
+        """Solves the loaded QP warm-started at (U, x_bar); (U_new, message)."""
+        guess = np.concatenate([U.reshape(-1), x_bar[1:].reshape(-1)])
+        result = self._solver.Solve(self.prog, guess, self._options)
+        if not result.is_success():
+            return None, str(result.get_solution_result())
+        U_new = result.GetSolution(self.U_var)
+        if not np.all(np.isfinite(U_new)):
+            return None, "non-finite QP solution"
+        return U_new.reshape(self.N, NU), ""
+
+    def solve(self, x0, refs, U_guess=None, mode: str | None = None) -> SolveResult:
+        """Solves from state x0 (12) for references refs (N, 6) (or (6,), held constant).
+
+        Args:
+            U_guess: warm start (N, 6); default: zeros.
+            mode: override of config.mode ("rti": one QP; "converged": to tolerance).
+        """
+        start = time.perf_counter()
+        cfg = self.config
+        mode = mode or cfg.mode
+        if mode not in MODES:
+            raise ValueError(f"unknown NMPC mode '{mode}'; valid: {', '.join(MODES)}")
+        x0 = np.asarray(x0, dtype=float)
+        refs = np.broadcast_to(np.asarray(refs, dtype=float), (self.N, 6))
+        U = np.zeros((self.N, NU)) if U_guess is None else np.array(U_guess, dtype=float)
+        U = np.clip(U, -self.robot.qdd_max, self.robot.qdd_max)
+        cost = self.cost(x0, U, refs)
+        iterations, message = 0, ""
+        for _ in range(1 if mode == "rti" else cfg.max_iterations):
+            x_bar = self._update_qp(x0, U, refs)
+            U_qp, message = self._solve_qp(U, x_bar)
+            iterations += 1
+            if U_qp is None:
+                return SolveResult(
+                    U,
+                    cost,
+                    iterations,
+                    False,
+                    time.perf_counter() - start,
+                    message=f"QP failed: {message}",
+                )
+            if mode == "rti":
+                U, cost = U_qp, self.cost(x0, U_qp, refs)
+                break
+            # Backtracking on the true cost; the segment stays feasible (linear constraints).
+            step, alpha = U_qp - U, 1.0
+            while alpha > 1e-6:
+                trial_cost = self.cost(x0, U + alpha * step, refs)
+                if trial_cost < cost:
+                    break
+                alpha *= 0.5
+            else:
+                break  # no descent along the Gauss-Newton direction: converged
+            decrease = cost - trial_cost
+            U, cost = U + alpha * step, trial_cost
+            if np.max(np.abs(alpha * step)) < cfg.step_tolerance or decrease < cfg.cost_tolerance:
+                break
+        return SolveResult(U, cost, iterations, True, time.perf_counter() - start, message)
+
+    # ----------------------------------------------------------------- warm start and fallback
+    def shift(self, U: np.ndarray, steps: int = 1) -> np.ndarray:
+        """The plan U moved `steps` control periods ahead: u_new(interval k) = u(t_k + steps dt),
+        the last value held past the horizon."""
+        idx = np.searchsorted(self.node_steps[1:], self.node_steps[:-1] + steps, side="right")
+        return U[np.minimum(idx, self.N - 1)]
+
+    def braking_plan(self, x0: np.ndarray) -> np.ndarray:
+        """The safest plan when no solve succeeds: brake every joint to rest as fast as the
+        acceleration limits allow, then hold, shape (N, 6)."""
+        qd = np.array(x0[NU:], dtype=float)
+        U = np.zeros((self.N, NU))
+        for k, T in enumerate(self.durations):
+            U[k] = np.clip(-qd / T, -self.robot.qdd_max, self.robot.qdd_max)
+            qd = qd + T * U[k]
+        return U

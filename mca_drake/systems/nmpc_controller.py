@@ -1,0 +1,123 @@
+"""NmpcController: the NMPC motion cueing algorithm as a Drake system."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from pydrake.systems.framework import Context, LeafSystem, State
+
+from mca_drake.nmpc import MotionCueingOcp, NmpcConfig
+from mca_drake.robot import KR500, NUM_JOINTS
+
+STATISTICS = ("step_time_s", "solver_failures", "braking_fallbacks", "qp_iterations")
+
+
+class NmpcController(LeafSystem):
+    """NMPC motion cueing (see `mca_drake.nmpc` for the optimal control problem).
+
+    .. pydrake_system::
+
+        name: NmpcController
+        input_ports:
+        - state
+        - reference
+        - reference_preview (optional)
+        output_ports:
+        - joint_acceleration
+        - statistics
+
+    Every `config.time_step` an unrestricted update reads `state` x = [q, qd] (12) and the
+    reference (6), solves the OCP warm-started from the shifted previous plan (kept in the
+    context), and stores the first input u_0 (rad/s^2, 6), which `joint_acceleration`
+    outputs. The update runs before the plant's discrete update at the same instant, so the
+    command computed from x_n is applied at t_n (no extra delay). Over the horizon the
+    reference is held constant (causal, the default) or, when `reference_preview` is
+    connected, read from the preview at each grid node (clamped to the preview's end).
+    A failed solve falls back to the shifted previous plan if it is still feasible, else to
+    braking; both are counted and the output is never NaN.
+
+    `statistics` (4) holds STATISTICS: the wall-clock time of the last control step (s) and
+    running counts of solver failures, braking fallbacks and QPs solved; log it to get the
+    per-step times. The plan (the next warm start) is discrete state too, so contexts can be
+    cloned and diagrams run in parallel.
+
+    Args:
+        config: NMPC settings (mode "rti" or "converged", horizon, weights, QP solver).
+        robot: the KR500 description.
+        preview_samples: length N of the `reference_preview` port (6 N values, sample after
+            sample); 0 declares no preview port.
+    """
+
+    def __init__(
+        self,
+        config: NmpcConfig | None = None,
+        robot: KR500 | None = None,
+        preview_samples: int = 0,
+    ):
+        super().__init__()
+        self._ocp = MotionCueingOcp(config, robot)
+        self._config = self._ocp.config
+        self._preview_samples = int(preview_samples)
+        self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
+        self._reference_port = self.DeclareVectorInputPort("reference", 6)
+        self._preview_port = None
+        if self._preview_samples > 0:
+            self._preview_port = self.DeclareVectorInputPort(
+                "reference_preview", 6 * self._preview_samples
+            )
+        self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
+        self._plan_index = self.DeclareDiscreteState(self._ocp.N * NUM_JOINTS)
+        self._statistics_index = self.DeclareDiscreteState(len(STATISTICS))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(self._config.time_step, 0.0, self._update)
+        self._command_port = self.DeclareStateOutputPort("joint_acceleration", self._command_index)
+        self._statistics_port = self.DeclareStateOutputPort("statistics", self._statistics_index)
+
+    @property
+    def ocp(self) -> MotionCueingOcp:
+        """The optimal control problem this controller solves."""
+        return self._ocp
+
+    def statistics(self, context: Context) -> dict[str, float]:
+        """The controller's `statistics` in its `context`, by name."""
+        values = context.get_discrete_state(self._statistics_index).value()
+        return dict(zip(STATISTICS, (float(v) for v in values), strict=True))
+
+    def _node_references(self, context: Context) -> np.ndarray:
+        reference = self._reference_port.Eval(context)
+        if self._preview_port is not None and self._preview_port.HasValue(context):
+            preview = self._preview_port.Eval(context).reshape(self._preview_samples, 6)
+            rows = np.minimum(self._ocp.node_steps[:-1], self._preview_samples - 1)
+            return preview[rows]
+        return np.broadcast_to(reference, (self._ocp.N, 6))
+
+    def _update(self, context: Context, state: State) -> None:
+        start = time.perf_counter()
+        x = self._state_port.Eval(context)
+        refs = self._node_references(context)
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(refs))):
+            raise RuntimeError(
+                f"NmpcController: non-finite state or reference at t = {context.get_time()} s"
+            )
+        plan = context.get_discrete_state(self._plan_index).value().reshape(-1, NUM_JOINTS)
+        _, failures, fallbacks, iterations = context.get_discrete_state(
+            self._statistics_index
+        ).value()
+        warm = self._ocp.shift(plan)
+        result = self._ocp.solve(x, refs, U_guess=warm)
+        plan = result.U
+        if not result.success:
+            failures += 1
+            if self._ocp.is_feasible(x, warm):
+                plan = warm
+            else:
+                plan = self._ocp.braking_plan(x)
+                fallbacks += 1
+        discrete = state.get_mutable_discrete_state()
+        discrete.set_value(self._command_index, plan[0])
+        discrete.set_value(self._plan_index, plan.reshape(-1))
+        step_time = time.perf_counter() - start
+        discrete.set_value(
+            self._statistics_index,
+            [step_time, failures, fallbacks, iterations + result.iterations],
+        )
