@@ -112,13 +112,11 @@ def run_closed_loop(
         "cc": score.cc.tolist(),
         "step_time_s": step_time_summary(step_times),
         "violations": usage.violations(),
-        "safety_interventions": 0,
+        "safety_interventions": int(statistics[n, 2]) if statistics is not None else 0,
         "solver_failures": int(statistics[n, 1]) if statistics is not None else 0,
         "realtime_factor": duration / max(wall_s, 1e-9),
         "wall_time_s": wall_s,
     }
-    if statistics is not None:
-        summary["braking_fallbacks"] = int(statistics[n, 2])
     result = ClosedLoopResult(np.arange(n) * h, ref, states, commands, outputs, step_times, summary)
     if json_path:
         atomic_write_json(json_path, summary)

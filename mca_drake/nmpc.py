@@ -8,10 +8,12 @@ first, longer later: downsampling), with u_k (6) constant over interval k of dur
     subject to x_(k+1) = exact double-integrator step of duration T_k     (linear)
                -qdd_max <= u_k <= qdd_max
                q_min <= q_k <= q_max, |qd_k| <= qd_max                  (k = 1..N)
-               stoppability: the robot can brake to rest inside [q_min, q_max] with
-               its acceleration limits, qd^2 <= 2 qdd_max (q_max - q) for qd > 0 (and
-               mirrored), enforced by chords of that parabola: a linear, conservative
-               (inner) approximation, exact at the chord ends.
+               u_0 inside the exact viability interval of `mca_drake.safety`: the robot
+               can always brake to rest inside its limits (the safety guarantee)
+               stoppability at the later nodes, q + qd^2 / (2 qdd_max) <= q_max (and
+               mirrored), by tangents of that parabola: a linear outer approximation
+               that every braking trajectory from a viable state satisfies, so the QP
+               is always feasible while the exact constraint on u_0 keeps it safe.
 
 w_k = T_k / horizon, so the cost approximates the time average of the paper's loss
 (equation 9: output tracking, 0.1 u^2, washout q^2). The dynamics are linear, so the states
@@ -34,11 +36,13 @@ from pydrake.solvers import (
     ClarabelSolver,
     MathematicalProgram,
     OsqpSolver,
+    SolutionResult,
     SolverOptions,
 )
 
 from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.safety import viable_acceleration_bounds
 
 NU = NUM_JOINTS
 QP_SOLVERS = ("auto", "clarabel", "osqp")
@@ -66,17 +70,23 @@ class NmpcConfig:
     # Terminal weights on ||q_N||^2 and ||qd_N||^2.
     terminal_position_weight: float = 1.0
     terminal_velocity_weight: float = 1.0
-    # Chords per side and joint approximating the stoppability parabola (0: no constraint).
-    stoppability_chords: int = 3
+    # Tangents per side and joint approximating the stoppability parabola at the later nodes.
+    stoppability_tangents: int = 3
     # QP solver: "clarabel" (interior point, accurate), "osqp" (ADMM with solution polishing,
     # fast) or "auto" (osqp for rti, clarabel for converged).
     qp_solver: str = "auto"
     # OSQP's absolute and relative tolerance (polishing then recovers the active set).
-    osqp_tolerance: float = 1e-5
-    # converged mode: maximum Gauss-Newton iterations and stopping tolerances.
+    osqp_tolerance: float = 1e-4
+    # Clarabel's gap and feasibility tolerances: tight, so that the active set is exact and
+    # the converged mode stops at a KKT point of the nonlinear program.
+    clarabel_tolerance: float = 1e-10
+    # The plan keeps this fraction of every limit in reserve (positions: of the range), so
+    # that solver tolerances never turn into limit violations.
+    limit_margin: float = 1e-3
+    # converged mode: maximum Gauss-Newton iterations, and the stop when the largest change
+    # of u in an iteration falls below step_tolerance (rad/s^2).
     max_iterations: int = 50
-    step_tolerance: float = 1e-7
-    cost_tolerance: float = 1e-10
+    step_tolerance: float = 1e-6
 
     def validate(self) -> None:
         if self.mode not in MODES:
@@ -122,7 +132,7 @@ class SolveResult:
 
     Attributes:
         U: the plan, shape (N, 6), rad/s^2 (u_k over interval k).
-        cost: the true (nonlinear) cost of U.
+        cost: the true (nonlinear) cost of U (converged mode; NaN in rti mode, call `cost`).
         iterations: Gauss-Newton QPs solved.
         success: whether the QPs succeeded (else U is a fallback).
         solve_time_s: wall-clock time of the solve.
@@ -135,6 +145,36 @@ class SolveResult:
     success: bool
     solve_time_s: float
     message: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
+class PlanningLimits:
+    """The limits the plan respects: Table I's, less a small reserve (shape (6,) each)."""
+
+    q_min: np.ndarray
+    q_max: np.ndarray
+    qd_max: np.ndarray
+    qdd_max: np.ndarray
+
+    @property
+    def x_min(self) -> np.ndarray:
+        return np.concatenate([self.q_min, -self.qd_max])
+
+    @property
+    def x_max(self) -> np.ndarray:
+        return np.concatenate([self.q_max, self.qd_max])
+
+
+def _planning_limits(robot: KR500, margin: float) -> PlanningLimits:
+    if not 0 <= margin < 0.1:
+        raise ValueError(f"limit_margin must be in [0, 0.1); got {margin}")
+    reserve = margin * (robot.q_max - robot.q_min)
+    return PlanningLimits(
+        robot.q_min + reserve,
+        robot.q_max - reserve,
+        (1 - margin) * robot.qd_max,
+        (1 - margin) * robot.qdd_max,
+    )
 
 
 class MotionCueingOcp:
@@ -150,6 +190,7 @@ class MotionCueingOcp:
         self.config.validate()
         self.robot = robot if robot is not None else load_kr500()
         cfg, r = self.config, self.robot
+        self.limits = r = _planning_limits(r, cfg.limit_margin)
         self.interval_steps = make_grid(cfg.horizon_steps, cfg.nodes)
         N = self.N = self.interval_steps.size
         T = self.durations = self.interval_steps * cfg.time_step  # (N,)
@@ -179,14 +220,9 @@ class MotionCueingOcp:
             lower += [r.q_min, -r.qd_max]
             upper += [r.q_max, r.qd_max]
             for side in (+1.0, -1.0):
-                for v_a, v_b in self._chords():
-                    # Upper side (side = +1): the chord of q_max - v^2 / (2 a) over
-                    # [v_a, v_b] gives q + slope qd <= q_max + v_a v_b / (2 a); the lower side
-                    # is its mirror image (q -> -q, qd -> -qd). The extra h/2 in the slope
-                    # covers the discrete-time braking distance qd^2 / (2 a) + qd h / 2.
-                    a = r.qdd_max
-                    slope = (v_a + v_b) / (2 * a) + 0.5 * cfg.time_step
-                    offset = v_a * v_b / (2 * a)
+                for slope, offset in self._tangents():
+                    # Upper side (side = +1): q + slope qd <= q_max + offset; the lower side
+                    # is its mirror image (q -> -q, qd -> -qd).
                     rows.append(side * (Aq + slope[:, None] * Aqd))
                     self._row_q0.append(side * eye)
                     self._row_qd0.append(side * (t[k] * eye + np.diag(slope)))
@@ -214,12 +250,18 @@ class MotionCueingOcp:
         """The sparse QP of one Gauss-Newton step, built once. Variables: u_0..u_(N-1) and
         x_1..x_N (multiple shooting keeps every matrix sparse; condensing would make the
         constraint matrix dense and the QP ten times slower)."""
-        cfg, r, N = self.config, self.robot, self.N
+        cfg, r, N = self.config, self.limits, self.N
         prog = self.prog = MathematicalProgram()
         self.U_var = prog.NewContinuousVariables(N, NU, "u")
         self.X_var = prog.NewContinuousVariables(N, 2 * NU, "x")  # x_1..x_N
         u_all, x_all = self.U_var.reshape(-1), self.X_var.reshape(-1)
-        prog.AddBoundingBoxConstraint(-self._u_max, self._u_max, u_all)
+        self._first_input_box = prog.AddBoundingBoxConstraint(
+            -r.qdd_max, r.qdd_max, self.U_var[0]
+        ).evaluator()
+        if N > 1:
+            prog.AddBoundingBoxConstraint(
+                -self._u_max[6:], self._u_max[6:], self.U_var[1:].reshape(-1)
+            )
         prog.AddBoundingBoxConstraint(np.tile(r.x_min, N), np.tile(r.x_max, N), x_all)
         # Dynamics x_(k+1) = Phi_k x_k + Gamma_k u_k; the first row block carries x_0 in its
         # bounds. Columns: [u (6N), x (12N)].
@@ -247,21 +289,20 @@ class MotionCueingOcp:
         self._dynamics = prog.AddLinearEqualityConstraint(
             A_eq, np.zeros(12 * N), np.concatenate([u_all, x_all])
         ).evaluator()
-        # Stoppability chords on every node: rows side * (q_j + slope_j qd_j) <= bound_j.
-        chords = self._chords()
-        if chords:
+        # Stoppability tangents on every node: rows side * (q_j + slope_j qd_j) <= bound_j.
+        tangents = self._tangents()
+        if tangents:
             rows, cols, vals, upper = [], [], [], []
             n_rows = 0
             for k in range(N):
                 for side in (+1.0, -1.0):
-                    for v_a, v_b in chords:
-                        slope = (v_a + v_b) / (2 * r.qdd_max) + 0.5 * cfg.time_step
-                        offset = v_a * v_b / (2 * r.qdd_max)
+                    limit = r.q_max if side > 0 else -r.q_min
+                    for slope, offset in tangents:
                         for j in range(NU):
                             rows += [n_rows, n_rows]
                             cols += [12 * k + j, 12 * k + 6 + j]
                             vals += [side, side * slope[j]]
-                            upper.append((r.q_max[j] if side > 0 else -r.q_min[j]) + offset[j])
+                            upper.append(limit[j] + offset[j])
                             n_rows += 1
             A_stop = sp.csc_matrix((vals, (rows, cols)), shape=(n_rows, 12 * N))
             prog.AddLinearConstraint(A_stop, np.full(n_rows, -np.inf), np.array(upper), x_all)
@@ -285,8 +326,11 @@ class MotionCueingOcp:
         self.qp_solver_name = solver
         self._solver = ClarabelSolver() if solver == "clarabel" else OsqpSolver()
         self._options = SolverOptions()
+        sid = self._solver.solver_id()
+        if solver == "clarabel":
+            for name in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
+                self._options.SetOption(sid, name, cfg.clarabel_tolerance)
         if solver == "osqp":
-            sid = self._solver.solver_id()
             for name, value in (
                 ("eps_abs", cfg.osqp_tolerance),
                 ("eps_rel", cfg.osqp_tolerance),
@@ -296,12 +340,14 @@ class MotionCueingOcp:
             ):
                 self._options.SetOption(sid, name, value)
 
-    def _chords(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        n = self.config.stoppability_chords
-        if n == 0:
-            return []
-        v = self.robot.qd_max[None, :] * np.linspace(0.0, 1.0, n + 1)[:, None]
-        return [(v[i], v[i + 1]) for i in range(n)]
+    def _tangents(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(slope, offset) per tangent of the stopping parabola q = q_max - v^2 / (2 a) at
+        v = qd_max i / n (i = 1..n): q + (v / a) qd <= q_max + v^2 / (2 a)."""
+        n, lim = self.config.stoppability_tangents, self.limits
+        return [
+            (v / lim.qdd_max, v * v / (2 * lim.qdd_max))
+            for v in (lim.qd_max * i / n for i in range(1, n + 1))
+        ]
 
     # ----------------------------------------------------------------- evaluation
     def states(self, x0: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -328,14 +374,29 @@ class MotionCueingOcp:
         shift = self._A_q0 @ x0[:NU] + self._A_qd0 @ x0[NU:]
         return self._lower0 - shift, self._upper0 - shift
 
+    def input_bounds(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds on U (6N each): the acceleration limits, and for u_0 the exact viability
+        interval (`mca_drake.safety`), which keeps the robot able to stop inside its
+        (planning) limits whatever the rest of the plan does."""
+        lim = self.limits
+        lo0, hi0, _ = viable_acceleration_bounds(
+            x0[:NU], x0[NU:], lim.q_min, lim.q_max, lim.qd_max, lim.qdd_max, self.config.time_step
+        )
+        lo, hi = -self._u_max.copy(), self._u_max.copy()
+        lo[:NU], hi[:NU] = lo0, hi0
+        return lo, hi
+
     def is_feasible(self, x0: np.ndarray, U: np.ndarray, tol: float = 1e-7) -> bool:
         """Whether plan U satisfies every constraint from state x0."""
         lb, ub = self.constraint_bounds(x0)
         AU = self.A @ U.reshape(-1)
+        lo, hi = self.input_bounds(x0)
+        u = U.reshape(-1)
         return bool(
             np.all(AU >= lb - tol)
             and np.all(AU <= ub + tol)
-            and np.all(np.abs(U.reshape(-1)) <= self._u_max + tol)
+            and np.all(u >= lo - tol)
+            and np.all(u <= hi + tol)
         )
 
     def gauss_newton_terms(self, x0, U, refs) -> tuple[np.ndarray, np.ndarray]:
@@ -400,8 +461,11 @@ class MotionCueingOcp:
         """Solves the loaded QP warm-started at (U, x_bar); (U_new, message)."""
         guess = np.concatenate([U.reshape(-1), x_bar[1:].reshape(-1)])
         result = self._solver.Solve(self.prog, guess, self._options)
-        if not result.is_success():
-            return None, str(result.get_solution_result())
+        status = result.get_solution_result()
+        # OSQP stopped by its iteration limit still holds a usable approximate step (rti
+        # takes one approximate step by design; the viability clamp guards the command).
+        if not (result.is_success() or status == SolutionResult.kIterationLimit):
+            return None, str(status)
         U_new = result.GetSolution(self.U_var)
         if not np.all(np.isfinite(U_new)):
             return None, "non-finite QP solution"
@@ -422,8 +486,11 @@ class MotionCueingOcp:
         x0 = np.asarray(x0, dtype=float)
         refs = np.broadcast_to(np.asarray(refs, dtype=float), (self.N, 6))
         U = np.zeros((self.N, NU)) if U_guess is None else np.array(U_guess, dtype=float)
-        U = np.clip(U, -self.robot.qdd_max, self.robot.qdd_max)
-        cost = self.cost(x0, U, refs)
+        lo, hi = self.input_bounds(x0)
+        self._first_input_box.set_bounds(lo[:NU], hi[:NU])
+        U = np.clip(U.reshape(-1), lo, hi).reshape(self.N, NU)
+        # The rti mode needs no cost (it takes the full Gauss-Newton step); skip the work.
+        cost = self.cost(x0, U, refs) if mode == "converged" else float("nan")
         iterations, message = 0, ""
         for _ in range(1 if mode == "rti" else cfg.max_iterations):
             x_bar = self._update_qp(x0, U, refs)
@@ -439,20 +506,22 @@ class MotionCueingOcp:
                     message=f"QP failed: {message}",
                 )
             if mode == "rti":
-                U, cost = U_qp, self.cost(x0, U_qp, refs)
+                U = U_qp
                 break
             # Backtracking on the true cost; the segment stays feasible (linear constraints).
+            # A rise within the QP's accuracy (about 1e-9 relative) is accepted, so that the
+            # iteration can finish converging in U instead of stalling on round-off.
             step, alpha = U_qp - U, 1.0
-            while alpha > 1e-6:
+            allowance = 1e-9 * max(1.0, abs(cost))
+            while True:
                 trial_cost = self.cost(x0, U + alpha * step, refs)
-                if trial_cost < cost:
+                if trial_cost <= cost + allowance or alpha < 1e-6:
                     break
                 alpha *= 0.5
-            else:
+            if trial_cost > cost + allowance:
                 break  # no descent along the Gauss-Newton direction: converged
-            decrease = cost - trial_cost
             U, cost = U + alpha * step, trial_cost
-            if np.max(np.abs(alpha * step)) < cfg.step_tolerance or decrease < cfg.cost_tolerance:
+            if np.max(np.abs(alpha * step)) < cfg.step_tolerance:
                 break
         return SolveResult(U, cost, iterations, True, time.perf_counter() - start, message)
 

@@ -9,8 +9,9 @@ from pydrake.systems.framework import Context, LeafSystem, State
 
 from mca_drake.nmpc import MotionCueingOcp, NmpcConfig
 from mca_drake.robot import KR500, NUM_JOINTS
+from mca_drake.safety import viable_acceleration_bounds
 
-STATISTICS = ("step_time_s", "solver_failures", "braking_fallbacks", "qp_iterations")
+STATISTICS = ("step_time_s", "solver_failures", "safety_interventions", "qp_iterations")
 
 
 class NmpcController(LeafSystem):
@@ -34,11 +35,12 @@ class NmpcController(LeafSystem):
     command computed from x_n is applied at t_n (no extra delay). Over the horizon the
     reference is held constant (causal, the default) or, when `reference_preview` is
     connected, read from the preview at each grid node (clamped to the preview's end).
-    A failed solve falls back to the shifted previous plan if it is still feasible, else to
-    braking; both are counted and the output is never NaN.
+    A failed solve falls back to the shifted previous plan. Whatever the plan, the command
+    passes the viability clamp of `mca_drake.safety` (the robot can always brake inside its
+    limits); failures and clamp interventions are counted and the output is never NaN.
 
     `statistics` (4) holds STATISTICS: the wall-clock time of the last control step (s) and
-    running counts of solver failures, braking fallbacks and QPs solved; log it to get the
+    running counts of solver failures, safety-filter interventions and QPs solved; log it to get the
     per-step times. The plan (the next warm start) is discrete state too, so contexts can be
     cloned and diagrams run in parallel.
 
@@ -100,7 +102,8 @@ class NmpcController(LeafSystem):
                 f"NmpcController: non-finite state or reference at t = {context.get_time()} s"
             )
         plan = context.get_discrete_state(self._plan_index).value().reshape(-1, NUM_JOINTS)
-        _, failures, fallbacks, iterations = context.get_discrete_state(
+        r, h = self._ocp.robot, self._config.time_step
+        _, failures, interventions, iterations = context.get_discrete_state(
             self._statistics_index
         ).value()
         warm = self._ocp.shift(plan)
@@ -108,16 +111,21 @@ class NmpcController(LeafSystem):
         plan = result.U
         if not result.success:
             failures += 1
-            if self._ocp.is_feasible(x, warm):
-                plan = warm
-            else:
-                plan = self._ocp.braking_plan(x)
-                fallbacks += 1
+            plan = warm  # the shifted previous plan; its u_0 is made viable below
+        # Safety filter: u_0 into the exact viability interval of the true limits (the QP
+        # already plans inside slightly tighter ones; this catches solver tolerances and
+        # failures).
+        lo, hi, viable = viable_acceleration_bounds(
+            x[:NUM_JOINTS], x[NUM_JOINTS:], r.q_min, r.q_max, r.qd_max, r.qdd_max, h
+        )
+        command = np.clip(plan[0], lo, hi)
+        if np.any(np.abs(command - plan[0]) > 1e-9) or not viable.all():
+            interventions += 1
         discrete = state.get_mutable_discrete_state()
-        discrete.set_value(self._command_index, plan[0])
+        discrete.set_value(self._command_index, command)
         discrete.set_value(self._plan_index, plan.reshape(-1))
         step_time = time.perf_counter() - start
         discrete.set_value(
             self._statistics_index,
-            [step_time, failures, fallbacks, iterations + result.iterations],
+            [step_time, failures, interventions, iterations + result.iterations],
         )

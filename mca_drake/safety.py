@@ -1,0 +1,77 @@
+"""Joint-limit viability: which accelerations keep the robot able to stop inside its limits.
+
+A joint at (q, qd) with acceleration limit a can brake to rest below q_max exactly when
+
+    q + max(qd, 0)^2 / (2 a) <= q_max                                   (stoppable)
+
+and mirrored for q_min. Under the exact zero-order-hold step of period h, braking at -a
+keeps a stoppable state stoppable (the left side is invariant: q' + qd'^2 / 2a =
+q + qd^2 / 2a), so the set is viable. `viable_acceleration_bounds` gives, per joint, the
+interval of u for which the next state x' = step(x, u) is stoppable, within |qd'| <= qd_max
+and |u| <= a: every u in it keeps the robot inside its limits forever (by braking later),
+and the interval is never empty from a viable state. Clamping any command into it is the
+safety filter ("viability clamp") that every MCA can use.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_U_TOL = 1e-6  # rad/s^2
+
+
+def _upper_bound(q, qd, q_max, qd_max, a, h):
+    """Largest u keeping the upper side viable: stoppability below q_max after one step,
+    qd' <= qd_max and q' <= q_max. Shapes (..., 6)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # q' + qd'^2 / 2a <= q_max with q' = q + h qd + h^2 u / 2, qd' = qd + h u (qd' >= 0):
+        # A2 u^2 + B1 u + C <= 0
+        A2 = h * h / (2 * a)
+        B1 = h * h / 2 + h * qd / a
+        C = q + h * qd + qd * qd / (2 * a) - q_max
+        disc = B1 * B1 - 4 * A2 * C
+        root = (-B1 + np.sqrt(np.maximum(disc, 0.0))) / (2 * A2)
+        # On qd' >= 0 (u >= -qd / h) the left side increases with u, so the bound is the
+        # larger root when it lies there; otherwise no u with qd' >= 0 is stoppable and u
+        # must make qd' negative (then only q' <= q_max, the position bound, remains).
+        stop = np.where((disc >= 0) & (qd + h * root >= 0), root, -qd / h)
+    velocity = (qd_max - qd) / h
+    position = 2 * (q_max - q - h * qd) / (h * h)
+    return np.minimum(np.minimum(stop, velocity), np.minimum(position, a))
+
+
+def viable_acceleration_bounds(q, qd, q_min, q_max, qd_max, qdd_max, h):
+    """Per-joint interval [lo, hi] of accelerations (rad/s^2) that keep the robot viable.
+
+    Args:
+        q, qd: joint positions (rad) and velocities (rad/s), shape (..., 6).
+        q_min, q_max, qd_max, qdd_max: limits, shape (6,).
+        h: control period, s.
+
+    Returns:
+        (lo, hi, viable): lo <= hi where `viable`; where the state is already not viable
+        (lo > hi, e.g. after a disturbance) both are set to the strongest braking command,
+        -sign(qd) qdd_max, and `viable` is False.
+    """
+    q, qd = np.asarray(q, float), np.asarray(qd, float)
+    a = np.asarray(qdd_max, float)
+    hi = _upper_bound(q, qd, q_max, qd_max, a, h)
+    lo = -_upper_bound(-q, -qd, -np.asarray(q_min, float), qd_max, a, h)
+    lo, hi = np.maximum(lo, -a), np.minimum(hi, a)
+    # On the stopping boundary the braking command is the bound itself; round-off of order
+    # 1e-12 may put it on the wrong side, which a tolerance of 1e-6 rad/s^2 (5e-11 rad of
+    # position per step) absorbs.
+    viable = lo <= hi + _U_TOL
+    hi = np.maximum(hi, lo)
+    brake = np.clip(-qd / h, -a, a)
+    lo = np.where(viable, lo, brake)
+    hi = np.where(viable, hi, brake)
+    return lo, hi, viable
+
+
+def is_stoppable(q, qd, q_min, q_max, qdd_max, tol: float = 1e-9) -> np.ndarray:
+    """Whether each joint can brake to rest inside [q_min, q_max], shape (..., 6)."""
+    q, qd = np.asarray(q, float), np.asarray(qd, float)
+    reach_up = q + np.maximum(qd, 0) ** 2 / (2 * qdd_max)
+    reach_down = q - np.minimum(qd, 0) ** 2 / (2 * qdd_max)
+    return (reach_up <= q_max + tol) & (reach_down >= q_min - tol)

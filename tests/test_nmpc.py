@@ -1,0 +1,201 @@
+"""NMPC: optimality (KKT, an independent solver), grid, warm start, limits and fallbacks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.optimize
+
+from mca_drake.evaluation import run_closed_loop
+from mca_drake.nmpc import MotionCueingOcp, NmpcConfig, make_grid
+from mca_drake.references.reference import Reference
+
+SMALL = dict(horizon_steps=40, nodes=6)
+REF = np.array([0.15, -0.1, 0.2, 1.2, -0.8, 0.6])
+
+
+@pytest.fixture(scope="module")
+def small_ocp(robot):
+    config = NmpcConfig(
+        mode="converged", qp_solver="clarabel", step_tolerance=1e-9, max_iterations=100, **SMALL
+    )
+    return MotionCueingOcp(config, robot)
+
+
+def x_start(robot):
+    return np.r_[0.3 * robot.q_max * np.array([1, 0.5, -0.5, 1, 0.5, -1]), 0.2 * robot.qd_max]
+
+
+def test_grid_is_non_uniform_and_covers_the_horizon():
+    grid = make_grid(256, 20)
+    assert grid.sum() == 256 and grid[0] == 1 and np.all(np.diff(grid) >= 0)
+    assert grid[-1] > 10 * grid[0]
+    np.testing.assert_array_equal(make_grid(8, 8), np.ones(8))
+
+
+def test_gradient_is_exact(small_ocp, robot, rng):
+    x0 = x_start(robot)
+    U = rng.uniform(-0.5, 0.5, size=(small_ocp.N, 6)) * robot.qdd_max
+    refs = np.broadcast_to(REF, (small_ocp.N, 6))
+    _, g = small_ocp.gauss_newton_terms(x0, U, refs)
+    eps = 1e-6
+    numeric = np.zeros(U.size)
+    for i in range(U.size):
+        d = np.zeros(U.size)
+        d[i] = eps
+        plus = small_ocp.cost(x0, U + d.reshape(U.shape), refs)
+        minus = small_ocp.cost(x0, U - d.reshape(U.shape), refs)
+        numeric[i] = (plus - minus) / (2 * eps)
+    np.testing.assert_allclose(g, numeric, atol=1e-7, rtol=1e-6)
+
+
+def active_constraints(ocp, x0, U, tol=1e-5):
+    """Outward normals of the active constraints at U (condensed rows and input bounds)."""
+    lb, ub = ocp.constraint_bounds(x0)
+    AU = ocp.A @ U.reshape(-1)
+    normals = [ocp.A[i] for i in np.flatnonzero(AU >= ub - tol)]
+    normals += [-ocp.A[i] for i in np.flatnonzero(AU <= lb + tol)]
+    u, u_max = U.reshape(-1), np.tile(ocp.limits.qdd_max, ocp.N)
+    eye = np.eye(u.size)
+    normals += [eye[i] for i in np.flatnonzero(u >= u_max - tol)]
+    normals += [-eye[i] for i in np.flatnonzero(u <= -u_max + tol)]
+    return np.array(normals).reshape(-1, u.size)
+
+
+@pytest.mark.parametrize("ref_scale", [1.0, 6.0])  # 6x pushes constraints active
+def test_converged_solution_satisfies_kkt(small_ocp, robot, ref_scale):
+    x0 = x_start(robot)
+    result = small_ocp.solve(x0, ref_scale * REF)
+    assert result.success
+    U = result.U
+    assert small_ocp.is_feasible(x0, U, tol=1e-6)
+    refs = np.broadcast_to(ref_scale * REF, (small_ocp.N, 6))
+    _, g = small_ocp.gauss_newton_terms(x0, U, refs)
+    N_act = active_constraints(small_ocp, x0, U)
+    # stationarity: g + N_act' lambda = 0 with lambda >= 0 (non-negative least squares)
+    if N_act.size:
+        lam, residual = scipy.optimize.nnls(N_act.T, -g)
+    else:
+        residual = np.linalg.norm(g)
+    assert residual <= 1e-5 * max(1.0, np.linalg.norm(g)), (residual, np.linalg.norm(g))
+    if ref_scale > 1:
+        assert N_act.shape[0] > 0  # the test exercised active constraints
+
+
+@pytest.mark.parametrize("ref_scale", [1.0, 6.0])
+def test_converged_agrees_with_scipy_slsqp(small_ocp, robot, ref_scale):
+    """An independent solver (SciPy SLSQP) on the same nonlinear program reaches the same
+    cost to 1e-4."""
+    x0 = x_start(robot)
+    refs = np.broadcast_to(ref_scale * REF, (small_ocp.N, 6))
+    ours = small_ocp.solve(x0, refs)
+    lb, ub = small_ocp.constraint_bounds(x0)
+    finite_lb, finite_ub = np.isfinite(lb), np.isfinite(ub)
+    A = small_ocp.A
+    constraints = [
+        {
+            "type": "ineq",
+            "fun": lambda u: ub[finite_ub] - A[finite_ub] @ u,
+            "jac": lambda u: -A[finite_ub],
+        },
+        {
+            "type": "ineq",
+            "fun": lambda u: A[finite_lb] @ u - lb[finite_lb],
+            "jac": lambda u: A[finite_lb],
+        },
+    ]
+    u_max = np.tile(small_ocp.limits.qdd_max, small_ocp.N)
+
+    def fun(u):
+        return small_ocp.cost(x0, u.reshape(-1, 6), refs)
+
+    def jac(u):
+        return small_ocp.gauss_newton_terms(x0, u.reshape(-1, 6), refs)[1]
+
+    theirs = scipy.optimize.minimize(
+        fun,
+        np.zeros(6 * small_ocp.N),
+        jac=jac,
+        method="SLSQP",
+        bounds=list(zip(-u_max, u_max, strict=True)),
+        constraints=constraints,
+        options={"ftol": 1e-14, "maxiter": 1000},
+    )
+    assert theirs.success, theirs.message
+    assert ours.cost == pytest.approx(theirs.fun, abs=1e-4)
+    assert ours.cost <= theirs.fun + 1e-6
+
+
+def test_shift_moves_the_plan_one_period(robot):
+    ocp = MotionCueingOcp(NmpcConfig(horizon_steps=40, nodes=6), robot)
+    U = np.arange(ocp.N)[:, None] * np.ones(6)
+    shifted = ocp.shift(U)
+    # u_new(interval k) = u(t_k + h): interval k of length 1 step becomes interval k + 1
+    for k, start in enumerate(ocp.node_steps[:-1]):
+        owner = np.searchsorted(ocp.node_steps[1:], start + 1, side="right")
+        assert shifted[k, 0] == min(owner, ocp.N - 1)
+
+
+def extreme_reference(duration_s=12.0):
+    """Steps of 3 g in each force channel and spinning at 3 rad/s: far beyond the robot."""
+    t = np.arange(0.0, duration_s + 1e-9, 0.01)
+    y = np.zeros((t.size, 6))
+    g3 = 3 * 9.81
+    y[:, 3] = np.where((t // 2) % 2 == 0, g3, -g3)
+    y[:, 4] = np.where((t // 3) % 2 == 0, -g3, g3)
+    y[:, 5] = np.where(t > 4, g3, 0.0)
+    y[:, 2] = 3.0
+    y[:, 0] = np.where(t > 6, 3.0, -3.0)
+    return Reference(y, 0.01, "extreme")
+
+
+@pytest.mark.parametrize(
+    ("mca", "duration"),
+    [("nmpc-rti", 8.0), pytest.param("nmpc-converged", 2.0, marks=pytest.mark.slow)],
+)
+def test_no_violation_with_references_beyond_the_robot(mca, duration):
+    result = run_closed_loop(
+        mca=mca, reference=extreme_reference(), duration_s=duration, progress=False
+    )
+    assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    assert np.all(np.isfinite(result.commands))
+    # it does move towards the targets: the robot is not just parked
+    assert np.max(np.abs(result.states[:, 6:])) > 0.1
+
+
+def test_solver_failures_fall_back_and_stay_in_limits(monkeypatch, robot):
+    from mca_drake import nmpc
+
+    calls = {"n": 0}
+    original = nmpc.MotionCueingOcp._solve_qp
+
+    def flaky(self, U, x_bar):
+        calls["n"] += 1
+        if 100 <= calls["n"] < 300:  # fail for two seconds while the reference pushes
+            return None, "injected failure"
+        return original(self, U, x_bar)
+
+    monkeypatch.setattr(nmpc.MotionCueingOcp, "_solve_qp", flaky)
+    result = run_closed_loop(
+        mca="nmpc-rti", reference=extreme_reference(), duration_s=4.0, progress=False
+    )
+    assert result.summary["solver_failures"] >= 200
+    assert result.summary["safety_interventions"] > 0  # the clamp caught the stale plans
+    assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    assert np.all(np.isfinite(result.commands))
+
+
+def test_braking_plan_stops_inside_limits(robot):
+    ocp = MotionCueingOcp(NmpcConfig(), robot)
+    x0 = np.r_[np.zeros(6), 0.9 * robot.qd_max]
+    U = ocp.braking_plan(x0)
+    q, qd = ocp.states(x0, U)
+    np.testing.assert_allclose(qd[-1], 0.0, atol=1e-12)
+    assert np.all(np.abs(U) <= robot.qdd_max + 1e-12)
+
+
+def test_bad_config():
+    with pytest.raises(ValueError, match="unknown NMPC mode"):
+        MotionCueingOcp(NmpcConfig(mode="fast"))
+    with pytest.raises(ValueError, match="unknown QP solver"):
+        MotionCueingOcp(NmpcConfig(qp_solver="gurobi"))
