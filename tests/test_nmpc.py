@@ -189,7 +189,7 @@ def test_braking_plan_stops_inside_limits(robot):
     ocp = MotionCueingOcp(NmpcConfig(), robot)
     x0 = np.r_[np.zeros(6), 0.9 * robot.qd_max]
     U = ocp.braking_plan(x0)
-    q, qd = ocp.states(x0, U)
+    _, qd = ocp.states(x0, U)
     np.testing.assert_allclose(qd[-1], 0.0, atol=1e-12)
     assert np.all(np.abs(U) <= robot.qdd_max + 1e-12)
 

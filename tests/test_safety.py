@@ -69,7 +69,7 @@ def test_bound_is_tight_against_the_stoppability_boundary(robot):
     """At the computed hi, the next state sits exactly on the stopping parabola."""
     qd = 0.6 * robot.qd_max
     q = robot.q_max - qd**2 / (2 * robot.qdd_max) - 0.5 * H * qd  # coasting would overshoot
-    lo, hi, _ = viable_acceleration_bounds(
+    _, hi, _ = viable_acceleration_bounds(
         q, qd, robot.q_min, robot.q_max, robot.qd_max, robot.qdd_max, H
     )
     q1, qd1 = step(q, qd, hi)
