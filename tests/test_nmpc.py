@@ -74,7 +74,7 @@ def test_converged_solution_satisfies_kkt(small_ocp, robot, ref_scale):
     N_act = active_constraints(small_ocp, x0, U)
     # stationarity: g + N_act' lambda = 0 with lambda >= 0 (non-negative least squares)
     if N_act.size:
-        lam, residual = scipy.optimize.nnls(N_act.T, -g)
+        _, residual = scipy.optimize.nnls(N_act.T, -g)
     else:
         residual = np.linalg.norm(g)
     assert residual <= 1e-5 * max(1.0, np.linalg.norm(g)), (residual, np.linalg.norm(g))
