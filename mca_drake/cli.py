@@ -94,6 +94,45 @@ def _cmd_dataset_open_loop(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_dataset_closed_loop(args: argparse.Namespace) -> int:
+    from mca_drake.closed_loop_dataset import (
+        ClosedLoopDatasetConfig,
+        generate_closed_loop_dataset,
+    )
+
+    seeds = tuple(range(args.first_seed, args.first_seed + args.flights))
+    config = ClosedLoopDatasetConfig(
+        vehicle=args.vehicle,
+        flight_seeds=seeds,
+        flight_duration_s=args.minutes * 60.0,
+        horizon=args.horizon,
+        mca=args.mca,
+    )
+    path = generate_closed_loop_dataset(
+        config, args.out_dir, workers=args.workers, progress=not args.quiet
+    )
+    print(f"closed-loop dataset written to {path}")
+    return 0
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from mca_drake.evaluation import run_closed_loop
+    from mca_drake.references.recording import load_recording
+    from mca_drake.references.reference import reference_from_recording
+
+    reference = reference_from_recording(load_recording(args.reference), name=args.reference)
+    result = run_closed_loop(
+        mca=args.mca,
+        reference=reference,
+        duration_s=args.duration,
+        progress=not args.quiet,
+        json_path=args.json,
+        plot_path=args.plot,
+    )
+    print(json.dumps(result.summary, indent=2))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mca-drake", description="Motion cueing for a KUKA KR500 motion simulator, on Drake."
@@ -150,6 +189,30 @@ def build_parser() -> argparse.ArgumentParser:
     open_loop.add_argument("--out", default="open_loop.npz")
     open_loop.add_argument("--quiet", action="store_true")
     open_loop.set_defaults(func=_cmd_dataset_open_loop)
+    closed = dataset_sub.add_parser(
+        "closed-loop", help="NMPC closed loop over JSBSim flights (defaults: paper size)"
+    )
+    closed.add_argument("--vehicle", default="light")
+    closed.add_argument("--flights", type=int, default=5)
+    closed.add_argument("--first-seed", type=int, default=100)
+    closed.add_argument("--minutes", type=float, default=15.0, help="per flight")
+    closed.add_argument("--horizon", type=int, default=256, help="n_p")
+    closed.add_argument("--mca", default="nmpc-rti")
+    closed.add_argument("--workers", type=int, default=1, help="parallel processes")
+    closed.add_argument("--out-dir", default="datasets/closed_loop")
+    closed.add_argument("--quiet", action="store_true")
+    closed.set_defaults(func=_cmd_dataset_closed_loop)
+
+    evaluate = sub.add_parser(
+        "evaluate", help="run one recording through an MCA on the analytical plant"
+    )
+    evaluate.add_argument("--mca", default="nmpc-rti", help="nmpc-rti or nmpc-converged")
+    evaluate.add_argument("--reference", required=True, help="recording CSV")
+    evaluate.add_argument("--duration", type=float, help="simulated seconds (default: all)")
+    evaluate.add_argument("--json", help="write the result summary here")
+    evaluate.add_argument("--plot", help="PNG of target versus achieved outputs")
+    evaluate.add_argument("--quiet", action="store_true")
+    evaluate.set_defaults(func=_cmd_evaluate)
     return parser
 
 

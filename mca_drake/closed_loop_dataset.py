@@ -1,0 +1,215 @@
+"""Closed-loop dataset: NMPC motion cueing over JSBSim flights, cut into n_p-long segments.
+
+For each flight seed: fly the vehicle (`mca_drake.references.jsbsim_flight.fly`), scale the
+recording into a reference, run ReferenceSource -> MCA -> MotionCueingPlant at 100 Hz, and
+cut the logged trajectory into non-overlapping segments holding U, X, Y, F, dF, ddF and the
+reference R (see `mca_drake.segments`). Each flight is one file, written atomically; a
+re-run skips flights whose file exists with the same configuration, so a killed run
+resumes. The flights run in parallel local processes. `merge` joins them and labels a
+70:20:10 train/validation/test split with a fixed seed.
+
+The paper's size, the default: five 15-minute light-aircraft flights, n_p = 256 (about
+1750 segments). The MCA defaults to NMPC in rti mode, which tracks the converged solution
+to within a few 1e-4 of PI (benchmarks/bench_nmpc.py) at a fraction of the cost.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import dataclasses
+import hashlib
+import json
+import multiprocessing
+import time
+from pathlib import Path
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from mca_drake.kinematics import head_motion, output_from_motion, pose_derivatives_from_motion
+from mca_drake.references.reference import ReferenceScaling, reference_from_recording
+from mca_drake.robot import NUM_JOINTS, load_kr500
+from mca_drake.segments import SegmentDataset, package_versions
+
+SOURCE_COLUMNS = ("flight_seed", "start_step", "split")
+SPLIT_NAMES = ("train", "validation", "test")
+
+
+@dataclasses.dataclass
+class ClosedLoopDatasetConfig:
+    """What to simulate and where to write it; defaults are the paper's dataset."""
+
+    # Vehicle class flown by JSBSim: "light" or "jet".
+    vehicle: str = "light"
+    # Seeds of the flights; evaluation uses seeds from 1000 on, never these.
+    flight_seeds: tuple[int, ...] = (100, 101, 102, 103, 104)
+    # Length of each flight, s.
+    flight_duration_s: float = 900.0
+    # Segment length n_p, steps.
+    horizon: int = 256
+    # Motion cueing algorithm that generates the trajectories.
+    mca: str = "nmpc-rti"
+    # Scaling of the recordings into references.
+    scaling: ReferenceScaling = dataclasses.field(default_factory=ReferenceScaling)
+    # Train, validation and test fractions, and the seed of the shuffle before the split.
+    split_fractions: tuple[float, float, float] = (0.7, 0.2, 0.1)
+    split_seed: int = 0
+    # Floating-point type of the stored arrays.
+    dtype: str = "float32"
+
+    def validate(self) -> None:
+        from mca_drake.diagrams import MCA_NAMES
+
+        if self.vehicle not in ("light", "jet"):
+            raise ValueError(f"unknown vehicle '{self.vehicle}'; valid: light, jet")
+        if not self.flight_seeds:
+            raise ValueError("flight_seeds is empty")
+        if self.mca not in MCA_NAMES:
+            raise ValueError(f"unknown MCA '{self.mca}'; valid: {', '.join(MCA_NAMES)}")
+        if self.flight_duration_s < self.horizon * 0.01:
+            raise ValueError("flight_duration_s is shorter than one segment")
+        self.scaling.validate()
+
+    def flight_key(self) -> str:
+        """Hash of everything that shapes one flight's file (not the seeds list or split)."""
+        fields = dataclasses.asdict(self)
+        for name in ("flight_seeds", "split_fractions", "split_seed"):
+            fields.pop(name)
+        return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def flight_path(out_dir: Path, seed: int) -> Path:
+    return Path(out_dir) / f"flight_{seed:05d}.npz"
+
+
+def simulate_flight(config: ClosedLoopDatasetConfig, seed: int) -> SegmentDataset:
+    """One flight through the closed loop, cut into segments (no file written)."""
+    from mca_drake.evaluation import run_closed_loop
+    from mca_drake.references.jsbsim_flight import fly
+
+    robot = load_kr500()
+    started = time.perf_counter()
+    recording = fly(config.vehicle, config.flight_duration_s, seed)
+    reference = reference_from_recording(
+        recording, config.scaling, name=f"{config.vehicle} flight seed {seed}"
+    )
+    result = run_closed_loop(mca=config.mca, reference=reference, robot=robot, progress=False)
+    n_p = config.horizon
+    n_segments = result.commands.shape[0] // n_p
+    keep = slice(0, n_segments * n_p)
+    X, U = result.states[keep], result.commands[keep]
+    motion = head_motion(X[:, :NUM_JOINTS], X[:, NUM_JOINTS:], U, robot)
+    F, dF, ddF = pose_derivatives_from_motion(motion)
+    dtype = np.dtype(config.dtype)
+
+    def cut(a):
+        return a.reshape(n_segments, n_p, *a.shape[1:]).astype(dtype)
+
+    arrays = {
+        "U": cut(U),
+        "X": cut(X),
+        "Y": cut(output_from_motion(motion)),
+        "F": cut(F),
+        "dF": cut(dF),
+        "ddF": cut(ddF),
+        "R": cut(result.reference[keep]),
+    }
+    source = np.column_stack(
+        [np.full(n_segments, seed), n_p * np.arange(n_segments), np.full(n_segments, -1)]
+    ).astype(np.int64)
+    metadata = {
+        "kind": "closed-loop MCA dataset, one flight",
+        "config": dataclasses.asdict(config),
+        "config_key": config.flight_key(),
+        "flight_seed": seed,
+        "source_columns": list(SOURCE_COLUMNS),
+        "summary": result.summary,
+        "recording_metadata": recording.metadata,
+        "wall_time_s": time.perf_counter() - started,
+        "versions": package_versions(),
+    }
+    return SegmentDataset(arrays, source, metadata)
+
+
+def _flight_is_done(path: Path, key: str) -> bool:
+    if not path.is_file():
+        return False
+    try:
+        return SegmentDataset.load(path).metadata.get("config_key") == key
+    except ValueError:
+        return False  # a damaged file: simulate again
+
+
+def _run_one(config: ClosedLoopDatasetConfig, seed: int, out_dir: str) -> str:
+    path = flight_path(Path(out_dir), seed)
+    simulate_flight(config, seed).save(path)
+    return str(path)
+
+
+def generate_closed_loop_dataset(
+    config: ClosedLoopDatasetConfig | None = None,
+    out_dir: str | Path = "datasets/closed_loop",
+    workers: int = 1,
+    progress: bool = True,
+) -> Path:
+    """Simulates every flight not yet on disk (in `workers` processes), then merges them.
+
+    Returns:
+        The merged file `out_dir/dataset.npz`; per-flight files stay beside it.
+    """
+    config = config or ClosedLoopDatasetConfig()
+    config.validate()
+    if workers < 1:
+        raise ValueError(f"workers must be at least 1; got {workers}")
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    key = config.flight_key()
+    todo = [s for s in config.flight_seeds if not _flight_is_done(flight_path(out_dir, s), key)]
+    bar = tqdm(
+        total=len(config.flight_seeds),
+        initial=len(config.flight_seeds) - len(todo),
+        desc="closed-loop flights",
+        unit="flight",
+        disable=not progress,
+    )
+    with bar:
+        if workers == 1:
+            for seed in todo:
+                _run_one(config, seed, str(out_dir))
+                bar.update(1)
+        else:
+            context = multiprocessing.get_context("spawn")
+            with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+                futures = [pool.submit(_run_one, config, s, str(out_dir)) for s in todo]
+                for future in concurrent.futures.as_completed(futures):
+                    future.result()  # re-raises a worker's error with its message
+                    bar.update(1)
+    return merge(config, out_dir)
+
+
+def merge(config: ClosedLoopDatasetConfig, out_dir: str | Path) -> Path:
+    """Joins the per-flight files of `config` and labels the train/validation/test split."""
+    out_dir = Path(out_dir)
+    parts = [SegmentDataset.load(flight_path(out_dir, s)) for s in config.flight_seeds]
+    merged = SegmentDataset.concatenate(parts)
+    order = np.random.default_rng(config.split_seed).permutation(len(merged))
+    bounds = np.round(np.cumsum((0.0, *config.split_fractions)) * len(merged)).astype(int)
+    labels = np.empty(len(merged), dtype=np.int64)
+    for index, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
+        labels[order[a:b]] = index
+    merged.source[:, SOURCE_COLUMNS.index("split")] = labels
+    merged.metadata = {
+        "kind": "closed-loop MCA dataset",
+        "config": dataclasses.asdict(config),
+        "source_columns": list(SOURCE_COLUMNS),
+        "split_names": list(SPLIT_NAMES),
+        "flights": {str(p.metadata["flight_seed"]): p.metadata["summary"] for p in parts},
+        "versions": package_versions(),
+    }
+    return merged.save(out_dir / "dataset.npz")
+
+
+def split_of(dataset: SegmentDataset) -> dict[str, SegmentDataset]:
+    """The labelled train/validation/test parts of a merged closed-loop dataset."""
+    column = dataset.source[:, SOURCE_COLUMNS.index("split")]
+    return {name: dataset.subset(column == i) for i, name in enumerate(SPLIT_NAMES)}
