@@ -18,6 +18,7 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import hashlib
+import itertools
 import json
 import multiprocessing
 import time
@@ -195,7 +196,7 @@ def merge(config: ClosedLoopDatasetConfig, out_dir: str | Path) -> Path:
     order = np.random.default_rng(config.split_seed).permutation(len(merged))
     bounds = np.round(np.cumsum((0.0, *config.split_fractions)) * len(merged)).astype(int)
     labels = np.empty(len(merged), dtype=np.int64)
-    for index, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
+    for index, (a, b) in enumerate(itertools.pairwise(bounds)):
         labels[order[a:b]] = index
     merged.source[:, SOURCE_COLUMNS.index("split")] = labels
     merged.metadata = {

@@ -1,0 +1,58 @@
+"""Closed-loop dataset generation at a tiny size: contents, resume, split."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mca_drake import kinematics
+from mca_drake.closed_loop_dataset import (
+    ClosedLoopDatasetConfig,
+    flight_path,
+    generate_closed_loop_dataset,
+    split_of,
+)
+from mca_drake.segments import SegmentDataset
+
+TINY = ClosedLoopDatasetConfig(flight_seeds=(1, 2), flight_duration_s=4.0, horizon=50)
+
+
+@pytest.fixture(scope="module")
+def generated(tmp_path_factory):
+    out = tmp_path_factory.mktemp("closed_loop")
+    return out, SegmentDataset.load(generate_closed_loop_dataset(TINY, out, progress=False))
+
+
+def test_segments_are_the_plant_under_the_mca(generated, robot):
+    _, data = generated
+    assert len(data) == 2 * 8  # 400 steps per flight / 50
+    X, U = data.X.astype(float), data.U.astype(float)
+    h = 0.01
+    np.testing.assert_allclose(X[:, 1:, 6:], X[:, :-1, 6:] + h * U[:, :-1], atol=1e-5)
+    y = kinematics.plant_output(X[..., :6], X[..., 6:], U, robot)
+    np.testing.assert_allclose(data.Y, y, atol=1e-4)
+    assert data.R.shape == data.Y.shape
+    assert np.all(np.abs(U) <= robot.qdd_max + 1e-6)
+    assert data.metadata["config"]["mca"] == "nmpc-rti"
+
+
+def test_rerun_skips_finished_flights(generated):
+    out, _ = generated
+    stamp = flight_path(out, 1).stat().st_mtime_ns
+    flight_path(out, 2).unlink()  # as if the run had been killed before flight 2 finished
+    generate_closed_loop_dataset(TINY, out, progress=False)
+    assert flight_path(out, 1).stat().st_mtime_ns == stamp
+    assert flight_path(out, 2).is_file()
+
+
+def test_split_is_70_20_10_and_seeded(generated):
+    _, data = generated
+    parts = split_of(data)
+    sizes = [len(parts[k]) for k in ("train", "validation", "test")]
+    assert sum(sizes) == len(data)
+    assert sizes == [11, 3, 2]  # round(0.7 * 16), round(0.9 * 16) - 11, rest
+
+
+def test_bad_config():
+    with pytest.raises(ValueError, match="unknown MCA"):
+        generate_closed_loop_dataset(ClosedLoopDatasetConfig(mca="magic"), progress=False)
