@@ -156,14 +156,6 @@ class PlanningLimits:
     qd_max: np.ndarray
     qdd_max: np.ndarray
 
-    @property
-    def x_min(self) -> np.ndarray:
-        return np.concatenate([self.q_min, -self.qd_max])
-
-    @property
-    def x_max(self) -> np.ndarray:
-        return np.concatenate([self.q_max, self.qd_max])
-
 
 def _planning_limits(robot: KR500, margin: float) -> PlanningLimits:
     if not 0 <= margin < 0.1:
@@ -262,7 +254,9 @@ class MotionCueingOcp:
             prog.AddBoundingBoxConstraint(
                 -self._u_max[6:], self._u_max[6:], self.U_var[1:].reshape(-1)
             )
-        prog.AddBoundingBoxConstraint(np.tile(r.x_min, N), np.tile(r.x_max, N), x_all)
+        prog.AddBoundingBoxConstraint(
+            np.tile(np.r_[r.q_min, -r.qd_max], N), np.tile(np.r_[r.q_max, r.qd_max], N), x_all
+        )
         # Dynamics x_(k+1) = Phi_k x_k + Gamma_k u_k; the first row block carries x_0 in its
         # bounds. Columns: [u (6N), x (12N)].
         nz = 6 * N + 12 * N
