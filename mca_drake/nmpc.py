@@ -71,12 +71,18 @@ class NmpcConfig:
     terminal_position_weight: float = 1.0
     terminal_velocity_weight: float = 1.0
     # Tangents per side and joint approximating the stoppability parabola at the later nodes.
-    stoppability_tangents: int = 3
+    # Two tangents are enough: u_0 is held to the exact viability interval anyway, the
+    # tangents only keep the later plan realistic, and each costs 12 rows per node.
+    stoppability_tangents: int = 2
     # QP solver: "clarabel" (interior point, accurate), "osqp" (ADMM with solution polishing,
     # fast) or "auto" (osqp for rti, clarabel for converged).
     qp_solver: str = "auto"
-    # OSQP's absolute and relative tolerance (polishing then recovers the active set).
-    osqp_tolerance: float = 1e-4
+    # OSQP's absolute and relative tolerance (polishing then recovers the active set); rti
+    # takes a single approximate Gauss-Newton step, so 1e-3 loses nothing measurable there.
+    osqp_tolerance: float = 1e-3
+    # OSQP iteration cap: bounds the worst-case step time. A capped solution is still used in
+    # rti (the viability clamp guards the command); 0 means 20000.
+    osqp_max_iterations: int = 400
     # Clarabel's gap and feasibility tolerances: tight, so that the active set is exact and
     # the converged mode stops at a KKT point of the nonlinear program.
     clarabel_tolerance: float = 1e-10
@@ -94,6 +100,8 @@ class NmpcConfig:
         if self.qp_solver not in QP_SOLVERS:
             valid = ", ".join(QP_SOLVERS)
             raise ValueError(f"unknown QP solver '{self.qp_solver}'; valid: {valid}")
+        if self.osqp_max_iterations < 0 or self.stoppability_tangents < 0:
+            raise ValueError("osqp_max_iterations and stoppability_tangents must be >= 0")
         if not 1 <= self.nodes <= self.horizon_steps:
             raise ValueError(f"nodes must be in [1, horizon_steps]; got {self.nodes}")
         if len(self.output_weights) != 6 or min(self.output_weights) < 0:
@@ -236,6 +244,10 @@ class MotionCueingOcp:
         self._W_rows = np.tile(np.asarray(cfg.output_weights, float), N) * w6
 
         self._u_max = np.tile(r.qdd_max, N)
+        # Gauss-Newton stage Hessian terms beside J^T W J, on v = [q, qd, u]: washout, input.
+        self._stage_regularisation = np.diag(
+            np.r_[np.full(6, cfg.washout_weight), np.zeros(6), np.full(6, cfg.input_weight)]
+        )
         self._build_program()
 
     def _build_program(self) -> None:
@@ -328,7 +340,7 @@ class MotionCueingOcp:
             for name, value in (
                 ("eps_abs", cfg.osqp_tolerance),
                 ("eps_rel", cfg.osqp_tolerance),
-                ("max_iter", 20000),
+                ("max_iter", cfg.osqp_max_iterations or 20000),
                 ("polishing", 1),
                 ("verbose", 0),
             ):
@@ -430,21 +442,23 @@ class MotionCueingOcp:
         W = np.asarray(cfg.output_weights, float)
         x_bar = np.concatenate([q, qd], axis=1)
         c = jac.y - refs  # residual at the linearisation point
-        for k in range(N):
-            w = self.weights[k]
-            Ju = jac.dy_dqdd[k]
-            if k == 0:
-                J, v_bar, reg = Ju, U[0], cfg.input_weight * np.ones(6)
-            else:
-                J = np.hstack([jac.dy_dq[k], jac.dy_dqd[k], Ju])
-                v_bar = np.concatenate([x_bar[k], U[k]])
-                reg = np.concatenate(
-                    [cfg.washout_weight * np.ones(6), np.zeros(6), cfg.input_weight * np.ones(6)]
-                )
-            WJ = W[:, None] * J
-            Q = 2 * w * (J.T @ WJ + np.diag(reg))
-            b = 2 * w * WJ.T @ (c[k] - J @ v_bar)
-            self._stage_costs[k].UpdateCoefficients(Q, b, 0.0, is_convex=True)
+        # Stage k >= 1 is a quadratic in v_k = [x_k, u_k] (18); stage 0 in u_0 alone (x_0 is
+        # given). All stages are formed at once; only the coefficient updates loop.
+        J = np.concatenate([jac.dy_dq, jac.dy_dqd, jac.dy_dqdd], axis=2)  # (N, 6, 18)
+        v_bar = np.concatenate([x_bar[:N], U], axis=1)  # (N, 18)
+        v_bar[0, :12] = 0.0  # x_0 is fixed: stage 0 is linearised in u_0 only
+        WJ = W[None, :, None] * J
+        w = self.weights[:, None, None]
+        Q = 2 * w * (np.einsum("kai,kaj->kij", J, WJ) + self._stage_regularisation)
+        b = (
+            2
+            * self.weights[:, None]
+            * np.einsum("kai,ka->ki", WJ, c - np.einsum("kai,ki->ka", J, v_bar))
+        )
+        # Stage 0: x_0 is data, so only the u_0 block remains (its b absorbs the x_0 part).
+        self._stage_costs[0].UpdateCoefficients(Q[0, 12:, 12:], b[0, 12:], 0.0, is_convex=True)
+        for k in range(1, N):
+            self._stage_costs[k].UpdateCoefficients(Q[k], b[k], 0.0, is_convex=True)
         first = self._Phi[0] @ x0
         bounds = np.zeros(12 * N)
         bounds[:12] = first
