@@ -90,3 +90,32 @@ def plot_recording(recording, title: str = ""):
     fig.suptitle(title or f"Recording ({meta})" if meta else title or "Recording")
     fig.tight_layout()
     return fig
+
+
+def plot_loss_curves(history, title: str = ""):
+    """Training and validation loss per epoch (log scale), one colour band per curriculum
+    step. `history`: a sequence of records with stage, horizon, train_loss and
+    validation_loss attributes (`mca_drake.learning.trainer.EpochRecord`)."""
+    if not history:
+        raise ValueError("no epochs to plot")
+    train = np.array([r.train_loss for r in history])
+    val = np.array([r.validation_loss for r in history])
+    x = np.arange(1, len(history) + 1)
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.semilogy(x, train, color="C0", lw=1.0, label="training")
+    ax.semilogy(x, val, color="C1", lw=1.0, label="validation")
+    stages = [r.stage for r in history]
+    for k, stage in enumerate(sorted(set(stages))):
+        idx = [i for i, s in enumerate(stages) if s == stage]
+        ax.axvspan(idx[0] + 0.5, idx[-1] + 1.5, color=f"C{k % 10}", alpha=0.06)
+        ax.text(
+            idx[0] + 1, ax.get_ylim()[1], f"n_p={history[idx[0]].horizon}", fontsize=8, va="top"
+        )
+    ax.set_xlabel("epoch (over all curriculum steps)")
+    ax.set_ylabel("loss")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,365 @@
+"""Curriculum trainer (paper Section V-A): RAdam, reduce-on-plateau, early stopping, best
+weights carried from one horizon to the next; atomic checkpoints and resume after a kill.
+
+    trainer = CurriculumTrainer(model, objective, TrainConfig(), "runs/node1.pt")
+    result = trainer.fit(train, validation, resume=True)
+
+`objective(model, batch) -> loss` gets a dict of tensors (B, n, ...) at the current
+horizon n (see `mca_drake.learning.data`) and returns a scalar. Validation uses the same
+objective without gradients.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import math
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import torch
+from torch import nn
+from tqdm.auto import tqdm
+
+from mca_drake.atomic_io import atomic_write_text
+from mca_drake.learning.checkpoint import (
+    CheckpointError,
+    load_checkpoint,
+    load_state_into,
+    save_checkpoint,
+)
+from mca_drake.learning.data import SegmentTensors, to_tensors
+from mca_drake.segments import SegmentDataset
+
+Objective = Callable[[nn.Module, dict[str, torch.Tensor]], torch.Tensor]
+
+
+@dataclasses.dataclass
+class TrainConfig:
+    """Training settings; defaults are the paper's for the plant models."""
+
+    # RAdam learning rate and decoupled weight decay.
+    learning_rate: float = 0.01
+    weight_decay: float = 0.01
+    # Segments per batch.
+    batch_size: int = 256
+    # Epochs per curriculum step at most.
+    max_epochs: int = 500
+    # Early stopping: epochs without a validation improvement.
+    early_stopping_patience: int = 150
+    # Reduce-on-plateau of the training loss: factor and patience in epochs.
+    plateau_factor: float = 0.5
+    plateau_patience: int = 100
+    # Curriculum of horizons n_p (steps); each starts from the previous best weights.
+    horizons: tuple[int, ...] = (32, 64, 128, 256)
+    # Seed of the batch shuffling (the caller seeds the weight initialisation).
+    seed: int = 0
+    # "auto" (CUDA when present, else CPU), "cpu" or "cuda".
+    device: str = "auto"
+    # Checkpoint at most this often (s) within a step, and always at the end of a step.
+    checkpoint_interval_s: float = 20.0
+
+    def validate(self) -> None:
+        if min(self.batch_size, self.max_epochs) < 1 or not self.horizons:
+            raise ValueError("batch_size, max_epochs and horizons must be positive / non-empty")
+        if not (self.learning_rate > 0 and 0 < self.plateau_factor < 1):
+            raise ValueError("learning_rate must be > 0 and plateau_factor in (0, 1)")
+        if self.device not in ("auto", "cpu", "cuda"):
+            raise ValueError(f"unknown device '{self.device}'; valid: auto, cpu, cuda")
+
+    def resolved_device(self) -> torch.device:
+        if self.device == "auto":
+            return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+        if self.device == "cuda" and not torch.cuda.is_available():
+            raise ValueError("device 'cuda' requested but torch sees no CUDA device")
+        return torch.device(self.device)
+
+
+@dataclasses.dataclass
+class EpochRecord:
+    """One epoch of the loss log."""
+
+    stage: int
+    horizon: int
+    epoch: int
+    train_loss: float
+    validation_loss: float
+    learning_rate: float
+    wall_s: float
+
+
+@dataclasses.dataclass
+class StageResult:
+    """The outcome of one curriculum step."""
+
+    horizon: int
+    best_validation_loss: float
+    best_epoch: int
+    epochs: int
+    wall_s: float
+
+
+@dataclasses.dataclass
+class TrainResult:
+    """What `fit` returns; the model holds the best weights of the last step."""
+
+    model: nn.Module
+    stages: list[StageResult]
+    history: list[EpochRecord]
+    wall_s: float
+
+
+class CurriculumTrainer:
+    """Trains `model` by `objective` over the curriculum of `config.horizons`.
+
+    Args:
+        model: the torch module to train (moved to the configured device).
+        objective: loss function, see the module docstring.
+        config: the training settings.
+        checkpoint_path: the .pt file of the checkpoint (a .json, a _loss.csv and a
+            _loss.png are written beside it).
+        metadata: JSON-serialisable description stored with every checkpoint (model name,
+            its arguments, dataset): it lets a reader rebuild the model.
+        callbacks: called with each EpochRecord after the epoch's checkpoint decision.
+    """
+
+    def __init__(
+        self,
+        model: nn.Module,
+        objective: Objective,
+        config: TrainConfig | None = None,
+        checkpoint_path: str | Path = "checkpoint.pt",
+        metadata: dict | None = None,
+        callbacks: Sequence[Callable[[EpochRecord], None]] = (),
+    ):
+        self.config = config or TrainConfig()
+        self.config.validate()
+        self.device = self.config.resolved_device()
+        self.model = model.to(self.device)
+        self.objective = objective
+        self.checkpoint_path = Path(checkpoint_path)
+        self.metadata = dict(metadata or {})
+        self.callbacks = list(callbacks)
+
+    # ----------------------------------------------------------------- helpers
+    def _new_optimiser(self):
+        cfg = self.config
+        optimiser = torch.optim.RAdam(
+            self.model.parameters(),
+            lr=cfg.learning_rate,
+            weight_decay=cfg.weight_decay,
+            decoupled_weight_decay=True,
+        )
+        scheduler = torch.optim.lr_scheduler.ReduceLROnPlateau(
+            optimiser, factor=cfg.plateau_factor, patience=cfg.plateau_patience
+        )
+        return optimiser, scheduler
+
+    def evaluate(self, data: SegmentTensors) -> float:
+        """Mean objective over `data` (weighted by batch size), without gradients."""
+        self.model.eval()
+        total, count = 0.0, 0
+        with torch.no_grad():
+            for batch in data.batches(self.config.batch_size, shuffle=False):
+                n = batch["U"].shape[0]
+                total += float(self.objective(self.model, batch)) * n
+                count += n
+        return total / max(count, 1)
+
+    def _state(self, progress: dict, optimiser, scheduler, best_state, generator) -> dict:
+        return {
+            "model": self.model.state_dict(),
+            "best_model": best_state,
+            "optimiser": optimiser.state_dict(),
+            "scheduler": scheduler.state_dict(),
+            "generator": generator.get_state(),
+            "progress": progress,
+        }
+
+    def _save(self, payload: dict, history: list[EpochRecord], stages: list[StageResult]):
+        meta = {
+            **self.metadata,
+            "train_config": dataclasses.asdict(self.config),
+            "stages": [dataclasses.asdict(s) for s in stages],
+            "epochs_logged": len(history),
+        }
+        save_checkpoint(self.checkpoint_path, payload, meta)
+        self._write_log(history)
+
+    def _write_log(self, history: list[EpochRecord]) -> None:
+        buffer = io.StringIO()
+        fields = [f.name for f in dataclasses.fields(EpochRecord)]
+        writer = csv.DictWriter(buffer, fieldnames=fields)
+        writer.writeheader()
+        for record in history:
+            writer.writerow(dataclasses.asdict(record))
+        atomic_write_text(self.log_path, buffer.getvalue())
+
+    @property
+    def log_path(self) -> Path:
+        return self.checkpoint_path.with_name(self.checkpoint_path.stem + "_loss.csv")
+
+    @property
+    def plot_path(self) -> Path:
+        return self.checkpoint_path.with_name(self.checkpoint_path.stem + "_loss.png")
+
+    # ----------------------------------------------------------------- training
+    def fit(
+        self,
+        train: SegmentDataset,
+        validation: SegmentDataset,
+        *,
+        resume: bool = False,
+        progress: bool = True,
+    ) -> TrainResult:
+        """Runs (or resumes) the curriculum; returns the best weights of the last step.
+
+        Args:
+            train, validation: segment datasets with a horizon >= max(config.horizons).
+            resume: continue from the checkpoint at `checkpoint_path`. Without it an
+                existing checkpoint is an error (nothing is overwritten by accident).
+            progress: show a progress bar per curriculum step.
+        """
+        cfg = self.config
+        if max(cfg.horizons) > min(train.horizon, validation.horizon):
+            raise ValueError(
+                f"curriculum horizon {max(cfg.horizons)} exceeds the dataset horizon "
+                f"{min(train.horizon, validation.horizon)}"
+            )
+        history: list[EpochRecord] = []
+        stages: list[StageResult] = []
+        generator = torch.Generator().manual_seed(cfg.seed)
+        start_stage, start_epoch = 0, 0
+        saved = None
+        if self.checkpoint_path.exists():
+            if not resume:
+                raise ValueError(
+                    f"checkpoint {self.checkpoint_path} exists: resume it (--resume) or "
+                    "choose another output folder"
+                )
+            payload, meta = load_checkpoint(self.checkpoint_path, map_location=self.device)
+            for key in ("model", "model_kwargs"):
+                if key in self.metadata and meta.get(key) != self.metadata[key]:
+                    raise CheckpointError(
+                        f"checkpoint {self.checkpoint_path} holds {key}={meta.get(key)!r}; "
+                        f"this run trains {key}={self.metadata[key]!r}"
+                    )
+            saved = payload
+            load_state_into(self.model, payload["model"], str(self.checkpoint_path))
+            p = payload["progress"]
+            start_stage, start_epoch = p["stage"], p["epoch"]
+            history = [EpochRecord(**r) for r in p["history"]]
+            stages = [StageResult(**s) for s in p["stages"]]
+            generator.set_state(payload["generator"])
+        wall_start = time.perf_counter() - (history[-1].wall_s if history else 0.0)
+
+        for stage in range(start_stage, len(cfg.horizons)):
+            horizon = cfg.horizons[stage]
+            train_t = to_tensors(train, horizon, device=self.device)
+            val_t = to_tensors(validation, horizon, device=self.device)
+            optimiser, scheduler = self._new_optimiser()
+            best_state = {k: v.clone() for k, v in self.model.state_dict().items()}
+            best_val, best_epoch, stage_start = math.inf, -1, time.perf_counter()
+            epoch = 0
+            if saved is not None and stage == start_stage:
+                p = saved["progress"]
+                optimiser.load_state_dict(saved["optimiser"])
+                scheduler.load_state_dict(saved["scheduler"])
+                best_state = saved["best_model"]
+                best_val, best_epoch, epoch = p["best_validation"], p["best_epoch"], start_epoch
+                stage_start -= p["stage_wall_s"]
+            last_save = time.perf_counter()
+            bar = tqdm(
+                total=cfg.max_epochs,
+                initial=epoch,
+                desc=f"n_p={horizon}",
+                disable=not progress,
+                leave=False,
+            )
+            while epoch < cfg.max_epochs and epoch - best_epoch <= cfg.early_stopping_patience:
+                self.model.train()
+                total, count = 0.0, 0
+                for batch in train_t.batches(cfg.batch_size, generator):
+                    optimiser.zero_grad(set_to_none=True)
+                    loss = self.objective(self.model, batch)
+                    if not torch.isfinite(loss):
+                        raise FloatingPointError(
+                            f"training loss is {float(loss)} at n_p={horizon}, epoch {epoch}: "
+                            "lower the learning rate or check the data"
+                        )
+                    loss.backward()
+                    optimiser.step()
+                    total += loss.item() * batch["U"].shape[0]
+                    count += batch["U"].shape[0]
+                train_loss = total / count
+                scheduler.step(train_loss)
+                val_loss = self.evaluate(val_t)
+                if val_loss < best_val:
+                    best_val, best_epoch = val_loss, epoch
+                    best_state = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
+                epoch += 1
+                record = EpochRecord(
+                    stage,
+                    horizon,
+                    epoch,
+                    train_loss,
+                    val_loss,
+                    optimiser.param_groups[0]["lr"],
+                    time.perf_counter() - wall_start,
+                )
+                history.append(record)
+                bar.update(1)
+                bar.set_postfix(train=f"{train_loss:.3g}", val=f"{val_loss:.3g}")
+                if time.perf_counter() - last_save > cfg.checkpoint_interval_s:
+                    progress_state = self._progress(
+                        stage, epoch, best_val, best_epoch, stage_start, history, stages
+                    )
+                    self._save(
+                        self._state(progress_state, optimiser, scheduler, best_state, generator),
+                        history,
+                        stages,
+                    )
+                    last_save = time.perf_counter()
+                for callback in self.callbacks:
+                    callback(record)
+            bar.close()
+            self.model.load_state_dict(best_state)
+            stages.append(
+                StageResult(
+                    horizon, best_val, best_epoch + 1, epoch, time.perf_counter() - stage_start
+                )
+            )
+            # The next step starts from these best weights with a fresh optimiser.
+            progress_state = self._progress(
+                stage + 1, 0, math.inf, -1, time.perf_counter(), history, stages
+            )
+            optimiser, scheduler = self._new_optimiser()
+            self._save(
+                self._state(progress_state, optimiser, scheduler, best_state, generator),
+                history,
+                stages,
+            )
+            saved = None
+        self._plot(history)
+        return TrainResult(self.model, stages, history, time.perf_counter() - wall_start)
+
+    @staticmethod
+    def _progress(stage, epoch, best_val, best_epoch, stage_start, history, stages) -> dict:
+        return {
+            "stage": stage,
+            "epoch": epoch,
+            "best_validation": best_val,
+            "best_epoch": best_epoch,
+            "stage_wall_s": time.perf_counter() - stage_start,
+            "history": [dataclasses.asdict(r) for r in history],
+            "stages": [dataclasses.asdict(s) for s in stages],
+        }
+
+    def _plot(self, history: list[EpochRecord]) -> None:
+        if not history:
+            return
+        from mca_drake.plotting import plot_loss_curves, save_figure
+
+        save_figure(plot_loss_curves(history, title=self.metadata.get("model", "")), self.plot_path)

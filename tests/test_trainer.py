@@ -1,0 +1,159 @@
+"""Curriculum trainer: it learns, it resumes after a kill, and checkpoints are safe."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import torch
+
+from mca_drake.learning import CheckpointError, CurriculumTrainer, TrainConfig
+from mca_drake.learning.checkpoint import load_checkpoint
+from mca_drake.learning.plant_candidates import (
+    make_output_model,
+    make_state_model,
+    output_objective,
+    state_objective,
+)
+from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
+
+
+@pytest.fixture(scope="module")
+def tiny_split():
+    data = generate_excitation_dataset(
+        ExcitationConfig(
+            signals=("sine", "walk"),
+            repetitions=3,
+            duration_s=2.0,
+            horizon=16,
+            initial_state_fraction=0.3,
+            seed=3,
+        ),
+        progress=False,
+    )
+    assert len(data) >= 40
+    train, validation, _ = data.split((0.7, 0.2, 0.1), seed=0)
+    return train, validation
+
+
+def _config(**overrides) -> TrainConfig:
+    base = dict(
+        batch_size=32,
+        max_epochs=6,
+        horizons=(8, 16),
+        early_stopping_patience=50,
+        checkpoint_interval_s=0.0,
+        device="cpu",
+    )
+    return TrainConfig(**{**base, **overrides})
+
+
+def test_training_lowers_validation_loss(tiny_split, tmp_path):
+    train, validation = tiny_split
+    torch.manual_seed(0)
+    model = make_state_model("nssm")
+    trainer = CurriculumTrainer(
+        model, state_objective, _config(max_epochs=15, horizons=(16,)), tmp_path / "nssm.pt"
+    )
+    from mca_drake.learning.data import to_tensors
+
+    before = trainer.evaluate(to_tensors(validation))
+    result = trainer.fit(train, validation, progress=False)
+    after = trainer.evaluate(to_tensors(validation))
+    assert after < 0.5 * before, (before, after)
+    assert result.stages[0].best_validation_loss == pytest.approx(after, rel=1e-5)
+    assert (tmp_path / "nssm_loss.csv").read_text().count("\n") == 16  # header + 15 epochs
+    assert (tmp_path / "nssm_loss.png").stat().st_size > 1000
+
+
+def test_output_model_training_on_node2_states(tiny_split, tmp_path):
+    train, validation = tiny_split
+    torch.manual_seed(0)
+    objective = output_objective(make_state_model("node2"))
+    trainer = CurriculumTrainer(
+        make_output_model("mixed"), objective, _config(max_epochs=8), tmp_path / "mixed.pt"
+    )
+    result = trainer.fit(train, validation, progress=False)
+    losses = [r.validation_loss for r in result.history]
+    assert min(losses[-3:]) < losses[0]
+
+
+class Killed(Exception):
+    pass
+
+
+def test_resume_after_kill_continues_to_the_same_weights(tiny_split, tmp_path):
+    train, validation = tiny_split
+
+    def run(path, kill_at=None, resume=False):
+        torch.manual_seed(0)
+        model = make_state_model("nssm")
+
+        def kill(record):
+            if kill_at is not None and len(trainer_log) == 0 and record.epoch == kill_at:
+                trainer_log.append(record)
+                raise Killed
+
+        trainer_log: list = []
+        trainer = CurriculumTrainer(
+            model, state_objective, _config(), path, {"model": "nssm"}, callbacks=[kill]
+        )
+        return trainer.fit(train, validation, resume=resume, progress=False)
+
+    reference = run(tmp_path / "a.pt")
+    with pytest.raises(Killed):
+        run(tmp_path / "b.pt", kill_at=4)  # killed in the first curriculum step
+    payload, _ = load_checkpoint(tmp_path / "b.pt")
+    assert payload["progress"]["stage"] == 0 and payload["progress"]["epoch"] == 4
+    resumed = run(tmp_path / "b.pt", resume=True)
+    assert len(resumed.history) == len(reference.history)
+    for key, value in reference.model.state_dict().items():
+        torch.testing.assert_close(resumed.model.state_dict()[key], value, rtol=0, atol=1e-6)
+    # A finished run resumed again changes nothing.
+    again = run(tmp_path / "b.pt", resume=True)
+    assert len(again.history) == len(reference.history)
+
+
+def test_existing_checkpoint_is_not_overwritten_without_resume(tiny_split, tmp_path):
+    train, validation = tiny_split
+    path = tmp_path / "x.pt"
+    CurriculumTrainer(make_state_model("nssm"), state_objective, _config(max_epochs=1), path).fit(
+        train, validation, progress=False
+    )
+    with pytest.raises(ValueError, match="exists: resume it"):
+        CurriculumTrainer(make_state_model("nssm"), state_objective, _config(), path).fit(
+            train, validation, progress=False
+        )
+
+
+def test_checkpoint_that_does_not_fit_is_a_clear_error(tiny_split, tmp_path):
+    train, validation = tiny_split
+    path = tmp_path / "m.pt"
+    meta = {"model": "nssm", "model_kwargs": {"hidden": 64}}
+    CurriculumTrainer(
+        make_state_model("nssm"), state_objective, _config(max_epochs=1), path, meta
+    ).fit(train, validation, progress=False)
+    # other sizes, same name: the state dict check names the mismatching tensors
+    with pytest.raises(CheckpointError, match="shape mismatch"):
+        CurriculumTrainer(
+            make_state_model("nssm", hidden=32), state_objective, _config(), path
+        ).fit(train, validation, resume=True, progress=False)
+    # another model by name
+    with pytest.raises(CheckpointError, match="holds model='nssm'"):
+        CurriculumTrainer(
+            make_state_model("node1"), state_objective, _config(), path, {"model": "node1"}
+        ).fit(train, validation, resume=True, progress=False)
+    # a corrupt file
+    path.write_bytes(b"not a checkpoint")
+    with pytest.raises(CheckpointError, match="cannot read checkpoint"):
+        load_checkpoint(path)
+    assert json.loads(path.with_suffix(".json").read_text())["model"] == "nssm"
+
+
+def test_horizon_longer_than_data_is_rejected(tiny_split, tmp_path):
+    train, validation = tiny_split
+    trainer = CurriculumTrainer(
+        make_state_model("nssm"), state_objective, _config(horizons=(32,)), tmp_path / "h.pt"
+    )
+    with pytest.raises(ValueError, match="exceeds the dataset horizon 16"):
+        trainer.fit(train, validation, progress=False)
