@@ -78,7 +78,7 @@ def test_output_model_training_on_node2_states(tiny_split, tmp_path):
     assert min(losses[-3:]) < losses[0]
 
 
-class Killed(Exception):
+class SimulatedKillError(Exception):
     pass
 
 
@@ -92,7 +92,7 @@ def test_resume_after_kill_continues_to_the_same_weights(tiny_split, tmp_path):
         def kill(record):
             if kill_at is not None and len(trainer_log) == 0 and record.epoch == kill_at:
                 trainer_log.append(record)
-                raise Killed
+                raise SimulatedKillError
 
         trainer_log: list = []
         trainer = CurriculumTrainer(
@@ -101,7 +101,7 @@ def test_resume_after_kill_continues_to_the_same_weights(tiny_split, tmp_path):
         return trainer.fit(train, validation, resume=resume, progress=False)
 
     reference = run(tmp_path / "a.pt")
-    with pytest.raises(Killed):
+    with pytest.raises(SimulatedKillError):
         run(tmp_path / "b.pt", kill_at=4)  # killed in the first curriculum step
     payload, _ = load_checkpoint(tmp_path / "b.pt")
     assert payload["progress"]["stage"] == 0 and payload["progress"]["epoch"] == 4
