@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -133,6 +135,56 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_table2(args: argparse.Namespace) -> int:
+    from mca_drake.learning.table2 import Table2Config, quick_config, run_table2
+
+    out = Path(args.out_dir)
+    closed, open_loop = args.closed_loop_dataset, args.open_loop_dataset
+    if args.quick:
+        closed = closed or str(_quick_closed_loop_dataset(out / "data", not args.quiet))
+        open_loop = open_loop or str(_quick_open_loop_dataset(out / "data"))
+        config = quick_config(closed, open_loop)
+    else:
+        config = Table2Config(
+            closed_loop_dataset=closed or Table2Config.closed_loop_dataset,
+            open_loop_dataset=open_loop or Table2Config.open_loop_dataset,
+        )
+        for path, command in (
+            (config.closed_loop_dataset, "mca-drake dataset closed-loop"),
+            (config.open_loop_dataset, "mca-drake dataset open-loop --out datasets/open_loop.npz"),
+        ):
+            if not Path(path).is_file():
+                raise FileNotFoundError(f"dataset {path} not found; make it with `{command}`")
+    config.train = dataclasses.replace(config.train, device=args.device)
+    if args.max_epochs:
+        config.train = dataclasses.replace(config.train, max_epochs=args.max_epochs)
+    if args.only:
+        wanted = set(args.only.split(","))
+        config.state_models = tuple(n for n in config.state_models if f"state_{n}" in wanted)
+        config.output_models = tuple(n for n in config.output_models if f"output_{n}" in wanted)
+    report = run_table2(config, out, resume=args.resume, progress=not args.quiet)
+    print((out / "table2.md").read_text())
+    print(f"written to {out / 'table2.md'} and table2.json ({report['wall_s'] / 60:.1f} min)")
+    return 0
+
+
+def _quick_closed_loop_dataset(folder: Path, progress: bool) -> Path:
+    from mca_drake.closed_loop_dataset import ClosedLoopDatasetConfig, generate_closed_loop_dataset
+
+    config = ClosedLoopDatasetConfig(flight_seeds=(100,), flight_duration_s=60.0, horizon=32)
+    return generate_closed_loop_dataset(config, folder / "closed_loop", progress=progress)
+
+
+def _quick_open_loop_dataset(folder: Path) -> Path:
+    from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
+
+    path = folder / "open_loop_quick.npz"
+    if not path.is_file():
+        config = ExcitationConfig(repetitions=3, duration_s=4.0, horizon=32)
+        generate_excitation_dataset(config, progress=False).save(path)
+    return path
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mca-drake", description="Motion cueing for a KUKA KR500 motion simulator, on Drake."
@@ -213,6 +265,22 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--plot", help="PNG of target versus achieved outputs")
     evaluate.add_argument("--quiet", action="store_true")
     evaluate.set_defaults(func=_cmd_evaluate)
+
+    table2 = sub.add_parser(
+        "table2", help="train and score every plant-model candidate (the paper's Table II)"
+    )
+    table2.add_argument("--quick", action="store_true", help="a few minutes: small data, epochs")
+    table2.add_argument("--closed-loop-dataset", help="default datasets/closed_loop/dataset.npz")
+    table2.add_argument("--open-loop-dataset", help="default datasets/open_loop.npz")
+    table2.add_argument("--out-dir", default="results/table2")
+    table2.add_argument("--resume", action="store_true", help="continue a killed run")
+    table2.add_argument("--device", default="auto", help="auto (CUDA if present), cpu, cuda")
+    table2.add_argument("--max-epochs", type=int, help="override epochs per curriculum step")
+    table2.add_argument(
+        "--only", help="comma-separated candidates, e.g. state_node1,output_mixed (default all)"
+    )
+    table2.add_argument("--quiet", action="store_true")
+    table2.set_defaults(func=_cmd_table2)
     return parser
 
 

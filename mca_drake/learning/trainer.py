@@ -123,6 +123,8 @@ class CurriculumTrainer:
         metadata: JSON-serialisable description stored with every checkpoint (model name,
             its arguments, dataset): it lets a reader rebuild the model.
         callbacks: called with each EpochRecord after the epoch's checkpoint decision.
+        stage_callbacks: called with (StageResult, model) at the end of each curriculum
+            step, the model holding that step's best weights (e.g. to save or score them).
     """
 
     def __init__(
@@ -133,6 +135,7 @@ class CurriculumTrainer:
         checkpoint_path: str | Path = "checkpoint.pt",
         metadata: dict | None = None,
         callbacks: Sequence[Callable[[EpochRecord], None]] = (),
+        stage_callbacks: Sequence[Callable[[StageResult, nn.Module], None]] = (),
     ):
         self.config = config or TrainConfig()
         self.config.validate()
@@ -142,6 +145,7 @@ class CurriculumTrainer:
         self.checkpoint_path = Path(checkpoint_path)
         self.metadata = dict(metadata or {})
         self.callbacks = list(callbacks)
+        self.stage_callbacks = list(stage_callbacks)
 
     # ----------------------------------------------------------------- helpers
     def _new_optimiser(self):
@@ -331,6 +335,8 @@ class CurriculumTrainer:
                     horizon, best_val, best_epoch + 1, epoch, time.perf_counter() - stage_start
                 )
             )
+            for callback in self.stage_callbacks:
+                callback(stages[-1], self.model)
             # The next step starts from these best weights with a fresh optimiser.
             progress_state = self._progress(
                 stage + 1, 0, math.inf, -1, time.perf_counter(), history, stages
