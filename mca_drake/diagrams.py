@@ -105,14 +105,24 @@ def MakePlantDemoDiagram(
     return diagram, handles
 
 
-MCA_NAMES = ("nmpc-rti", "nmpc-converged")
+MCA_NAMES = ("dpc", "nmpc-rti", "nmpc-converged")
 
 
-def AddMca(builder: DiagramBuilder, mca: str, robot: KR500, time_step: float = DEFAULT_DT):
+def AddMca(
+    builder: DiagramBuilder,
+    mca: str,
+    robot: KR500,
+    time_step: float = DEFAULT_DT,
+    policy: str | Path | None = None,
+):
     """Adds the motion cueing algorithm named `mca` to `builder` and returns it.
 
-    Every MCA has input ports `state` (12) and `reference` (6) and the output port
-    `joint_acceleration` (6). Valid names: MCA_NAMES.
+    Every MCA has input ports `state` (12) and `reference` (6), the output ports
+    `joint_acceleration` (6) and `statistics`, and "dpc" also the input `inertial_output`
+    (6). Valid names: MCA_NAMES.
+
+    Args:
+        policy: the policy file of "dpc" (default: the policy shipped with the package).
     """
     from mca_drake.nmpc import NmpcConfig
     from mca_drake.systems.nmpc_controller import NmpcController
@@ -120,11 +130,21 @@ def AddMca(builder: DiagramBuilder, mca: str, robot: KR500, time_step: float = D
     if mca in ("nmpc-rti", "nmpc-converged"):
         config = NmpcConfig(mode=mca.removeprefix("nmpc-"), time_step=time_step)
         return builder.AddNamedSystem("mca", NmpcController(config, robot))
+    if mca == "dpc":
+        from mca_drake.policy_inference import default_policy_path
+        from mca_drake.systems.dpc_policy import DpcPolicy
+
+        path = Path(policy) if policy is not None else default_policy_path()
+        return builder.AddNamedSystem("mca", DpcPolicy(path, robot, time_step))
     raise ValueError(f"unknown MCA '{mca}'; valid: {', '.join(MCA_NAMES)}")
 
 
 def MakeAnalyticalClosedLoop(
-    reference, mca: str, robot: KR500 | None = None, time_step: float = DEFAULT_DT
+    reference,
+    mca: str,
+    robot: KR500 | None = None,
+    time_step: float = DEFAULT_DT,
+    policy: str | Path | None = None,
 ) -> tuple[Diagram, dict]:
     """ReferenceSource -> MCA -> MotionCueingPlant, the MCA fed the plant state, with logs.
 
@@ -140,8 +160,12 @@ def MakeAnalyticalClosedLoop(
     robot = robot if robot is not None else load_kr500()
     builder = DiagramBuilder()
     source = builder.AddNamedSystem("reference_source", ReferenceSource(reference))
-    controller = AddMca(builder, mca, robot, time_step)
+    controller = AddMca(builder, mca, robot, time_step, policy)
     plant = builder.AddNamedSystem("plant", MotionCueingPlant(robot=robot, time_step=time_step))
+    if controller.HasInputPort("inertial_output"):
+        builder.Connect(
+            plant.GetOutputPort("inertial_output"), controller.GetInputPort("inertial_output")
+        )
     builder.Connect(source.GetOutputPort("reference"), controller.GetInputPort("reference"))
     builder.Connect(plant.GetOutputPort("state"), controller.GetInputPort("state"))
     builder.Connect(

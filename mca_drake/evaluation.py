@@ -58,6 +58,7 @@ def run_closed_loop(
     progress: bool = True,
     json_path: str | Path | None = None,
     plot_path: str | Path | None = None,
+    policy: str | Path | None = None,
 ) -> ClosedLoopResult:
     """Runs the closed loop of `mca` on the analytical plant over `reference`.
 
@@ -66,6 +67,7 @@ def run_closed_loop(
         reference: the target outputs (its time step is the control period).
         duration_s: simulated time, default the whole reference.
         json_path, plot_path: optional result summary (JSON) and target-vs-achieved PNG.
+        policy: the policy file of mca "dpc" (default: the one shipped with the package).
     """
     robot = robot if robot is not None else load_kr500()
     h = reference.time_step
@@ -75,7 +77,7 @@ def run_closed_loop(
             f"duration_s must be in (0, {reference.duration_s:g}] s (the reference); got "
             f"{duration_s}"
         )
-    diagram, handles = MakeAnalyticalClosedLoop(reference, mca, robot, h)
+    diagram, handles = MakeAnalyticalClosedLoop(reference, mca, robot, h, policy)
     simulator = Simulator(diagram)
     simulator.Initialize()
     # One period past the end so that the command of the last kept sample is logged.

@@ -75,3 +75,40 @@ def is_stoppable(q, qd, q_min, q_max, qdd_max, tol: float = 1e-9) -> np.ndarray:
     reach_up = q + np.maximum(qd, 0) ** 2 / (2 * qdd_max)
     reach_down = q - np.minimum(qd, 0) ** 2 / (2 * qdd_max)
     return (reach_up <= q_max + tol) & (reach_down >= q_min - tol)
+
+
+class ViabilityClamp:
+    """The joint-limit safety filter for any MCA: clamps a commanded acceleration into the
+    exact viability interval (`viable_acceleration_bounds`) of the robot's true limits.
+
+    Args:
+        q_min, q_max, qd_max, qdd_max: joint limits, shape (6,) (rad, rad/s, rad/s^2).
+        h: control period, s.
+        tolerance: a change of the command larger than this (rad/s^2) counts as an
+            intervention.
+    """
+
+    def __init__(self, q_min, q_max, qd_max, qdd_max, h: float, tolerance: float = 1e-9):
+        self.q_min, self.q_max = np.asarray(q_min, float), np.asarray(q_max, float)
+        self.qd_max, self.qdd_max = np.asarray(qd_max, float), np.asarray(qdd_max, float)
+        self.h, self.tolerance = float(h), float(tolerance)
+        self._n = self.q_min.size
+
+    @classmethod
+    def for_robot(cls, robot, h: float) -> ViabilityClamp:
+        """The clamp of a `mca_drake.robot.KR500` description."""
+        return cls(robot.q_min, robot.q_max, robot.qd_max, robot.qdd_max, h)
+
+    def __call__(self, x, u) -> tuple[np.ndarray, bool]:
+        """(u_safe, intervened) for state x = [q, qd] (12) and command u (6). A non-finite
+        command is replaced by the strongest braking command (and counts)."""
+        x, u = np.asarray(x, float), np.asarray(u, float)
+        q, qd = x[: self._n], x[self._n :]
+        lo, hi, viable = viable_acceleration_bounds(
+            q, qd, self.q_min, self.q_max, self.qd_max, self.qdd_max, self.h
+        )
+        if not np.all(np.isfinite(u)):
+            u = np.clip(-qd / self.h, -self.qdd_max, self.qdd_max)
+            return np.clip(u, lo, hi), True
+        safe = np.minimum(np.maximum(u, lo), hi)
+        return safe, bool(np.any(np.abs(safe - u) > self.tolerance) or not viable.all())

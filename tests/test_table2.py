@@ -68,3 +68,21 @@ def test_table2_tiny(datasets, tmp_path):
     # a resumed run reads the finished candidates back unchanged
     again = run_table2(config, tmp_path, resume=True, progress=False)
     assert again["rows"] == json.loads(json.dumps(rows))
+
+
+def test_cli_table2(tmp_path, capsys):
+    from mca_drake.cli import main
+
+    data = generate_excitation_dataset(
+        ExcitationConfig(
+            signals=("sine",), repetitions=2, duration_s=1.0, horizon=32, initial_state_fraction=0.3
+        ),
+        progress=False,
+    )
+    path = str(data.save(tmp_path / "d.npz"))
+    args = ["table2", "--quick", "--closed-loop-dataset", path, "--open-loop-dataset", path]
+    args += ["--only", "state_node2,output_exact", "--out-dir", str(tmp_path / "t2"), "--quiet"]
+    assert main(args) == 0
+    assert "NODE 2" in (tmp_path / "t2" / "table2.md").read_text()
+    assert main(["table2", "--closed-loop-dataset", str(tmp_path / "missing.npz")]) == 2
+    assert "make it with `mca-drake dataset closed-loop`" in capsys.readouterr().err

@@ -48,8 +48,9 @@ def to_tensors(
     horizon: int | None = None,
     dtype: torch.dtype = torch.float32,
     device: str | torch.device = "cpu",
+    names: tuple[str, ...] = TRAINING_ARRAYS,
 ) -> SegmentTensors:
-    """The training arrays of `dataset`, cut into `horizon`-long pieces (default: as is).
+    """The arrays `names` of `dataset`, cut into `horizon`-long pieces (default: as is).
 
     Raises:
         ValueError: if the horizon does not divide into the dataset's, or data are not finite.
@@ -60,7 +61,9 @@ def to_tensors(
         raise ValueError(f"horizon must be in [2, {n_p}] for this dataset; got {horizon}")
     pieces = n_p // horizon
     arrays = {}
-    for name in TRAINING_ARRAYS:
+    for name in names:
+        if name not in dataset.arrays:
+            raise ValueError(f"dataset lacks array {name} (it has {', '.join(dataset.arrays)})")
         a = np.asarray(dataset.arrays[name])
         if not np.all(np.isfinite(a)):
             raise ValueError(f"dataset array {name} holds NaN or inf values")

@@ -30,7 +30,7 @@ from mca_drake.learning.checkpoint import (
     load_state_into,
     save_checkpoint,
 )
-from mca_drake.learning.data import SegmentTensors, to_tensors
+from mca_drake.learning.data import TRAINING_ARRAYS, SegmentTensors, to_tensors
 from mca_drake.segments import SegmentDataset
 
 Objective = Callable[[nn.Module, dict[str, torch.Tensor]], torch.Tensor]
@@ -125,6 +125,7 @@ class CurriculumTrainer:
         callbacks: called with each EpochRecord after the epoch's checkpoint decision.
         stage_callbacks: called with (StageResult, model) at the end of each curriculum
             step, the model holding that step's best weights (e.g. to save or score them).
+        arrays: the dataset arrays the objective reads (default U, X, Y, dF, ddF).
     """
 
     def __init__(
@@ -136,6 +137,7 @@ class CurriculumTrainer:
         metadata: dict | None = None,
         callbacks: Sequence[Callable[[EpochRecord], None]] = (),
         stage_callbacks: Sequence[Callable[[StageResult, nn.Module], None]] = (),
+        arrays: tuple[str, ...] = TRAINING_ARRAYS,
     ):
         self.config = config or TrainConfig()
         self.config.validate()
@@ -146,6 +148,7 @@ class CurriculumTrainer:
         self.metadata = dict(metadata or {})
         self.callbacks = list(callbacks)
         self.stage_callbacks = list(stage_callbacks)
+        self.arrays = tuple(arrays)
 
     # ----------------------------------------------------------------- helpers
     def _new_optimiser(self):
@@ -261,8 +264,8 @@ class CurriculumTrainer:
 
         for stage in range(start_stage, len(cfg.horizons)):
             horizon = cfg.horizons[stage]
-            train_t = to_tensors(train, horizon, device=self.device)
-            val_t = to_tensors(validation, horizon, device=self.device)
+            train_t = to_tensors(train, horizon, device=self.device, names=self.arrays)
+            val_t = to_tensors(validation, horizon, device=self.device, names=self.arrays)
             optimiser, scheduler = self._new_optimiser()
             best_state = {k: v.clone() for k, v in self.model.state_dict().items()}
             best_val, best_epoch, stage_start = math.inf, -1, time.perf_counter()

@@ -1,0 +1,269 @@
+"""Differentiable predictive control training of the motion-cueing policy (paper eq. 9).
+
+Closed-loop rollouts of n_c steps: from a dataset segment's first state x_0 and output y_0,
+the policy and a frozen plant run in a cycle,
+
+    u_t, x_hat_(t+1) = policy(y_t, x_t, Y_t)
+    y_(t+1) = output(x_t, u_t)           (the output while u_t acts; tracked against Y_t)
+    x_(t+1) = step(x_t, u_t)
+
+and the loss per step is, summed over vector components and averaged over steps and
+segments (the NMPC's cost terms, `mca_drake.nmpc`):
+
+    w_y ||y_(t+1) - Y_t||^2 + w_x ||x_hat_(t+1) - x_(t+1)||^2 + 0.1 ||u_t||^2 + ||q_t||^2
+      + w_b ||violation of the state limits by x_(t+1)||^2
+
+Targets Y are the NMPC-achieved outputs of the closed-loop dataset (the paper's choice,
+`targets="achieved"`) or the references the NMPC was given (`targets="reference"`). The plant
+is the exact analytical torch plant by default, or the paper's learned NODE 2 + mixed
+analytical model (`plant="learned"`, weights from a Table II run).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from mca_drake.learning.output_models import MixedAnalyticalOutput
+from mca_drake.learning.policy import PolicyNetwork
+from mca_drake.learning.state_models import Node2State
+from mca_drake.learning.trainer import TrainConfig
+from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.torch_plant import TorchPlant
+
+TARGETS = ("achieved", "reference")
+PLANTS = ("exact", "learned")
+
+
+def _default_train() -> TrainConfig:
+    return TrainConfig(
+        learning_rate=1e-3,
+        weight_decay=0.01,
+        batch_size=256,
+        max_epochs=3000,
+        early_stopping_patience=500,
+        plateau_patience=100,
+        horizons=(64,),
+    )
+
+
+@dataclasses.dataclass
+class DpcConfig:
+    """DPC policy training settings (defaults: the paper's, see the module docstring)."""
+
+    # Targets: "achieved" (NMPC outputs) or "reference" (the NMPC's references).
+    targets: str = "achieved"
+    # Frozen plant of the rollouts: "exact" or "learned" (NODE 2 + mixed analytical).
+    plant: str = "exact"
+    # With plant="learned": the mixed analytical model's best weights (a Table II run's
+    # output_mixed_n256.pt).
+    learned_output_weights: str = ""
+    # Loss weights: tracking, state prediction, input (paper 0.1), washout, state limits.
+    tracking_weight: float = 1.0
+    state_estimate_weight: float = 1.0
+    input_weight: float = 0.1
+    washout_weight: float = 1.0
+    limit_weight: float = 100.0
+    # Hidden neurons of the policy (paper: 128).
+    hidden: int = 128
+    # Optimiser, epochs, batch and the rollout length n_c (train.horizons, one step).
+    train: TrainConfig = dataclasses.field(default_factory=_default_train)
+    # Seed of the weight initialisation.
+    seed: int = 0
+    # Fuse each rollout step with torch.compile (about 9x faster on CPU after a compile of
+    # about a minute; needs a C++ compiler). False: plain eager mode.
+    compile: bool = True
+
+    def validate(self) -> None:
+        if self.targets not in TARGETS:
+            raise ValueError(f"unknown targets '{self.targets}'; valid: {', '.join(TARGETS)}")
+        if self.plant not in PLANTS:
+            raise ValueError(f"unknown plant '{self.plant}'; valid: {', '.join(PLANTS)}")
+        if self.plant == "learned" and not Path(self.learned_output_weights).is_file():
+            raise ValueError(
+                "plant='learned' needs learned_output_weights, the mixed analytical model's "
+                f"weights (output_mixed_n256.pt of `mca-drake table2`); got "
+                f"'{self.learned_output_weights}'"
+            )
+        self.train.validate()
+
+
+class RolloutPlant(nn.Module):
+    """The frozen plant of the DPC rollouts: step(x, u) -> x_next, output(x, u) -> y."""
+
+    def __init__(self, config: DpcConfig, robot: KR500 | None = None):
+        super().__init__()
+        robot = robot if robot is not None else load_kr500()
+        self.kind = config.plant
+        if config.plant == "exact":
+            self.exact = TorchPlant(robot, dtype=torch.float64, check_inputs=False).float()
+        else:
+            self.state_model = Node2State()
+            self.output_model = MixedAnalyticalOutput()
+            state = torch.load(config.learned_output_weights, map_location="cpu", weights_only=True)
+            from mca_drake.learning.checkpoint import load_state_into
+
+            load_state_into(self.output_model, state, config.learned_output_weights)
+        for p in self.parameters():
+            p.requires_grad_(False)
+
+    def step(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        if self.kind == "exact":
+            return self.exact.step(x, u)
+        return self.state_model.step(x, u)
+
+    def output(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        if self.kind == "exact":
+            return self.exact.output(x, u)
+        return self.output_model(x[:, None], u[:, None])[:, 0]
+
+
+@dataclasses.dataclass
+class Rollout:
+    """A closed-loop rollout: U (B, T, 6), X (B, T + 1, 12), X_hat (B, T, 12) predicting
+    X[:, 1:], Y (B, T, 6) the outputs while U acts."""
+
+    U: torch.Tensor
+    X: torch.Tensor
+    X_hat: torch.Tensor
+    Y: torch.Tensor
+
+
+def rollout_cell(policy: PolicyNetwork, plant: RolloutPlant):
+    """One closed-loop step (y_t, x_t, Y_t) -> (u_t, x_hat, y_(t+1), x_(t+1))."""
+
+    def cell(y, x, target):
+        u, x_hat = policy(y, x, target)
+        return u, x_hat, plant.output(x, u), plant.step(x, u)
+
+    return cell
+
+
+def closed_loop_rollout(
+    policy: PolicyNetwork,
+    plant: RolloutPlant,
+    x0: torch.Tensor,
+    y0: torch.Tensor,
+    targets: torch.Tensor,
+    cell=None,
+) -> Rollout:
+    """Runs policy and plant in a cycle over targets (B, T, 6) from x0 (B, 12), y0 (B, 6).
+
+    `cell` may be a compiled `rollout_cell(policy, plant)`."""
+    cell = cell or rollout_cell(policy, plant)
+    x, y = x0, y0
+    U, X, X_hat, Y = [], [x0], [], []
+    for t in range(targets.shape[1]):
+        u, x_hat, y, x = cell(y, x, targets[:, t])
+        U.append(u)
+        X_hat.append(x_hat)
+        Y.append(y)
+        X.append(x)
+    stack = lambda seq: torch.stack(seq, dim=1)  # noqa: E731
+    return Rollout(stack(U), stack(X), stack(X_hat), stack(Y))
+
+
+def dpc_loss_terms(
+    rollout: Rollout, targets: torch.Tensor, policy: PolicyNetwork
+) -> dict[str, torch.Tensor]:
+    """The loss terms (unweighted), each averaged over segments and steps."""
+    X_next = rollout.X[:, 1:]
+    lower, upper = policy.lower[NUM_JOINTS:], policy.upper[NUM_JOINTS:]
+    violation = torch.relu(X_next - upper) + torch.relu(lower - X_next)
+    return {
+        "tracking": ((rollout.Y - targets) ** 2).sum(-1).mean(),
+        "state_estimate": ((rollout.X_hat - X_next) ** 2).sum(-1).mean(),
+        "input": (rollout.U**2).sum(-1).mean(),
+        "washout": (rollout.X[:, :-1, :NUM_JOINTS] ** 2).sum(-1).mean(),
+        "limits": (violation**2).sum(-1).mean(),
+    }
+
+
+def dpc_objective(config: DpcConfig, plant: RolloutPlant):
+    """objective(policy, batch) for `CurriculumTrainer`: the weighted DPC loss of the
+    closed-loop rollout from each segment's first state over its targets."""
+    weights = {
+        "tracking": config.tracking_weight,
+        "state_estimate": config.state_estimate_weight,
+        "input": config.input_weight,
+        "washout": config.washout_weight,
+        "limits": config.limit_weight,
+    }
+    key = "Y" if config.targets == "achieved" else "R"
+    cells = {}
+
+    def objective(policy: PolicyNetwork, batch: dict[str, torch.Tensor]) -> torch.Tensor:
+        if id(policy) not in cells:
+            cell = rollout_cell(policy, plant)
+            cells[id(policy)] = torch.compile(cell) if config.compile else cell
+        targets = batch[key]
+        rollout = closed_loop_rollout(
+            policy, plant, batch["X"][:, 0], batch["Y"][:, 0], targets, cells[id(policy)]
+        )
+        terms = dpc_loss_terms(rollout, targets, policy)
+        return sum(weights[k] * v for k, v in terms.items())
+
+    return objective
+
+
+def train_policy(
+    config: DpcConfig,
+    dataset: str | Path,
+    out_dir: str | Path,
+    *,
+    resume: bool = False,
+    progress: bool = True,
+    command: str = "",
+) -> tuple[PolicyNetwork, Path]:
+    """Trains a policy on a closed-loop dataset and writes it to out_dir/policy.npz.
+
+    The checkpoint (out_dir/policy.pt with its .json, loss log and curve) makes the run
+    resumable. Returns the policy with the best validation weights and the policy file.
+    """
+    from mca_drake.closed_loop_dataset import split_of
+    from mca_drake.learning.policy import save_policy
+    from mca_drake.learning.trainer import CurriculumTrainer
+    from mca_drake.segments import SegmentDataset, package_versions
+
+    config.validate()
+    out = Path(out_dir)
+    data = SegmentDataset.load(dataset)
+    if "R" not in data.arrays and config.targets == "reference":
+        raise ValueError(f"{dataset} has no references R; use targets='achieved'")
+    splits = split_of(data)
+    torch.manual_seed(config.seed)
+    policy = PolicyNetwork(hidden=config.hidden)
+    plant = RolloutPlant(config)
+    metadata = {
+        "model": "dpc-policy",
+        "model_kwargs": {"hidden": config.hidden},
+        "dataset": str(dataset),
+        "dpc_config": json.loads(json.dumps(dataclasses.asdict(config))),
+    }
+    names = ("X", "Y", "U") + (("R",) if config.targets == "reference" else ())
+    trainer = CurriculumTrainer(
+        policy,
+        dpc_objective(config, plant),
+        config.train,
+        out / "policy.pt",
+        metadata,
+        arrays=names,
+    )
+    result = trainer.fit(splits["train"], splits["validation"], resume=resume, progress=progress)
+    path = out / "policy.npz"
+    save_policy(
+        path,
+        policy,
+        {
+            **metadata,
+            "command": command,
+            "stages": [dataclasses.asdict(s) for s in result.stages],
+            "training_wall_s": result.wall_s,
+            "versions": package_versions(),
+        },
+    )
+    return policy, path

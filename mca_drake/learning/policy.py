@@ -1,0 +1,151 @@
+"""The DPC motion-cueing policy network (paper eq. 11).
+
+    [u_t, x_hat_(t+1)] = sat_lb^ub( f_pi(y_t, x_t, Y_t) )
+
+    y_t       (B, 6)   the measured plant output (rad/s, m/s^2)
+    x_t       (B, 12)  the measured state [q, qd] (rad, rad/s)
+    Y_t       (B, 6)   the target output
+    u_t       (B, 6)   joint accelerations (rad/s^2), within +-qdd_max
+    x_hat     (B, 12)  the policy's prediction of the next state, within the state limits
+
+f_pi is two bias-free linear layers of 128 with a GELU between; sat is the ReLU clamp
+lb + relu(z - lb) - relu(z - ub) = min(max(z, lb), ub) with lb = [qdd-, q-, qd-] and
+ub = [qdd+, q+, qd+] (Table I). One addition to the paper: the inputs are divided by fixed
+scales (the joint limits for x, `OUTPUT_SCALE` for y and Y) so that every input is of order
+one; the scales are constants of the network, exported with its weights.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import nn
+
+from mca_drake.learning.blocks import Mlp
+from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+
+# Typical magnitudes of the output channels [w_x, w_y, w_z, f_x, f_y, a_z]: rad/s, m/s^2.
+OUTPUT_SCALE = (0.5, 0.5, 0.5, 2.0, 2.0, 2.0)
+INPUT_SIZE = 6 + 2 * NUM_JOINTS + 6
+OUTPUT_SIZE = NUM_JOINTS + 2 * NUM_JOINTS
+
+
+def relu_clamp(z: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor) -> torch.Tensor:
+    """The paper's ReLU-clamp saturation, lower + relu(z - lower) - relu(z - upper), computed
+    as min(max(z, lower), upper): the same function and gradient, but exact in floating point
+    (the ReLU form can overshoot a bound by a rounding error)."""
+    return torch.minimum(torch.maximum(z, lower), upper)
+
+
+class PolicyNetwork(nn.Module):
+    """Bounded policy network; see the module docstring for shapes and units.
+
+    Args:
+        robot: the KR500 description (limits of the saturation, input scales).
+        hidden: neurons of the hidden layer (paper: 128).
+    """
+
+    def __init__(self, robot: KR500 | None = None, hidden: int = 128):
+        super().__init__()
+        robot = robot if robot is not None else load_kr500()
+        self.hidden = int(hidden)
+        self.f_pi = Mlp(INPUT_SIZE, OUTPUT_SIZE, hidden)
+        lower = np.concatenate([-robot.qdd_max, robot.q_min, -robot.qd_max])
+        upper = np.concatenate([robot.qdd_max, robot.q_max, robot.qd_max])
+        input_scale = np.concatenate(
+            [OUTPUT_SCALE, np.maximum(-robot.q_min, robot.q_max), robot.qd_max, OUTPUT_SCALE]
+        )
+
+        def buffer(name, value):
+            self.register_buffer(name, torch.tensor(np.asarray(value), dtype=torch.float32))
+
+        buffer("lower", lower)
+        buffer("upper", upper)
+        buffer("input_scale", input_scale)
+
+    def forward(
+        self, y: torch.Tensor, x: torch.Tensor, target: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """(u (B, 6), x_hat (B, 12)) for y (B, 6), x (B, 12), target (B, 6)."""
+        features = torch.cat([y, x, target], dim=-1) / self.input_scale
+        out = relu_clamp(self.f_pi(features), self.lower, self.upper)
+        return out[..., :NUM_JOINTS], out[..., NUM_JOINTS:]
+
+    def export(self) -> dict[str, np.ndarray]:
+        """float64 numpy arrays for inference without torch: W1 (hidden, 24), W2 (18, hidden),
+        input_scale (24), lower (18), upper (18)."""
+        return {
+            "W1": self.f_pi.net[0].weight.detach().cpu().double().numpy(),
+            "W2": self.f_pi.net[2].weight.detach().cpu().double().numpy(),
+            "input_scale": self.input_scale.cpu().double().numpy(),
+            "lower": self.lower.cpu().double().numpy(),
+            "upper": self.upper.cpu().double().numpy(),
+        }
+
+
+POLICY_FORMAT = "mca-drake-policy-1"
+_ARRAYS = ("W1", "W2", "input_scale", "lower", "upper")
+
+
+def save_policy(path, policy: PolicyNetwork, metadata: dict) -> None:
+    """Writes the exported weights as .npz with JSON metadata inside, atomically (no pickle).
+
+    `metadata` should say how the policy was made (command, config, dataset, versions)."""
+    import io
+    import json
+
+    from mca_drake.atomic_io import atomic_write_bytes
+
+    buffer = io.BytesIO()
+    meta = {"format": POLICY_FORMAT, "hidden": policy.hidden, **metadata}
+    np.savez(buffer, metadata_json=np.array(json.dumps(meta)), **policy.export())
+    atomic_write_bytes(path, buffer.getvalue())
+
+
+def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
+    """(arrays, metadata) of a policy file; ValueError with the reason if it is not one or
+    its arrays do not fit together."""
+    import json
+    from pathlib import Path
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"policy file not found: {path}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            metadata = json.loads(str(data["metadata_json"]))
+            arrays = {k: np.asarray(data[k], dtype=float) for k in _ARRAYS}
+    except (OSError, KeyError, ValueError) as err:
+        raise ValueError(f"{path} is not a policy file: {err}") from err
+    if metadata.get("format") != POLICY_FORMAT:
+        raise ValueError(f"{path}: unknown policy format {metadata.get('format')!r}")
+    hidden = arrays["W1"].shape[0]
+    expected = {
+        "W1": (hidden, INPUT_SIZE),
+        "W2": (OUTPUT_SIZE, hidden),
+        "input_scale": (INPUT_SIZE,),
+        "lower": (OUTPUT_SIZE,),
+        "upper": (OUTPUT_SIZE,),
+    }
+    for name, shape in expected.items():
+        if arrays[name].shape != shape:
+            raise ValueError(f"{path}: array {name} has shape {arrays[name].shape}, not {shape}")
+        if not np.all(np.isfinite(arrays[name])):
+            raise ValueError(f"{path}: array {name} holds NaN or inf")
+    if np.any(arrays["lower"] > arrays["upper"]) or np.any(arrays["input_scale"] <= 0):
+        raise ValueError(f"{path}: bounds or input scales are inconsistent")
+    return arrays, metadata
+
+
+def load_policy_network(path, robot: KR500 | None = None) -> PolicyNetwork:
+    """A PolicyNetwork holding the weights of a policy file (for further training or torch
+    inference). Raises ValueError if the file's bounds are not this robot's limits."""
+    arrays, _ = load_policy_arrays(path)
+    policy = PolicyNetwork(robot, hidden=arrays["W1"].shape[0])
+    for name in ("lower", "upper", "input_scale"):
+        if not np.allclose(arrays[name], getattr(policy, name).double().numpy(), atol=1e-6):
+            raise ValueError(f"{path}: {name} of the policy does not match this robot's limits")
+    with torch.no_grad():
+        policy.f_pi.net[0].weight.copy_(torch.tensor(arrays["W1"]))
+        policy.f_pi.net[2].weight.copy_(torch.tensor(arrays["W2"]))
+    return policy

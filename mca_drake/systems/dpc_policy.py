@@ -1,0 +1,98 @@
+"""DpcPolicy: the trained DPC motion-cueing policy as a discrete Drake system."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+from pydrake.systems.framework import Context, LeafSystem, State
+
+from mca_drake.policy_inference import PolicyInference
+from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.safety import ViabilityClamp
+from mca_drake.systems.nmpc_controller import STATISTICS
+
+DEFAULT_DT = 0.01
+
+
+class DpcPolicy(LeafSystem):
+    """The DPC policy (paper eq. 11) with the viability clamp on its command.
+
+    .. pydrake_system::
+
+        name: DpcPolicy
+        input_ports:
+        - reference
+        - state
+        - inertial_output
+        output_ports:
+        - joint_acceleration
+        - statistics
+
+    Every `time_step` an unrestricted update reads the reference Y_t (6), the state x_t = [q, qd]
+    (12) and the measured output y_t (6), evaluates the network in numpy (weights exported
+    from torch, `mca_drake.policy_inference`), clamps u_t into the viability interval of the
+    true joint limits (`mca_drake.safety.ViabilityClamp`: the robot can always brake inside
+    its limits) and stores it; `joint_acceleration` outputs it, so the command computed from
+    x_n acts from t_n (like NmpcController). `statistics` has the layout of NmpcController's
+    STATISTICS: step time (s), 0 solver failures, safety interventions, 0 QP iterations.
+
+    Args:
+        policy: a policy file (`mca_drake.learning.policy.save_policy`) or its arrays.
+        robot: the KR500 description (the clamp's limits).
+        time_step: control period, s.
+    """
+
+    def __init__(
+        self,
+        policy: str | Path | dict,
+        robot: KR500 | None = None,
+        time_step: float = DEFAULT_DT,
+    ):
+        super().__init__()
+        from mca_drake.learning.policy import load_policy_arrays
+
+        arrays = load_policy_arrays(policy)[0] if isinstance(policy, str | Path) else policy
+        self._robot = robot if robot is not None else load_kr500()
+        self._inference = PolicyInference(arrays)
+        self._clamp = ViabilityClamp.for_robot(self._robot, time_step)
+        self._reference_port = self.DeclareVectorInputPort("reference", 6)
+        self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
+        self._output_port = self.DeclareVectorInputPort("inertial_output", 6)
+        self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
+        self._statistics_index = self.DeclareDiscreteState(len(STATISTICS))
+        # Unrestricted, like NmpcController: it runs before the plant's discrete update at
+        # the same instant, so the command computed from x_n acts from t_n (no extra delay).
+        self.DeclarePeriodicUnrestrictedUpdateEvent(time_step, 0.0, self._update)
+        self.DeclareStateOutputPort("joint_acceleration", self._command_index)
+        self.DeclareStateOutputPort("statistics", self._statistics_index)
+
+    def statistics(self, context: Context) -> dict[str, float]:
+        """The `statistics` values in `context`, by name."""
+        values = context.get_discrete_state(self._statistics_index).value()
+        return dict(zip(STATISTICS, (float(v) for v in values), strict=True))
+
+    def _update(self, context: Context, state: State) -> None:
+        start = time.perf_counter()
+        x = self._state_port.Eval(context)
+        y = self._output_port.Eval(context)
+        reference = self._reference_port.Eval(context)
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(reference))):
+            raise RuntimeError(
+                f"DpcPolicy: non-finite state or reference at t = {context.get_time()} s"
+            )
+        if not np.all(np.isfinite(y)):
+            y = np.zeros(6)  # a dropped IMU sample: the policy still sees state and target
+        u, _ = self._inference(y, x, reference)
+        command, intervened = self._clamp(x, u)
+        discrete = state.get_mutable_discrete_state()
+        stats = context.get_discrete_state(self._statistics_index).value()
+        discrete.set_value(self._command_index, command)
+        discrete.set_value(
+            self._statistics_index,
+            [time.perf_counter() - start, 0.0, stats[2] + intervened, 0.0],
+        )
+
+
+__all__ = ["DpcPolicy"]

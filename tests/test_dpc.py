@@ -1,0 +1,236 @@
+"""DPC policy: bounds, numpy inference equal to torch, the safety filter, the Drake system,
+and training that beats doing nothing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from pydrake.systems.analysis import Simulator
+
+from mca_drake.learning.dpc import DpcConfig, RolloutPlant, closed_loop_rollout, train_policy
+from mca_drake.learning.policy import (
+    PolicyNetwork,
+    load_policy_arrays,
+    load_policy_network,
+    save_policy,
+)
+from mca_drake.learning.trainer import TrainConfig
+from mca_drake.policy_inference import PolicyInference
+from mca_drake.safety import ViabilityClamp, is_stoppable
+from mca_drake.segments import SegmentDataset
+from mca_drake.systems.dpc_policy import DpcPolicy
+
+
+def _random_policy(seed: int, gain: float = 3.0) -> PolicyNetwork:
+    torch.manual_seed(seed)
+    policy = PolicyNetwork()
+    with torch.no_grad():
+        for p in policy.parameters():
+            p.mul_(gain)  # large weights: outputs reach the saturation often
+    return policy
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 1000), scale=st.floats(0.1, 1e3))
+def test_policy_output_is_always_inside_bounds(seed, scale, robot):
+    policy = _random_policy(seed)
+    g = torch.Generator().manual_seed(seed)
+    y, x, r = (scale * torch.randn(64, n, generator=g) for n in (6, 12, 6))
+    u, x_hat = policy(y, x, r)
+    lower, upper = policy.lower, policy.upper
+    assert torch.all(u >= lower[:6]) and torch.all(u <= upper[:6])
+    assert torch.all(x_hat >= lower[6:]) and torch.all(x_hat <= upper[6:])
+    assert torch.all(upper[:6] == torch.tensor(robot.qdd_max, dtype=torch.float32))
+
+
+def test_numpy_inference_equals_torch(rng):
+    policy = _random_policy(1, gain=2.0).double()
+    inference = PolicyInference(policy.export())
+    for _ in range(200):
+        y, x, r = rng.normal(size=6) * 3, rng.normal(size=12), rng.normal(size=6) * 3
+        u_t, xh_t = policy(*(torch.tensor(v)[None] for v in (y, x, r)))
+        u, xh = inference(y, x, r)
+        np.testing.assert_allclose(u, u_t[0].detach().numpy(), rtol=0, atol=1e-6)
+        np.testing.assert_allclose(xh, xh_t[0].detach().numpy(), rtol=0, atol=1e-6)
+
+
+def test_policy_file_round_trip_and_bad_files(tmp_path, rng):
+    policy = _random_policy(2)
+    path = tmp_path / "p.npz"
+    save_policy(path, policy, {"command": "test"})
+    arrays, meta = load_policy_arrays(path)
+    assert meta["command"] == "test" and arrays["W1"].shape == (128, 24)
+    back = load_policy_network(path)
+    y, x, r = (torch.randn(5, n) for n in (6, 12, 6))
+    torch.testing.assert_close(back(y, x, r)[0], policy(y, x, r)[0])
+    bad = dict(arrays)
+    bad["W2"] = bad["W2"][:, :10]
+    np.savez(
+        tmp_path / "bad.npz", metadata_json=np.array('{"format": "mca-drake-policy-1"}'), **bad
+    )
+    with pytest.raises(ValueError, match="W2 has shape"):
+        load_policy_arrays(tmp_path / "bad.npz")
+    (tmp_path / "junk.npz").write_bytes(b"junk")
+    with pytest.raises(ValueError, match="not a policy file"):
+        load_policy_arrays(tmp_path / "junk.npz")
+    with pytest.raises(FileNotFoundError):
+        DpcPolicy(tmp_path / "missing.npz")
+
+
+def _simulate_with_clamp(robot, x0, commands, h=0.01):
+    """Exact zero-order-hold steps of the commands after the clamp; returns states."""
+    clamp = ViabilityClamp.for_robot(robot, h)
+    x, states, count = x0.copy(), [x0.copy()], 0
+    for k in range(commands.shape[0]):
+        u = commands[k](x) if callable(commands[k]) else commands[k]
+        u, hit = clamp(x, u)
+        count += hit
+        q, qd = x[:6], x[6:]
+        x = np.concatenate([q + h * qd + 0.5 * h * h * u, qd + h * u])
+        states.append(x.copy())
+    return np.array(states), count
+
+
+@pytest.mark.parametrize("kind", ["random", "bang-bang", "push-to-limit", "nan"])
+def test_safety_filter_keeps_the_plant_inside_its_limits(kind, robot, rng):
+    n = 1500
+    lim = robot.qdd_max
+    for _ in range(4):
+        q0 = rng.uniform(0.8 * robot.q_min, 0.8 * robot.q_max)
+        x0 = np.concatenate([q0, np.zeros(6)])
+        if kind == "random":
+            commands = rng.uniform(-5 * lim, 5 * lim, size=(n, 6))
+        elif kind == "bang-bang":
+            signs = np.sign(np.sin(np.arange(n)[:, None] * rng.uniform(0.001, 0.05, 6)))
+            commands = 10 * lim * signs
+        elif kind == "push-to-limit":
+            # adversarial: always accelerate towards the nearer limit as hard as possible
+            side = np.where(rng.random(6) < 0.5, -1.0, 1.0)
+            commands = np.tile(side * 100 * lim, (n, 1))
+        else:
+            commands = np.full((n, 6), np.nan)
+        X, count = _simulate_with_clamp(robot, x0, commands)
+        tol = 1e-9
+        assert np.all(X[:, :6] <= robot.q_max + tol) and np.all(X[:, :6] >= robot.q_min - tol)
+        assert np.all(np.abs(X[:, 6:]) <= robot.qd_max + tol)
+        assert np.all(is_stoppable(X[:, :6], X[:, 6:], robot.q_min, robot.q_max, robot.qdd_max))
+        assert count > 0
+
+
+def test_dpc_policy_system_matches_torch_and_clamps(tmp_path, robot, rng):
+    policy = _random_policy(4)
+    path = tmp_path / "p.npz"
+    save_policy(path, policy, {})
+    system = DpcPolicy(path, robot)
+    context = system.CreateDefaultContext()
+    clamp = ViabilityClamp.for_robot(robot, 0.01)
+    for _ in range(20):
+        q = rng.uniform(robot.q_min, robot.q_max)
+        qd = rng.uniform(-robot.qd_max, robot.qd_max)
+        x, y, r = np.concatenate([q, qd]), rng.normal(size=6), rng.normal(size=6)
+        system.GetInputPort("state").FixValue(context, x)
+        system.GetInputPort("inertial_output").FixValue(context, y)
+        system.GetInputPort("reference").FixValue(context, r)
+        context.SetTime(0.0)
+        Simulator(system, context).AdvanceTo(0.005)  # runs the update at t = 0
+        command = system.GetOutputPort("joint_acceleration").Eval(context)
+        with torch.no_grad():
+            u = policy(*(torch.tensor(v, dtype=torch.float32)[None] for v in (y, x, r)))[0]
+        expected, _ = clamp(x, u[0].double().numpy())
+        np.testing.assert_allclose(command, expected, rtol=0, atol=1e-5)
+
+
+# ----------------------------------------------------------------- training
+AMPLITUDE = np.array([0.05, 0.08, 0.08, 0.0, 0.1, 0.0])  # rad
+OMEGA = 2 * np.pi * 0.4  # rad/s
+
+
+def _sine_motion(t):
+    """A smooth joint motion about the neutral pose and its plant output (all channels vary):
+    an achievable target. Returns x (T, 12), y (T, 6)."""
+    from mca_drake.kinematics import plant_output
+
+    s, c = np.sin(OMEGA * t)[:, None], np.cos(OMEGA * t)[:, None]
+    q, qd, qdd = AMPLITUDE * s, AMPLITUDE * OMEGA * c, -AMPLITUDE * OMEGA**2 * s
+    return np.concatenate([q, qd], 1), plant_output(q, qd, qdd)
+
+
+def _sine_target_dataset(n_segments=48, horizon=32, seed=0) -> SegmentDataset:
+    """Segments starting at rest at the neutral pose, targets: the sine motion's outputs
+    from a random phase on."""
+    rng = np.random.default_rng(seed)
+    R = np.stack(
+        [_sine_motion(rng.uniform(0, 3) + 0.01 * np.arange(horizon))[1] for _ in range(n_segments)]
+    )
+    zeros = lambda *s: np.zeros((n_segments, horizon, *s))  # noqa: E731
+    arrays = {
+        "U": zeros(6),
+        "X": zeros(12),
+        "Y": zeros(6),
+        "F": zeros(4, 4),
+        "dF": zeros(4, 4),
+        "ddF": zeros(4, 4),
+        "R": R,
+    }
+    split = np.zeros(n_segments, dtype=np.int64)
+    split[n_segments * 7 // 10 :] = 1
+    source = np.stack([np.zeros(n_segments), np.zeros(n_segments), split], 1).astype(np.int64)
+    meta = {
+        "source_columns": ["flight_seed", "start_step", "split"],
+        "split_names": ["train", "validation", "test"],
+    }
+    return SegmentDataset({k: v.astype(np.float32) for k, v in arrays.items()}, source, meta)
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("dpc")
+    path = _sine_target_dataset().save(folder / "data.npz")
+    config = DpcConfig(
+        targets="reference",
+        compile=False,
+        train=TrainConfig(
+            learning_rate=1e-2, batch_size=16, max_epochs=20, horizons=(32,), device="cpu"
+        ),
+    )
+    policy, policy_path = train_policy(config, path, folder, progress=False)
+    history = (folder / "policy_loss.csv").read_text().splitlines()[1:]
+    return policy, policy_path, history
+
+
+def test_short_training_lowers_the_loss(trained):
+    _, _, history = trained
+    val = [float(line.split(",")[4]) for line in history]
+    assert min(val[-5:]) < 0.7 * val[0], (val[0], val[-5:])
+
+
+def test_trained_policy_tracks_better_than_doing_nothing(trained, robot):
+    from mca_drake.evaluation import run_closed_loop
+    from mca_drake.metrics import performance_index
+    from mca_drake.references.reference import Reference
+
+    _, policy_path, _ = trained
+    _, y_ref = _sine_motion(1.0 + 0.01 * np.arange(150))
+    reference = Reference(y_ref, 0.01, "sine motion")
+    result = run_closed_loop(mca="dpc", reference=reference, policy=policy_path, progress=False)
+    zero_pi = performance_index(result.reference, np.zeros_like(result.reference))
+    assert result.summary["pi"] < zero_pi - 0.5, (result.summary["pi"], zero_pi)
+    assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+
+
+def test_rollout_on_exact_plant_is_the_plant(robot):
+    """The rollout's states and outputs are the exact plant's for the commands it issued."""
+    from mca_drake.kinematics import plant_output
+
+    torch.manual_seed(5)
+    policy = PolicyNetwork()
+    plant = RolloutPlant(DpcConfig(compile=False))
+    targets = torch.randn(3, 20, 6)
+    with torch.no_grad():
+        roll = closed_loop_rollout(policy, plant, torch.zeros(3, 12), torch.zeros(3, 6), targets)
+    X, U = roll.X.double().numpy(), roll.U.double().numpy()
+    y = plant_output(X[:, :-1, :6], X[:, :-1, 6:], U, robot)
+    np.testing.assert_allclose(roll.Y.numpy(), y, rtol=0, atol=2e-4)
