@@ -130,6 +130,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         json_path=args.json,
         plot_path=args.plot,
+        policy=args.policy,
     )
     print(json.dumps(result.summary, indent=2))
     return 0
@@ -165,6 +166,35 @@ def _cmd_table2(args: argparse.Namespace) -> int:
     report = run_table2(config, out, resume=args.resume, progress=not args.quiet)
     print((out / "table2.md").read_text())
     print(f"written to {out / 'table2.md'} and table2.json ({report['wall_s'] / 60:.1f} min)")
+    return 0
+
+
+def _cmd_train_policy(args: argparse.Namespace) -> int:
+    from mca_drake.learning.dpc import DpcConfig, train_policy
+
+    config = DpcConfig(
+        targets=args.targets,
+        plant=args.plant,
+        learned_output_weights=args.learned_output_weights or "",
+        compile=not args.no_compile,
+        seed=args.seed,
+    )
+    train = dict(device=args.device, horizons=(args.horizon,))
+    if args.max_epochs:
+        train["max_epochs"] = args.max_epochs
+    if args.patience:
+        train["early_stopping_patience"] = args.patience
+    config.train = dataclasses.replace(config.train, **train)
+    command = "mca-drake " + " ".join(sys.argv[1:]) if sys.argv[0].endswith("mca-drake") else ""
+    _, path = train_policy(
+        config,
+        args.dataset,
+        args.out_dir,
+        resume=args.resume,
+        progress=not args.quiet,
+        command=command,
+    )
+    print(f"policy written to {path}")
     return 0
 
 
@@ -258,7 +288,10 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate = sub.add_parser(
         "evaluate", help="run one recording through an MCA on the analytical plant"
     )
-    evaluate.add_argument("--mca", default="nmpc-rti", help="nmpc-rti or nmpc-converged")
+    evaluate.add_argument(
+        "--mca", default="nmpc-rti", help="dpc, nmpc-rti, nmpc-converged or washout"
+    )
+    evaluate.add_argument("--policy", help="policy file for --mca dpc (default: the shipped one)")
     evaluate.add_argument("--reference", required=True, help="recording CSV")
     evaluate.add_argument("--duration", type=float, help="simulated seconds (default: all)")
     evaluate.add_argument("--json", help="write the result summary here")
@@ -281,6 +314,24 @@ def build_parser() -> argparse.ArgumentParser:
     )
     table2.add_argument("--quiet", action="store_true")
     table2.set_defaults(func=_cmd_table2)
+
+    policy = sub.add_parser("train-policy", help="train the DPC policy on a closed-loop dataset")
+    policy.add_argument("--dataset", default="datasets/closed_loop/dataset.npz")
+    policy.add_argument("--out-dir", default="results/policy")
+    policy.add_argument(
+        "--targets", default="achieved", help="achieved (NMPC outputs) or reference"
+    )
+    policy.add_argument("--plant", default="exact", help="exact or learned (NODE 2 + mixed)")
+    policy.add_argument("--learned-output-weights", help="output_mixed_n256.pt of a table2 run")
+    policy.add_argument("--horizon", type=int, default=64, help="n_c, rollout steps")
+    policy.add_argument("--max-epochs", type=int, help="default 3000 (the paper's)")
+    policy.add_argument("--patience", type=int, help="early stopping, default 500 epochs")
+    policy.add_argument("--seed", type=int, default=0)
+    policy.add_argument("--device", default="auto")
+    policy.add_argument("--no-compile", action="store_true", help="eager torch (slower)")
+    policy.add_argument("--resume", action="store_true", help="continue a killed run")
+    policy.add_argument("--quiet", action="store_true")
+    policy.set_defaults(func=_cmd_train_policy)
     return parser
 
 

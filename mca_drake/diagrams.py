@@ -105,7 +105,7 @@ def MakePlantDemoDiagram(
     return diagram, handles
 
 
-MCA_NAMES = ("dpc", "nmpc-rti", "nmpc-converged")
+MCA_NAMES = ("dpc", "nmpc-rti", "nmpc-converged", "washout")
 
 
 def AddMca(
@@ -136,6 +136,10 @@ def AddMca(
 
         path = Path(policy) if policy is not None else default_policy_path()
         return builder.AddNamedSystem("mca", DpcPolicy(path, robot, time_step))
+    if mca == "washout":
+        from mca_drake.systems.classical_washout import ClassicalWashout
+
+        return builder.AddNamedSystem("mca", ClassicalWashout(robot=robot, time_step=time_step))
     raise ValueError(f"unknown MCA '{mca}'; valid: {', '.join(MCA_NAMES)}")
 
 

@@ -1,0 +1,148 @@
+"""ClassicalWashout: the classical washout MCA with Drake's differential inverse kinematics."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from pydrake.math import RollPitchYaw, RotationMatrix
+from pydrake.multibody.inverse_kinematics import (
+    DifferentialInverseKinematicsParameters,
+    DifferentialInverseKinematicsStatus,
+    DoDifferentialInverseKinematics,
+)
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import Context, LeafSystem, State
+
+from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.safety import ViabilityClamp
+from mca_drake.systems.nmpc_controller import STATISTICS
+from mca_drake.washout import WashoutConfig, WashoutFilters
+
+DEFAULT_DT = 0.01
+
+
+class ClassicalWashout(LeafSystem):
+    """Classical washout motion cueing (`mca_drake.washout`) mapped to joint accelerations.
+
+    .. pydrake_system::
+
+        name: ClassicalWashout
+        input_ports:
+        - reference
+        - state
+        output_ports:
+        - joint_acceleration
+        - statistics
+
+    Every `time_step` an unrestricted update advances the washout filters with the
+    reference, forms the desired head pose (neutral head position plus the filtered
+    displacement; roll-pitch-yaw of the filtered rotation plus tilt coordination) and a head
+    velocity command (the filters' velocities plus `pose_feedback_gain` times the pose
+    error), and calls Drake's `DoDifferentialInverseKinematics` on a MultibodyPlant of the
+    KR500 with the joint position, velocity and acceleration limits. The joint velocity it
+    returns becomes the acceleration u = (v_next - qd) / h, which passes the viability clamp
+    (`mca_drake.safety.ViabilityClamp`). `statistics` follows NmpcController's STATISTICS
+    layout: step time, differential-IK failures, safety interventions, 0.
+
+    Args:
+        config: filter cut-offs, gains and the tilt-rate limit.
+        robot: the KR500 description (its URDF is parsed into the MultibodyPlant).
+        time_step: control period, s.
+    """
+
+    def __init__(
+        self,
+        config: WashoutConfig | None = None,
+        robot: KR500 | None = None,
+        time_step: float = DEFAULT_DT,
+    ):
+        super().__init__()
+        self._config = config or WashoutConfig()
+        self._robot = robot if robot is not None else load_kr500()
+        self._h = float(time_step)
+        self._filters = WashoutFilters(self._config, self._h)
+        self._clamp = ViabilityClamp.for_robot(self._robot, self._h)
+        plant = MultibodyPlant(0.0)
+        Parser(plant).AddModels(str(self._robot.urdf_path))
+        plant.Finalize()
+        self._plant = plant
+        self._plant_context = plant.CreateDefaultContext()
+        self._head = plant.GetFrameByName("head")
+        X_WH0 = self._head.CalcPoseInWorld(self._plant_context)
+        self._p_neutral = X_WH0.translation().copy()
+        self._R_neutral = X_WH0.rotation()
+        r = self._robot
+        params = DifferentialInverseKinematicsParameters(NUM_JOINTS, NUM_JOINTS)
+        params.set_time_step(self._h)
+        margin = 0.02 * (r.q_max - r.q_min)
+        params.set_joint_position_limits((r.q_min + margin, r.q_max - margin))
+        params.set_joint_velocity_limits((-r.qd_max, r.qd_max))
+        # No acceleration limits here: with them, v_next = 0 is infeasible whenever a joint
+        # moves faster than qdd_max h, and the QP reports no solution at ordinary speeds.
+        # The acceleration is clipped afterwards and then passes the viability clamp.
+        params.set_nominal_joint_position(np.zeros(NUM_JOINTS))
+        params.set_joint_centering_gain(np.zeros((NUM_JOINTS, NUM_JOINTS)))
+        self._params = params
+
+        self._reference_port = self.DeclareVectorInputPort("reference", 6)
+        self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
+        self._filter_index = self.DeclareDiscreteState(self._filters.state_size)
+        self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
+        self._statistics_index = self.DeclareDiscreteState(len(STATISTICS))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(self._h, 0.0, self._update)
+        self.DeclareStateOutputPort("joint_acceleration", self._command_index)
+        self.DeclareStateOutputPort("statistics", self._statistics_index)
+
+    @property
+    def config(self) -> WashoutConfig:
+        return self._config
+
+    def statistics(self, context: Context) -> dict[str, float]:
+        """The `statistics` values in `context`, by name."""
+        values = context.get_discrete_state(self._statistics_index).value()
+        return dict(zip(STATISTICS, (float(v) for v in values), strict=True))
+
+    def _update(self, context: Context, state: State) -> None:
+        start = time.perf_counter()
+        x = self._state_port.Eval(context)
+        reference = self._reference_port.Eval(context)
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(reference))):
+            raise RuntimeError(
+                f"ClassicalWashout: non-finite state or reference at t = {context.get_time()} s"
+            )
+        q, qd = x[:NUM_JOINTS], x[NUM_JOINTS:]
+        filters = context.get_discrete_state(self._filter_index).value()
+        filters, target = self._filters.step(filters, reference)
+        _, failures, interventions, _ = context.get_discrete_state(self._statistics_index).value()
+
+        plant, pc = self._plant, self._plant_context
+        plant.SetPositions(pc, q)
+        plant.SetVelocities(pc, qd)
+        X_WH = self._head.CalcPoseInWorld(pc)
+        rpy = RollPitchYaw(target["rpy"])
+        R_des = RotationMatrix(rpy) @ self._R_neutral
+        omega_ff = rpy.CalcAngularVelocityInParentFromRpyDt(target["rpy_rate"])
+        k = self._config.pose_feedback_gain
+        error = (R_des @ X_WH.rotation().inverse()).ToAngleAxis()
+        omega = omega_ff + k * error.angle() * error.axis()
+        p_des = self._p_neutral + target["position"]
+        v = target["velocity"] + k * (p_des - X_WH.translation())
+        result = DoDifferentialInverseKinematics(
+            plant, pc, np.concatenate([omega, v]), self._head, self._params
+        )
+        if result.status == DifferentialInverseKinematicsStatus.kNoSolutionFound:
+            failures += 1
+            v_next = np.zeros(NUM_JOINTS)  # brake towards rest
+        else:
+            v_next = np.asarray(result.joint_velocities).reshape(-1)
+        u = np.clip((v_next - qd) / self._h, -self._robot.qdd_max, self._robot.qdd_max)
+        command, intervened = self._clamp(x, u)
+        discrete = state.get_mutable_discrete_state()
+        discrete.set_value(self._filter_index, filters)
+        discrete.set_value(self._command_index, command)
+        discrete.set_value(
+            self._statistics_index,
+            [time.perf_counter() - start, failures, interventions + intervened, 0.0],
+        )

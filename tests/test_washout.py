@@ -1,0 +1,89 @@
+"""Classical washout: filters against continuous-time oracles, and tilt coordination in the
+closed loop with Drake's differential IK."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from mca_drake.evaluation import run_closed_loop
+from mca_drake.kinematics import GRAVITY, head_pose
+from mca_drake.references.reference import Reference
+from mca_drake.washout import WashoutConfig, WashoutFilters
+
+H = 0.01
+
+
+def _run_filters(reference: np.ndarray, config: WashoutConfig | None = None):
+    filters = WashoutFilters(config or WashoutConfig(), H)
+    state, out = np.zeros(filters.state_size), []
+    for r in reference:
+        state, target = filters.step(state, r)
+        out.append(target)
+    return {k: np.array([o[k] for o in out]) for k in out[0]}
+
+
+def test_translation_channel_matches_the_continuous_filter(rng):
+    """The discretised displacement equals the continuous third-order washout's response to
+    the same zero-order-hold input at the sample instants (scipy.signal.lsim oracle)."""
+    cfg = WashoutConfig()
+    a = np.repeat(rng.normal(size=60), 10)  # piecewise-constant heave acceleration
+    reference = np.zeros((a.size, 6))
+    reference[:, 5] = a
+    out = _run_filters(reference, cfg)
+    w, z, wb = cfg.translation_frequency, cfg.translation_damping, cfg.translation_washout_frequency
+    den = np.polymul([1, 2 * z * w, w * w], [1, wb])
+    t = H * np.arange(a.size)
+    _, y, _ = signal.lsim(([1.0, 0.0], den), a, t, interp=False)
+    np.testing.assert_allclose(out["position"][:, 2], y, rtol=0, atol=1e-9)
+
+
+def test_washout_returns_to_neutral_and_tilt_holds_a_sustained_force():
+    reference = np.zeros((3000, 6))
+    reference[:, 3] = 1.0  # sustained surge specific force, m/s^2
+    reference[:, 0] = 0.2  # sustained roll rate, rad/s
+    out = _run_filters(reference)
+    # translation and rotation wash out (final value theorem: zero)
+    assert np.abs(out["position"][-1]).max() < 1e-3
+    assert abs(out["rpy"][-1, 0]) < 1e-3
+    # the tilt settles at the angle whose gravity component renders the force
+    assert out["rpy"][-1, 1] == pytest.approx(-np.arcsin(1.0 / GRAVITY), abs=1e-6)
+
+
+@pytest.fixture(scope="module")
+def surge_run():
+    steps, on = 2000, 800
+    y = np.zeros((steps, 6))
+    y[:on, 3] = 1.0  # 8 s of sustained surge
+    result = run_closed_loop(mca="washout", reference=Reference(y, H, "surge"), progress=False)
+    return result, on
+
+
+def test_sustained_surge_is_rendered_by_pitch_within_the_rate_limit(surge_run, robot):
+    result, on = surge_run
+    limit = WashoutConfig().tilt_rate_limit
+    pitch_rate = result.outputs[:, 1]
+    # the tilt builds up at the rate limit (after the onset transient of the translation)
+    build = slice(30, 190)
+    assert np.abs(pitch_rate[build]).max() <= 1.05 * limit
+    assert np.mean(np.abs(pitch_rate[build])) == pytest.approx(limit, rel=0.05)
+    # once tilted, the force is rendered by gravity: pitch angle and specific force
+    R = head_pose(result.states[:, :6], robot)[:, :3, :3]
+    pitch = np.arcsin(-R[:, 2, 0])
+    hold = slice(400, on)
+    np.testing.assert_allclose(pitch[hold], -np.arcsin(1.0 / GRAVITY), atol=np.deg2rad(0.3))
+    np.testing.assert_allclose(result.outputs[hold, 3], 1.0, atol=0.05)
+    assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    assert result.summary["solver_failures"] == 0
+
+
+def test_robot_returns_to_neutral(surge_run):
+    result, _ = surge_run
+    final = result.states[-1]
+    assert np.abs(final[:6]).max() < 2e-3 and np.abs(final[6:]).max() < 1e-3
+
+
+def test_bad_washout_settings_are_rejected():
+    with pytest.raises(ValueError, match="tilt_rate_limit"):
+        WashoutFilters(WashoutConfig(tilt_rate_limit=0.0), H)
