@@ -118,6 +118,10 @@ def _cmd_dataset_closed_loop(args: argparse.Namespace) -> int:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
+    if args.suite:
+        return _evaluate_suite(args)
+    if not args.reference:
+        raise ValueError("give --reference flight.csv (one recording) or --suite (scenario set)")
     from mca_drake.evaluation import run_closed_loop
     from mca_drake.references.recording import load_recording
     from mca_drake.references.reference import reference_from_recording
@@ -133,6 +137,30 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         policy=args.policy,
     )
     print(json.dumps(result.summary, indent=2))
+    return 0
+
+
+def _evaluate_suite(args: argparse.Namespace) -> int:
+    from mca_drake.scenario_evaluation import (
+        EvaluationCase,
+        EvaluationConfig,
+        default_cases,
+        run_evaluation,
+    )
+
+    cases = tuple(
+        EvaluationCase(c.name, c.vehicle, c.seeds[: args.flights])
+        for c in default_cases()
+        if c.name in args.cases.split(",")
+    )
+    config = EvaluationConfig(
+        mcas=tuple(args.mcas.split(",")),
+        cases=cases,
+        duration_s=args.duration or 300.0,
+        policy=args.policy,
+    )
+    run_evaluation(config, args.out_dir, workers=args.workers, progress=not args.quiet)
+    print((Path(args.out_dir) / "evaluation.md").read_text())
     return 0
 
 
@@ -292,8 +320,20 @@ def build_parser() -> argparse.ArgumentParser:
         "--mca", default="nmpc-rti", help="dpc, nmpc-rti, nmpc-converged or washout"
     )
     evaluate.add_argument("--policy", help="policy file for --mca dpc (default: the shipped one)")
-    evaluate.add_argument("--reference", required=True, help="recording CSV")
-    evaluate.add_argument("--duration", type=float, help="simulated seconds (default: all)")
+    evaluate.add_argument("--reference", help="recording CSV (one run)")
+    evaluate.add_argument(
+        "--suite", action="store_true", help="the scenario set: cases A and B, report, box plot"
+    )
+    evaluate.add_argument("--cases", default="A,B", help="suite: cases to run")
+    evaluate.add_argument("--flights", type=int, default=10, help="suite: flights per case")
+    evaluate.add_argument(
+        "--mcas", default="dpc,nmpc-converged,nmpc-rti,washout", help="suite: MCAs to compare"
+    )
+    evaluate.add_argument("--workers", type=int, default=1, help="suite: parallel processes")
+    evaluate.add_argument("--out-dir", default="results/evaluation", help="suite: output folder")
+    evaluate.add_argument(
+        "--duration", type=float, help="simulated seconds (default: all; suite: 300)"
+    )
     evaluate.add_argument("--json", help="write the result summary here")
     evaluate.add_argument("--plot", help="PNG of target versus achieved outputs")
     evaluate.add_argument("--quiet", action="store_true")

@@ -119,3 +119,20 @@ def plot_loss_curves(history, title: str = ""):
         ax.set_title(title)
     fig.tight_layout()
     return fig
+
+
+def plot_pi_boxes(report: dict):
+    """PI distributions per MCA, one panel per case (the paper's Fig. 3). `report`: the
+    dictionary of `mca_drake.scenario_evaluation.write_report`."""
+    cases = [(name, c) for name, c in report["cases"].items() if c["mcas"]]
+    if not cases:
+        raise ValueError("the report has no runs to plot")
+    fig, axes = plt.subplots(1, len(cases), figsize=(5 * len(cases), 4), squeeze=False)
+    for ax, (name, case) in zip(axes[0], cases, strict=True):
+        labels = list(case["mcas"])
+        ax.boxplot([case["mcas"][m]["pi"] for m in labels], tick_labels=labels)
+        ax.set_title(f"Case {name}: {case['vehicle']}")
+        ax.set_ylabel("PI (lower is better)")
+        ax.grid(alpha=0.3, axis="y")
+    fig.tight_layout()
+    return fig

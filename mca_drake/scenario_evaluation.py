@@ -1,0 +1,221 @@
+"""Evaluation over a scenario set (the paper's Section VI-B, Fig. 3), with more MCAs.
+
+For every case (Case A: light-aircraft flights with seeds never used in training; Case B:
+jet flights) and every MCA (dpc, nmpc-converged, nmpc-rti, washout) the closed loop on the
+analytical plant is run over each flight; per run the result summary of ARCHITECTURE.md is
+written as one JSON file (atomically; a re-run skips finished runs, so a killed evaluation
+resumes). The report gives per case and MCA the PI distribution, step times, violations
+and safety interventions; the Wilcoxon rank-sum test of DPC against converged NMPC; the
+converged-NMPC / DPC step-time ratio; a box-plot figure like the paper's Fig. 3; markdown
+and JSON.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import dataclasses
+import json
+import multiprocessing
+from pathlib import Path
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from mca_drake.atomic_io import atomic_write_json, atomic_write_text
+from mca_drake.diagrams import MCA_NAMES
+from mca_drake.metrics import wilcoxon_rank_sum
+
+
+@dataclasses.dataclass
+class EvaluationCase:
+    """A set of flights of one vehicle class."""
+
+    # Label in the report ("A", "B").
+    name: str
+    # "light" or "jet" (`mca_drake.references.jsbsim_flight`).
+    vehicle: str
+    # Flight seeds; training used 100-104, so these must differ.
+    seeds: tuple[int, ...]
+
+
+def default_cases() -> tuple[EvaluationCase, ...]:
+    """The paper's two cases: 10 light-aircraft and 10 jet flights, unseen in training."""
+    return (
+        EvaluationCase("A", "light", tuple(range(1000, 1010))),
+        EvaluationCase("B", "jet", tuple(range(2000, 2010))),
+    )
+
+
+@dataclasses.dataclass
+class EvaluationConfig:
+    """What to evaluate; defaults: the paper's scenario set, 5 minutes per flight."""
+
+    mcas: tuple[str, ...] = ("dpc", "nmpc-converged", "nmpc-rti", "washout")
+    cases: tuple[EvaluationCase, ...] = dataclasses.field(default_factory=default_cases)
+    # Simulated seconds per flight.
+    duration_s: float = 300.0
+    # Policy file of "dpc" (None: the one shipped with the package).
+    policy: str | None = None
+
+    def validate(self) -> None:
+        bad = [m for m in self.mcas if m not in MCA_NAMES]
+        if bad:
+            raise ValueError(f"unknown MCA {bad}; valid: {', '.join(MCA_NAMES)}")
+        for case in self.cases:
+            if set(case.seeds) & set(range(100, 105)) and case.vehicle == "light":
+                raise ValueError(f"case {case.name} uses training flight seeds 100-104")
+        if not self.duration_s > 0:
+            raise ValueError("duration_s must be positive")
+
+
+def _run_path(out: Path, case: str, mca: str, seed: int) -> Path:
+    return out / "runs" / f"{case}_{mca}_{seed}.json"
+
+
+def _run_one(config: EvaluationConfig, case: EvaluationCase, mca: str, seed: int, out: str):
+    from mca_drake.evaluation import run_closed_loop
+    from mca_drake.references.jsbsim_flight import fly
+    from mca_drake.references.recording import load_recording, save_recording
+    from mca_drake.references.reference import reference_from_recording
+
+    out_dir = Path(out)
+    flight = out_dir / "flights" / f"{case.vehicle}_{seed}_{config.duration_s:g}s.csv"
+    if flight.is_file():
+        recording = load_recording(flight)
+    else:
+        recording = fly(case.vehicle, config.duration_s, seed, progress=False)
+        save_recording(flight, recording)
+    reference = reference_from_recording(recording, name=str(flight.name))
+    result = run_closed_loop(
+        mca=mca,
+        reference=reference,
+        duration_s=config.duration_s,
+        progress=False,
+        policy=config.policy,
+    )
+    summary = {**result.summary, "case": case.name, "seed": seed, "vehicle": case.vehicle}
+    atomic_write_json(_run_path(out_dir, case.name, mca, seed), summary)
+    return summary
+
+
+def run_evaluation(
+    config: EvaluationConfig, out_dir: str | Path, *, workers: int = 1, progress: bool = True
+) -> dict:
+    """Runs every (case, MCA, flight) not yet on disk, then writes the report."""
+    config.validate()
+    out = Path(out_dir)
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    jobs = [
+        (case, mca, seed)
+        for case in config.cases
+        for seed in case.seeds
+        for mca in config.mcas
+        if not _run_path(out, case.name, mca, seed).is_file()
+    ]
+    total = sum(len(c.seeds) for c in config.cases) * len(config.mcas)
+    bar = tqdm(total=total, initial=total - len(jobs), desc="evaluation runs", disable=not progress)
+    with bar:
+        if workers <= 1:
+            for job in jobs:
+                _run_one(config, *job, str(out))
+                bar.update(1)
+        else:
+            context = multiprocessing.get_context("spawn")
+            with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
+                futures = [pool.submit(_run_one, config, *job, str(out)) for job in jobs]
+                for future in concurrent.futures.as_completed(futures):
+                    future.result()
+                    bar.update(1)
+    return write_report(config, out)
+
+
+def write_report(config: EvaluationConfig, out: Path) -> dict:
+    """Aggregates the run files of `config` into evaluation.json, evaluation.md and
+    evaluation.png in `out`; returns the JSON dictionary."""
+    runs = {
+        (c.name, m): [
+            json.loads(_run_path(out, c.name, m, s).read_text())
+            for s in c.seeds
+            if _run_path(out, c.name, m, s).is_file()
+        ]
+        for c in config.cases
+        for m in config.mcas
+    }
+    report = {"duration_s": config.duration_s, "cases": {}}
+    for case in config.cases:
+        entry = {"vehicle": case.vehicle, "seeds": list(case.seeds), "mcas": {}}
+        for mca in config.mcas:
+            rs = runs[(case.name, mca)]
+            if not rs:
+                continue
+            pis = np.array([r["pi"] for r in rs])
+            steps = np.array([r["step_time_s"]["median"] for r in rs])
+            entry["mcas"][mca] = {
+                "runs": len(rs),
+                "pi": pis.tolist(),
+                "pi_median": float(np.median(pis)),
+                "pi_iqr": [float(np.percentile(pis, 25)), float(np.percentile(pis, 75))],
+                "step_time_median_s": float(np.median(steps)),
+                "step_time_max_s": float(max(r["step_time_s"]["max"] for r in rs)),
+                "violations": int(sum(sum(r["violations"].values()) for r in rs)),
+                "safety_interventions": int(sum(r["safety_interventions"] for r in rs)),
+                "solver_failures": int(sum(r["solver_failures"] for r in rs)),
+            }
+        m = entry["mcas"]
+        if (
+            "dpc" in m
+            and "nmpc-converged" in m
+            and min(m["dpc"]["runs"], m["nmpc-converged"]["runs"]) >= 2
+        ):
+            test = wilcoxon_rank_sum(m["dpc"]["pi"], m["nmpc-converged"]["pi"])
+            entry["dpc_vs_nmpc_converged"] = {
+                "z": test.z,
+                "p": test.p,
+                "median_gap": m["dpc"]["pi_median"] - m["nmpc-converged"]["pi_median"],
+                "step_time_ratio": m["nmpc-converged"]["step_time_median_s"]
+                / m["dpc"]["step_time_median_s"],
+            }
+        report["cases"][case.name] = entry
+    atomic_write_json(out / "evaluation.json", report)
+    atomic_write_text(out / "evaluation.md", evaluation_markdown(report))
+    if any(e["mcas"] for e in report["cases"].values()):
+        from mca_drake.plotting import plot_pi_boxes, save_figure
+
+        save_figure(plot_pi_boxes(report), out / "evaluation.png")
+    return report
+
+
+def evaluation_markdown(report: dict) -> str:
+    """The report as markdown tables, one per case."""
+    lines = [
+        f"# MCA evaluation on the analytical plant ({report['duration_s']:g} s per flight)",
+        "",
+    ]
+    for name, case in report["cases"].items():
+        lines += [
+            f"## Case {name}: {case['vehicle']} flights, seeds "
+            f"{case['seeds'][0]}-{case['seeds'][-1]}",
+            "",
+            "| MCA | runs | PI median | PI IQR | step median | step max | violations | "
+            "safety interventions | solver failures |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for mca, m in case["mcas"].items():
+            lines.append(
+                f"| {mca} | {m['runs']} | {m['pi_median']:.3f} | {m['pi_iqr'][0]:.3f} to "
+                f"{m['pi_iqr'][1]:.3f} | {m['step_time_median_s'] * 1e3:.3f} ms | "
+                f"{m['step_time_max_s'] * 1e3:.2f} ms | {m['violations']} | "
+                f"{m['safety_interventions']} | {m['solver_failures']} |"
+            )
+        test = case.get("dpc_vs_nmpc_converged")
+        if test:
+            lines += [
+                "",
+                f"DPC vs converged NMPC: Wilcoxon rank-sum z = {test['z']:.3f}, "
+                f"p = {test['p']:.3f} "
+                f"({'no significant difference' if test['p'] > 0.05 else 'significant difference'}"
+                f" at 0.05); median PI gap {test['median_gap']:+.3f}; step-time ratio "
+                f"{test['step_time_ratio']:.0f}x.",
+            ]
+        lines.append("")
+    return "\n".join(lines)

@@ -1,0 +1,69 @@
+"""Scenario-set evaluation: runs, resume, report with the rank-sum test and the box plot."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from mca_drake.scenario_evaluation import EvaluationCase, EvaluationConfig, run_evaluation
+
+
+def test_small_suite_report_and_resume(tmp_path):
+    config = EvaluationConfig(
+        mcas=("nmpc-rti", "washout"),
+        cases=(EvaluationCase("A", "light", (1000, 1001)),),
+        duration_s=3.0,
+    )
+    report = run_evaluation(config, tmp_path, progress=False)
+    case = report["cases"]["A"]
+    assert set(case["mcas"]) == {"nmpc-rti", "washout"}
+    for m in case["mcas"].values():
+        assert m["runs"] == 2 and m["violations"] == 0 and len(m["pi"]) == 2
+    assert (tmp_path / "evaluation.png").stat().st_size > 1000
+    assert "Case A" in (tmp_path / "evaluation.md").read_text()
+    run = json.loads((tmp_path / "runs" / "A_washout_1001.json").read_text())
+    assert run["mca"] == "washout" and run["seed"] == 1001
+    # a re-run reads every finished run back: same report, nothing simulated again
+    stamp = (tmp_path / "runs" / "A_washout_1001.json").stat().st_mtime_ns
+    again = run_evaluation(config, tmp_path, progress=False)
+    assert again == json.loads(json.dumps(report))
+    assert (tmp_path / "runs" / "A_washout_1001.json").stat().st_mtime_ns == stamp
+
+
+def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
+    from mca_drake.scenario_evaluation import write_report
+
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    base = {
+        "step_time_s": {"median": 1e-3, "max": 2e-3},
+        "violations": {"q": 0, "qd": 0, "qdd": 0},
+        "safety_interventions": 0,
+        "solver_failures": 0,
+    }
+    pis = {"dpc": [-1.0, -1.1, -0.9], "nmpc-converged": [-1.2, -1.0, -1.1]}
+    for mca, values in pis.items():
+        for seed, pi in zip((1000, 1001, 1002), values, strict=True):
+            step = {"median": 5e-5 if mca == "dpc" else 5e-2, "max": 1e-1}
+            (runs / f"A_{mca}_{seed}.json").write_text(
+                json.dumps({**base, "pi": pi, "step_time_s": step})
+            )
+    config = EvaluationConfig(
+        mcas=("dpc", "nmpc-converged"), cases=(EvaluationCase("A", "light", (1000, 1001, 1002)),)
+    )
+    report = write_report(config, tmp_path)
+    test = report["cases"]["A"]["dpc_vs_nmpc_converged"]
+    from scipy.stats import ranksums
+
+    z, p = ranksums(pis["dpc"], pis["nmpc-converged"])
+    assert test["z"] == pytest.approx(z) and test["p"] == pytest.approx(p)
+    assert test["median_gap"] == pytest.approx(-1.0 - (-1.1))
+    assert test["step_time_ratio"] == pytest.approx(1000.0)
+
+
+def test_training_seeds_are_refused():
+    with pytest.raises(ValueError, match="training flight seeds"):
+        EvaluationConfig(cases=(EvaluationCase("A", "light", (100, 1000)),)).validate()
+    with pytest.raises(ValueError, match="unknown MCA"):
+        EvaluationConfig(mcas=("lqr",)).validate()
