@@ -88,3 +88,37 @@ def test_non_viable_state_gets_full_braking(robot):
     assert not viable.any()
     np.testing.assert_allclose(lo, -robot.qdd_max)
     np.testing.assert_allclose(hi, -robot.qdd_max)
+
+
+def test_fast_clamp_equals_viable_acceleration_bounds(robot, rng):
+    from mca_drake.safety import ViabilityClamp
+
+    clamp = ViabilityClamp.for_robot(robot, 0.01)
+    for _ in range(3000):
+        # states inside, on and beyond the limits (non-viable ones included)
+        q = rng.uniform(1.1 * robot.q_min, 1.1 * robot.q_max)
+        qd = rng.uniform(-1.2 * robot.qd_max, 1.2 * robot.qd_max)
+        lo, hi, viable = viable_acceleration_bounds(
+            q, qd, robot.q_min, robot.q_max, robot.qd_max, robot.qdd_max, 0.01
+        )
+        lo2, hi2, viable2 = clamp.bounds(np.concatenate([q, qd]))
+        np.testing.assert_allclose(lo2, lo, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(hi2, hi, rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(viable2, viable)
+
+
+def test_clamp_call_equals_clipping_into_the_bounds(robot, rng):
+    from mca_drake.safety import ViabilityClamp
+
+    clamp = ViabilityClamp.for_robot(robot, 0.01)
+    for _ in range(2000):
+        q = rng.uniform(1.1 * robot.q_min, 1.1 * robot.q_max)
+        qd = rng.uniform(-1.2 * robot.qd_max, 1.2 * robot.qd_max)
+        u = rng.uniform(-3 * robot.qdd_max, 3 * robot.qdd_max)
+        lo, hi, viable = viable_acceleration_bounds(
+            q, qd, robot.q_min, robot.q_max, robot.qd_max, robot.qdd_max, 0.01
+        )
+        safe, intervened = clamp(np.concatenate([q, qd]), u)
+        expected = np.clip(u, lo, hi)
+        np.testing.assert_allclose(safe, expected, rtol=0, atol=1e-9)
+        assert intervened == bool(np.any(np.abs(expected - u) > 1e-9) or not viable.all())
