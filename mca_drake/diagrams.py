@@ -165,7 +165,12 @@ def MakeAnalyticalClosedLoop(
     builder = DiagramBuilder()
     source = builder.AddNamedSystem("reference_source", ReferenceSource(reference))
     controller = AddMca(builder, mca, robot, time_step, policy)
-    plant = builder.AddNamedSystem("plant", MotionCueingPlant(robot=robot, time_step=time_step))
+    # The robot starts at rest at the MCA's home pose (q = 0 unless the MCA says otherwise).
+    home = getattr(controller, "home_position", np.zeros(len(robot.joint_names)))
+    initial_state = np.concatenate([home, np.zeros_like(home)])
+    plant = builder.AddNamedSystem(
+        "plant", MotionCueingPlant(robot=robot, time_step=time_step, initial_state=initial_state)
+    )
     if controller.HasInputPort("inertial_output"):
         builder.Connect(
             plant.GetOutputPort("inertial_output"), controller.GetInputPort("inertial_output")

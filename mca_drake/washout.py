@@ -52,9 +52,16 @@ class WashoutConfig:
     rotation_gain: float = 1.0
     # Gain of the pose-error feedback of the head velocity command (1/s).
     pose_feedback_gain: float = 10.0
+    # Home joint positions (rad) the washout works about. Not q = 0: there the KR500's wrist
+    # is singular (joints 4 and 6 aligned) and no joint velocity rolls or yaws the head
+    # about the head point. Bending joints 3 and 5 by +-0.5 rad keeps the head level
+    # (R_WH = I) and the Jacobian well conditioned.
+    home_position: tuple[float, ...] = (0.0, 0.0, 0.5, 0.0, -0.5, 0.0)
 
     def validate(self) -> None:
-        values = dataclasses.asdict(self)
+        values = {k: v for k, v in dataclasses.asdict(self).items() if k != "home_position"}
+        if len(self.home_position) != 6:
+            raise ValueError("home_position must hold six joint positions")
         if any(not (v > 0) for v in values.values()):
             bad = [k for k, v in values.items() if not v > 0]
             raise ValueError(f"washout settings must be positive; got {bad}")

@@ -37,7 +37,7 @@ class ClassicalWashout(LeafSystem):
         - statistics
 
     Every `time_step` an unrestricted update advances the washout filters with the
-    reference, forms the desired head pose (neutral head position plus the filtered
+    reference, forms the desired head pose (the home head pose, level, plus the filtered
     displacement; roll-pitch-yaw of the filtered rotation plus tilt coordination) and a head
     velocity command (the filters' velocities plus `pose_feedback_gain` times the pose
     error), and calls Drake's `DoDifferentialInverseKinematics` on a MultibodyPlant of the
@@ -70,10 +70,14 @@ class ClassicalWashout(LeafSystem):
         self._plant = plant
         self._plant_context = plant.CreateDefaultContext()
         self._head = plant.GetFrameByName("head")
+        self._home = np.array(self._config.home_position, dtype=float)
+        r = self._robot
+        if np.any(self._home < r.q_min) or np.any(self._home > r.q_max):
+            raise ValueError(f"home_position {self._home} is outside the joint limits")
+        plant.SetPositions(self._plant_context, self._home)
         X_WH0 = self._head.CalcPoseInWorld(self._plant_context)
         self._p_neutral = X_WH0.translation().copy()
         self._R_neutral = X_WH0.rotation()
-        r = self._robot
         params = DifferentialInverseKinematicsParameters(NUM_JOINTS, NUM_JOINTS)
         params.set_time_step(self._h)
         margin = 0.02 * (r.q_max - r.q_min)
@@ -82,7 +86,7 @@ class ClassicalWashout(LeafSystem):
         # No acceleration limits here: with them, v_next = 0 is infeasible whenever a joint
         # moves faster than qdd_max h, and the QP reports no solution at ordinary speeds.
         # The acceleration is clipped afterwards and then passes the viability clamp.
-        params.set_nominal_joint_position(np.zeros(NUM_JOINTS))
+        params.set_nominal_joint_position(self._home)
         params.set_joint_centering_gain(np.zeros((NUM_JOINTS, NUM_JOINTS)))
         self._params = params
 
@@ -98,6 +102,11 @@ class ClassicalWashout(LeafSystem):
     @property
     def config(self) -> WashoutConfig:
         return self._config
+
+    @property
+    def home_position(self) -> np.ndarray:
+        """The joint positions (rad) this MCA holds at rest; diagrams start the robot here."""
+        return self._home.copy()
 
     def statistics(self, context: Context) -> dict[str, float]:
         """The `statistics` values in `context`, by name."""
