@@ -363,7 +363,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     policy.add_argument("--plant", default="exact", help="exact or learned (NODE 2 + mixed)")
     policy.add_argument("--learned-output-weights", help="output_mixed_n256.pt of a table2 run")
-    policy.add_argument("--horizon", type=int, default=64, help="n_c, rollout steps")
+    policy.add_argument("--horizon", type=int, default=256, help="n_c, rollout steps")
     policy.add_argument("--max-epochs", type=int, help="default 3000 (the paper's)")
     policy.add_argument("--patience", type=int, help="early stopping, default 500 epochs")
     policy.add_argument("--seed", type=int, default=0)

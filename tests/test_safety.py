@@ -122,3 +122,21 @@ def test_clamp_call_equals_clipping_into_the_bounds(robot, rng):
         expected = np.clip(u, lo, hi)
         np.testing.assert_allclose(safe, expected, rtol=0, atol=1e-9)
         assert intervened == bool(np.any(np.abs(expected - u) > 1e-9) or not viable.all())
+
+
+def test_torch_bounds_equal_numpy(robot, rng):
+    import torch
+
+    from mca_drake.safety import viable_acceleration_bounds_torch
+
+    q = rng.uniform(1.1 * robot.q_min, 1.1 * robot.q_max, size=(500, 6))
+    qd = rng.uniform(-1.2 * robot.qd_max, 1.2 * robot.qd_max, size=(500, 6))
+    lo, hi, _ = viable_acceleration_bounds(
+        q, qd, robot.q_min, robot.q_max, robot.qd_max, robot.qdd_max, 0.01
+    )
+    limits = [torch.tensor(getattr(robot, n)) for n in ("q_min", "q_max", "qd_max", "qdd_max")]
+    lo_t, hi_t = viable_acceleration_bounds_torch(
+        torch.tensor(np.concatenate([q, qd], 1)), *limits, 0.01
+    )
+    np.testing.assert_allclose(lo_t.numpy(), lo, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(hi_t.numpy(), hi, rtol=0, atol=1e-9)

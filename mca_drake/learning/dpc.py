@@ -13,6 +13,11 @@ segments (the NMPC's cost terms, `mca_drake.nmpc`):
     w_y ||y_(t+1) - Y_t||^2 + w_x ||x_hat_(t+1) - x_(t+1)||^2 + 0.1 ||u_t||^2 + ||q_t||^2
       + w_b ||violation of the state limits by x_(t+1)||^2
 
+plus, beyond the paper, the NMPC's terminal cost ||q_n||^2 + ||qd_n||^2 on the last state
+(without it a policy trained on 2.56 s rollouts drifts to the limits within seconds of a
+long flight), and the rollout runs behind the viability clamp the deployed policy runs
+behind (`safety_filter`), so that training and deployment see the same closed loop.
+
 Targets Y are the NMPC-achieved outputs of the closed-loop dataset (the paper's choice,
 `targets="achieved"`) or the references the NMPC was given (`targets="reference"`). The plant
 is the exact analytical torch plant by default, or the paper's learned NODE 2 + mixed
@@ -47,7 +52,7 @@ def _default_train() -> TrainConfig:
         max_epochs=3000,
         early_stopping_patience=500,
         plateau_patience=100,
-        horizons=(64,),
+        horizons=(256,),
     )
 
 
@@ -68,6 +73,13 @@ class DpcConfig:
     input_weight: float = 0.1
     washout_weight: float = 1.0
     limit_weight: float = 100.0
+    # Terminal cost on the rollout's last state, as the NMPC's (weights of ||q_N||^2 and
+    # ||qd_N||^2): an addition to the paper's loss that teaches washout beyond n_c.
+    terminal_position_weight: float = 1.0
+    terminal_velocity_weight: float = 1.0
+    # Run the rollouts behind the viability clamp, as the policy runs when deployed
+    # (`mca_drake.safety`); gradients pass through the clamp.
+    safety_filter: bool = True
     # Hidden neurons of the policy (paper: 128).
     hidden: int = 128
     # Optimiser, epochs, batch and the rollout length n_c (train.horizons, one step).
@@ -93,12 +105,19 @@ class DpcConfig:
 
 
 class RolloutPlant(nn.Module):
-    """The frozen plant of the DPC rollouts: step(x, u) -> x_next, output(x, u) -> y."""
+    """The frozen plant of the DPC rollouts: step(x, u) -> x_next, output(x, u) -> y, and
+    the safety filter `clamp(x, u)` of the deployed robot (identity if switched off)."""
 
     def __init__(self, config: DpcConfig, robot: KR500 | None = None):
         super().__init__()
         robot = robot if robot is not None else load_kr500()
         self.kind = config.plant
+        self.safety_filter = config.safety_filter
+        self.dt = 0.01
+        for name in ("q_min", "q_max", "qd_max", "qdd_max"):
+            self.register_buffer(
+                name, torch.tensor(getattr(robot, name), dtype=torch.float32), persistent=False
+            )
         if config.plant == "exact":
             self.exact = TorchPlant(robot, dtype=torch.float64, check_inputs=False).float()
         else:
@@ -110,6 +129,16 @@ class RolloutPlant(nn.Module):
             load_state_into(self.output_model, state, config.learned_output_weights)
         for p in self.parameters():
             p.requires_grad_(False)
+
+    def clamp(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        if not self.safety_filter:
+            return u
+        from mca_drake.safety import viable_acceleration_bounds_torch
+
+        lo, hi = viable_acceleration_bounds_torch(
+            x, self.q_min, self.q_max, self.qd_max, self.qdd_max, self.dt
+        )
+        return torch.minimum(torch.maximum(u, lo), hi)
 
     def step(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         if self.kind == "exact":
@@ -138,6 +167,7 @@ def rollout_cell(policy: PolicyNetwork, plant: RolloutPlant):
 
     def cell(y, x, target):
         u, x_hat = policy(y, x, target)
+        u = plant.clamp(x, u)
         return u, x_hat, plant.output(x, u), plant.step(x, u)
 
     return cell
@@ -180,6 +210,8 @@ def dpc_loss_terms(
         "input": (rollout.U**2).sum(-1).mean(),
         "washout": (rollout.X[:, :-1, :NUM_JOINTS] ** 2).sum(-1).mean(),
         "limits": (violation**2).sum(-1).mean(),
+        "terminal_position": (rollout.X[:, -1, :NUM_JOINTS] ** 2).sum(-1).mean(),
+        "terminal_velocity": (rollout.X[:, -1, NUM_JOINTS:] ** 2).sum(-1).mean(),
     }
 
 
@@ -192,6 +224,8 @@ def dpc_objective(config: DpcConfig, plant: RolloutPlant):
         "input": config.input_weight,
         "washout": config.washout_weight,
         "limits": config.limit_weight,
+        "terminal_position": config.terminal_position_weight,
+        "terminal_velocity": config.terminal_velocity_weight,
     }
     key = "Y" if config.targets == "achieved" else "R"
     cells = {}
