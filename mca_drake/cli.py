@@ -226,6 +226,13 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_export_policy(args: argparse.Namespace) -> int:
+    from mca_drake.learning.dpc import export_checkpoint_policy
+
+    print(f"policy written to {export_checkpoint_policy(args.checkpoint, args.out)}")
+    return 0
+
+
 def _quick_closed_loop_dataset(folder: Path, progress: bool) -> Path:
     from mca_drake.closed_loop_dataset import ClosedLoopDatasetConfig, generate_closed_loop_dataset
 
@@ -372,6 +379,13 @@ def build_parser() -> argparse.ArgumentParser:
     policy.add_argument("--resume", action="store_true", help="continue a killed run")
     policy.add_argument("--quiet", action="store_true")
     policy.set_defaults(func=_cmd_train_policy)
+
+    export = sub.add_parser(
+        "export-policy", help="best weights so far of a training checkpoint as a policy file"
+    )
+    export.add_argument("checkpoint", help="policy.pt of a train-policy run")
+    export.add_argument("--out", default="policy.npz")
+    export.set_defaults(func=_cmd_export_policy)
     return parser
 
 

@@ -301,3 +301,19 @@ def train_policy(
         },
     )
     return policy, path
+
+
+def export_checkpoint_policy(checkpoint: str | Path, out: str | Path) -> Path:
+    """Writes the best weights so far of a DPC training checkpoint (policy.pt) as a policy
+    file, e.g. to evaluate a run that is still going or was stopped."""
+    from mca_drake.learning.checkpoint import load_checkpoint, load_state_into
+    from mca_drake.learning.policy import save_policy
+
+    payload, meta = load_checkpoint(checkpoint)
+    if meta.get("model") != "dpc-policy":
+        raise ValueError(f"{checkpoint} is not a DPC policy checkpoint (model {meta.get('model')})")
+    policy = PolicyNetwork(hidden=meta.get("model_kwargs", {}).get("hidden", 128))
+    load_state_into(policy, payload["best_model"], str(checkpoint))
+    epochs = meta.get("epochs_logged", 0)
+    save_policy(out, policy, {**meta, "exported_from": str(checkpoint), "epochs": epochs})
+    return Path(out)

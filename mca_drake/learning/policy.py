@@ -97,7 +97,7 @@ def save_policy(path, policy: PolicyNetwork, metadata: dict) -> None:
     from mca_drake.atomic_io import atomic_write_bytes
 
     buffer = io.BytesIO()
-    meta = {"format": POLICY_FORMAT, "hidden": policy.hidden, **metadata}
+    meta = {**metadata, "format": POLICY_FORMAT, "hidden": policy.hidden}
     np.savez(buffer, metadata_json=np.array(json.dumps(meta)), **policy.export())
     atomic_write_bytes(path, buffer.getvalue())
 
