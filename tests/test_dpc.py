@@ -234,3 +234,18 @@ def test_rollout_on_exact_plant_is_the_plant(robot):
     X, U = roll.X.double().numpy(), roll.U.double().numpy()
     y = plant_output(X[:, :-1, :6], X[:, :-1, 6:], U, robot)
     np.testing.assert_allclose(roll.Y.numpy(), y, rtol=0, atol=2e-4)
+
+
+def test_export_checkpoint_policy_gives_the_best_weights(trained, tmp_path):
+    from mca_drake.learning.dpc import export_checkpoint_policy
+
+    policy, policy_path, _ = trained
+    out = export_checkpoint_policy(policy_path.with_name("policy.pt"), tmp_path / "e.npz")
+    back = load_policy_network(out)
+    y, x, r = (torch.randn(4, n) for n in (6, 12, 6))
+    torch.testing.assert_close(back(y, x, r)[0], policy(y, x, r)[0])
+    with pytest.raises(ValueError, match="not a DPC policy checkpoint"):
+        from mca_drake.learning.checkpoint import save_checkpoint
+
+        save_checkpoint(tmp_path / "other.pt", {"model": {}}, {"model": "nssm"})
+        export_checkpoint_policy(tmp_path / "other.pt", tmp_path / "x.npz")
