@@ -249,3 +249,17 @@ def test_export_checkpoint_policy_gives_the_best_weights(trained, tmp_path):
 
         save_checkpoint(tmp_path / "other.pt", {"model": {}}, {"model": "nssm"})
         export_checkpoint_policy(tmp_path / "other.pt", tmp_path / "x.npz")
+
+
+def test_perturbed_initial_states_stay_inside_the_limits(robot):
+    from mca_drake.learning.dpc import perturb_initial_states
+
+    torch.manual_seed(0)
+    policy = PolicyNetwork()
+    x0 = torch.zeros(4000, 12)
+    x0[:, :6] = torch.tensor(robot.q_max, dtype=torch.float32) * 0.85
+    out = perturb_initial_states(x0, policy, DpcConfig(perturbed_fraction=0.5))
+    moved = (out != x0).any(dim=1).float().mean().item()
+    assert 0.45 < moved < 0.55
+    assert torch.all(out[:, :6] <= 0.9 * policy.upper[6:12] + 1e-6)
+    assert torch.all(out[:, 6:].abs() <= 0.9 * policy.upper[12:] + 1e-6)

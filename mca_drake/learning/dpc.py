@@ -80,6 +80,14 @@ class DpcConfig:
     # Run the rollouts behind the viability clamp, as the policy runs when deployed
     # (`mca_drake.safety`); gradients pass through the clamp.
     safety_filter: bool = True
+    # Training rollouts of this fraction of each batch start from perturbed states: the
+    # dataset's first state plus uniform noise of `initial_state_noise` times the joint
+    # ranges (positions: half-range; velocities: qd_max), clipped inside the limits. The
+    # NMPC data stay near neutral; without seeing other states, the policy never learns to
+    # wash out from them and slowly drifts to a limit in long flights. Validation uses the
+    # dataset states.
+    perturbed_fraction: float = 0.5
+    initial_state_noise: float = 0.3
     # Hidden neurons of the policy (paper: 128).
     hidden: int = 128
     # Optimiser, epochs, batch and the rollout length n_c (train.horizons, one step).
@@ -215,6 +223,17 @@ def dpc_loss_terms(
     }
 
 
+def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcConfig):
+    """x0 (B, 12) with a random `perturbed_fraction` of its rows moved by uniform noise
+    (see DpcConfig), clipped to 90 % of the limits (uses torch's global generator)."""
+    lower, upper = policy.lower[NUM_JOINTS:], policy.upper[NUM_JOINTS:]
+    half_range = 0.5 * (upper - lower)
+    half_range[NUM_JOINTS:] = upper[NUM_JOINTS:]
+    noise = (2 * torch.rand_like(x0) - 1) * config.initial_state_noise * half_range
+    chosen = (torch.rand(x0.shape[0], 1, device=x0.device) < config.perturbed_fraction).to(x0)
+    return torch.clamp(x0 + chosen * noise, 0.9 * lower, 0.9 * upper)
+
+
 def dpc_objective(config: DpcConfig, plant: RolloutPlant):
     """objective(policy, batch) for `CurriculumTrainer`: the weighted DPC loss of the
     closed-loop rollout from each segment's first state over its targets."""
@@ -235,8 +254,11 @@ def dpc_objective(config: DpcConfig, plant: RolloutPlant):
             cell = rollout_cell(policy, plant)
             cells[id(policy)] = torch.compile(cell) if config.compile else cell
         targets = batch[key]
+        x0 = batch["X"][:, 0]
+        if policy.training and config.perturbed_fraction > 0:
+            x0 = perturb_initial_states(x0, policy, config)
         rollout = closed_loop_rollout(
-            policy, plant, batch["X"][:, 0], batch["Y"][:, 0], targets, cells[id(policy)]
+            policy, plant, x0, batch["Y"][:, 0], targets, cells[id(policy)]
         )
         terms = dpc_loss_terms(rollout, targets, policy)
         return sum(weights[k] * v for k, v in terms.items())
