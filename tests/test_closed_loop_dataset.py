@@ -56,3 +56,30 @@ def test_split_is_70_20_10_and_seeded(generated):
 def test_bad_config():
     with pytest.raises(ValueError, match="unknown MCA"):
         generate_closed_loop_dataset(ClosedLoopDatasetConfig(mca="magic"), progress=False)
+
+
+def test_long_windows_join_consecutive_segments_of_one_flight():
+    from mca_drake.closed_loop_dataset import SOURCE_COLUMNS, long_windows
+    from mca_drake.segments import SegmentDataset
+
+    n_p, rows = 4, []
+    # flight 7: steps 0, 4, 8, 12, 16 (one run of 5); flight 9: 0, 4, then a gap, 12, 16
+    for flight, starts in ((7, (0, 4, 8, 12, 16)), (9, (0, 4, 12, 16))):
+        rows += [(flight, s) for s in starts]
+    J = len(rows)
+    t = np.array([s for _, s in rows])[:, None] + np.arange(n_p)[None, :]
+    U = np.repeat(t[..., None], 6, axis=2).astype(float)  # U encodes the time step
+    zeros = {
+        k: np.zeros((J, n_p, *s))
+        for k, s in (("X", (12,)), ("Y", (6,)), ("F", (4, 4)), ("dF", (4, 4)), ("ddF", (4, 4)))
+    }
+    source = np.array([(f, s, 0) for f, s in rows])
+    data = SegmentDataset({"U": U, **zeros}, source, {"source_columns": list(SOURCE_COLUMNS)})
+    parts = long_windows(data, 2, fractions=(1.0, 0.0, 0.0))
+    windows = parts["train"]
+    # flight 7 gives 2 windows (segments 0-1, 2-3; the fifth is left over), flight 9 gives 2
+    assert len(windows) == 4 and windows.horizon == 8
+    for w in range(4):
+        np.testing.assert_array_equal(np.diff(windows.U[w, :, 0]), 1.0)  # contiguous in time
+    with pytest.raises(ValueError, match="no run of 9"):
+        long_windows(data, 9)

@@ -192,6 +192,7 @@ def trained(tmp_path_factory):
     config = DpcConfig(
         targets="reference",
         compile=False,
+        window_segments=1,
         train=TrainConfig(
             learning_rate=1e-2, batch_size=16, max_epochs=20, horizons=(32,), device="cpu"
         ),
@@ -261,5 +262,6 @@ def test_perturbed_initial_states_stay_inside_the_limits(robot):
     out = perturb_initial_states(x0, policy, DpcConfig(perturbed_fraction=0.5))
     moved = (out != x0).any(dim=1).float().mean().item()
     assert 0.45 < moved < 0.55
+    assert torch.equal(out[:, 6:], x0[:, 6:])  # velocities untouched
     assert torch.all(out[:, :6] <= 0.9 * policy.upper[6:12] + 1e-6)
     assert torch.all(out[:, 6:].abs() <= 0.9 * policy.upper[12:] + 1e-6)

@@ -52,7 +52,7 @@ def _default_train() -> TrainConfig:
         max_epochs=3000,
         early_stopping_patience=500,
         plateau_patience=100,
-        horizons=(256,),
+        horizons=(256, 1024),
     )
 
 
@@ -80,14 +80,18 @@ class DpcConfig:
     # Run the rollouts behind the viability clamp, as the policy runs when deployed
     # (`mca_drake.safety`); gradients pass through the clamp.
     safety_filter: bool = True
-    # Training rollouts of this fraction of each batch start from perturbed states: the
-    # dataset's first state plus uniform noise of `initial_state_noise` times the joint
-    # ranges (positions: half-range; velocities: qd_max), clipped inside the limits. The
-    # NMPC data stay near neutral; without seeing other states, the policy never learns to
-    # wash out from them and slowly drifts to a limit in long flights. Validation uses the
-    # dataset states.
+    # Training rollouts of this fraction of each batch start from perturbed positions: the
+    # dataset's first state plus uniform noise of `initial_state_noise` times the joints'
+    # half-ranges, clipped inside the limits. The NMPC data stay near neutral; without
+    # seeing other states, the policy never learns to wash out from them and slowly drifts
+    # to a limit in long flights. Larger offsets (or velocity noise) make tilt errors of
+    # several m/s^2 dominate the loss and drive the network into saturation. Validation
+    # uses the dataset states.
     perturbed_fraction: float = 0.5
-    initial_state_noise: float = 0.3
+    initial_state_noise: float = 0.1
+    # Train on windows of this many consecutive dataset segments (n_c up to 4 x 256 = 10.24 s;
+    # `mca_drake.closed_loop_dataset.long_windows`); 1 uses the segments and their split.
+    window_segments: int = 4
     # Hidden neurons of the policy (paper: 128).
     hidden: int = 128
     # Optimiser, epochs, batch and the rollout length n_c (train.horizons, one step).
@@ -224,11 +228,11 @@ def dpc_loss_terms(
 
 
 def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcConfig):
-    """x0 (B, 12) with a random `perturbed_fraction` of its rows moved by uniform noise
-    (see DpcConfig), clipped to 90 % of the limits (uses torch's global generator)."""
+    """x0 (B, 12) with the positions of a random `perturbed_fraction` of its rows moved by
+    uniform noise (see DpcConfig), clipped to 90 % of the limits (torch's global generator)."""
     lower, upper = policy.lower[NUM_JOINTS:], policy.upper[NUM_JOINTS:]
     half_range = 0.5 * (upper - lower)
-    half_range[NUM_JOINTS:] = upper[NUM_JOINTS:]
+    half_range[NUM_JOINTS:] = 0.0  # positions only
     noise = (2 * torch.rand_like(x0) - 1) * config.initial_state_noise * half_range
     chosen = (torch.rand(x0.shape[0], 1, device=x0.device) < config.perturbed_fraction).to(x0)
     return torch.clamp(x0 + chosen * noise, 0.9 * lower, 0.9 * upper)
@@ -290,7 +294,12 @@ def train_policy(
     data = SegmentDataset.load(dataset)
     if "R" not in data.arrays and config.targets == "reference":
         raise ValueError(f"{dataset} has no references R; use targets='achieved'")
-    splits = split_of(data)
+    if config.window_segments > 1:
+        from mca_drake.closed_loop_dataset import long_windows
+
+        splits = long_windows(data, config.window_segments)
+    else:
+        splits = split_of(data)
     torch.manual_seed(config.seed)
     policy = PolicyNetwork(hidden=config.hidden)
     plant = RolloutPlant(config)
