@@ -206,8 +206,9 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
         learned_output_weights=args.learned_output_weights or "",
         compile=not args.no_compile,
         seed=args.seed,
+        window_segments=args.window_segments,
     )
-    train = dict(device=args.device, horizons=(args.horizon,))
+    train = dict(device=args.device, horizons=tuple(int(h) for h in args.horizons.split(",")))
     if args.max_epochs:
         train["max_epochs"] = args.max_epochs
     if args.patience:
@@ -370,7 +371,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     policy.add_argument("--plant", default="exact", help="exact or learned (NODE 2 + mixed)")
     policy.add_argument("--learned-output-weights", help="output_mixed_n256.pt of a table2 run")
-    policy.add_argument("--horizon", type=int, default=256, help="n_c, rollout steps")
+    policy.add_argument(
+        "--horizons", default="256,1024", help="curriculum of rollout lengths n_c, steps"
+    )
+    policy.add_argument(
+        "--window-segments", type=int, default=4, help="dataset segments joined per window"
+    )
     policy.add_argument("--max-epochs", type=int, help="default 3000 (the paper's)")
     policy.add_argument("--patience", type=int, help="early stopping, default 500 epochs")
     policy.add_argument("--seed", type=int, default=0)
