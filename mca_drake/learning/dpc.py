@@ -53,6 +53,7 @@ def _default_train() -> TrainConfig:
         early_stopping_patience=500,
         plateau_patience=100,
         horizons=(256, 1024),
+        gradient_clip_norm=1.0,
     )
 
 

@@ -60,6 +60,9 @@ class TrainConfig:
     device: str = "auto"
     # Checkpoint at most this often (s) within a step, and always at the end of a step.
     checkpoint_interval_s: float = 20.0
+    # Clip the gradient's global norm to this value (0: no clipping). Long closed-loop
+    # rollouts (DPC) can produce exploding gradients that throw the network into saturation.
+    gradient_clip_norm: float = 0.0
 
     def validate(self) -> None:
         if min(self.batch_size, self.max_epochs) < 1 or not self.horizons:
@@ -297,6 +300,10 @@ class CurriculumTrainer:
                             "lower the learning rate or check the data"
                         )
                     loss.backward()
+                    if cfg.gradient_clip_norm > 0:
+                        torch.nn.utils.clip_grad_norm_(
+                            self.model.parameters(), cfg.gradient_clip_norm
+                        )
                     optimiser.step()
                     total += loss.item() * batch["U"].shape[0]
                     count += batch["U"].shape[0]
