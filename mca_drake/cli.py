@@ -12,6 +12,8 @@ import numpy as np
 
 from mca_drake import __version__
 
+DEFAULT_FLIGHT_SEED = 1000
+
 
 def _print_outputs_table(result, every_s: float = 1.0) -> None:
     from mca_drake.metrics import CHANNELS
@@ -23,14 +25,31 @@ def _print_outputs_table(result, every_s: float = 1.0) -> None:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from mca_drake.diagrams import PlantDemoScenario
-    from mca_drake.jobs import run_plant_demo
+    from mca_drake.evaluation import run_closed_loop
+    from mca_drake.references.reference import reference_from_recording
 
-    scenario = PlantDemoScenario(duration_s=args.duration)
-    result = run_plant_demo(
-        scenario=scenario, json_path=args.json, plot_path=args.plot, progress=not args.quiet
+    if args.reference:
+        from mca_drake.references.recording import load_recording
+
+        recording, name = load_recording(args.reference), args.reference
+    else:
+        from mca_drake.references.jsbsim_flight import fly
+
+        # The built-in default flight: deterministic for its seed, never used in training.
+        recording = fly("light", args.duration, DEFAULT_FLIGHT_SEED)
+        name = f"built-in light flight, seed {DEFAULT_FLIGHT_SEED}"
+    reference = reference_from_recording(recording, name=name)
+    duration = min(args.duration, reference.duration_s)
+    result = run_closed_loop(
+        mca=args.mca,
+        reference=reference,
+        duration_s=duration,
+        progress=not args.quiet,
+        json_path=args.json,
+        plot_path=args.plot,
+        policy=args.policy,
     )
-    _print_outputs_table(result)
+    _print_outputs_table(result, every_s=max(duration / 20, 0.1))
     print(json.dumps(result.summary, indent=2))
     if args.plot:
         print(f"plot written to {args.plot}")
@@ -260,9 +279,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     simulate = sub.add_parser(
         "simulate",
-        help="simulate the analytical plant on the built-in demo motion and print its outputs",
+        help="the main job: closed-loop motion cueing (default: the shipped DPC policy) on a "
+        "built-in flight or a recording; prints the outputs and the result summary, plots",
     )
-    simulate.add_argument("--duration", type=float, default=20.0, help="simulated seconds")
+    simulate.add_argument("--duration", type=float, default=60.0, help="simulated seconds")
+    simulate.add_argument("--mca", default="dpc", help="dpc, nmpc-rti, nmpc-converged, washout")
+    simulate.add_argument("--reference", help="recording CSV (default: the built-in flight)")
+    simulate.add_argument("--policy", help="policy file for dpc (default: the shipped one)")
     simulate.add_argument("--json", help="write the result summary to this JSON file")
     simulate.add_argument("--plot", default="simulate_outputs.png", help="PNG of the outputs")
     simulate.add_argument("--quiet", action="store_true", help="no progress bar")
