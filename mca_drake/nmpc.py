@@ -241,7 +241,8 @@ class MotionCueingOcp:
             + cfg.terminal_position_weight * self._Gq[6 * N :].T @ self._Gq[6 * N :]
             + cfg.terminal_velocity_weight * self._Gqd[6 * N :].T @ self._Gqd[6 * N :]
         )
-        self._W_rows = np.tile(np.asarray(cfg.output_weights, float), N) * w6
+        self._output_weights = np.asarray(cfg.output_weights, float)
+        self._W_rows = np.tile(self._output_weights, N) * w6
 
         self._u_max = np.tile(r.qdd_max, N)
         # Gauss-Newton stage Hessian terms beside J^T W J, on v = [q, qd, u]: washout, input.
@@ -436,10 +437,10 @@ class MotionCueingOcp:
     def _update_qp(self, x0: np.ndarray, U: np.ndarray, refs: np.ndarray) -> np.ndarray:
         """Linearises y around plan U from x0 and loads the QP; returns the node states
         (N + 1, 12) of U."""
-        cfg, N = self.config, self.N
+        N = self.N
         q, qd = self.states(x0, U)
         jac = plant_output_jacobians(q[:-1], qd[:-1], U, self.robot)
-        W = np.asarray(cfg.output_weights, float)
+        W = self._output_weights
         x_bar = np.concatenate([q, qd], axis=1)
         c = jac.y - refs  # residual at the linearisation point
         # Stage k >= 1 is a quadratic in v_k = [x_k, u_k] (18); stage 0 in u_0 alone (x_0 is

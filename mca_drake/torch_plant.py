@@ -78,6 +78,28 @@ def _apply(R_T: list[list[float]], v: Vec3) -> Vec3:
     )
 
 
+def integrate_double_integrator(
+    x0: torch.Tensor, U: torch.Tensor, dt: float, exact: bool = True
+) -> torch.Tensor:
+    """States of q'' = u per joint for inputs U (..., T, 6) from x0 (..., 12): (..., T+1, 12).
+
+    Closed form with cumulative sums (no loop over time): qd_t = qd_0 + dt sum_(k<t) u_k and
+    q_t = q_0 + dt sum_(k<t) qd_k, plus dt^2/2 sum_(k<t) u_k when `exact` (the zero-order-hold
+    discretisation; without it, forward Euler).
+    """
+    q0, qd0 = x0[..., None, :NUM_JOINTS], x0[..., None, NUM_JOINTS:]
+    zero = torch.zeros_like(U[..., :1, :])
+    sum_u = torch.cat([zero, torch.cumsum(U, dim=-2)], dim=-2)  # (..., T+1, 6)
+    qd = qd0 + dt * sum_u
+    # sum_(k<t) qd_k = t qd_0 + dt sum_(k<t) sum_u_k
+    steps = torch.arange(U.shape[-2] + 1, dtype=U.dtype, device=U.device)[:, None]
+    sum_sum_u = torch.cat([zero, torch.cumsum(sum_u[..., :-1, :], dim=-2)], dim=-2)
+    q = q0 + dt * steps * qd0 + dt * dt * sum_sum_u
+    if exact:
+        q = q + (0.5 * dt * dt) * sum_u
+    return torch.cat([q, qd], dim=-1)
+
+
 class TorchPlant(nn.Module):
     """Exact analytical KR500 motion-cueing plant (equation 1) as a torch module.
 
@@ -151,16 +173,7 @@ class TorchPlant(nn.Module):
                     f"U must have shape (*batch, T, 6) for x0 of shape (*batch, 12); got "
                     f"x0 {tuple(x0.shape)}, U {tuple(U.shape)}"
                 )
-        dt = self.dt
-        q0, qd0 = x0[..., None, :NUM_JOINTS], x0[..., None, NUM_JOINTS:]
-        zero = torch.zeros_like(U[..., :1, :])
-        sum_u = torch.cat([zero, torch.cumsum(U, dim=-2)], dim=-2)  # (B, T+1, 6)
-        qd = qd0 + dt * sum_u
-        # sum_(k<t) qd_k = t qd_0 + dt sum_(k<t) sum_u_k
-        steps = torch.arange(U.shape[-2] + 1, dtype=U.dtype, device=U.device)[:, None]
-        sum_sum_u = torch.cat([zero, torch.cumsum(sum_u[..., :-1, :], dim=-2)], dim=-2)
-        q = q0 + dt * steps * qd0 + dt * dt * sum_sum_u + (0.5 * dt * dt) * sum_u
-        return torch.cat([q, qd], dim=-1)
+        return integrate_double_integrator(x0, U, self.dt, exact=True)
 
     # ----------------------------------------------------------------- kinematics
     def dh_frames(self, q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

@@ -90,23 +90,6 @@ def test_non_viable_state_gets_full_braking(robot):
     np.testing.assert_allclose(hi, -robot.qdd_max)
 
 
-def test_fast_clamp_equals_viable_acceleration_bounds(robot, rng):
-    from mca_drake.safety import ViabilityClamp
-
-    clamp = ViabilityClamp.for_robot(robot, 0.01)
-    for _ in range(3000):
-        # states inside, on and beyond the limits (non-viable ones included)
-        q = rng.uniform(1.1 * robot.q_min, 1.1 * robot.q_max)
-        qd = rng.uniform(-1.2 * robot.qd_max, 1.2 * robot.qd_max)
-        lo, hi, viable = viable_acceleration_bounds(
-            q, qd, robot.q_min, robot.q_max, robot.qd_max, robot.qdd_max, 0.01
-        )
-        lo2, hi2, viable2 = clamp.bounds(np.concatenate([q, qd]))
-        np.testing.assert_allclose(lo2, lo, rtol=0, atol=1e-9)
-        np.testing.assert_allclose(hi2, hi, rtol=0, atol=1e-9)
-        np.testing.assert_array_equal(viable2, viable)
-
-
 def test_clamp_call_equals_clipping_into_the_bounds(robot, rng):
     from mca_drake.safety import ViabilityClamp
 

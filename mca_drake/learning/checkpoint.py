@@ -11,6 +11,7 @@ A checkpoint that does not fit the model (another architecture, other sizes) rai
 from __future__ import annotations
 
 import io
+import json
 import os
 from pathlib import Path
 
@@ -41,8 +42,6 @@ def save_checkpoint(path: str | os.PathLike, payload: dict, metadata: dict) -> P
 
 def load_checkpoint(path: str | os.PathLike, map_location="cpu") -> tuple[dict, dict]:
     """(payload, metadata) of a checkpoint written by `save_checkpoint`."""
-    import json
-
     path = Path(path)
     meta_path = path.with_suffix(".json")
     if not path.is_file() or not meta_path.is_file():

@@ -38,6 +38,7 @@ from mca_drake.learning.policy import PolicyNetwork
 from mca_drake.learning.state_models import Node2State
 from mca_drake.learning.trainer import TrainConfig
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.safety import viable_acceleration_bounds_torch
 from mca_drake.torch_plant import TorchPlant
 
 TARGETS = ("achieved", "reference")
@@ -132,7 +133,7 @@ class RolloutPlant(nn.Module):
                 name, torch.tensor(getattr(robot, name), dtype=torch.float32), persistent=False
             )
         if config.plant == "exact":
-            self.exact = TorchPlant(robot, dtype=torch.float64, check_inputs=False).float()
+            self.exact = TorchPlant(robot, check_inputs=False)
         else:
             self.state_model = Node2State()
             self.output_model = MixedAnalyticalOutput()
@@ -146,8 +147,6 @@ class RolloutPlant(nn.Module):
     def clamp(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         if not self.safety_filter:
             return u
-        from mca_drake.safety import viable_acceleration_bounds_torch
-
         lo, hi = viable_acceleration_bounds_torch(
             x, self.q_min, self.q_max, self.qd_max, self.qdd_max, self.dt
         )

@@ -120,10 +120,9 @@ class MixedAnalyticalOutput(OutputModel):
 
     def __init__(self, hidden: int = 64, dt: float = 0.01, dtype: torch.dtype = torch.float32):
         super().__init__()
-        # Built in float64 and then converted, so that the kinematic constants are rounded
-        # once to `dtype` (converting a float32 module to float64 later would keep float32
-        # constants: pass dtype instead).
-        self.kinematics = TorchPlant(dt=dt, dtype=torch.float64, check_inputs=False)
+        # Pass dtype rather than converting later: a float32 module converted to float64
+        # keeps its float32-rounded kinematic constants.
+        self.kinematics = TorchPlant(dt=dt, dtype=dtype, check_inputs=False)
         self.f3 = Mlp(2 * NUM_JOINTS + POSE_SIZE, POSE_SIZE, hidden)
         self.f4 = Mlp(2 * NUM_JOINTS + POSE_SIZE, POSE_SIZE, hidden)
         self.f5 = Mlp(2 * NUM_JOINTS + POSE_SIZE, POSE_SIZE, hidden)
@@ -164,7 +163,7 @@ class ExactOutput(OutputModel):
 
     def __init__(self, dt: float = 0.01, dtype: torch.dtype = torch.float32):
         super().__init__()
-        self.plant = TorchPlant(dt=dt, dtype=torch.float64, check_inputs=False).to(dtype)
+        self.plant = TorchPlant(dt=dt, dtype=dtype, check_inputs=False)
 
     def forward(self, X, U, y_prev=None):
         _check(X, U, y_prev)

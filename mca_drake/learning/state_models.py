@@ -26,6 +26,7 @@ from torch import nn
 from mca_drake.learning.blocks import Mlp
 from mca_drake.learning.ode_adjoint import odeint_step
 from mca_drake.robot import NUM_JOINTS
+from mca_drake.torch_plant import integrate_double_integrator
 
 STATE_SIZE, INPUT_SIZE = 2 * NUM_JOINTS, NUM_JOINTS
 DEFAULT_DT = 0.01
@@ -115,19 +116,7 @@ class Node2State(StateModel):
 
     def forward(self, x0, U):
         _check(x0, U)
-        dt = self.dt
-        q0, qd0 = x0[:, None, :NUM_JOINTS], x0[:, None, NUM_JOINTS:]
-        zero = torch.zeros_like(U[:, :1])
-        sum_u = torch.cat([zero, torch.cumsum(U, dim=1)], dim=1)  # (B, T+1, 6)
-        qd = qd0 + dt * sum_u
-        steps = torch.arange(U.shape[1] + 1, dtype=U.dtype, device=U.device)[:, None]
-        # sum_(k<t) qd_k = t qd_0 + dt sum_(k<t) sum_u_k
-        q = (
-            q0
-            + dt * (steps * qd0)
-            + dt * dt * torch.cat([zero, torch.cumsum(sum_u[:, :-1], dim=1)], dim=1)
-        )
-        return torch.cat([q, qd], dim=-1)
+        return integrate_double_integrator(x0, U, self.dt, exact=False)
 
 
 class ExactState(StateModel):
@@ -141,11 +130,8 @@ class ExactState(StateModel):
         return torch.cat([q + dt * qd + (0.5 * dt * dt) * u, qd + dt * u], dim=-1)
 
     def forward(self, x0, U):
-        X = Node2State(self.dt).forward(x0, U)
-        zero = torch.zeros_like(U[:, :1])
-        # the exact step adds dt^2/2 u_k to q for every k < t
-        extra = (0.5 * self.dt * self.dt) * torch.cat([zero, torch.cumsum(U, dim=1)], dim=1)
-        return torch.cat([X[..., :NUM_JOINTS] + extra, X[..., NUM_JOINTS:]], dim=-1)
+        _check(x0, U)
+        return integrate_double_integrator(x0, U, self.dt, exact=True)
 
 
 STATE_MODELS: dict[str, type[StateModel]] = {

@@ -9,7 +9,7 @@ from pydrake.systems.framework import Context, LeafSystem, State
 
 from mca_drake.nmpc import MotionCueingOcp, NmpcConfig
 from mca_drake.robot import KR500, NUM_JOINTS
-from mca_drake.safety import viable_acceleration_bounds
+from mca_drake.safety import ViabilityClamp
 
 STATISTICS = ("step_time_s", "solver_failures", "safety_interventions", "qp_iterations")
 
@@ -59,6 +59,7 @@ class NmpcController(LeafSystem):
     ):
         super().__init__()
         self._ocp = MotionCueingOcp(config, robot)
+        self._clamp = ViabilityClamp.for_robot(self._ocp.robot, self._ocp.config.time_step)
         self._config = self._ocp.config
         self._preview_samples = int(preview_samples)
         self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
@@ -104,7 +105,6 @@ class NmpcController(LeafSystem):
                 f"NmpcController: non-finite state or reference at t = {context.get_time()} s"
             )
         plan = context.get_discrete_state(self._plan_index).value().reshape(-1, NUM_JOINTS)
-        r, h = self._ocp.robot, self._config.time_step
         _, failures, interventions, iterations = context.get_discrete_state(
             self._statistics_index
         ).value()
@@ -117,12 +117,8 @@ class NmpcController(LeafSystem):
         # Safety filter: u_0 into the exact viability interval of the true limits (the QP
         # already plans inside slightly tighter ones; this catches solver tolerances and
         # failures).
-        lo, hi, viable = viable_acceleration_bounds(
-            x[:NUM_JOINTS], x[NUM_JOINTS:], r.q_min, r.q_max, r.qd_max, r.qdd_max, h
-        )
-        command = np.clip(plan[0], lo, hi)
-        if np.any(np.abs(command - plan[0]) > 1e-9) or not viable.all():
-            interventions += 1
+        command, intervened = self._clamp(x, plan[0])
+        interventions += intervened
         discrete = state.get_mutable_discrete_state()
         discrete.set_value(self._command_index, command)
         discrete.set_value(self._plan_index, plan.reshape(-1))
