@@ -3,6 +3,7 @@ is exact, and a resumed run reads finished candidates back."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import pytest
@@ -68,6 +69,51 @@ def test_table2_tiny(datasets, tmp_path):
     # a resumed run reads the finished candidates back unchanged
     again = run_table2(config, tmp_path, resume=True, progress=False)
     assert again["rows"] == json.loads(json.dumps(rows))
+
+
+def test_table2_resume_trains_a_killed_candidate(datasets, tmp_path):
+    """A candidate with a training checkpoint but no result (killed mid-training) is
+    trained and scored on resume, not mistaken for a finished one."""
+    from mca_drake.learning.plant_candidates import make_state_model, state_objective
+    from mca_drake.learning.table2 import _splits, _stage_saver
+    from mca_drake.learning.trainer import CurriculumTrainer
+
+    train = TrainConfig(
+        horizons=(8, 16), max_epochs=2, batch_size=64, device="cpu", checkpoint_interval_s=0.0
+    )
+    config = Table2Config(
+        closed_loop_dataset=datasets["closed"],
+        open_loop_dataset=datasets["open"],
+        state_models=("nssm",),
+        output_models=(),
+        train=train,
+        timing_calls=2,
+        timing_horizons=(1,),
+    )
+    splits = _splits(config.closed_loop_dataset, config.split_seed)
+
+    class Killed(Exception):
+        pass
+
+    def kill_in_second_step(record):
+        if record.horizon == 16:
+            raise Killed
+
+    partial = CurriculumTrainer(
+        make_state_model("nssm"),
+        state_objective,
+        train,
+        tmp_path / "state_nssm.pt",
+        {"model": "nssm", "kind": "state"},
+        callbacks=[kill_in_second_step],
+        stage_callbacks=[_stage_saver(tmp_path, "state_nssm")],
+    )
+    with pytest.raises(Killed):
+        partial.fit(splits["train"], splits["validation"], progress=False)
+    report = run_table2(config, tmp_path, resume=True, progress=False)
+    row = report["rows"]["state"]["nssm"]
+    assert set(row["validation"]) == {"8", "16"} and min(row["validation"].values()) > 0
+    assert report["train_wall_s"] >= row["train_wall_s"] > 0
 
 
 def test_cli_table2(tmp_path, capsys):

@@ -194,7 +194,9 @@ def run_table2(
     ]
     for kind, name in jobs:
         tag = f"{kind}_{name}"
-        result_path = out / f"{tag}.json"
+        # Not f"{tag}.json": that name is the checkpoint's metadata beside f"{tag}.pt", and a
+        # killed candidate would be read back as finished.
+        result_path = out / f"{tag}_result.json"
         if resume and result_path.is_file():
             rows[kind][name] = json.loads(result_path.read_text())
             continue
@@ -257,6 +259,8 @@ def run_table2(
         "machine": platform.processor() or platform.machine(),
         "torch_threads": torch.get_num_threads(),
         "wall_s": time.perf_counter() - started,
+        # Training time summed over candidates, across resumed runs (wall_s is this run's).
+        "train_wall_s": sum(r.get("train_wall_s", 0.0) for k in rows.values() for r in k.values()),
         "versions": package_versions(),
     }
     atomic_write_json(out / "table2.json", report)
@@ -306,6 +310,8 @@ def table2_markdown(report: dict) -> str:
         "predicted step. Learned output models run on NODE 2 states; the exact plant on exact "
         "states. Iteration time: mean of single-segment inference calls.",
         f"Segments: {sizes}. Device: {report['device']}, {report['torch_threads']} torch "
-        f"threads. Wall time of the whole run: {report['wall_s'] / 60:.1f} min.",
+        f"threads. Training wall time summed over candidates (across resumed runs): "
+        f"{report.get('train_wall_s', 0.0) / 60:.1f} min; this run, scoring included: "
+        f"{report['wall_s'] / 60:.1f} min.",
     ]
     return "\n".join(lines) + "\n"
