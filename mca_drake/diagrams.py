@@ -195,3 +195,89 @@ def MakeAnalyticalClosedLoop(
     diagram = builder.Build()
     diagram.set_name(f"closed_loop_{mca}")
     return diagram, handles
+
+
+def MakeMultibodyClosedLoop(
+    reference,
+    mca: str,
+    robot: KR500 | None = None,
+    time_step: float = DEFAULT_DT,
+    policy: str | Path | None = None,
+    station=None,
+    meshcat=None,
+) -> tuple[Diagram, dict]:
+    """ReferenceSource -> MCA -> KR500 station (MultibodyPlant, inverse dynamics, head IMU),
+    the MCA fed the station's measured state (and measured y where it reads one).
+
+    Logs (every `time_step`): `reference_log`, `command_log` (the MCA's joint
+    accelerations), `desired_state_log` ([q_d, qd_d] the controller tracks),
+    `measured_state_log` ([q, qd] of the MultibodyPlant) and `measured_output_log` (y from
+    the head IMU, without the measurement delay: what the occupant felt), and
+    `statistics_log` where the MCA has statistics.
+
+    Args:
+        reference: the target outputs (a `Reference`).
+        mca: an MCA name (MCA_NAMES).
+        station: a `StationConfig` (default: 1 ms plant, 40 rad/s tracking, no limits,
+            no noise, no delay).
+        meshcat: a pydrake Meshcat to draw the robot, the cabin and live target/measured
+            strip charts in; None for none.
+
+    Returns:
+        (diagram, handles): handles has `source`, `mca`, `station` (StationHandles) and the
+        logs; call `handles["station"].SetInitialState(root_context)` before simulating
+        (the robot starts at rest at the MCA's home pose).
+    """
+    from mca_drake.systems import ReferenceSource
+    from mca_drake.systems.kr500_station import AddKR500Station
+
+    robot = robot if robot is not None else load_kr500()
+    builder = DiagramBuilder()
+    source = builder.AddNamedSystem("reference_source", ReferenceSource(reference))
+    controller = AddMca(builder, mca, robot, time_step, policy)
+    home = getattr(controller, "home_position", np.zeros(len(robot.joint_names)))
+    initial_state = np.concatenate([home, np.zeros_like(home)])
+    station_handles = AddKR500Station(
+        builder, robot, station, initial_state, with_geometry=meshcat is not None
+    )
+    builder.Connect(source.GetOutputPort("reference"), controller.GetInputPort("reference"))
+    builder.Connect(station_handles.measured_state, controller.GetInputPort("state"))
+    if controller.HasInputPort("inertial_output"):
+        builder.Connect(station_handles.measured_output, controller.GetInputPort("inertial_output"))
+    builder.Connect(
+        controller.GetOutputPort("joint_acceleration"), station_handles.joint_acceleration
+    )
+    handles = dict(source=source, mca=controller, station=station_handles)
+    for name, port in (
+        ("reference_log", source.GetOutputPort("reference")),
+        ("command_log", controller.GetOutputPort("joint_acceleration")),
+        ("desired_state_log", station_handles.desired_state),
+        ("measured_state_log", station_handles.true_state),
+        ("measured_output_log", station_handles.true_output),
+    ):
+        handles[name] = LogVectorOutput(port, builder, time_step)
+        handles[name].set_name(name)
+    if controller.HasOutputPort("statistics"):
+        handles["statistics_log"] = LogVectorOutput(
+            controller.GetOutputPort("statistics"), builder, time_step
+        )
+    if meshcat is not None:
+        from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
+
+        from mca_drake.systems.meshcat_traces import MeshcatOutputTraces
+
+        MeshcatVisualizer.AddToBuilder(
+            builder,
+            station_handles.scene_graph,
+            meshcat,
+            MeshcatVisualizerParams(publish_period=1 / 30),
+        )
+        traces = builder.AddNamedSystem(
+            "output_traces", MeshcatOutputTraces(meshcat, sample_period=time_step)
+        )
+        builder.Connect(source.GetOutputPort("reference"), traces.GetInputPort("reference"))
+        builder.Connect(station_handles.true_output, traces.GetInputPort("measured_output"))
+        handles["traces"] = traces
+    diagram = builder.Build()
+    diagram.set_name(f"multibody_closed_loop_{mca}")
+    return diagram, handles

@@ -136,3 +136,77 @@ def plot_pi_boxes(report: dict):
         ax.grid(alpha=0.3, axis="y")
     fig.tight_layout()
     return fig
+
+
+def plot_tracking(times, target, measured, title: str = ""):
+    """Target against measured output per channel with RMSE and CC in each panel's title
+    (the paper's Fig. 4).
+
+    Args:
+        times: shape (T,), s.
+        target, measured: shape (T, 6), the channels of y.
+    """
+    from mca_drake.metrics import tracking_score
+
+    times = np.asarray(times, dtype=float)
+    target = np.asarray(target, dtype=float)
+    measured = np.asarray(measured, dtype=float)
+    if target.shape != (times.size, 6) or measured.shape != target.shape:
+        raise ValueError(
+            f"target and measured must have shape ({times.size}, 6); got {target.shape}, "
+            f"{measured.shape}"
+        )
+    score = tracking_score(target, measured)
+    fig, axes = plt.subplots(3, 2, figsize=(12, 7.5), sharex=True)
+    for k, ax in enumerate(axes.T.ravel()):
+        ax.plot(times, target[:, k], color="0.55", lw=1.4, label="target")
+        ax.plot(times, measured[:, k], color="C0", lw=1.0, label="measured")
+        ax.set_title(
+            f"{CHANNEL_LABELS[k]}   RMSE {score.rmse[k]:.3f}, CC {score.cc[k]:.3f}", fontsize=9
+        )
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    axes[0, 0].legend(fontsize=8, loc="upper right")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def plot_joint_usage(usage, title: str = "", max_points: int = 2000, seed: int = 0):
+    """Strip (swarm-like) charts of normalised joint positions, velocities and accelerations
+    (the paper's Fig. 5): one column of jittered points per joint, +-1 are the Table I
+    limits (dashed).
+
+    Args:
+        usage: a `mca_drake.metrics.JointUsage` (each field shape (T, 6)).
+        max_points: samples drawn per joint (evenly subsampled) to keep the figure light.
+    """
+    rng = np.random.default_rng(seed)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), sharey=True)
+    for ax, (name, values) in zip(
+        axes,
+        (("position q", usage.q), ("velocity qd", usage.qd), ("acceleration qdd", usage.qdd)),
+        strict=True,
+    ):
+        values = np.asarray(values, dtype=float)
+        step = max(1, values.shape[0] // max_points)
+        for j in range(values.shape[1]):
+            v = values[::step, j]
+            x = j + 1 + rng.uniform(-0.28, 0.28, v.size)
+            ax.scatter(x, v, s=2, alpha=0.35, color=f"C{j}", rasterized=True)
+            peak = np.max(np.abs(values[:, j])) if values.size else 0.0
+            ax.text(j + 1, 1.12, f"{peak:.2f}", ha="center", fontsize=7)
+        for bound in (-1.0, 1.0):
+            ax.axhline(bound, color="k", ls="--", lw=0.8)
+        ax.set_xticks(range(1, values.shape[1] + 1))
+        ax.set_xlabel("joint")
+        ax.set_title(f"normalised {name} (peak |.| above)", fontsize=9)
+        ax.set_ylim(-1.25, 1.25)
+        ax.grid(alpha=0.3, axis="y")
+    axes[0].set_ylabel("value / limit")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
