@@ -24,45 +24,83 @@ def _print_outputs_table(result, every_s: float = 1.0) -> None:
         print(f"{result.times[k]:7.2f} " + " ".join(f"{v:9.4f}" for v in result.outputs[k]))
 
 
+def _default_flight_reference(duration_s: float, path: str | None):
+    """The recording at `path` as a reference, or the built-in default flight (light
+    aircraft, seed DEFAULT_FLIGHT_SEED: deterministic, never used in training)."""
+    from mca_drake.diagrams import FlightSpec
+    from mca_drake.jobs import flight_reference
+
+    spec = FlightSpec(recording=path or "", vehicle="light", seed=DEFAULT_FLIGHT_SEED)
+    return flight_reference(spec, duration_s)
+
+
+def _start_meshcat():
+    from pydrake.geometry import StartMeshcat
+
+    meshcat = StartMeshcat()
+    print(f"Meshcat: open {meshcat.web_url()} in a browser")
+    return meshcat
+
+
+def _hold_meshcat(meshcat) -> None:
+    """Keeps the Meshcat server (and its recording) alive until the user is done."""
+    if meshcat is None or not sys.stdin.isatty():
+        return
+    try:
+        input(f"replay the recording at {meshcat.web_url()}; press Enter to exit ")
+    except (EOFError, KeyboardInterrupt):
+        pass
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from mca_drake.evaluation import run_closed_loop
-    from mca_drake.references.reference import reference_from_recording
-
-    if args.reference:
-        from mca_drake.references.recording import load_recording
-
-        recording, name = load_recording(args.reference), args.reference
-    else:
-        from mca_drake.references.jsbsim_flight import fly
-
-        # The built-in default flight: deterministic for its seed, never used in training.
-        recording = fly("light", args.duration, DEFAULT_FLIGHT_SEED)
-        name = f"built-in light flight, seed {DEFAULT_FLIGHT_SEED}"
-    reference = reference_from_recording(recording, name=name)
+    reference = _default_flight_reference(args.duration, args.reference)
     duration = min(args.duration, reference.duration_s)
-    result = run_closed_loop(
-        mca=args.mca,
-        reference=reference,
-        duration_s=duration,
-        progress=not args.quiet,
-        json_path=args.json,
-        plot_path=args.plot,
-        policy=args.policy,
-    )
+    meshcat = _start_meshcat() if args.meshcat else None
+    if args.plant == "multibody":
+        from mca_drake.station_simulation import run_station_closed_loop
+
+        result = run_station_closed_loop(
+            mca=args.mca,
+            reference=reference,
+            duration_s=duration,
+            policy=args.policy,
+            meshcat=meshcat,
+            realtime_rate=1.0 if args.realtime else 0.0,
+            progress=not args.quiet,
+            json_path=args.json,
+            plot_dir=args.plots,
+        )
+    else:
+        if meshcat is not None or args.realtime:
+            raise ValueError("--meshcat and --realtime need --plant multibody")
+        from mca_drake.evaluation import run_closed_loop
+        from mca_drake.station_simulation import write_station_plots
+
+        result = run_closed_loop(
+            mca=args.mca,
+            reference=reference,
+            duration_s=duration,
+            progress=not args.quiet,
+            json_path=args.json,
+            policy=args.policy,
+        )
+        if args.plots:
+            write_station_plots(result, args.plots)
     _print_outputs_table(result, every_s=max(duration / 20, 0.1))
     print(json.dumps(result.summary, indent=2))
-    if args.plot:
-        print(f"plot written to {args.plot}")
+    if args.plots:
+        print(f"plots written to {args.plots}/tracking.png and {args.plots}/joint_usage.png")
+    _hold_meshcat(meshcat)
     return 0
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from mca_drake.diagrams import load_scenario
-    from mca_drake.jobs import run_plant_demo
+    from mca_drake.jobs import run_scenario
 
     scenario = load_scenario(args.scenario, args.set)
-    result = run_plant_demo(scenario=scenario, json_path=args.json, progress=not args.quiet)
-    print(json.dumps(result.summary, indent=2))
+    summary = run_scenario(scenario, progress=not args.quiet, json_path=args.json)
+    print(json.dumps(summary, indent=2, default=str))
     return 0
 
 
@@ -287,13 +325,30 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("--reference", help="recording CSV (default: the built-in flight)")
     simulate.add_argument("--policy", help="policy file for dpc (default: the shipped one)")
     simulate.add_argument("--json", help="write the result summary to this JSON file")
-    simulate.add_argument("--plot", default="simulate_outputs.png", help="PNG of the outputs")
+    simulate.add_argument(
+        "--plant",
+        default="multibody",
+        choices=("multibody", "analytical"),
+        help="multibody: the KR500 MultibodyPlant with inverse-dynamics control and head IMU "
+        "(default); analytical: the ideal joint-space plant of the paper",
+    )
+    simulate.add_argument("--meshcat", action="store_true", help="watch it in Meshcat")
+    simulate.add_argument("--realtime", action="store_true", help="run at real-time rate 1")
+    simulate.add_argument(
+        "--plots",
+        default="simulate_plots",
+        help="folder for tracking.png (Fig. 4) and joint_usage.png (Fig. 5); '' for none",
+    )
     simulate.add_argument("--quiet", action="store_true", help="no progress bar")
     simulate.set_defaults(func=_cmd_simulate)
 
     run = sub.add_parser("run", help="run a scenario file from diagrams/")
     run.add_argument("scenario", help="YAML scenario file, e.g. diagrams/plant_demo.yaml")
-    run.add_argument("--set", help="YAML override, e.g. '{scenario: {duration_s: 5}}'")
+    run.add_argument(
+        "--set",
+        help="YAML override of the scenario, e.g. "
+        "'{duration_s: 5, station: {torque_limits: true}}'",
+    )
     run.add_argument("--json", help="write the result summary to this JSON file")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.set_defaults(func=_cmd_run)

@@ -7,9 +7,10 @@ YAML with `pydrake.common.yaml.yaml_load_typed`, so a misspelt key fails loudly.
 
 import dataclasses
 from pathlib import Path
+from typing import Union
 
 import numpy as np
-from pydrake.common.yaml import yaml_load_typed
+from pydrake.common.yaml import yaml_dump, yaml_load, yaml_load_typed
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
@@ -17,6 +18,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from mca_drake.demo_motion import demo_joint_motion
 from mca_drake.robot import KR500, load_kr500
 from mca_drake.systems import MotionCueingPlant
+from mca_drake.systems.kr500_station import StationConfig
 from mca_drake.torch_plant import DEFAULT_DT
 
 
@@ -40,21 +42,166 @@ class PlantDemoScenario:
 
 
 @dataclasses.dataclass
+class FlightSpec:
+    """The vehicle motion a scenario cues."""
+
+    # Recording CSV (columns t, omega_x, omega_y, omega_z, f_x, f_y, f_z); empty: fly the
+    # built-in JSBSim flight below.
+    recording: str = ""
+    # Built-in flight: "light" (c172p) or "jet" (global5000).
+    vehicle: str = "light"
+    # Seed of the built-in flight's scripted pilot (training used 100-104).
+    seed: int = 1000
+
+    def validate(self) -> None:
+        if not self.recording and self.vehicle not in ("light", "jet"):
+            raise ValueError(f"flight.vehicle must be light or jet; got {self.vehicle!r}")
+        if self.recording and not Path(self.recording).is_file():
+            raise ValueError(f"flight.recording {self.recording!r} not found")
+
+
+@dataclasses.dataclass
+class ClosedLoopScenario:
+    """Closed-loop motion cueing on the KR500 (MultibodyPlant station or analytical plant)."""
+
+    # Motion cueing algorithm: dpc, nmpc-rti, nmpc-converged or washout.
+    mca: str = "dpc"
+    # "multibody" (KR500 MultibodyPlant, inverse dynamics, head IMU) or "analytical".
+    plant: str = "multibody"
+    # The flight to cue.
+    flight: FlightSpec = dataclasses.field(default_factory=FlightSpec)
+    # Simulated time, s.
+    duration_s: float = 60.0
+    # Policy file of "dpc"; empty: the policy shipped with the package.
+    policy: str = ""
+    # The simulated robot, its controller and sensors (multibody plant only).
+    station: StationConfig = dataclasses.field(default_factory=StationConfig)
+    # Watch it in Meshcat (multibody plant only).
+    meshcat: bool = False
+    # Target simulated/wall rate: 1 for live use, 0 as fast as possible (multibody only).
+    realtime_rate: float = 0.0
+    # Folder for summary.json, tracking.png (Fig. 4) and joint_usage.png (Fig. 5).
+    output_dir: str = "results/closed_loop"
+
+    def validate(self) -> None:
+        if self.mca not in MCA_NAMES:
+            raise ValueError(f"mca must be one of {', '.join(MCA_NAMES)}; got {self.mca!r}")
+        if self.plant not in ("multibody", "analytical"):
+            raise ValueError(f"plant must be multibody or analytical; got {self.plant!r}")
+        if not self.duration_s > 0:
+            raise ValueError(f"duration_s must be positive; got {self.duration_s}")
+        if self.policy and not Path(self.policy).is_file():
+            raise ValueError(f"policy file {self.policy!r} not found")
+        self.flight.validate()
+        self.station.validate()
+
+
+@dataclasses.dataclass
+class EvaluationScenario:
+    """The scenario evaluation of the MCAs (Case A light aircraft, Case B jet)."""
+
+    # MCAs compared (DPC is tested against each other one).
+    mcas: list[str] = dataclasses.field(
+        default_factory=lambda: ["dpc", "nmpc-converged", "nmpc-rti", "washout"]
+    )
+    # Case A flight seeds (light aircraft); empty: skip the case.
+    light_seeds: list[int] = dataclasses.field(default_factory=lambda: list(range(1000, 1010)))
+    # Case B flight seeds (jet); empty: skip the case.
+    jet_seeds: list[int] = dataclasses.field(default_factory=lambda: list(range(2000, 2010)))
+    # Simulated seconds per flight.
+    duration_s: float = 300.0
+    # Policy file of "dpc"; empty: the shipped one.
+    policy: str = ""
+    # Parallel worker processes.
+    workers: int = 1
+    # Folder of the per-run JSON files (resumable), evaluation.md/json and the box plot.
+    output_dir: str = "results/evaluation"
+
+    def validate(self) -> None:
+        if not (self.light_seeds or self.jet_seeds):
+            raise ValueError("light_seeds and jet_seeds are both empty: nothing to evaluate")
+        if self.workers < 1:
+            raise ValueError(f"workers must be >= 1; got {self.workers}")
+        self.to_config().validate()
+
+    def to_config(self):
+        """The `mca_drake.scenario_evaluation.EvaluationConfig` of this scenario."""
+        from mca_drake.scenario_evaluation import EvaluationCase, EvaluationConfig
+
+        cases = []
+        if self.light_seeds:
+            cases.append(EvaluationCase("A", "light", tuple(self.light_seeds)))
+        if self.jet_seeds:
+            cases.append(EvaluationCase("B", "jet", tuple(self.jet_seeds)))
+        return EvaluationConfig(
+            mcas=tuple(self.mcas),
+            cases=tuple(cases),
+            duration_s=self.duration_s,
+            policy=self.policy or None,
+        )
+
+
+@dataclasses.dataclass
+class DatasetScenario:
+    """Closed-loop dataset generation (the training data of the plant models and DPC)."""
+
+    # Vehicle class flown by JSBSim: "light" or "jet".
+    vehicle: str = "light"
+    # Flight seeds (evaluation uses 1000 on; keep these apart).
+    flight_seeds: list[int] = dataclasses.field(default_factory=lambda: [100, 101, 102, 103, 104])
+    # Length of each flight, s.
+    flight_duration_s: float = 900.0
+    # Segment length n_p, steps.
+    horizon: int = 256
+    # MCA that generates the trajectories.
+    mca: str = "nmpc-rti"
+    # Seed of the shuffle before the 70/20/10 split.
+    split_seed: int = 0
+    # Parallel worker processes (one flight each).
+    workers: int = 1
+    # Folder of the per-flight files and the merged dataset.npz (resumable).
+    output_dir: str = "datasets/closed_loop"
+
+    def validate(self) -> None:
+        if self.workers < 1:
+            raise ValueError(f"workers must be >= 1; got {self.workers}")
+        self.to_config().validate()
+
+    def to_config(self):
+        """The `mca_drake.closed_loop_dataset.ClosedLoopDatasetConfig` of this scenario."""
+        from mca_drake.closed_loop_dataset import ClosedLoopDatasetConfig
+
+        return ClosedLoopDatasetConfig(
+            vehicle=self.vehicle,
+            flight_seeds=tuple(self.flight_seeds),
+            flight_duration_s=self.flight_duration_s,
+            horizon=self.horizon,
+            mca=self.mca,
+            split_seed=self.split_seed,
+        )
+
+
+Scenario = PlantDemoScenario | ClosedLoopScenario | EvaluationScenario | DatasetScenario
+
+
+@dataclasses.dataclass
 class ScenarioFile:
-    """What a diagrams/*.yaml file holds. `scenario` becomes a tagged union (`!Name`) as
-    more jobs (evaluation, closed loop, dataset generation) arrive."""
+    """What a diagrams/*.yaml file holds: one job, tagged with its type, e.g.
+    `scenario: !ClosedLoopScenario {mca: dpc, duration_s: 600}`."""
 
     # The job to run and its settings.
-    scenario: PlantDemoScenario = dataclasses.field(default_factory=PlantDemoScenario)
+    scenario: Union[  # noqa: UP007 (the YAML loader needs typing.Union)
+        PlantDemoScenario, ClosedLoopScenario, EvaluationScenario, DatasetScenario
+    ] = dataclasses.field(default_factory=PlantDemoScenario)
 
 
-def load_scenario(path: str | Path, overrides: str | None = None) -> PlantDemoScenario:
+def load_scenario(path: str | Path, overrides: str | None = None) -> Scenario:
     """Loads the `scenario` of a YAML file in diagrams/, with optional text overrides.
 
     Args:
         path: the YAML file.
-        overrides: optional YAML text applied on top of the file, for quick changes,
-            e.g. '{scenario: {duration_s: 5}}'.
+        overrides: optional YAML text applied on top of the file's scenario, for quick
+            changes: '{scenario: {duration_s: 5}}' or just '{duration_s: 5}'.
 
     Raises:
         FileNotFoundError: no such file.
@@ -64,13 +211,24 @@ def load_scenario(path: str | Path, overrides: str | None = None) -> PlantDemoSc
     if not path.is_file():
         raise FileNotFoundError(f"scenario file not found: {path}")
     try:
-        loaded = yaml_load_typed(schema=ScenarioFile, filename=str(path))
+        scenario = yaml_load_typed(schema=ScenarioFile, filename=str(path)).scenario
         if overrides:
-            loaded = yaml_load_typed(schema=ScenarioFile, data=overrides, defaults=loaded)
+            raw = yaml_load(data=overrides)
+            if not isinstance(raw, dict):
+                raise ValueError(f"an override must be a YAML mapping; got {overrides!r}")
+            if set(raw) == {"scenario"}:
+                raw = raw["scenario"]
+            # Applied to the loaded scenario's own type, so a tagged file needs no tag here.
+            scenario = yaml_load_typed(
+                schema=type(scenario), data=yaml_dump(raw), defaults=scenario
+            )
     except (RuntimeError, ValueError, TypeError, AssertionError) as err:
         raise ValueError(f"{path}: {type(err).__name__}: {err}") from err
-    loaded.scenario.validate()
-    return loaded.scenario
+    try:
+        scenario.validate()
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from err
+    return scenario
 
 
 def MakePlantDemoDiagram(
@@ -272,6 +430,8 @@ def MakeMultibodyClosedLoop(
             meshcat,
             MeshcatVisualizerParams(publish_period=1 / 30),
         )
+        # A view of the whole robot with the strip-chart board behind it, to its left.
+        meshcat.SetCameraPose(np.array([3.5, -4.5, 3.2]), np.array([-0.5, 1.5, 1.6]))
         traces = builder.AddNamedSystem(
             "output_traces", MeshcatOutputTraces(meshcat, sample_period=time_step)
         )

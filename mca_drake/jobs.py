@@ -14,7 +14,14 @@ from pydrake.systems.analysis import Simulator
 from tqdm.auto import tqdm
 
 from mca_drake.atomic_io import atomic_write_json
-from mca_drake.diagrams import MakePlantDemoDiagram, PlantDemoScenario
+from mca_drake.diagrams import (
+    ClosedLoopScenario,
+    DatasetScenario,
+    EvaluationScenario,
+    FlightSpec,
+    MakePlantDemoDiagram,
+    PlantDemoScenario,
+)
 from mca_drake.metrics import CHANNELS, joint_usage
 from mca_drake.robot import NUM_JOINTS
 
@@ -88,3 +95,104 @@ def run_plant_demo(
             plot_path,
         )
     return PlantDemoResult(out.sample_times(), outputs, states, accelerations, summary)
+
+
+def flight_reference(flight: FlightSpec, duration_s: float, progress: bool = False):
+    """The motion-cueing reference of `flight`: its recording, or the built-in JSBSim flight
+    of `duration_s` seconds (deterministic for its seed)."""
+    from mca_drake.references.reference import reference_from_recording
+
+    if flight.recording:
+        from mca_drake.references.recording import load_recording
+
+        return reference_from_recording(load_recording(flight.recording), name=flight.recording)
+    from mca_drake.references.jsbsim_flight import fly
+
+    recording = fly(flight.vehicle, duration_s, flight.seed, progress=progress)
+    return reference_from_recording(
+        recording, name=f"built-in {flight.vehicle} flight, seed {flight.seed}"
+    )
+
+
+def run_closed_loop_scenario(scenario: ClosedLoopScenario, *, progress: bool = True, meshcat=None):
+    """Runs a ClosedLoopScenario; writes summary.json and the plots into its output_dir.
+
+    Args:
+        meshcat: a Meshcat to draw in (default: one is started when `scenario.meshcat`).
+
+    Returns:
+        The StationResult (multibody plant) or ClosedLoopResult (analytical plant).
+    """
+    scenario.validate()
+    reference = flight_reference(scenario.flight, scenario.duration_s)
+    duration = min(scenario.duration_s, reference.duration_s)
+    out = Path(scenario.output_dir)
+    policy = scenario.policy or None
+    if scenario.plant == "multibody":
+        from mca_drake.station_simulation import run_station_closed_loop
+
+        if scenario.meshcat and meshcat is None:
+            from pydrake.geometry import StartMeshcat
+
+            meshcat = StartMeshcat()
+            print(f"Meshcat: open {meshcat.web_url()} in a browser")
+        return run_station_closed_loop(
+            mca=scenario.mca,
+            reference=reference,
+            duration_s=duration,
+            station=scenario.station,
+            policy=policy,
+            meshcat=meshcat,
+            realtime_rate=scenario.realtime_rate,
+            progress=progress,
+            json_path=out / "summary.json",
+            plot_dir=out,
+        )
+    from mca_drake.evaluation import run_closed_loop
+    from mca_drake.station_simulation import write_station_plots
+
+    result = run_closed_loop(
+        mca=scenario.mca,
+        reference=reference,
+        duration_s=duration,
+        progress=progress,
+        json_path=out / "summary.json",
+        policy=policy,
+    )
+    write_station_plots(result, out)
+    return result
+
+
+def run_scenario(scenario, *, progress: bool = True, json_path: str | Path | None = None):
+    """Runs any scenario of a diagrams/*.yaml file; returns its result summary (a dict),
+    also written to `json_path` when given."""
+    if isinstance(scenario, PlantDemoScenario):
+        summary = run_plant_demo(scenario=scenario, progress=progress).summary
+    elif isinstance(scenario, ClosedLoopScenario):
+        summary = run_closed_loop_scenario(scenario, progress=progress).summary
+    elif isinstance(scenario, EvaluationScenario):
+        from mca_drake.scenario_evaluation import run_evaluation
+
+        scenario.validate()
+        report = run_evaluation(
+            scenario.to_config(), scenario.output_dir, workers=scenario.workers, progress=progress
+        )
+        summary = {"report": str(Path(scenario.output_dir) / "evaluation.md")} | {
+            k: v for k, v in report.items() if k != "runs"
+        }
+    elif isinstance(scenario, DatasetScenario):
+        from mca_drake.closed_loop_dataset import generate_closed_loop_dataset
+
+        scenario.validate()
+        path = generate_closed_loop_dataset(
+            scenario.to_config(), scenario.output_dir, workers=scenario.workers, progress=progress
+        )
+        from mca_drake.segments import SegmentDataset
+
+        data = SegmentDataset.load(path)
+        summary = {"dataset": str(path), "segments": len(data), "horizon": data.horizon}
+    else:
+        raise TypeError(f"not a scenario: {type(scenario).__name__}")
+    if json_path:
+        atomic_write_json(json_path, summary)
+    return summary

@@ -159,22 +159,28 @@ def run_station_closed_loop(
     return result
 
 
-def write_station_plots(result: StationResult, folder: str | Path, robot: KR500 | None = None):
+def write_station_plots(result, folder: str | Path, robot: KR500 | None = None):
     """Writes `tracking.png` (target vs measured per channel, RMSE and CC in the titles:
     the paper's Fig. 4) and `joint_usage.png` (normalised joint positions, velocities and
-    accelerations as strip charts: Fig. 5) into `folder`; returns their paths."""
+    accelerations as strip charts: Fig. 5) into `folder`; returns their paths.
+
+    `result`: a StationResult or an analytical-plant `ClosedLoopResult` (whose joint
+    accelerations are its commands)."""
     from mca_drake.plotting import plot_joint_usage, plot_tracking, save_figure
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     s = result.summary
-    title = f"{s['mca']} on the KR500 MultibodyPlant: PI {s['pi']:.3f}"
+    plant = "KR500 MultibodyPlant" if s["plant"] == "multibody" else "analytical plant"
+    title = f"{s['mca']} on the {plant}: PI {s['pi']:.3f}"
+    accelerations = getattr(result, "accelerations", None)
+    accelerations = result.commands if accelerations is None else accelerations
     tracking = folder / "tracking.png"
     save_figure(plot_tracking(result.times, result.reference, result.outputs, title), tracking)
     usage = joint_usage(
         result.states[:, :NUM_JOINTS],
         result.states[:, NUM_JOINTS:],
-        result.accelerations,
+        accelerations,
         robot,
     )
     usage_path = folder / "joint_usage.png"

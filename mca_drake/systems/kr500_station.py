@@ -10,13 +10,11 @@
   (1 ms) transport delay, as on hardware;
 - Drake's InverseDynamicsController: tau = M(q) (qdd_d + kp (q_d - q) + kd (qd_d - qd)
   + ki integral) + C(q, qd) qd - tau_g(q), with kp = w^2, kd = 2 zeta w per joint;
-- optional actuator saturation at the URDF effort limits;
+- actuator torque limits at the URDF efforts, or ideal actuators (the default);
 - Drake's Accelerometer and Gyroscope on the head frame H, optional Gaussian sensor noise,
   and `HeadImuOutput`, which turns their readings into the measured y of ARCHITECTURE.md;
 - an optional measurement delay on everything the MCA reads (state and measured y).
 """
-
-from __future__ import annotations
 
 import dataclasses
 
@@ -59,7 +57,7 @@ class StationConfig:
     tracking_damping: float = 1.0
     # Integral gain ki, 1/s^3 (0: none; the controller's model is exact).
     integral_gain: float = 0.0
-    # Saturate joint torques at the URDF effort limits.
+    # Saturate joint torques at the effort limits (URDF); off: ideal actuators.
     torque_limits: bool = False
     # Standard deviation of white Gaussian accelerometer noise, m/s^2 (0: none).
     accelerometer_noise_std: float = 0.0
@@ -263,11 +261,15 @@ def AddKR500Station(
     builder.Connect(plant.get_state_output_port(), controller.get_input_port_estimated_state())
     torque = controller.get_output_port_control()
     if config.torque_limits:
+        # The actuation port, which MultibodyPlant clamps at the URDF efforts, behind an
+        # explicit saturation at the description's limits (which may be set lower).
         limit = robot.effort_max
         saturation = builder.AddNamedSystem("torque_limits", Saturation(-limit, limit))
         builder.Connect(torque, saturation.get_input_port())
-        torque = saturation.get_output_port()
-    builder.Connect(torque, plant.get_actuation_input_port())
+        builder.Connect(saturation.get_output_port(), plant.get_actuation_input_port())
+    else:
+        # Ideal actuators: generalized forces bypass the actuators' effort clamp.
+        builder.Connect(torque, plant.get_applied_generalized_force_input_port())
 
     # The MCA's command feeds both the integrator and the controller's feedforward, so
     # the two stay consistent within every plant step.
@@ -301,7 +303,7 @@ def AddKR500Station(
         noise = builder.AddNamedSystem(
             "imu_noise", RandomSource(RandomDistribution.kGaussian, 6, h)
         )
-        scale = builder.AddNamedSystem("imu_noise_std", Gain(np.diag(std)))
+        scale = builder.AddNamedSystem("imu_noise_std", Gain(std))
         adder = builder.AddNamedSystem("imu_with_noise", Adder(2, 6))
         builder.Connect(noise.get_output_port(), scale.get_input_port())
         builder.Connect(imu_out, adder.get_input_port(0))

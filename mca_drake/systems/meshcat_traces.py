@@ -34,7 +34,7 @@ class MeshcatOutputTraces(LeafSystem):
         publish_period: drawing period, s (default 0.1).
         window_s: time shown, s (default 10).
         origin: position in W of the board's lower-left corner, m (default beside the
-            robot, 4 m to its left).
+            robot, 3 m to its left, behind it).
         width, strip_height: board width and height of one strip, m.
         scales: magnitude at a strip's half-height per channel (DEFAULT_SCALES).
         prefix: Meshcat path of the drawings.
@@ -46,7 +46,7 @@ class MeshcatOutputTraces(LeafSystem):
         sample_period: float = 0.01,
         publish_period: float = 0.1,
         window_s: float = 10.0,
-        origin=(-2.0, 4.0, 0.2),
+        origin=(-5.5, 2.5, 0.2),
         width: float = 4.0,
         strip_height: float = 0.55,
         scales=DEFAULT_SCALES,
