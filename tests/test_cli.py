@@ -40,31 +40,74 @@ def test_plant_demo_follows_the_demo_motion(robot):
     assert result.times[-1] == pytest.approx(4.0)
 
 
-def test_simulate_command_writes_json_and_plot(tmp_path, capsys):
-    out_json, out_png = tmp_path / "out.json", tmp_path / "out.png"
+def test_simulate_command_runs_the_multibody_closed_loop(tmp_path, capsys):
+    out_json, plots = tmp_path / "out.json", tmp_path / "plots"
     code = cli.main(
-        ["simulate", "--duration", "1", "--json", str(out_json), "--plot", str(out_png), "--quiet"]
+        ["simulate", "--duration", "1", "--json", str(out_json), "--plots", str(plots), "--quiet"]
     )
     assert code == 0
     summary = json.loads(out_json.read_text())
-    assert summary["plant"] == "analytical" and summary["duration_s"] == 1.0
-    assert out_png.stat().st_size > 10_000
+    assert summary["plant"] == "multibody" and summary["mca"] == "dpc"
+    assert summary["duration_s"] == 1.0 and summary["realtime_factor"] > 0
+    assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    for name in ("tracking.png", "joint_usage.png"):
+        assert (plots / name).stat().st_size > 10_000
     assert "f_x" in capsys.readouterr().out
 
 
-def test_every_scenario_file_loads_and_runs():
-    files = sorted((REPO / "diagrams").glob("*.yaml"))
-    assert files, "diagrams/ has no scenario files"
-    for path in files:
-        scenario = load_scenario(path, "{scenario: {duration_s: 0.2}}")
-        assert scenario.duration_s == 0.2
-        run_plant_demo(scenario=scenario, progress=False)
+def test_simulate_command_on_the_analytical_plant(tmp_path):
+    out_json = tmp_path / "out.json"
+    args = ["simulate", "--plant", "analytical", "--mca", "washout", "--duration", "1"]
+    code = cli.main([*args, "--json", str(out_json), "--plots", "", "--quiet"])
+    assert code == 0
+    summary = json.loads(out_json.read_text())
+    assert summary["plant"] == "analytical" and summary["mca"] == "washout"
+
+
+# Per scenario type: an override that makes the file's job a smoke run.
+SMOKE_OVERRIDES = {
+    "PlantDemoScenario": "{duration_s: 0.2}",
+    "ClosedLoopScenario": "{duration_s: 0.3, realtime_rate: 0.0, output_dir: OUT}",
+    "EvaluationScenario": (
+        "{duration_s: 0.5, light_seeds: [1000], jet_seeds: [2000], mcas: [dpc, washout],"
+        " output_dir: OUT}"
+    ),
+    "DatasetScenario": (
+        "{flight_seeds: [100], flight_duration_s: 3.0, horizon: 32, output_dir: OUT}"
+    ),
+}
+
+
+@pytest.mark.parametrize("path", sorted((REPO / "diagrams").glob("*.yaml")), ids=lambda p: p.stem)
+def test_every_scenario_file_loads_and_runs(path, tmp_path):
+    from mca_drake.jobs import run_scenario
+
+    kind = type(load_scenario(path)).__name__
+    override = SMOKE_OVERRIDES[kind].replace("OUT", str(tmp_path / "out"))
+    scenario = load_scenario(path, override)
+    summary = run_scenario(scenario, progress=False, json_path=tmp_path / "summary.json")
+    assert json.loads((tmp_path / "summary.json").read_text()) == json.loads(
+        json.dumps(summary, default=str)
+    )
+    if kind == "ClosedLoopScenario":
+        assert summary["duration_s"] == pytest.approx(0.3)
+        assert (tmp_path / "out" / "tracking.png").is_file()
+    if kind == "DatasetScenario":
+        assert summary["segments"] > 0 and summary["horizon"] == 32
+    if kind == "EvaluationScenario":
+        assert (tmp_path / "out" / "evaluation.md").is_file()
+
+
+def test_diagrams_folder_has_every_job():
+    kinds = {type(load_scenario(p)).__name__ for p in (REPO / "diagrams").glob("*.yaml")}
+    assert kinds == set(SMOKE_OVERRIDES)
 
 
 @pytest.mark.parametrize(
     ("override", "match"),
     [
         ("{scenario: {durration_s: 2}}", "unknown to the schema"),
+        ("{durration_s: 2}", "unknown to the schema"),
         ("{scenario: {duration_s: abc}}", "could not convert"),
         ("{scenario: {duration_s: -1}}", "duration_s must be positive"),
     ],
@@ -84,3 +127,18 @@ def test_console_script_reports_errors_without_traceback():
     assert result.returncode == 2
     assert "scenario file not found" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize(
+    ("override", "match"),
+    [
+        ("{station: {torque_limit: true}}", "unknown to the schema"),
+        ("{mca: foo}", "mca must be one of"),
+        ("{plant: mujoco}", "plant must be multibody or analytical"),
+        ("{station: {measurement_delay_s: -1}}", "measurement_delay_s"),
+        ("{flight: {recording: no/such.csv}}", "not found"),
+    ],
+)
+def test_bad_closed_loop_scenario_values_fail_clearly(override, match):
+    with pytest.raises(ValueError, match=match):
+        load_scenario(REPO / "diagrams" / "closed_loop_dpc.yaml", override)

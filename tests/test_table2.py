@@ -3,7 +3,6 @@ is exact, and a resumed run reads finished candidates back."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 
 import pytest
@@ -92,12 +91,12 @@ def test_table2_resume_trains_a_killed_candidate(datasets, tmp_path):
     )
     splits = _splits(config.closed_loop_dataset, config.split_seed)
 
-    class Killed(Exception):
+    class KilledError(Exception):
         pass
 
     def kill_in_second_step(record):
         if record.horizon == 16:
-            raise Killed
+            raise KilledError
 
     partial = CurriculumTrainer(
         make_state_model("nssm"),
@@ -108,7 +107,7 @@ def test_table2_resume_trains_a_killed_candidate(datasets, tmp_path):
         callbacks=[kill_in_second_step],
         stage_callbacks=[_stage_saver(tmp_path, "state_nssm")],
     )
-    with pytest.raises(Killed):
+    with pytest.raises(KilledError):
         partial.fit(splits["train"], splits["validation"], progress=False)
     report = run_table2(config, tmp_path, resume=True, progress=False)
     row = report["rows"]["state"]["nssm"]
