@@ -1,0 +1,83 @@
+"""Real-time factor of the KR500 station closed loop, and measured-vs-analytical PI.
+
+    python benchmarks/bench_station.py [--minutes 10] [--mca dpc] [--repeats 1] [--seed 1000]
+
+Runs the MCA at 100 Hz on the 1 kHz MultibodyPlant station (inverse dynamics, head IMU)
+over a built-in light-aircraft flight, `repeats` times, and once on the analytical plant.
+Prints the real-time factor (simulated s per wall s; median and spread over repeats), the
+per-channel RMSE/CC and PI of both plants, and their PI difference. Targets (issue 7):
+real-time factor >= 10 for a 10-minute DPC flight; |PI_multibody - PI_analytical| <= 0.1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+
+import numpy as np
+
+from mca_drake.evaluation import run_closed_loop
+from mca_drake.references.jsbsim_flight import fly
+from mca_drake.references.reference import reference_from_recording
+from mca_drake.station_simulation import run_station_closed_loop
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", type=float, default=10.0)
+    parser.add_argument("--mca", default="dpc")
+    parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument("--seed", type=int, default=1000)
+    parser.add_argument("--json", help="also write the figures to this JSON file")
+    args = parser.parse_args()
+    duration = 60.0 * args.minutes
+    reference = reference_from_recording(
+        fly("light", duration, args.seed), name=f"light {args.seed}"
+    )
+    print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores")
+    print(f"{args.mca}, {duration:.0f} s light flight seed {args.seed}, 1 kHz plant")
+    rtf, station = [], None
+    for _ in range(args.repeats):
+        station = run_station_closed_loop(
+            mca=args.mca, reference=reference, duration_s=duration, progress=False
+        )
+        rtf.append(station.summary["realtime_factor"])
+        print(f"  multibody run: real-time factor {rtf[-1]:.1f}")
+    analytical = run_closed_loop(
+        mca=args.mca, reference=reference, duration_s=duration, progress=False
+    )
+    s, a = station.summary, analytical.summary
+    print(
+        f"real-time factor (multibody): median {np.median(rtf):.1f} "
+        f"(min {min(rtf):.1f}, max {max(rtf):.1f}, n {len(rtf)}); analytical plant: "
+        f"{a['realtime_factor']:.1f}"
+    )
+    print(f"{'':16}" + "".join(f"{c:>9}" for c in ("w_x", "w_y", "w_z", "f_x", "f_y", "a_z")))
+    for name, summ in (("multibody", s), ("analytical", a)):
+        print(f"{name + ' RMSE':<16}" + "".join(f"{v:9.4f}" for v in summ["rmse"]))
+        print(f"{name + ' CC':<16}" + "".join(f"{v:9.4f}" for v in summ["cc"]))
+    print(
+        f"PI multibody {s['pi']:.4f}, analytical {a['pi']:.4f}, "
+        f"difference {s['pi'] - a['pi']:+.4f} (target |d| <= 0.1)"
+    )
+    print(
+        f"joint tracking error rms {s['joint_tracking_error_rad']['rms']:.2e} rad, max "
+        f"{s['joint_tracking_error_rad']['max']:.2e} rad; violations {s['violations']}; "
+        f"DPC step median {s['step_time_s']['median'] * 1e6:.1f} us"
+    )
+    if args.json:
+        figures = {
+            "realtime_factor": rtf,
+            "pi_multibody": s["pi"],
+            "pi_analytical": a["pi"],
+            "summary_multibody": s,
+            "summary_analytical": a,
+        }
+        with open(args.json, "w") as f:
+            json.dump(figures, f, indent=2)
+
+
+if __name__ == "__main__":
+    main()
