@@ -93,3 +93,10 @@ def test_bad_arguments_fail_clearly(reference):
         )
     with pytest.raises(ValueError, match="unknown MCA"):
         run_station_closed_loop(mca="lqr", reference=reference, duration_s=1.0, progress=False)
+
+
+def test_realtime_mode_paces_the_simulation(reference):
+    result = run_station_closed_loop(
+        mca="washout", reference=reference, duration_s=0.5, realtime_rate=1.0, progress=False
+    )
+    assert 0.7 < result.summary["realtime_factor"] <= 1.05
