@@ -301,6 +301,18 @@ def AddMca(
     raise ValueError(f"unknown MCA '{mca}'; valid: {', '.join(MCA_NAMES)}")
 
 
+def _add_logs(builder: DiagramBuilder, ports: dict, controller, time_step: float) -> dict:
+    """Named VectorLogSinks of `ports` (name -> output port), plus the MCA's
+    `statistics_log` where it has statistics, all sampled every `time_step`."""
+    if controller.HasOutputPort("statistics"):
+        ports = ports | {"statistics_log": controller.GetOutputPort("statistics")}
+    logs = {}
+    for name, port in ports.items():
+        logs[name] = LogVectorOutput(port, builder, time_step)
+        logs[name].set_name(name)
+    return logs
+
+
 def MakeAnalyticalClosedLoop(
     reference,
     mca: str,
@@ -339,17 +351,12 @@ def MakeAnalyticalClosedLoop(
         controller.GetOutputPort("joint_acceleration"), plant.GetInputPort("joint_acceleration")
     )
     handles = dict(source=source, mca=controller, plant=plant)
-    for name, port in (
-        ("reference_log", source.GetOutputPort("reference")),
-        ("state_log", plant.GetOutputPort("state")),
-        ("command_log", controller.GetOutputPort("joint_acceleration")),
-    ):
-        handles[name] = LogVectorOutput(port, builder, time_step)
-        handles[name].set_name(name)
-    if controller.HasOutputPort("statistics"):
-        handles["statistics_log"] = LogVectorOutput(
-            controller.GetOutputPort("statistics"), builder, time_step
-        )
+    ports = {
+        "reference_log": source.GetOutputPort("reference"),
+        "state_log": plant.GetOutputPort("state"),
+        "command_log": controller.GetOutputPort("joint_acceleration"),
+    }
+    handles |= _add_logs(builder, ports, controller, time_step)
     diagram = builder.Build()
     diagram.set_name(f"closed_loop_{mca}")
     return diagram, handles
@@ -406,19 +413,14 @@ def MakeMultibodyClosedLoop(
         controller.GetOutputPort("joint_acceleration"), station_handles.joint_acceleration
     )
     handles = dict(source=source, mca=controller, station=station_handles)
-    for name, port in (
-        ("reference_log", source.GetOutputPort("reference")),
-        ("command_log", controller.GetOutputPort("joint_acceleration")),
-        ("desired_state_log", station_handles.desired_state),
-        ("measured_state_log", station_handles.true_state),
-        ("measured_output_log", station_handles.true_output),
-    ):
-        handles[name] = LogVectorOutput(port, builder, time_step)
-        handles[name].set_name(name)
-    if controller.HasOutputPort("statistics"):
-        handles["statistics_log"] = LogVectorOutput(
-            controller.GetOutputPort("statistics"), builder, time_step
-        )
+    ports = {
+        "reference_log": source.GetOutputPort("reference"),
+        "command_log": controller.GetOutputPort("joint_acceleration"),
+        "desired_state_log": station_handles.desired_state,
+        "measured_state_log": station_handles.true_state,
+        "measured_output_log": station_handles.true_output,
+    }
+    handles |= _add_logs(builder, ports, controller, time_step)
     if meshcat is not None:
         from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
 

@@ -49,6 +49,51 @@ def step_time_summary(step_times_s: np.ndarray) -> dict[str, float]:
     }
 
 
+def closed_loop_summary(
+    *,
+    mca: str,
+    plant: str,
+    reference_name: str,
+    duration_s: float,
+    reference: np.ndarray,
+    outputs: np.ndarray,
+    states: np.ndarray,
+    accelerations: np.ndarray,
+    statistics: np.ndarray | None,
+    wall_s: float,
+    robot: KR500,
+) -> tuple[dict, np.ndarray]:
+    """The result summary of ARCHITECTURE.md for n aligned samples, and the MCA step times.
+
+    Args:
+        reference, outputs: r_n and y_n, shape (n, 6).
+        states, accelerations: x_n (n, 12) and the joint accelerations over each step (n, 6).
+        statistics: the MCA's `statistics` log (row k published at t_k, so row n holds the
+            totals after n steps), or None for an MCA without statistics.
+        wall_s: wall time of the simulation, s.
+    """
+    n = reference.shape[0]
+    step_times = statistics[1 : n + 1, 0] if statistics is not None else np.array([])
+    score = tracking_score(reference, outputs)
+    usage = joint_usage(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], accelerations, robot)
+    summary = {
+        "mca": mca,
+        "plant": plant,
+        "reference": reference_name,
+        "duration_s": duration_s,
+        "pi": score.pi,
+        "rmse": score.rmse.tolist(),
+        "cc": score.cc.tolist(),
+        "step_time_s": step_time_summary(step_times),
+        "violations": usage.violations(),
+        "safety_interventions": int(statistics[n, 2]) if statistics is not None else 0,
+        "solver_failures": int(statistics[n, 1]) if statistics is not None else 0,
+        "realtime_factor": duration_s / max(wall_s, 1e-9),
+        "wall_time_s": wall_s,
+    }
+    return summary, step_times
+
+
 def run_closed_loop(
     *,
     mca: str,
@@ -101,30 +146,25 @@ def run_closed_loop(
         raise RuntimeError("closed-loop logs are not aligned: x_(n+1) != step(x_n, u_n)")
     outputs = plant_output(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], commands, robot)
     statistics = log("statistics_log") if "statistics_log" in handles else None
-    step_times = statistics[1 : n + 1, 0] if statistics is not None else np.array([])
-    score = tracking_score(ref, outputs)
-    usage = joint_usage(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], commands, robot)
-    summary = {
-        "mca": mca,
-        "plant": "analytical",
-        "reference": reference.name,
-        "duration_s": duration,
-        "pi": score.pi,
-        "rmse": score.rmse.tolist(),
-        "cc": score.cc.tolist(),
-        "step_time_s": step_time_summary(step_times),
-        "violations": usage.violations(),
-        "safety_interventions": int(statistics[n, 2]) if statistics is not None else 0,
-        "solver_failures": int(statistics[n, 1]) if statistics is not None else 0,
-        "realtime_factor": duration / max(wall_s, 1e-9),
-        "wall_time_s": wall_s,
-    }
+    summary, step_times = closed_loop_summary(
+        mca=mca,
+        plant="analytical",
+        reference_name=reference.name,
+        duration_s=duration,
+        reference=ref,
+        outputs=outputs,
+        states=states,
+        accelerations=commands,
+        statistics=statistics,
+        wall_s=wall_s,
+        robot=robot,
+    )
     result = ClosedLoopResult(np.arange(n) * h, ref, states, commands, outputs, step_times, summary)
     if json_path:
         atomic_write_json(json_path, summary)
     if plot_path:
         from mca_drake.plotting import plot_outputs, save_figure
 
-        title = f"{mca} on the analytical plant: PI {score.pi:.3f}"
+        title = f"{mca} on the analytical plant: PI {summary['pi']:.3f}"
         save_figure(plot_outputs(result.times, outputs, ref, title=title), plot_path)
     return result

@@ -157,19 +157,10 @@ def plot_tracking(times, target, measured, title: str = ""):
             f"{measured.shape}"
         )
     score = tracking_score(target, measured)
-    fig, axes = plt.subplots(3, 2, figsize=(12, 7.5), sharex=True)
-    for k, ax in enumerate(axes.T.ravel()):
-        ax.plot(times, target[:, k], color="0.55", lw=1.4, label="target")
-        ax.plot(times, measured[:, k], color="C0", lw=1.0, label="measured")
-        ax.set_title(
-            f"{CHANNEL_LABELS[k]}   RMSE {score.rmse[k]:.3f}, CC {score.cc[k]:.3f}", fontsize=9
-        )
-        ax.grid(alpha=0.3)
-    for ax in axes[-1]:
-        ax.set_xlabel("time [s]")
-    axes[0, 0].legend(fontsize=8, loc="upper right")
-    if title:
-        fig.suptitle(title)
+    fig = plot_outputs(times, measured, target, title=title, achieved_label="measured")
+    # plot_outputs lays the channels out column by column on a 3 x 2 grid
+    for k, ax in enumerate(np.array(fig.axes).reshape(3, 2).T.ravel()):
+        ax.set_title(f"RMSE {score.rmse[k]:.3f}, CC {score.cc[k]:.3f}", fontsize=9)
     fig.tight_layout()
     return fig
 

@@ -20,9 +20,9 @@ from pydrake.systems.analysis import Simulator
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.diagrams import MakeMultibodyClosedLoop
-from mca_drake.evaluation import step_time_summary
+from mca_drake.evaluation import closed_loop_summary
 from mca_drake.jobs import simulate_with_progress
-from mca_drake.metrics import joint_usage, tracking_score
+from mca_drake.metrics import joint_usage
 from mca_drake.references.reference import Reference
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.systems.kr500_station import StationConfig
@@ -116,31 +116,26 @@ def run_station_closed_loop(
     commands = log("command_log")[1 : n + 1]
     ref = log("reference_log")[:n]
     statistics = log("statistics_log") if "statistics_log" in handles else None
-    step_times = statistics[1 : n + 1, 0] if statistics is not None else np.array([])
-    score = tracking_score(ref, outputs)
-    usage = joint_usage(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], accelerations, robot)
+    summary, step_times = closed_loop_summary(
+        mca=mca,
+        plant="multibody",
+        reference_name=reference.name,
+        duration_s=duration,
+        reference=ref,
+        outputs=outputs,
+        states=states,
+        accelerations=accelerations,
+        statistics=statistics,
+        wall_s=wall_s,
+        robot=robot,
+    )
     tracking_error = np.abs(states[:, :NUM_JOINTS] - desired[:, :NUM_JOINTS])
-    summary = {
-        "mca": mca,
-        "plant": "multibody",
-        "reference": reference.name,
-        "duration_s": duration,
-        "pi": score.pi,
-        "rmse": score.rmse.tolist(),
-        "cc": score.cc.tolist(),
-        "step_time_s": step_time_summary(step_times),
-        "violations": usage.violations(),
-        "safety_interventions": int(statistics[n, 2]) if statistics is not None else 0,
-        "solver_failures": int(statistics[n, 1]) if statistics is not None else 0,
-        "realtime_factor": duration / max(wall_s, 1e-9),
-        "wall_time_s": wall_s,
-        "plant_time_step_s": station.plant_time_step,
-        "joint_tracking_error_rad": {
-            "rms": float(np.sqrt(np.mean(tracking_error**2))),
-            "max": float(tracking_error.max()),
-        },
-        "station": dataclasses.asdict(station),
+    summary["plant_time_step_s"] = station.plant_time_step
+    summary["joint_tracking_error_rad"] = {
+        "rms": float(np.sqrt(np.mean(tracking_error**2))),
+        "max": float(tracking_error.max()),
     }
+    summary["station"] = dataclasses.asdict(station)
     result = StationResult(
         np.arange(n) * h,
         ref,
