@@ -269,7 +269,9 @@ def run_table2(
 
 
 def _cell(ours, paper, fmt: str) -> str:
-    text = "-" if ours is None else format(ours, fmt)
+    # Figures that the fixed format would print as zero (the exact plant) keep 2 digits.
+    tiny = ours is not None and 0 < abs(ours) < 5e-5
+    text = "-" if ours is None else format(ours, ".1e" if tiny else fmt)
     return text if paper is None else f"{text} ({format(paper, fmt)})"
 
 
