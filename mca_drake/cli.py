@@ -24,16 +24,6 @@ def _print_outputs_table(result, every_s: float = 1.0) -> None:
         print(f"{result.times[k]:7.2f} " + " ".join(f"{v:9.4f}" for v in result.outputs[k]))
 
 
-def _default_flight_reference(duration_s: float, path: str | None):
-    """The recording at `path` as a reference, or the built-in default flight (light
-    aircraft, seed DEFAULT_FLIGHT_SEED: deterministic, never used in training)."""
-    from mca_drake.diagrams import FlightSpec
-    from mca_drake.jobs import flight_reference
-
-    spec = FlightSpec(recording=path or "", vehicle="light", seed=DEFAULT_FLIGHT_SEED)
-    return flight_reference(spec, duration_s)
-
-
 def _start_meshcat():
     from pydrake.geometry import StartMeshcat
 
@@ -53,40 +43,31 @@ def _hold_meshcat(meshcat) -> None:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    reference = _default_flight_reference(args.duration, args.reference)
-    duration = min(args.duration, reference.duration_s)
+    from mca_drake.diagrams import ClosedLoopScenario, FlightSpec
+    from mca_drake.jobs import run_closed_loop_scenario
+
+    scenario = ClosedLoopScenario(
+        mca=args.mca,
+        plant=args.plant,
+        # The built-in default flight: deterministic for its seed, never used in training.
+        flight=FlightSpec(
+            recording=args.reference or "", vehicle="light", seed=DEFAULT_FLIGHT_SEED
+        ),
+        duration_s=args.duration,
+        policy=args.policy or "",
+        meshcat=args.meshcat,
+        realtime_rate=1.0 if args.realtime else 0.0,
+    )
+    scenario.validate()
     meshcat = _start_meshcat() if args.meshcat else None
-    if args.plant == "multibody":
-        from mca_drake.station_simulation import run_station_closed_loop
-
-        result = run_station_closed_loop(
-            mca=args.mca,
-            reference=reference,
-            duration_s=duration,
-            policy=args.policy,
-            meshcat=meshcat,
-            realtime_rate=1.0 if args.realtime else 0.0,
-            progress=not args.quiet,
-            json_path=args.json,
-            plot_dir=args.plots,
-        )
-    else:
-        if meshcat is not None or args.realtime:
-            raise ValueError("--meshcat and --realtime need --plant multibody")
-        from mca_drake.evaluation import run_closed_loop
-        from mca_drake.station_simulation import write_station_plots
-
-        result = run_closed_loop(
-            mca=args.mca,
-            reference=reference,
-            duration_s=duration,
-            progress=not args.quiet,
-            json_path=args.json,
-            policy=args.policy,
-        )
-        if args.plots:
-            write_station_plots(result, args.plots)
-    _print_outputs_table(result, every_s=max(duration / 20, 0.1))
+    result = run_closed_loop_scenario(
+        scenario,
+        progress=not args.quiet,
+        meshcat=meshcat,
+        json_path=args.json or "",
+        plot_dir=args.plots,
+    )
+    _print_outputs_table(result, every_s=max(result.times[-1] / 20, 0.1))
     print(json.dumps(result.summary, indent=2))
     if args.plots:
         print(f"plots written to {args.plots}/tracking.png and {args.plots}/joint_usage.png")

@@ -90,6 +90,8 @@ class ClosedLoopScenario:
             raise ValueError(f"plant must be multibody or analytical; got {self.plant!r}")
         if not self.duration_s > 0:
             raise ValueError(f"duration_s must be positive; got {self.duration_s}")
+        if self.plant == "analytical" and (self.meshcat or self.realtime_rate):
+            raise ValueError("meshcat and realtime_rate need plant multibody")
         if self.policy and not Path(self.policy).is_file():
             raise ValueError(f"policy file {self.policy!r} not found")
         self.flight.validate()
@@ -301,6 +303,27 @@ def AddMca(
     raise ValueError(f"unknown MCA '{mca}'; valid: {', '.join(MCA_NAMES)}")
 
 
+def _add_source_and_mca(builder, reference, mca, robot, time_step, policy):
+    """ReferenceSource and the MCA, wired together; returns (source, mca, initial_state):
+    the robot starts at rest at the MCA's home pose (q = 0 unless the MCA has one)."""
+    from mca_drake.systems import ReferenceSource
+
+    source = builder.AddNamedSystem("reference_source", ReferenceSource(reference))
+    controller = AddMca(builder, mca, robot, time_step, policy)
+    builder.Connect(source.GetOutputPort("reference"), controller.GetInputPort("reference"))
+    home = getattr(controller, "home_position", np.zeros(len(robot.joint_names)))
+    return source, controller, np.concatenate([home, np.zeros_like(home)])
+
+
+def _connect_mca(builder, controller, state, inertial_output, joint_acceleration) -> None:
+    """Feeds the MCA the robot's `state` (and `inertial_output` where it reads one) and
+    drives the robot's `joint_acceleration` input with its command."""
+    builder.Connect(state, controller.GetInputPort("state"))
+    if controller.HasInputPort("inertial_output"):
+        builder.Connect(inertial_output, controller.GetInputPort("inertial_output"))
+    builder.Connect(controller.GetOutputPort("joint_acceleration"), joint_acceleration)
+
+
 def _add_logs(builder: DiagramBuilder, ports: dict, controller, time_step: float) -> dict:
     """Named VectorLogSinks of `ports` (name -> output port), plus the MCA's
     `statistics_log` where it has statistics, all sampled every `time_step`."""
@@ -329,26 +352,20 @@ def MakeAnalyticalClosedLoop(
     Returns:
         (diagram, handles) with the systems `source`, `mca`, `plant` and the three logs.
     """
-    from mca_drake.systems import ReferenceSource
-
     robot = robot if robot is not None else load_kr500()
     builder = DiagramBuilder()
-    source = builder.AddNamedSystem("reference_source", ReferenceSource(reference))
-    controller = AddMca(builder, mca, robot, time_step, policy)
-    # The robot starts at rest at the MCA's home pose (q = 0 unless the MCA says otherwise).
-    home = getattr(controller, "home_position", np.zeros(len(robot.joint_names)))
-    initial_state = np.concatenate([home, np.zeros_like(home)])
+    source, controller, initial_state = _add_source_and_mca(
+        builder, reference, mca, robot, time_step, policy
+    )
     plant = builder.AddNamedSystem(
         "plant", MotionCueingPlant(robot=robot, time_step=time_step, initial_state=initial_state)
     )
-    if controller.HasInputPort("inertial_output"):
-        builder.Connect(
-            plant.GetOutputPort("inertial_output"), controller.GetInputPort("inertial_output")
-        )
-    builder.Connect(source.GetOutputPort("reference"), controller.GetInputPort("reference"))
-    builder.Connect(plant.GetOutputPort("state"), controller.GetInputPort("state"))
-    builder.Connect(
-        controller.GetOutputPort("joint_acceleration"), plant.GetInputPort("joint_acceleration")
+    _connect_mca(
+        builder,
+        controller,
+        plant.GetOutputPort("state"),
+        plant.GetOutputPort("inertial_output"),
+        plant.GetInputPort("joint_acceleration"),
     )
     handles = dict(source=source, mca=controller, plant=plant)
     ports = {
@@ -393,24 +410,22 @@ def MakeMultibodyClosedLoop(
         logs; call `handles["station"].SetInitialState(root_context)` before simulating
         (the robot starts at rest at the MCA's home pose).
     """
-    from mca_drake.systems import ReferenceSource
     from mca_drake.systems.kr500_station import AddKR500Station
 
     robot = robot if robot is not None else load_kr500()
     builder = DiagramBuilder()
-    source = builder.AddNamedSystem("reference_source", ReferenceSource(reference))
-    controller = AddMca(builder, mca, robot, time_step, policy)
-    home = getattr(controller, "home_position", np.zeros(len(robot.joint_names)))
-    initial_state = np.concatenate([home, np.zeros_like(home)])
+    source, controller, initial_state = _add_source_and_mca(
+        builder, reference, mca, robot, time_step, policy
+    )
     station_handles = AddKR500Station(
         builder, robot, station, initial_state, with_geometry=meshcat is not None
     )
-    builder.Connect(source.GetOutputPort("reference"), controller.GetInputPort("reference"))
-    builder.Connect(station_handles.measured_state, controller.GetInputPort("state"))
-    if controller.HasInputPort("inertial_output"):
-        builder.Connect(station_handles.measured_output, controller.GetInputPort("inertial_output"))
-    builder.Connect(
-        controller.GetOutputPort("joint_acceleration"), station_handles.joint_acceleration
+    _connect_mca(
+        builder,
+        controller,
+        station_handles.measured_state,
+        station_handles.measured_output,
+        station_handles.joint_acceleration,
     )
     handles = dict(source=source, mca=controller, station=station_handles)
     ports = {

@@ -49,6 +49,18 @@ def step_time_summary(step_times_s: np.ndarray) -> dict[str, float]:
     }
 
 
+def checked_duration(reference: Reference, duration_s: float | None) -> float:
+    """The simulated time of a closed loop over `reference`: `duration_s`, or the whole
+    reference when None; raises ValueError outside (0, reference duration]."""
+    duration = reference.duration_s if duration_s is None else float(duration_s)
+    if not 0 < duration <= reference.duration_s + 1e-9:
+        raise ValueError(
+            f"duration_s must be in (0, {reference.duration_s:g}] s (the reference); got "
+            f"{duration_s}"
+        )
+    return duration
+
+
 def closed_loop_summary(
     *,
     mca: str,
@@ -116,12 +128,7 @@ def run_closed_loop(
     """
     robot = robot if robot is not None else load_kr500()
     h = reference.time_step
-    duration = reference.duration_s if duration_s is None else float(duration_s)
-    if not 0 < duration <= reference.duration_s + 1e-9:
-        raise ValueError(
-            f"duration_s must be in (0, {reference.duration_s:g}] s (the reference); got "
-            f"{duration_s}"
-        )
+    duration = checked_duration(reference, duration_s)
     diagram, handles = MakeAnalyticalClosedLoop(reference, mca, robot, h, policy)
     simulator = Simulator(diagram)
     simulator.Initialize()

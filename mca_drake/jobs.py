@@ -114,11 +114,21 @@ def flight_reference(flight: FlightSpec, duration_s: float, progress: bool = Fal
     )
 
 
-def run_closed_loop_scenario(scenario: ClosedLoopScenario, *, progress: bool = True, meshcat=None):
-    """Runs a ClosedLoopScenario; writes summary.json and the plots into its output_dir.
+def run_closed_loop_scenario(
+    scenario: ClosedLoopScenario,
+    *,
+    progress: bool = True,
+    meshcat=None,
+    json_path: str | Path | None = None,
+    plot_dir: str | Path | None = None,
+):
+    """Runs a ClosedLoopScenario on its plant (KR500 station or analytical plant).
 
     Args:
         meshcat: a Meshcat to draw in (default: one is started when `scenario.meshcat`).
+        json_path: the result summary (default `output_dir/summary.json`; "" for none).
+        plot_dir: folder of tracking.png and joint_usage.png (default `output_dir`; "" for
+            none).
 
     Returns:
         The StationResult (multibody plant) or ClosedLoopResult (analytical plant).
@@ -127,6 +137,8 @@ def run_closed_loop_scenario(scenario: ClosedLoopScenario, *, progress: bool = T
     reference = flight_reference(scenario.flight, scenario.duration_s)
     duration = min(scenario.duration_s, reference.duration_s)
     out = Path(scenario.output_dir)
+    json_path = out / "summary.json" if json_path is None else json_path or None
+    plot_dir = out if plot_dir is None else plot_dir or None
     policy = scenario.policy or None
     if scenario.plant == "multibody":
         from mca_drake.station_simulation import run_station_closed_loop
@@ -145,8 +157,8 @@ def run_closed_loop_scenario(scenario: ClosedLoopScenario, *, progress: bool = T
             meshcat=meshcat,
             realtime_rate=scenario.realtime_rate,
             progress=progress,
-            json_path=out / "summary.json",
-            plot_dir=out,
+            json_path=json_path,
+            plot_dir=plot_dir,
         )
     from mca_drake.evaluation import run_closed_loop
     from mca_drake.station_simulation import write_station_plots
@@ -156,10 +168,11 @@ def run_closed_loop_scenario(scenario: ClosedLoopScenario, *, progress: bool = T
         reference=reference,
         duration_s=duration,
         progress=progress,
-        json_path=out / "summary.json",
+        json_path=json_path,
         policy=policy,
     )
-    write_station_plots(result, out)
+    if plot_dir:
+        write_station_plots(result, plot_dir)
     return result
 
 

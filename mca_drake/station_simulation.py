@@ -20,7 +20,7 @@ from pydrake.systems.analysis import Simulator
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.diagrams import MakeMultibodyClosedLoop
-from mca_drake.evaluation import closed_loop_summary
+from mca_drake.evaluation import checked_duration, closed_loop_summary
 from mca_drake.jobs import simulate_with_progress
 from mca_drake.metrics import joint_usage
 from mca_drake.references.reference import Reference
@@ -73,12 +73,7 @@ def run_station_closed_loop(
     robot = robot if robot is not None else load_kr500()
     station = station if station is not None else StationConfig()
     h = reference.time_step
-    duration = reference.duration_s if duration_s is None else float(duration_s)
-    if not 0 < duration <= reference.duration_s + 1e-9:
-        raise ValueError(
-            f"duration_s must be in (0, {reference.duration_s:g}] s (the reference); got "
-            f"{duration_s}"
-        )
+    duration = checked_duration(reference, duration_s)
     ratio = h / station.plant_time_step
     if abs(ratio - round(ratio)) > 1e-9:
         raise ValueError(

@@ -43,10 +43,8 @@ from pydrake.systems.primitives import (
 )
 from pydrake.systems.sensors import Accelerometer, Gyroscope
 
-from mca_drake.kinematics import plant_output
+from mca_drake.kinematics import GRAVITY, plant_output
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
-
-GRAVITY = 9.81
 
 
 @dataclasses.dataclass
@@ -158,7 +156,9 @@ class StationHandles:
         desired_state: output port [q_d, qd_d] (12).
         true_state: output port of the plant's state without delay (12).
         true_output: measured y without delay (6).
-        head_body_index: index of the head body in body_poses.
+        initial_state: [q, qd] at rest that `SetInitialState` applies (12).
+        delay_lines: the measurement delay lines with the value each holds at rest (empty
+            without a delay).
     """
 
     plant: MultibodyPlant
@@ -171,24 +171,20 @@ class StationHandles:
     desired_state: OutputPort
     true_state: OutputPort
     true_output: OutputPort
-    head_body_index: int
     initial_state: np.ndarray
+    delay_lines: list[tuple[DiscreteTimeDelay, np.ndarray]]
 
-    def SetInitialState(self, root_context: Context, x0: np.ndarray | None = None) -> None:
-        """Puts the robot, the desired trajectory and the delay lines at rest at x0
-        (default the `initial_state` given to the builder)."""
-        x0 = self.initial_state if x0 is None else np.asarray(x0, dtype=float)
-        plant_context = self.plant.GetMyMutableContextFromRoot(root_context)
-        self.plant.SetPositionsAndVelocities(plant_context, x0)
-        desired_context = self.desired.GetMyMutableContextFromRoot(root_context)
-        desired_context.SetDiscreteState(x0)
-        for system, value in self._delays:
-            context = system.GetMyMutableContextFromRoot(root_context)
-            state = context.get_mutable_discrete_state(0)
-            n = state.size() // value.size
-            state.SetFromVector(np.tile(value, n))
-
-    _delays: list = dataclasses.field(default_factory=list)
+    def SetInitialState(self, root_context: Context) -> None:
+        """Puts the robot, the desired trajectory and the delay lines at rest at
+        `initial_state` (the builder's)."""
+        x0 = self.initial_state
+        self.plant.SetPositionsAndVelocities(
+            self.plant.GetMyMutableContextFromRoot(root_context), x0
+        )
+        self.desired.GetMyMutableContextFromRoot(root_context).SetDiscreteState(x0)
+        for line, value in self.delay_lines:
+            state = line.GetMyMutableContextFromRoot(root_context).get_mutable_discrete_state(0)
+            state.SetFromVector(np.tile(value, state.size() // value.size))
 
 
 def _double_integrator(h: float) -> LinearSystem:
@@ -240,6 +236,8 @@ def AddKR500Station(
         plant, scene_graph = builder.AddNamedSystem("plant", MultibodyPlant(h)), None
         plant.set_discrete_contact_approximation(DiscreteContactApproximation.kTamsi)
     plant.set_name("plant")
+    # One gravity for the physics, the accelerometer and HeadImuOutput: the kinematics'.
+    plant.mutable_gravity_field().set_gravity_vector(np.array([0.0, 0.0, -GRAVITY]))
     Parser(plant).AddModels(str(robot.urdf_path))
     plant.Finalize()
     for i, name in enumerate(robot.joint_names):
@@ -348,8 +346,7 @@ def AddKR500Station(
         desired_state=desired.get_output_port(),
         true_state=plant.get_state_output_port(),
         true_output=measured.GetOutputPort("inertial_output"),
-        head_body_index=head_index,
         initial_state=x0,
+        delay_lines=delays,
     )
-    handles._delays = delays
     return handles
