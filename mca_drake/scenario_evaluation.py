@@ -72,6 +72,33 @@ def _run_path(out: Path, case: str, mca: str, seed: int) -> Path:
     return out / "runs" / f"{case}_{mca}_{seed}.json"
 
 
+def policy_fingerprint(policy: str | None) -> str:
+    """SHA-256 of the policy file (`None`: the shipped one), recorded in every DPC run so
+    that a resumed evaluation never mixes runs of two policies."""
+    import hashlib
+
+    from mca_drake.policy_inference import default_policy_path
+
+    path = Path(policy) if policy else default_policy_path()
+    if not path.is_file():
+        raise FileNotFoundError(f"policy file {path} not found")
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _is_done(out: Path, case: str, mca: str, seed: int, fingerprint: str) -> bool:
+    """Whether a finished run of (case, mca, seed) is on disk; a DPC run of another
+    policy counts as not done (it is re-run and overwritten)."""
+    path = _run_path(out, case, mca, seed)
+    if not path.is_file():
+        return False
+    if mca != "dpc":
+        return True
+    try:
+        return json.loads(path.read_text()).get("policy_sha256") == fingerprint
+    except (OSError, ValueError):
+        return False
+
+
 def _run_one(config: EvaluationConfig, case: EvaluationCase, mca: str, seed: int, out: str):
     from mca_drake.evaluation import run_closed_loop
     from mca_drake.references.jsbsim_flight import fly
@@ -94,6 +121,8 @@ def _run_one(config: EvaluationConfig, case: EvaluationCase, mca: str, seed: int
         policy=config.policy,
     )
     summary = {**result.summary, "case": case.name, "seed": seed, "vehicle": case.vehicle}
+    if mca == "dpc":
+        summary["policy_sha256"] = policy_fingerprint(config.policy)
     atomic_write_json(_run_path(out_dir, case.name, mca, seed), summary)
     return summary
 
@@ -105,12 +134,13 @@ def run_evaluation(
     config.validate()
     out = Path(out_dir)
     (out / "runs").mkdir(parents=True, exist_ok=True)
+    fingerprint = policy_fingerprint(config.policy) if "dpc" in config.mcas else ""
     jobs = [
         (case, mca, seed)
         for case in config.cases
         for seed in case.seeds
         for mca in config.mcas
-        if not _run_path(out, case.name, mca, seed).is_file()
+        if not _is_done(out, case.name, mca, seed, fingerprint)
     ]
     total = sum(len(c.seeds) for c in config.cases) * len(config.mcas)
     bar = tqdm(total=total, initial=total - len(jobs), desc="evaluation runs", disable=not progress)
@@ -131,17 +161,19 @@ def run_evaluation(
 
 def write_report(config: EvaluationConfig, out: Path) -> dict:
     """Aggregates the run files of `config` into evaluation.json, evaluation.md and
-    evaluation.png in `out`; returns the JSON dictionary."""
+    evaluation.png in `out`; returns the JSON dictionary. DPC runs of another policy
+    than `config.policy` are left out."""
+    fingerprint = policy_fingerprint(config.policy) if "dpc" in config.mcas else ""
     runs = {
         (c.name, m): [
             json.loads(_run_path(out, c.name, m, s).read_text())
             for s in c.seeds
-            if _run_path(out, c.name, m, s).is_file()
+            if _is_done(out, c.name, m, s, fingerprint)
         ]
         for c in config.cases
         for m in config.mcas
     }
-    report = {"duration_s": config.duration_s, "cases": {}}
+    report = {"duration_s": config.duration_s, "policy_sha256": fingerprint, "cases": {}}
     for case in config.cases:
         entry = {"vehicle": case.vehicle, "seeds": list(case.seeds), "mcas": {}}
         for mca in config.mcas:

@@ -6,7 +6,12 @@ import json
 
 import pytest
 
-from mca_drake.scenario_evaluation import EvaluationCase, EvaluationConfig, run_evaluation
+from mca_drake.scenario_evaluation import (
+    EvaluationCase,
+    EvaluationConfig,
+    policy_fingerprint,
+    run_evaluation,
+)
 
 
 def test_small_suite_report_and_resume(tmp_path):
@@ -43,11 +48,12 @@ def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
         "solver_failures": 0,
     }
     pis = {"dpc": [-1.0, -1.1, -0.9], "nmpc-converged": [-1.2, -1.0, -1.1]}
+    shipped = policy_fingerprint(None)
     for mca, values in pis.items():
         for seed, pi in zip((1000, 1001, 1002), values, strict=True):
             step = {"median": 5e-5 if mca == "dpc" else 5e-2, "max": 1e-1}
             (runs / f"A_{mca}_{seed}.json").write_text(
-                json.dumps({**base, "pi": pi, "step_time_s": step})
+                json.dumps({**base, "pi": pi, "step_time_s": step, "policy_sha256": shipped})
             )
     config = EvaluationConfig(
         mcas=("dpc", "nmpc-converged"), cases=(EvaluationCase("A", "light", (1000, 1001, 1002)),)
@@ -60,6 +66,38 @@ def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
     assert test["z"] == pytest.approx(z) and test["p"] == pytest.approx(p)
     assert test["median_gap"] == pytest.approx(-1.0 - (-1.1))
     assert test["step_time_ratio"] == pytest.approx(1000.0)
+
+
+def test_dpc_runs_of_another_policy_are_run_again(tmp_path):
+    import hashlib
+
+    import torch
+
+    from mca_drake.learning.policy import PolicyNetwork, save_policy
+
+    torch.manual_seed(3)
+    other = tmp_path / "other_policy.npz"
+    save_policy(other, PolicyNetwork(), {"model": "dpc-policy"})
+    case = EvaluationCase("A", "light", (1000,))
+    out = tmp_path / "eval"
+    shipped = EvaluationConfig(mcas=("dpc",), cases=(case,), duration_s=2.0)
+    first = run_evaluation(shipped, out, progress=False)
+    run_file = out / "runs" / "A_dpc_1000.json"
+    assert json.loads(run_file.read_text())["policy_sha256"] == policy_fingerprint(None)
+    assert first["policy_sha256"] == policy_fingerprint(None)
+    # the other policy's evaluation re-runs the flight and records the other file's hash
+    second = run_evaluation(
+        EvaluationConfig(mcas=("dpc",), cases=(case,), duration_s=2.0, policy=str(other)),
+        out,
+        progress=False,
+    )
+    digest = hashlib.sha256(other.read_bytes()).hexdigest()
+    assert json.loads(run_file.read_text())["policy_sha256"] == digest
+    assert second["cases"]["A"]["mcas"]["dpc"]["pi"] != first["cases"]["A"]["mcas"]["dpc"]["pi"]
+    # a report for the shipped policy now has no DPC run to show, rather than a stale one
+    from mca_drake.scenario_evaluation import write_report
+
+    assert "dpc" not in write_report(shipped, out)["cases"]["A"]["mcas"]
 
 
 def test_training_seeds_are_refused():
