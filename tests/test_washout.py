@@ -92,3 +92,29 @@ def test_robot_returns_to_neutral(surge_run):
 def test_bad_washout_settings_are_rejected():
     with pytest.raises(ValueError, match="tilt_rate_limit"):
         WashoutFilters(WashoutConfig(tilt_rate_limit=0.0), H)
+
+
+def test_a_joint_inside_the_ik_reserve_band_does_not_stall_the_ik(robot):
+    """The IK keeps 2 % of each range in reserve; the clipped, clamped command can carry a
+    joint into that band. From there the IK must still solve (no failure, no frozen robot)
+    and may only move the joint back towards the middle. The state is one met on light
+    flight 1006: joint 3 is 1.6e-4 rad inside the band and still moving outwards, which
+    with fixed IK bounds failed at 21021 of 30000 steps."""
+    from pydrake.systems.analysis import Simulator
+
+    from mca_drake.systems.classical_washout import ClassicalWashout
+
+    washout = ClassicalWashout(robot=robot)
+    q = np.array([0.1858, -0.0323, 0.857, 0.9902, -0.7994, 0.0278])
+    qd = np.array([0.1378, 0.0707, 0.2048, 0.1479, -0.3253, -0.067])
+    band_edge = robot.q_max[2] - 0.02 * (robot.q_max[2] - robot.q_min[2])
+    assert q[2] > band_edge and qd[2] > 0
+    for velocity in (qd, np.zeros(6)):
+        context = washout.CreateDefaultContext()
+        washout.get_input_port(0).FixValue(context, np.zeros(6))
+        washout.get_input_port(1).FixValue(context, np.concatenate([q, velocity]))
+        Simulator(washout, context).AdvanceTo(0.5 * H)  # the update at t = 0
+        u = washout.get_output_port(0).Eval(context)
+        assert washout.statistics(context)["solver_failures"] == 0
+        assert u[2] < 0.0  # joint 3 is driven back from its upper band
+        assert np.all(np.abs(u) <= robot.qdd_max + 1e-12)

@@ -81,7 +81,10 @@ class ClassicalWashout(LeafSystem):
         params = DifferentialInverseKinematicsParameters(NUM_JOINTS, NUM_JOINTS)
         params.set_time_step(self._h)
         margin = 0.02 * (r.q_max - r.q_min)
-        params.set_joint_position_limits((r.q_min + margin, r.q_max - margin))
+        # The IK keeps 2 % of every range in reserve; _update widens these bounds to the
+        # current position when the robot is already inside the reserve (see there).
+        self._ik_lower, self._ik_upper = r.q_min + margin, r.q_max - margin
+        params.set_joint_position_limits((self._ik_lower, self._ik_upper))
         params.set_joint_velocity_limits((-r.qd_max, r.qd_max))
         # No acceleration limits here: with them, v_next = 0 is infeasible whenever a joint
         # moves faster than qdd_max h, and the QP reports no solution at ordinary speeds.
@@ -140,6 +143,14 @@ class ClassicalWashout(LeafSystem):
         omega = omega_ff + k * error.angle() * error.axis()
         p_des = self._p_neutral + target["position"]
         v = target["velocity"] + k * (p_des - X_WH.translation())
+        # The clipped acceleration and the viability clamp can carry a joint into the
+        # reserve band; fixed IK position bounds then make the QP infeasible (the joint
+        # cannot get back inside in one step at its velocity limit) and the IK keeps failing.
+        # Widened to the current q, the bounds admit v = 0, the QP stays feasible, and a
+        # joint in the band can only move back towards the middle.
+        self._params.set_joint_position_limits(
+            (np.minimum(self._ik_lower, q), np.maximum(self._ik_upper, q))
+        )
         result = DoDifferentialInverseKinematics(
             plant, pc, np.concatenate([omega, v]), self._head, self._params
         )
