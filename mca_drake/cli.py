@@ -235,6 +235,18 @@ def _cmd_table2(args: argparse.Namespace) -> int:
     return 0
 
 
+def _channel_weights(text: str) -> str | tuple[float, ...]:
+    """--channel-weights: 'uniform', 'normalized' or six comma-separated numbers."""
+    if text in ("uniform", "normalized"):
+        return text
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise SystemExit(
+            f"--channel-weights: 'uniform', 'normalized' or six numbers, not '{text}'"
+        ) from None
+
+
 def _cmd_train_policy(args: argparse.Namespace) -> int:
     from mca_drake.learning.dpc import DpcConfig, train_policy
 
@@ -245,6 +257,8 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
         compile=not args.no_compile,
         seed=args.seed,
         window_segments=args.window_segments,
+        tracking_channel_weights=_channel_weights(args.channel_weights),
+        initial_policy=args.init_policy or "",
     )
     train = dict(device=args.device, horizons=tuple(int(h) for h in args.horizons.split(",")))
     if args.max_epochs:
@@ -436,6 +450,13 @@ def build_parser() -> argparse.ArgumentParser:
     policy.add_argument(
         "--window-segments", type=int, default=4, help="dataset segments joined per window"
     )
+    policy.add_argument(
+        "--channel-weights",
+        default="uniform",
+        help="tracking weights per output channel: uniform (the paper's), normalized "
+        "(1 / target variance) or six numbers",
+    )
+    policy.add_argument("--init-policy", help="start from this policy file's weights")
     policy.add_argument("--max-epochs", type=int, help="default 3000 (the paper's)")
     policy.add_argument("--patience", type=int, help="early stopping, default 500 epochs")
     policy.add_argument("--seed", type=int, default=0)

@@ -265,3 +265,62 @@ def test_perturbed_initial_states_stay_inside_the_limits(robot):
     assert torch.equal(out[:, 6:], x0[:, 6:])  # velocities untouched
     assert torch.all(out[:, :6] <= 0.9 * policy.upper[6:12] + 1e-6)
     assert torch.all(out[:, 6:].abs() <= 0.9 * policy.upper[12:] + 1e-6)
+
+
+def test_channel_weights_make_every_channel_count_alike():
+    """'normalized': c_k var_k is the same for all k and sum_k c_k var_k = sum_k var_k, so
+    doing nothing costs what it costs with uniform weights; the loss uses them per channel."""
+    from mca_drake.learning.dpc import dpc_loss_terms, tracking_channel_weights
+
+    g = torch.Generator().manual_seed(0)
+    scales = torch.tensor([0.05, 0.02, 0.03, 0.5, 0.14, 0.7], dtype=torch.float64)
+    targets = torch.randn(40, 50, 6, generator=g, dtype=torch.float64) * scales
+    weights = tracking_channel_weights(DpcConfig(tracking_channel_weights="normalized"), targets)
+    variance = targets.reshape(-1, 6).var(0)
+    product = (weights.double() * variance).numpy()
+    np.testing.assert_allclose(product, product.mean(), rtol=1e-5)
+    assert product.sum() == pytest.approx(variance.sum().item(), rel=1e-5)
+    assert tracking_channel_weights(DpcConfig(), targets) is None
+    given = DpcConfig(tracking_channel_weights=(1, 2, 3, 4, 5, 6))
+    fixed = tracking_channel_weights(given, targets)
+    assert fixed.tolist() == [1, 2, 3, 4, 5, 6]
+    # the tracking term weights each channel's squared error
+    policy = PolicyNetwork()
+    T = 7
+    roll = type("R", (), {})()
+    roll.Y = torch.randn(2, T, 6, generator=g)
+    roll.U, roll.X_hat = torch.zeros(2, T, 6), torch.zeros(2, T, 12)
+    roll.X = torch.zeros(2, T + 1, 12)
+    tgt = torch.randn(2, T, 6, generator=g)
+    c = torch.tensor([1.0, 0.0, 2.0, 0.0, 0.5, 3.0])
+    expected = sum(c[k] * ((roll.Y[..., k] - tgt[..., k]) ** 2).mean() for k in range(6))
+    got = dpc_loss_terms(roll, tgt, policy, c)["tracking"]
+    torch.testing.assert_close(got, expected)
+    for bad in ("loud", (1.0, 2.0), (1, 1, 1, 1, 1, float("nan"))):
+        with pytest.raises(ValueError, match="tracking_channel_weights"):
+            DpcConfig(tracking_channel_weights=bad).validate()
+
+
+def test_training_can_start_from_a_policy_file(trained, tmp_path):
+    """initial_policy: with a vanishing learning rate the result is the starting policy."""
+    policy, policy_path, _ = trained
+    data = _sine_target_dataset().save(tmp_path / "data.npz")
+    config = DpcConfig(
+        targets="reference",
+        compile=False,
+        window_segments=1,
+        initial_policy=str(policy_path),
+        train=TrainConfig(
+            learning_rate=1e-12,
+            weight_decay=0.0,
+            batch_size=16,
+            max_epochs=1,
+            horizons=(32,),
+            device="cpu",
+        ),
+    )
+    started, _ = train_policy(config, data, tmp_path / "fine", progress=False)
+    y, x, r = (torch.randn(4, n) for n in (6, 12, 6))
+    torch.testing.assert_close(started(y, x, r)[0], policy(y, x, r)[0])
+    with pytest.raises(ValueError, match="initial_policy file not found"):
+        DpcConfig(initial_policy=str(tmp_path / "missing.npz")).validate()

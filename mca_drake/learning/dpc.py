@@ -71,6 +71,15 @@ class DpcConfig:
     learned_output_weights: str = ""
     # Loss weights: tracking, state prediction, input (paper 0.1), washout, state limits.
     tracking_weight: float = 1.0
+    # Per-channel weights inside the tracking term (w_x, w_y, w_z, f_x, f_y, f_z), applied as
+    # sum_k c_k (y_k - Y_k)^2: "uniform" (all 1, the paper's), "normalized" (c_k = mean
+    # variance / variance of channel k of the training targets: every channel counts alike,
+    # as in the PI, whose CC term ignores scale, while doing nothing costs what it costs
+    # with uniform weights, so the balance with the other terms stays), or six numbers.
+    tracking_channel_weights: str | tuple[float, ...] = "uniform"
+    # Start from the weights of this policy file (fine-tuning) instead of a random
+    # initialisation; "" for a fresh policy. Ignored when a run resumes from its checkpoint.
+    initial_policy: str = ""
     state_estimate_weight: float = 1.0
     input_weight: float = 0.1
     washout_weight: float = 1.0
@@ -109,6 +118,17 @@ class DpcConfig:
             raise ValueError(f"unknown targets '{self.targets}'; valid: {', '.join(TARGETS)}")
         if self.plant not in PLANTS:
             raise ValueError(f"unknown plant '{self.plant}'; valid: {', '.join(PLANTS)}")
+        weights = self.tracking_channel_weights
+        if isinstance(weights, str):
+            if weights not in ("uniform", "normalized"):
+                raise ValueError(
+                    f"tracking_channel_weights must be 'uniform', 'normalized' or six numbers;"
+                    f" got '{weights}'"
+                )
+        elif len(weights) != 6 or not all(w >= 0 and w < float("inf") for w in weights):
+            raise ValueError(f"tracking_channel_weights needs six finite numbers >= 0: {weights}")
+        if self.initial_policy and not Path(self.initial_policy).is_file():
+            raise ValueError(f"initial_policy file not found: {self.initial_policy}")
         if self.plant == "learned" and not Path(self.learned_output_weights).is_file():
             raise ValueError(
                 "plant='learned' needs learned_output_weights, the mixed analytical model's "
@@ -210,14 +230,21 @@ def closed_loop_rollout(
 
 
 def dpc_loss_terms(
-    rollout: Rollout, targets: torch.Tensor, policy: PolicyNetwork
+    rollout: Rollout,
+    targets: torch.Tensor,
+    policy: PolicyNetwork,
+    channel_weights: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
-    """The loss terms (unweighted), each averaged over segments and steps."""
+    """The loss terms (unweighted), each averaged over segments and steps; the tracking
+    term's channels weighted by `channel_weights` (6) if given."""
     X_next = rollout.X[:, 1:]
     lower, upper = policy.lower[NUM_JOINTS:], policy.upper[NUM_JOINTS:]
     violation = torch.relu(X_next - upper) + torch.relu(lower - X_next)
+    squared_error = (rollout.Y - targets) ** 2
+    if channel_weights is not None:
+        squared_error = squared_error * channel_weights
     return {
-        "tracking": ((rollout.Y - targets) ** 2).sum(-1).mean(),
+        "tracking": squared_error.sum(-1).mean(),
         "state_estimate": ((rollout.X_hat - X_next) ** 2).sum(-1).mean(),
         "input": (rollout.U**2).sum(-1).mean(),
         "washout": (rollout.X[:, :-1, :NUM_JOINTS] ** 2).sum(-1).mean(),
@@ -238,9 +265,24 @@ def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcC
     return torch.clamp(x0 + chosen * noise, 0.9 * lower, 0.9 * upper)
 
 
-def dpc_objective(config: DpcConfig, plant: RolloutPlant):
+def tracking_channel_weights(config: DpcConfig, targets) -> torch.Tensor | None:
+    """The tracking term's channel weights (6) of `config` for training targets (..., 6)
+    (None for uniform weights). "normalized": mean variance / channel variance."""
+    weights = config.tracking_channel_weights
+    if weights == "uniform":
+        return None
+    if weights == "normalized":
+        variance = torch.as_tensor(targets, dtype=torch.float64).reshape(-1, 6).var(0)
+        return (variance.mean() / torch.clamp(variance, min=1e-12)).float()
+    return torch.tensor(weights, dtype=torch.float32)
+
+
+def dpc_objective(
+    config: DpcConfig, plant: RolloutPlant, channel_weights: torch.Tensor | None = None
+):
     """objective(policy, batch) for `CurriculumTrainer`: the weighted DPC loss of the
-    closed-loop rollout from each segment's first state over its targets."""
+    closed-loop rollout from each segment's first state over its targets, with the
+    tracking term's channels weighted by `channel_weights` (6; None: uniform)."""
     weights = {
         "tracking": config.tracking_weight,
         "state_estimate": config.state_estimate_weight,
@@ -264,7 +306,8 @@ def dpc_objective(config: DpcConfig, plant: RolloutPlant):
         rollout = closed_loop_rollout(
             policy, plant, x0, batch["Y"][:, 0], targets, cells[id(policy)]
         )
-        terms = dpc_loss_terms(rollout, targets, policy)
+        weights_here = None if channel_weights is None else channel_weights.to(targets)
+        terms = dpc_loss_terms(rollout, targets, policy, weights_here)
         return sum(weights[k] * v for k, v in terms.items())
 
     return objective
@@ -301,18 +344,31 @@ def train_policy(
     else:
         splits = split_of(data)
     torch.manual_seed(config.seed)
-    policy = PolicyNetwork(hidden=config.hidden)
+    if config.initial_policy:
+        from mca_drake.learning.policy import load_policy_network
+
+        policy = load_policy_network(config.initial_policy)
+        if policy.hidden != config.hidden:
+            raise ValueError(
+                f"initial_policy {config.initial_policy} has {policy.hidden} hidden neurons, "
+                f"the config {config.hidden}"
+            )
+    else:
+        policy = PolicyNetwork(hidden=config.hidden)
     plant = RolloutPlant(config)
+    key = "Y" if config.targets == "achieved" else "R"
+    channel_weights = tracking_channel_weights(config, splits["train"].arrays[key])
     metadata = {
         "model": "dpc-policy",
         "model_kwargs": {"hidden": config.hidden},
         "dataset": str(dataset),
         "dpc_config": json.loads(json.dumps(dataclasses.asdict(config))),
+        "tracking_channel_weights": None if channel_weights is None else channel_weights.tolist(),
     }
     names = ("X", "Y", "U") + (("R",) if config.targets == "reference" else ())
     trainer = CurriculumTrainer(
         policy,
-        dpc_objective(config, plant),
+        dpc_objective(config, plant, channel_weights),
         config.train,
         out / "policy.pt",
         metadata,
