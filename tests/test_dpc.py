@@ -319,8 +319,18 @@ def test_training_can_start_from_a_policy_file(trained, tmp_path):
             device="cpu",
         ),
     )
-    started, _ = train_policy(config, data, tmp_path / "fine", progress=False)
+    started, fine_path = train_policy(config, data, tmp_path / "fine", progress=False)
     y, x, r = (torch.randn(4, n) for n in (6, 12, 6))
     torch.testing.assert_close(started(y, x, r)[0], policy(y, x, r)[0])
+    # the fine-tuned file says where it started and sums both runs' training time
+    import hashlib
+
+    _, meta = load_policy_arrays(fine_path)
+    _, first = load_policy_arrays(policy_path)
+    provenance = meta["initial_policy_provenance"]
+    assert provenance["sha256"] == hashlib.sha256(policy_path.read_bytes()).hexdigest()
+    assert meta["training_wall_s_total"] == pytest.approx(
+        meta["training_wall_s"] + first["training_wall_s"]
+    )
     with pytest.raises(ValueError, match="initial_policy file not found"):
         DpcConfig(initial_policy=str(tmp_path / "missing.npz")).validate()

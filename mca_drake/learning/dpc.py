@@ -376,6 +376,7 @@ def train_policy(
     )
     result = trainer.fit(splits["train"], splits["validation"], resume=resume, progress=progress)
     path = out / "policy.npz"
+    provenance = initial_policy_provenance(config.initial_policy)
     save_policy(
         path,
         policy,
@@ -384,10 +385,35 @@ def train_policy(
             "command": command,
             "stages": [dataclasses.asdict(s) for s in result.stages],
             "training_wall_s": result.wall_s,
+            # this run plus every run the starting weights came from
+            "training_wall_s_total": result.wall_s + provenance.get("training_wall_s_total", 0.0),
+            "initial_policy_provenance": provenance,
             "versions": package_versions(),
         },
     )
     return policy, path
+
+
+def initial_policy_provenance(path: str) -> dict:
+    """Where a fine-tuned policy's starting weights came from: the file's SHA-256, its
+    command, and its training wall time including its own starting weights' ({} for "")."""
+    if not path:
+        return {}
+    import hashlib
+
+    from mca_drake.learning.policy import load_policy_arrays
+
+    _, meta = load_policy_arrays(path)
+    return {
+        "path": str(path),
+        "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest(),
+        "command": meta.get("command", ""),
+        "training_wall_s": meta.get("training_wall_s"),
+        "training_wall_s_total": meta.get(
+            "training_wall_s_total", meta.get("training_wall_s", 0.0)
+        ),
+        "previous": meta.get("initial_policy_provenance", {}),
+    }
 
 
 def export_checkpoint_policy(checkpoint: str | Path, out: str | Path) -> Path:
