@@ -143,6 +143,36 @@ def test_dpc_policy_system_matches_torch_and_clamps(tmp_path, robot, rng):
         np.testing.assert_allclose(command, expected, rtol=0, atol=1e-5)
 
 
+def test_dpc_policy_system_rejects_non_finite_state_and_bridges_a_dropped_imu(tmp_path, robot):
+    """NaN or inf in the state or reference stops the simulation with the time; a
+    non-finite measured output is replaced by zeros (state and target still drive it)."""
+    path = tmp_path / "p.npz"
+    save_policy(path, _random_policy(2), {})
+    system = DpcPolicy(path, robot)
+
+    def command(x, y, r):
+        context = system.CreateDefaultContext()
+        for name, value in (("state", x), ("inertial_output", y), ("reference", r)):
+            system.GetInputPort(name).FixValue(context, value)
+        Simulator(system, context).AdvanceTo(0.005)
+        return system.GetOutputPort("joint_acceleration").Eval(context)
+
+    x, y, r = np.full(12, 0.01), np.full(6, 0.2), np.full(6, 0.3)
+    for bad in (np.nan, np.inf, -np.inf):
+        for which in ("x", "r"):
+            xb, rb = x.copy(), r.copy()
+            (xb if which == "x" else rb)[3] = bad
+            with pytest.raises(RuntimeError, match="non-finite state or reference at t = 0"):
+                command(xb, y, rb)
+    dropped = y.copy()
+    dropped[1] = np.nan
+    np.testing.assert_array_equal(command(x, dropped, r), command(x, np.zeros(6), r))
+    # huge but finite values are not mistaken for non-finite ones (their sum overflows)
+    huge = np.full(6, 1e308)
+    with np.errstate(over="ignore", invalid="ignore"):  # the network overflows; the clamp brakes
+        assert np.all(np.isfinite(command(x, huge, r)))
+
+
 # ----------------------------------------------------------------- training
 AMPLITUDE = np.array([0.05, 0.08, 0.08, 0.0, 0.1, 0.0])  # rad
 OMEGA = 2 * np.pi * 0.4  # rad/s
