@@ -1,4 +1,5 @@
-"""Atomic file writes: a file that matters is either the old one or the complete new one.
+"""Atomic file writes (a file that matters is either the old one or the complete new one)
+and file fingerprints.
 
 Writes go to a temporary file in the same folder, are flushed to disk, then renamed over
 the target (rename is atomic on POSIX), so a killed process never leaves half a file.
@@ -6,6 +7,7 @@ the target (rename is atomic on POSIX), so a killed process never leaves half a 
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import tempfile
@@ -41,3 +43,12 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
 def atomic_write_json(path: str | os.PathLike, obj) -> Path:
     """Writes `obj` as indented JSON to `path` atomically."""
     return atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=False) + "\n")
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """Hex SHA-256 of a file's bytes: which exact file (a policy, a dataset) a result came
+    from. FileNotFoundError names the path."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"file not found: {path}")
+    return hashlib.sha256(path.read_bytes()).hexdigest()

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from mca_drake.atomic_io import atomic_write_json, atomic_write_text
+from mca_drake.atomic_io import atomic_write_json, atomic_write_text, file_sha256
 from mca_drake.diagrams import MCA_NAMES
 from mca_drake.metrics import wilcoxon_rank_sum
 
@@ -75,31 +75,29 @@ def _run_path(out: Path, case: str, mca: str, seed: int) -> Path:
 def policy_fingerprint(policy: str | None) -> str:
     """SHA-256 of the policy file (`None`: the shipped one), recorded in every DPC run so
     that a resumed evaluation never mixes runs of two policies."""
-    import hashlib
-
     from mca_drake.policy_inference import default_policy_path
 
-    path = Path(policy) if policy else default_policy_path()
-    if not path.is_file():
-        raise FileNotFoundError(f"policy file {path} not found")
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+    return file_sha256(Path(policy) if policy else default_policy_path())
 
 
-def _is_done(out: Path, case: str, mca: str, seed: int, fingerprint: str) -> bool:
-    """Whether a finished run of (case, mca, seed) is on disk; a DPC run of another
-    policy counts as not done (it is re-run and overwritten)."""
+def _finished_run(out: Path, case: str, mca: str, seed: int, fingerprint: str) -> dict | None:
+    """The summary of a finished run of (case, mca, seed) on disk, or None: not there,
+    unreadable, or a DPC run of another policy (which is then re-run and overwritten)."""
     path = _run_path(out, case, mca, seed)
     if not path.is_file():
-        return False
-    if mca != "dpc":
-        return True
+        return None
     try:
-        return json.loads(path.read_text()).get("policy_sha256") == fingerprint
+        summary = json.loads(path.read_text())
     except (OSError, ValueError):
-        return False
+        return None
+    if mca == "dpc" and summary.get("policy_sha256") != fingerprint:
+        return None
+    return summary
 
 
-def _run_one(config: EvaluationConfig, case: EvaluationCase, mca: str, seed: int, out: str):
+def _run_one(
+    config: EvaluationConfig, case: EvaluationCase, mca: str, seed: int, out: str, fingerprint: str
+):
     from mca_drake.evaluation import run_closed_loop
     from mca_drake.references.jsbsim_flight import fly
     from mca_drake.references.recording import load_recording, save_recording
@@ -122,7 +120,7 @@ def _run_one(config: EvaluationConfig, case: EvaluationCase, mca: str, seed: int
     )
     summary = {**result.summary, "case": case.name, "seed": seed, "vehicle": case.vehicle}
     if mca == "dpc":
-        summary["policy_sha256"] = policy_fingerprint(config.policy)
+        summary["policy_sha256"] = fingerprint
     atomic_write_json(_run_path(out_dir, case.name, mca, seed), summary)
     return summary
 
@@ -140,19 +138,21 @@ def run_evaluation(
         for case in config.cases
         for seed in case.seeds
         for mca in config.mcas
-        if not _is_done(out, case.name, mca, seed, fingerprint)
+        if _finished_run(out, case.name, mca, seed, fingerprint) is None
     ]
     total = sum(len(c.seeds) for c in config.cases) * len(config.mcas)
     bar = tqdm(total=total, initial=total - len(jobs), desc="evaluation runs", disable=not progress)
     with bar:
         if workers <= 1:
             for job in jobs:
-                _run_one(config, *job, str(out))
+                _run_one(config, *job, str(out), fingerprint)
                 bar.update(1)
         else:
             context = multiprocessing.get_context("spawn")
             with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-                futures = [pool.submit(_run_one, config, *job, str(out)) for job in jobs]
+                futures = [
+                    pool.submit(_run_one, config, *job, str(out), fingerprint) for job in jobs
+                ]
                 for future in concurrent.futures.as_completed(futures):
                     future.result()
                     bar.update(1)
@@ -164,15 +164,11 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
     evaluation.png in `out`; returns the JSON dictionary. DPC runs of another policy
     than `config.policy` are left out."""
     fingerprint = policy_fingerprint(config.policy) if "dpc" in config.mcas else ""
-    runs = {
-        (c.name, m): [
-            json.loads(_run_path(out, c.name, m, s).read_text())
-            for s in c.seeds
-            if _is_done(out, c.name, m, s, fingerprint)
-        ]
-        for c in config.cases
-        for m in config.mcas
-    }
+    runs = {}
+    for c in config.cases:
+        for m in config.mcas:
+            found = (_finished_run(out, c.name, m, s, fingerprint) for s in c.seeds)
+            runs[(c.name, m)] = [r for r in found if r is not None]
     report = {"duration_s": config.duration_s, "policy_sha256": fingerprint, "cases": {}}
     for case in config.cases:
         entry = {"vehicle": case.vehicle, "seeds": list(case.seeds), "mcas": {}}

@@ -77,9 +77,6 @@ class DpcConfig:
     # as in the PI, whose CC term ignores scale, while doing nothing costs what it costs
     # with uniform weights, so the balance with the other terms stays), or six numbers.
     tracking_channel_weights: str | tuple[float, ...] = "uniform"
-    # Start from the weights of this policy file (fine-tuning) instead of a random
-    # initialisation; "" for a fresh policy. Ignored when a run resumes from its checkpoint.
-    initial_policy: str = ""
     state_estimate_weight: float = 1.0
     input_weight: float = 0.1
     washout_weight: float = 1.0
@@ -109,6 +106,9 @@ class DpcConfig:
     train: TrainConfig = dataclasses.field(default_factory=_default_train)
     # Seed of the weight initialisation.
     seed: int = 0
+    # Start from the weights of this policy file (fine-tuning) instead of a random
+    # initialisation; "" for a fresh policy. Ignored when a run resumes from its checkpoint.
+    initial_policy: str = ""
     # Fuse each rollout step with torch.compile (about 9x faster on CPU after a compile of
     # about a minute; needs a C++ compiler). False: plain eager mode.
     compile: bool = True
@@ -265,6 +265,11 @@ def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcC
     return torch.clamp(x0 + chosen * noise, 0.9 * lower, 0.9 * upper)
 
 
+def target_array(config: DpcConfig) -> str:
+    """The dataset array the policy tracks: "Y" (NMPC-achieved outputs) or "R" (references)."""
+    return "Y" if config.targets == "achieved" else "R"
+
+
 def tracking_channel_weights(config: DpcConfig, targets) -> torch.Tensor | None:
     """The tracking term's channel weights (6) of `config` for training targets (..., 6)
     (None for uniform weights). "normalized": mean variance / channel variance."""
@@ -292,7 +297,7 @@ def dpc_objective(
         "terminal_position": config.terminal_position_weight,
         "terminal_velocity": config.terminal_velocity_weight,
     }
-    key = "Y" if config.targets == "achieved" else "R"
+    key = target_array(config)
     cells = {}
 
     def objective(policy: PolicyNetwork, batch: dict[str, torch.Tensor]) -> torch.Tensor:
@@ -356,8 +361,8 @@ def train_policy(
     else:
         policy = PolicyNetwork(hidden=config.hidden)
     plant = RolloutPlant(config)
-    key = "Y" if config.targets == "achieved" else "R"
-    channel_weights = tracking_channel_weights(config, splits["train"].arrays[key])
+    train_targets = splits["train"].arrays[target_array(config)]
+    channel_weights = tracking_channel_weights(config, train_targets)
     metadata = {
         "model": "dpc-policy",
         "model_kwargs": {"hidden": config.hidden},
@@ -399,14 +404,13 @@ def initial_policy_provenance(path: str) -> dict:
     command, and its training wall time including its own starting weights' ({} for "")."""
     if not path:
         return {}
-    import hashlib
-
+    from mca_drake.atomic_io import file_sha256
     from mca_drake.learning.policy import load_policy_arrays
 
     _, meta = load_policy_arrays(path)
     return {
         "path": str(path),
-        "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest(),
+        "sha256": file_sha256(path),
         "command": meta.get("command", ""),
         "training_wall_s": meta.get("training_wall_s"),
         "training_wall_s_total": meta.get(
