@@ -23,7 +23,7 @@ from tqdm.auto import tqdm
 
 from mca_drake.atomic_io import atomic_write_json, atomic_write_text, file_sha256
 from mca_drake.diagrams import MCA_NAMES
-from mca_drake.metrics import wilcoxon_rank_sum
+from mca_drake.metrics import wilcoxon_rank_sum, wilcoxon_signed_rank
 
 
 @dataclasses.dataclass
@@ -167,19 +167,21 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
     runs = {}
     for c in config.cases:
         for m in config.mcas:
-            found = (_finished_run(out, c.name, m, s, fingerprint) for s in c.seeds)
-            runs[(c.name, m)] = [r for r in found if r is not None]
+            found = ((s, _finished_run(out, c.name, m, s, fingerprint)) for s in c.seeds)
+            runs[(c.name, m)] = [(s, r) for s, r in found if r is not None]
     report = {"duration_s": config.duration_s, "policy_sha256": fingerprint, "cases": {}}
     for case in config.cases:
         entry = {"vehicle": case.vehicle, "seeds": list(case.seeds), "mcas": {}}
         for mca in config.mcas:
-            rs = runs[(case.name, mca)]
+            seeds = [s for s, _ in runs[(case.name, mca)]]
+            rs = [r for _, r in runs[(case.name, mca)]]
             if not rs:
                 continue
             pis = np.array([r["pi"] for r in rs])
             steps = np.array([r["step_time_s"]["median"] for r in rs])
             entry["mcas"][mca] = {
                 "runs": len(rs),
+                "seeds": seeds,
                 "pi": pis.tolist(),
                 "pi_median": float(np.median(pis)),
                 "pi_iqr": [float(np.percentile(pis, 25)), float(np.percentile(pis, 75))],
@@ -201,6 +203,7 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                 "p": test.p,
                 "median_gap": m["dpc"]["pi_median"] - m[other]["pi_median"],
                 "step_time_ratio": m[other]["step_time_median_s"] / m["dpc"]["step_time_median_s"],
+                "paired": _paired_test(m["dpc"], m[other]),
             }
         report["cases"][case.name] = entry
     atomic_write_json(out / "evaluation.json", report)
@@ -210,6 +213,23 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
 
         save_figure(plot_pi_boxes(report), out / "evaluation.png")
     return report
+
+
+def _paired_test(dpc: dict, other: dict) -> dict | None:
+    """Signed-rank test of DPC against another MCA on the flights both have finished (the
+    same flights, so the flight-to-flight spread cancels); None below two shared flights."""
+    pi_dpc = dict(zip(dpc["seeds"], dpc["pi"], strict=True))
+    pi_other = dict(zip(other["seeds"], other["pi"], strict=True))
+    shared = sorted(set(pi_dpc) & set(pi_other))
+    if len(shared) < 2:
+        return None
+    test = wilcoxon_signed_rank([pi_dpc[s] for s in shared], [pi_other[s] for s in shared])
+    return {
+        "seeds": shared,
+        "p": test.p,
+        "median_difference": test.median_difference,
+        "dpc_better": test.a_better,
+    }
 
 
 def evaluation_markdown(report: dict) -> str:
@@ -227,9 +247,11 @@ def evaluation_markdown(report: dict) -> str:
             "safety interventions | solver failures |",
             "|---|---|---|---|---|---|---|---|---|",
         ]
+        flights = len(case["seeds"])
         for mca, m in case["mcas"].items():
+            runs = f"{m['runs']}" if m["runs"] == flights else f"{m['runs']} of {flights}"
             lines.append(
-                f"| {mca} | {m['runs']} | {m['pi_median']:.3f} | {m['pi_iqr'][0]:.3f} to "
+                f"| {mca} | {runs} | {m['pi_median']:.3f} | {m['pi_iqr'][0]:.3f} to "
                 f"{m['pi_iqr'][1]:.3f} | {m['step_time_median_s'] * 1e3:.3f} ms | "
                 f"{m['step_time_max_s'] * 1e3:.2f} ms | {m['violations']} | "
                 f"{m['safety_interventions']} | {m['solver_failures']} |"
@@ -243,6 +265,21 @@ def evaluation_markdown(report: dict) -> str:
                 f"DPC vs {test['other']}: Wilcoxon rank-sum z = {test['z']:.3f}, "
                 f"p = {test['p']:.3f} ({verdict} at 0.05); median PI gap "
                 f"{test['median_gap']:+.3f}; step-time ratio {test['step_time_ratio']:.0f}x.",
+            ]
+            paired = test.get("paired")
+            if paired:
+                lines.append(
+                    f"Paired on the {len(paired['seeds'])} flights both ran: DPC better on "
+                    f"{paired['dpc_better']}, median difference "
+                    f"{paired['median_difference']:+.3f}, Wilcoxon signed-rank p = "
+                    f"{paired['p']:.3f}."
+                )
+        missing = [mca for mca, m in case["mcas"].items() if m["runs"] < flights]
+        if missing:
+            lines += [
+                "",
+                f"Incomplete: {', '.join(missing)} ran on fewer than the {flights} flights; "
+                "`mca-drake evaluate --suite` with the same --out-dir resumes the rest.",
             ]
         lines.append("")
     return "\n".join(lines)

@@ -112,3 +112,20 @@ def test_bad_signals_are_reported(target, achieved, match):
 def test_bad_rank_sum_input():
     with pytest.raises(ValueError, match="at least 2"):
         metrics.wilcoxon_rank_sum([1.0], [1.0, 2.0])
+
+
+def test_wilcoxon_signed_rank_exact_closed_form():
+    # five pairs, all in favour of a: the exact two-sided p is 2 / 2^5 (one extreme sign
+    # pattern at each end of the 2^5 equally likely ones)
+    a = np.array([-1.0, -2.0, -0.5, -1.5, -0.7])
+    b = a + np.array([0.3, 0.1, 0.5, 0.2, 0.4])
+    result = metrics.wilcoxon_signed_rank(a, b)
+    assert result.n == 5 and result.a_better == 5
+    assert result.p == pytest.approx(2 / 32)
+    assert result.median_difference == pytest.approx(-0.3)
+    # mirrored pairs: same p, no wins; identical samples carry no evidence
+    assert metrics.wilcoxon_signed_rank(b, a).p == pytest.approx(2 / 32)
+    assert metrics.wilcoxon_signed_rank(b, a).a_better == 0
+    assert metrics.wilcoxon_signed_rank(a, a).p == 1.0
+    with pytest.raises(ValueError, match="paired"):
+        metrics.wilcoxon_signed_rank(a, b[:4])

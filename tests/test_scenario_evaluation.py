@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import pytest
@@ -66,6 +67,23 @@ def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
     assert test["z"] == pytest.approx(z) and test["p"] == pytest.approx(p)
     assert test["median_gap"] == pytest.approx(-1.0 - (-1.1))
     assert test["step_time_ratio"] == pytest.approx(1000.0)
+    # paired on the same three flights: differences +0.2, -0.1, +0.2 (DPC better once)
+    from scipy.stats import wilcoxon
+
+    paired = test["paired"]
+    assert paired["seeds"] == [1000, 1001, 1002] and paired["dpc_better"] == 1
+    assert paired["median_difference"] == pytest.approx(0.2)
+    assert paired["p"] == pytest.approx(wilcoxon(pis["dpc"], pis["nmpc-converged"]).pvalue)
+    markdown = (tmp_path / "evaluation.md").read_text()
+    assert "Paired on the 3 flights both ran: DPC better on 1" in markdown
+    assert "Incomplete" not in markdown
+    # a fourth flight that neither has run: the report says so and how to resume
+    four = dataclasses.replace(
+        config, cases=(EvaluationCase("A", "light", (1000, 1001, 1002, 1003)),)
+    )
+    write_report(four, tmp_path)
+    markdown = (tmp_path / "evaluation.md").read_text()
+    assert "| dpc | 3 of 4 |" in markdown and "Incomplete: dpc, nmpc-converged" in markdown
 
 
 def test_dpc_runs_of_another_policy_are_run_again(tmp_path):
