@@ -164,24 +164,28 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
     evaluation.png in `out`; returns the JSON dictionary. DPC runs of another policy
     than `config.policy` are left out."""
     fingerprint = policy_fingerprint(config.policy) if "dpc" in config.mcas else ""
-    runs = {}
+    runs = {}  # (case, mca) -> {seed: run summary}, finished runs only
     for c in config.cases:
         for m in config.mcas:
-            found = ((s, _finished_run(out, c.name, m, s, fingerprint)) for s in c.seeds)
-            runs[(c.name, m)] = [(s, r) for s, r in found if r is not None]
-    report = {"duration_s": config.duration_s, "policy_sha256": fingerprint, "cases": {}}
+            found = {s: _finished_run(out, c.name, m, s, fingerprint) for s in c.seeds}
+            runs[(c.name, m)] = {s: r for s, r in found.items() if r is not None}
+    report = {
+        "duration_s": config.duration_s,
+        "policy_sha256": fingerprint,
+        "mcas": list(config.mcas),
+        "cases": {},
+    }
     for case in config.cases:
         entry = {"vehicle": case.vehicle, "seeds": list(case.seeds), "mcas": {}}
         for mca in config.mcas:
-            seeds = [s for s, _ in runs[(case.name, mca)]]
-            rs = [r for _, r in runs[(case.name, mca)]]
+            rs = list(runs[(case.name, mca)].values())
             if not rs:
                 continue
             pis = np.array([r["pi"] for r in rs])
             steps = np.array([r["step_time_s"]["median"] for r in rs])
             entry["mcas"][mca] = {
                 "runs": len(rs),
-                "seeds": seeds,
+                "seeds": list(runs[(case.name, mca)]),
                 "pi": pis.tolist(),
                 "pi_median": float(np.median(pis)),
                 "pi_iqr": [float(np.percentile(pis, 25)), float(np.percentile(pis, 75))],
@@ -203,7 +207,7 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                 "p": test.p,
                 "median_gap": m["dpc"]["pi_median"] - m[other]["pi_median"],
                 "step_time_ratio": m[other]["step_time_median_s"] / m["dpc"]["step_time_median_s"],
-                "paired": _paired_test(m["dpc"], m[other]),
+                "paired": _paired_test(runs[(case.name, "dpc")], runs[(case.name, other)]),
             }
         report["cases"][case.name] = entry
     atomic_write_json(out / "evaluation.json", report)
@@ -217,13 +221,12 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
 
 def _paired_test(dpc: dict, other: dict) -> dict | None:
     """Signed-rank test of DPC against another MCA on the flights both have finished (the
-    same flights, so the flight-to-flight spread cancels); None below two shared flights."""
-    pi_dpc = dict(zip(dpc["seeds"], dpc["pi"], strict=True))
-    pi_other = dict(zip(other["seeds"], other["pi"], strict=True))
-    shared = sorted(set(pi_dpc) & set(pi_other))
+    same flights, so the flight-to-flight spread cancels); None below two shared flights.
+    `dpc`, `other`: {seed: run summary}."""
+    shared = sorted(dpc.keys() & other.keys())
     if len(shared) < 2:
         return None
-    test = wilcoxon_signed_rank([pi_dpc[s] for s in shared], [pi_other[s] for s in shared])
+    test = wilcoxon_signed_rank([dpc[s]["pi"] for s in shared], [other[s]["pi"] for s in shared])
     return {
         "seeds": shared,
         "p": test.p,
@@ -274,7 +277,9 @@ def evaluation_markdown(report: dict) -> str:
                     f"{paired['median_difference']:+.3f}, Wilcoxon signed-rank p = "
                     f"{paired['p']:.3f}."
                 )
-        missing = [mca for mca, m in case["mcas"].items() if m["runs"] < flights]
+        # every configured MCA, including one without a single finished run
+        ran = {mca: m["runs"] for mca, m in case["mcas"].items()}
+        missing = [mca for mca in report.get("mcas", ran) if ran.get(mca, 0) < flights]
         if missing:
             lines += [
                 "",

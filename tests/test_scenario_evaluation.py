@@ -84,6 +84,10 @@ def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
     write_report(four, tmp_path)
     markdown = (tmp_path / "evaluation.md").read_text()
     assert "| dpc | 3 of 4 |" in markdown and "Incomplete: dpc, nmpc-converged" in markdown
+    # an MCA with no finished run at all is named as well
+    more = dataclasses.replace(config, mcas=("dpc", "nmpc-converged", "washout"))
+    write_report(more, tmp_path)
+    assert "Incomplete: washout" in (tmp_path / "evaluation.md").read_text()
 
 
 def test_dpc_runs_of_another_policy_are_run_again(tmp_path):
