@@ -235,6 +235,26 @@ def _paired_test(dpc: dict, other: dict) -> dict | None:
     }
 
 
+def format_p(p: float) -> str:
+    """A p-value as the report prints it: ``p < 0.001`` below 0.001, else three figures.
+
+    Three significant figures rather than three decimals, so a p of 0.0499 does not
+    print as 0.050 beside the word "significant".
+    """
+    return "p < 0.001" if p < 1e-3 else f"p = {p:.3g}"
+
+
+def rank_sum_verdict(z: float, p: float, alpha: float = 0.05) -> str:
+    """The words after a rank-sum test of DPC (first sample) against another MCA.
+
+    A negative z means DPC's PIs rank lower, and a lower PI is better, so a significant
+    result says which side it falls on rather than only that the two differ.
+    """
+    if p > alpha:
+        return f"no significant difference at {alpha:g}"
+    return f"significant at {alpha:g}: DPC {'better' if z < 0 else 'worse'}"
+
+
 def evaluation_markdown(report: dict) -> str:
     """The report as markdown tables, one per case."""
     lines = [
@@ -262,11 +282,10 @@ def evaluation_markdown(report: dict) -> str:
         for key, test in case.items():
             if not key.startswith("dpc_vs_"):
                 continue
-            verdict = "no significant difference" if test["p"] > 0.05 else "significant difference"
             lines += [
                 "",
                 f"DPC vs {test['other']}: Wilcoxon rank-sum z = {test['z']:.3f}, "
-                f"p = {test['p']:.3f} ({verdict} at 0.05); median PI gap "
+                f"{format_p(test['p'])} ({rank_sum_verdict(test['z'], test['p'])}); median PI gap "
                 f"{test['median_gap']:+.3f}; step-time ratio {test['step_time_ratio']:.0f}x.",
             ]
             paired = test.get("paired")
@@ -274,8 +293,8 @@ def evaluation_markdown(report: dict) -> str:
                 lines.append(
                     f"Paired on the {len(paired['seeds'])} flights both ran: DPC better on "
                     f"{paired['dpc_better']}, median difference "
-                    f"{paired['median_difference']:+.3f}, Wilcoxon signed-rank p = "
-                    f"{paired['p']:.3f}."
+                    f"{paired['median_difference']:+.3f}, Wilcoxon signed-rank "
+                    f"{format_p(paired['p'])}."
                 )
         # every configured MCA, including one without a single finished run
         ran = {mca: m["runs"] for mca, m in case["mcas"].items()}

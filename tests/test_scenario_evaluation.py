@@ -127,3 +127,15 @@ def test_training_seeds_are_refused():
         EvaluationConfig(cases=(EvaluationCase("A", "light", (100, 1000)),)).validate()
     with pytest.raises(ValueError, match="unknown MCA"):
         EvaluationConfig(mcas=("lqr",)).validate()
+
+
+def test_report_wording_of_p_values_and_verdicts():
+    from mca_drake.scenario_evaluation import format_p, rank_sum_verdict
+
+    assert format_p(0.0004) == "p < 0.001"
+    # three figures, so a p just under 0.05 does not print as 0.050
+    assert format_p(0.0499) == "p = 0.0499" and format_p(0.745) == "p = 0.745"
+    assert rank_sum_verdict(-0.3, 0.745) == "no significant difference at 0.05"
+    # lower PI is better: DPC ranked lower (z < 0) is the better side
+    assert rank_sum_verdict(-2.2, 0.028) == "significant at 0.05: DPC better"
+    assert rank_sum_verdict(2.2, 0.028) == "significant at 0.05: DPC worse"
