@@ -304,6 +304,7 @@ def _quick_open_loop_dataset(folder: Path) -> Path:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``mca-drake`` argument parser: one sub-command per job (see ``--help``)."""
     parser = argparse.ArgumentParser(
         prog="mca-drake", description="Motion cueing for a KUKA KR500 motion simulator, on Drake."
     )

@@ -80,6 +80,7 @@ class ClosedLoopDatasetConfig:
 
 
 def flight_path(out_dir: Path, seed: int) -> Path:
+    """Where one flight's segments are kept while a dataset is built (resumable per flight)."""
     return Path(out_dir) / f"flight_{seed:05d}.npz"
 
 

@@ -69,6 +69,7 @@ class TrackingScore:
 
     @property
     def pi(self) -> float:
+        """Performance index: sum over channels of RMSE - CC (lower is better)."""
         return float(np.sum(self.rmse - self.cc))
 
 

@@ -29,6 +29,7 @@ class SegmentTensors:
 
     @property
     def horizon(self) -> int:
+        """Steps per segment (the rollout length n_c)."""
         return self.arrays["U"].shape[1]
 
     def batch(self, index: torch.Tensor) -> dict[str, torch.Tensor]:

@@ -165,6 +165,7 @@ class RolloutPlant(nn.Module):
             p.requires_grad_(False)
 
     def clamp(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """The viability clamp of ``u`` (B, 6) [rad/s^2] at state ``x`` (B, 12), if enabled."""
         if not self.safety_filter:
             return u
         lo, hi = viable_acceleration_bounds_torch(
@@ -173,11 +174,13 @@ class RolloutPlant(nn.Module):
         return torch.minimum(torch.maximum(u, lo), hi)
 
     def step(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """Next state (B, 12) after one time step of ``u`` (B, 6) from ``x`` (B, 12)."""
         if self.kind == "exact":
             return self.exact.step(x, u)
         return self.state_model.step(x, u)
 
     def output(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """Inertial output (B, 6) [m/s^2, rad/s] while ``u`` (B, 6) acts at ``x`` (B, 12)."""
         if self.kind == "exact":
             return self.exact.output(x, u)
         return self.output_model(x[:, None], u[:, None])[:, 0]

@@ -150,6 +150,7 @@ class MixedAnalyticalOutput(OutputModel):
         return output_from_pose_derivatives(*self.pose_derivatives(X, U))
 
     def training_loss(self, X, U, y_prev, targets):
+        """Mean squared error of the head pose's first and second derivatives."""
         _, dF, ddF = self.pose_derivatives(X, U)
         return torch.mean((pose_top(dF) - pose_top(targets["dF"])) ** 2) + torch.mean(
             (pose_top(ddF) - pose_top(targets["ddF"])) ** 2

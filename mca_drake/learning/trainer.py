@@ -73,6 +73,7 @@ class TrainConfig:
             raise ValueError(f"unknown device '{self.device}'; valid: auto, cpu, cuda")
 
     def resolved_device(self) -> torch.device:
+        """The torch device to train on; ``auto`` takes CUDA when torch sees one."""
         if self.device == "auto":
             return torch.device("cuda" if torch.cuda.is_available() else "cpu")
         if self.device == "cuda" and not torch.cuda.is_available():
@@ -209,10 +210,12 @@ class CurriculumTrainer:
 
     @property
     def log_path(self) -> Path:
+        """The per-epoch loss log (CSV) beside the checkpoint."""
         return self.checkpoint_path.with_name(self.checkpoint_path.stem + "_loss.csv")
 
     @property
     def plot_path(self) -> Path:
+        """The loss-curve figure (PNG) beside the checkpoint."""
         return self.checkpoint_path.with_name(self.checkpoint_path.stem + "_loss.png")
 
     # ----------------------------------------------------------------- training

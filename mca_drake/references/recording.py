@@ -78,6 +78,7 @@ class Recording:
 
     @property
     def duration_s(self) -> float:
+        """Time from the first to the last sample [s]."""
         return float(self.t[-1] - self.t[0])
 
     @property

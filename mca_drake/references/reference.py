@@ -74,6 +74,7 @@ class Reference:
 
     @property
     def duration_s(self) -> float:
+        """Time from the first to the last sample [s]."""
         return self.time_step * (self.y.shape[0] - 1)
 
     def truncated(self, duration_s: float) -> Reference:

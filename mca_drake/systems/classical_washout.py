@@ -104,6 +104,7 @@ class ClassicalWashout(LeafSystem):
 
     @property
     def config(self) -> WashoutConfig:
+        """The filter's cut-offs, gains and limits."""
         return self._config
 
     @property

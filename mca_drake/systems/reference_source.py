@@ -48,10 +48,12 @@ class ReferenceSource(LeafSystem):
 
     @property
     def reference(self) -> Reference:
+        """The recording this source plays."""
         return self._reference
 
     @property
     def preview_samples(self) -> int:
+        """N, the samples in each `reference_preview` output (the NMPC/DPC horizon)."""
         return self._preview_samples
 
     def sample_index(self, time: float) -> int:
