@@ -38,6 +38,10 @@ class EvaluationCase:
     seeds: tuple[int, ...]
 
 
+# Level of the report's rank-sum tests (the paper's).
+SIGNIFICANCE_LEVEL = 0.05
+
+
 def default_cases() -> tuple[EvaluationCase, ...]:
     """The paper's two cases: 10 light-aircraft and 10 jet flights, unseen in training."""
     return (
@@ -205,6 +209,8 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                 "other": other,
                 "z": test.z,
                 "p": test.p,
+                "alpha": SIGNIFICANCE_LEVEL,
+                "significant": test.significant(SIGNIFICANCE_LEVEL),
                 "median_gap": m["dpc"]["pi_median"] - m[other]["pi_median"],
                 "step_time_ratio": m[other]["step_time_median_s"] / m["dpc"]["step_time_median_s"],
                 "paired": _paired_test(runs[(case.name, "dpc")], runs[(case.name, other)]),
@@ -244,15 +250,16 @@ def format_p(p: float) -> str:
     return "p < 0.001" if p < 1e-3 else f"p = {p:.3g}"
 
 
-def rank_sum_verdict(z: float, p: float, alpha: float = 0.05) -> str:
-    """The words after a rank-sum test of DPC (first sample) against another MCA.
+def rank_sum_verdict(test: dict) -> str:
+    """The words after a report's rank-sum test of DPC (first sample) against another MCA.
 
-    A negative z means DPC's PIs rank lower, and a lower PI is better, so a significant
-    result says which side it falls on rather than only that the two differ.
+    `test`: a ``dpc_vs_*`` entry of the report (``z``, ``alpha``, ``significant``, the last
+    from `RankSumResult.significant`). A negative z means DPC's PIs rank lower, and a lower
+    PI is better, so a significant result says which side it falls on.
     """
-    if p > alpha:
-        return f"no significant difference at {alpha:g}"
-    return f"significant at {alpha:g}: DPC {'better' if z < 0 else 'worse'}"
+    if not test["significant"]:
+        return f"no significant difference at {test['alpha']:g}"
+    return f"significant at {test['alpha']:g}: DPC {'better' if test['z'] < 0 else 'worse'}"
 
 
 def evaluation_markdown(report: dict) -> str:
@@ -285,7 +292,7 @@ def evaluation_markdown(report: dict) -> str:
             lines += [
                 "",
                 f"DPC vs {test['other']}: Wilcoxon rank-sum z = {test['z']:.3f}, "
-                f"{format_p(test['p'])} ({rank_sum_verdict(test['z'], test['p'])}); median PI gap "
+                f"{format_p(test['p'])} ({rank_sum_verdict(test)}); median PI gap "
                 f"{test['median_gap']:+.3f}; step-time ratio {test['step_time_ratio']:.0f}x.",
             ]
             paired = test.get("paired")
@@ -298,7 +305,7 @@ def evaluation_markdown(report: dict) -> str:
                 )
         # every configured MCA, including one without a single finished run
         ran = {mca: m["runs"] for mca, m in case["mcas"].items()}
-        missing = [mca for mca in report.get("mcas", ran) if ran.get(mca, 0) < flights]
+        missing = [mca for mca in report["mcas"] if ran.get(mca, 0) < flights]
         if missing:
             lines += [
                 "",

@@ -65,6 +65,7 @@ def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
 
     z, p = ranksums(pis["dpc"], pis["nmpc-converged"])
     assert test["z"] == pytest.approx(z) and test["p"] == pytest.approx(p)
+    assert test["significant"] == (p < 0.05)
     assert test["median_gap"] == pytest.approx(-1.0 - (-1.1))
     assert test["step_time_ratio"] == pytest.approx(1000.0)
     # paired on the same three flights: differences +0.2, -0.1, +0.2 (DPC better once)
@@ -135,7 +136,11 @@ def test_report_wording_of_p_values_and_verdicts():
     assert format_p(0.0004) == "p < 0.001"
     # three figures, so a p just under 0.05 does not print as 0.050
     assert format_p(0.0499) == "p = 0.0499" and format_p(0.745) == "p = 0.745"
-    assert rank_sum_verdict(-0.3, 0.745) == "no significant difference at 0.05"
+    apart = {"alpha": 0.05, "significant": True}
+    assert (
+        rank_sum_verdict({"z": -0.3, "alpha": 0.05, "significant": False})
+        == "no significant difference at 0.05"
+    )
     # lower PI is better: DPC ranked lower (z < 0) is the better side
-    assert rank_sum_verdict(-2.2, 0.028) == "significant at 0.05: DPC better"
-    assert rank_sum_verdict(2.2, 0.028) == "significant at 0.05: DPC worse"
+    assert rank_sum_verdict({**apart, "z": -2.2}) == "significant at 0.05: DPC better"
+    assert rank_sum_verdict({**apart, "z": 2.2}) == "significant at 0.05: DPC worse"
