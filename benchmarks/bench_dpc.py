@@ -16,15 +16,16 @@ from pathlib import Path
 
 import numpy as np
 
-from mca_drake.evaluation import run_closed_loop
-from mca_drake.references.jsbsim_flight import fly
+from mca_drake.cueing import DpcConfig
+from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
+from mca_drake.simulation.closed_loop import run_closed_loop
 
 
 def _policy_path(arg: str | None, folder: str) -> tuple[str, str]:
     if arg:
         return arg, "given"
-    from mca_drake.policy_inference import default_policy_path
+    from mca_drake.cueing.dpc import default_policy_path
 
     try:
         return str(default_policy_path()), "shipped default"
@@ -50,9 +51,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         policy, kind = _policy_path(args.policy, folder)
         results = {}
+        configs = {"dpc": DpcConfig(policy=str(policy)), "nmpc-converged": "nmpc-converged"}
         for mca, seconds in (("dpc", args.seconds), ("nmpc-converged", args.converged_seconds)):
             r = run_closed_loop(
-                mca=mca, reference=reference, duration_s=seconds, progress=False, policy=policy
+                mca=configs[mca], reference=reference, duration_s=seconds, progress=False
             )
             results[mca] = r
             t = r.step_times_s

@@ -12,7 +12,7 @@ import argparse
 import statistics
 import time
 
-from mca_drake.references.jsbsim_flight import VEHICLES, fly
+from mca_drake.references.jsbsim import VEHICLES, fly
 
 
 def main() -> None:

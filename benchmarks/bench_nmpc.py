@@ -10,10 +10,13 @@ import argparse
 import tempfile
 import time
 
-from mca_drake.closed_loop_dataset import ClosedLoopDatasetConfig, generate_closed_loop_dataset
-from mca_drake.evaluation import run_closed_loop
-from mca_drake.references.jsbsim_flight import fly
+from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
+from mca_drake.simulation.closed_loop import run_closed_loop
+from mca_drake.studies.closed_loop_dataset import (
+    ClosedLoopDatasetConfig,
+    generate_closed_loop_dataset,
+)
 
 
 def main() -> None:

@@ -18,10 +18,9 @@ import platform
 
 import numpy as np
 
-from mca_drake.evaluation import run_closed_loop
-from mca_drake.references.jsbsim_flight import fly
+from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
-from mca_drake.station_simulation import run_station_closed_loop
+from mca_drake.simulation.closed_loop import run_closed_loop
 
 
 def main() -> None:
@@ -40,8 +39,12 @@ def main() -> None:
     print(f"{args.mca}, {duration:.0f} s light flight seed {args.seed}, 1 kHz plant")
     rtf, station = [], None
     for _ in range(args.repeats):
-        station = run_station_closed_loop(
-            mca=args.mca, reference=reference, duration_s=duration, progress=False
+        station = run_closed_loop(
+            plant="multibody",
+            mca=args.mca,
+            reference=reference,
+            duration_s=duration,
+            progress=False,
         )
         rtf.append(station.summary["realtime_factor"])
         print(f"  multibody run: real-time factor {rtf[-1]:.1f}")

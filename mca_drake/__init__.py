@@ -1,13 +1,17 @@
 """mca-drake: learning-based motion cueing for a KUKA KR500 motion simulator, on Drake.
 
-Modules (data flows one way, top to bottom):
-    robot          the KR500 description read from models/kr500.urdf
-    kinematics     numpy head-frame kinematics and the plant output y (equation 1)
-    torch_plant    the same plant in torch, batched and differentiable
-    systems        Drake LeafSystems (MotionCueingPlant, ...)
-    diagrams       builders that wire systems into runnable diagrams
-    metrics        RMSE, Pearson CC, performance index, Wilcoxon, limit usage
-    cli            the `mca-drake` command
+Layers (imports point down only; tests/test_architecture.py checks it):
+    app          typed scenarios (diagrams/*.yaml), jobs and the `mca-drake` command
+    studies      batch work over many closed loops: evaluation suite, closed-loop dataset,
+                 Table II
+    simulation   diagram builders and the one closed-loop runner for both plants
+    systems      Drake LeafSystems: plant, reference source, the MCAs, the KR500 station
+    learning     torch only: plant-model candidates, policy network, trainers, DPC training
+    cueing       the MCAs as numpy math with their typed configs (DpcConfig, NmpcConfig,
+                 WashoutConfig)
+    references   vehicle motion: recordings, JSBSim flights, scaling to references
+    core         conventions, robot, kinematics, torch_plant, safety, metrics, segments,
+                 plotting, atomic_io, input_checks, demo_motion
 """
 
 __version__ = "0.1.0"

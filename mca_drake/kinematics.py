@@ -12,7 +12,7 @@ use the revolute-joint screw form, with Z_i and O_i the world axis and origin of
     r_dot    = sum_i w_i x (r - O_i)
     r_ddot   = sum_i (dw_i/dt) x (r - O_i) + w_i x (r_dot - dO_i/dt)
 
-The output y = [R^T omega, (R^T (r_ddot - g))_xy, (R^T r_ddot)_z] (ARCHITECTURE.md).
+The output y = [R^T omega, (R^T (r_ddot - g))_xy, (R^T r_ddot)_z] (`mca_drake.conventions`).
 
 Jacobians are exact, by forward-mode differentiation: every quantity above carries its
 tangent with respect to (q, qd), seeded with the exact derivatives of the geometry,
@@ -26,11 +26,9 @@ import dataclasses
 
 import numpy as np
 
+from mca_drake.conventions import GRAVITY_W
 from mca_drake.input_checks import as_float_array, same_shapes
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
-
-GRAVITY = 9.81
-GRAVITY_W = np.array([0.0, 0.0, -GRAVITY])
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:

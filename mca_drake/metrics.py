@@ -12,10 +12,10 @@ import dataclasses
 import numpy as np
 import scipy.stats
 
+from mca_drake.conventions import CHANNELS
 from mca_drake.input_checks import as_float_array, same_shapes
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 
-CHANNELS = ("w_x", "w_y", "w_z", "f_x", "f_y", "a_z")
 # Relative spread below which a channel counts as constant for the correlation.
 _CONSTANT_RTOL = 1e-12
 

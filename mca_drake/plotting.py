@@ -17,7 +17,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from mca_drake.atomic_io import atomic_write_bytes
-from mca_drake.metrics import CHANNELS
+from mca_drake.conventions import CHANNELS
+from mca_drake.metrics import tracking_score
 
 CHANNEL_LABELS = (
     "roll rate w_x [rad/s]",
@@ -123,7 +124,7 @@ def plot_loss_curves(history, title: str = ""):
 
 def plot_pi_boxes(report: dict):
     """PI distributions per MCA, one panel per case (the paper's Fig. 3). `report`: the
-    dictionary of `mca_drake.scenario_evaluation.write_report`."""
+    dictionary of `mca_drake.studies.evaluation.write_report`."""
     cases = [(name, c) for name, c in report["cases"].items() if c["mcas"]]
     if not cases:
         raise ValueError("the report has no runs to plot")
@@ -146,8 +147,6 @@ def plot_tracking(times, target, measured, title: str = ""):
         times: shape (T,), s.
         target, measured: shape (T, 6), the channels of y.
     """
-    from mca_drake.metrics import tracking_score
-
     times = np.asarray(times, dtype=float)
     target = np.asarray(target, dtype=float)
     measured = np.asarray(measured, dtype=float)

@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-_U_TOL = 1e-6  # rad/s^2
+VIABILITY_TOLERANCE = 1e-6  # rad/s^2
 
 
 def _upper_bound(q, qd, q_max, qd_max, a, h):
@@ -63,7 +63,7 @@ def viable_acceleration_bounds(q, qd, q_min, q_max, qd_max, qdd_max, h):
     # On the stopping boundary the braking command is the bound itself; round-off of order
     # 1e-12 may put it on the wrong side, which a tolerance of 1e-6 rad/s^2 (5e-11 rad of
     # position per step) absorbs.
-    viable = lo <= hi + _U_TOL
+    viable = lo <= hi + VIABILITY_TOLERANCE
     hi = np.maximum(hi, lo)
     brake = np.clip(-qd / h, -a, a)
     lo = np.where(viable, lo, brake)
@@ -148,7 +148,7 @@ class ViabilityClamp:
         for j in range(n):
             q, v, a = xs[j], xs[n + j], self._joint_constants[j][0]
             lo, hi = self._joint_interval(j, q, v)
-            if not lo <= hi + _U_TOL:  # not viable: brake as hard as allowed
+            if not lo <= hi + VIABILITY_TOLERANCE:  # not viable: brake as hard as allowed
                 lo = hi = min(max(-v / h, -a), a)
                 intervened = True
             hi = max(hi, lo)
@@ -157,34 +157,3 @@ class ViabilityClamp:
             intervened = intervened or abs(s - c) > self.tolerance
             safe.append(s)
         return np.array(safe), intervened
-
-
-def viable_acceleration_bounds_torch(x, q_min, q_max, qd_max, qdd_max, h: float):
-    """`viable_acceleration_bounds` in torch for states x = [q, qd] (..., 12): (lo, hi),
-    each (..., 6), differentiable almost everywhere. Limits are tensors of shape (6,).
-    For DPC training rollouts, so that the policy learns inside the same safety filter it
-    runs behind (a non-viable state gets lo = hi = the braking command)."""
-    import torch
-
-    n = q_min.shape[-1]
-    q, qd = x[..., :n], x[..., n:]
-    a = qdd_max
-
-    def upper(q, qd, limit):
-        A2 = h * h / (2 * a)
-        B1 = h * h / 2 + h * qd / a
-        C = q + h * qd + qd * qd / (2 * a) - limit
-        disc = B1 * B1 - 4 * A2 * C
-        root = (torch.sqrt(torch.clamp(disc, min=1e-12)) - B1) / (2 * A2)
-        stop = torch.where((disc >= 0) & (qd + h * root >= 0), root, -qd / h)
-        velocity = (qd_max - qd) / h
-        position = 2 * (limit - q - h * qd) / (h * h)
-        return torch.minimum(torch.minimum(stop, velocity), torch.minimum(position, a))
-
-    hi = torch.minimum(upper(q, qd, q_max), a)
-    lo = torch.maximum(-upper(-q, -qd, -q_min), -a)
-    viable = lo <= hi + _U_TOL
-    brake = torch.clamp(-qd / h, -a, a)
-    hi = torch.where(viable, torch.maximum(hi, lo), brake)
-    lo = torch.where(viable, lo, brake)
-    return lo, hi

@@ -29,6 +29,11 @@ import numpy as np
 
 from mca_drake.atomic_io import atomic_write_bytes
 
+# Columns of `SegmentDataset.source` in the closed-loop datasets, and the split labels of
+# the "split" column (`mca_drake.studies.closed_loop_dataset.merge`).
+SOURCE_COLUMNS = ("flight_seed", "start_step", "split")
+SPLIT_NAMES = ("train", "validation", "test")
+
 CORE_ARRAYS = ("U", "X", "Y", "F", "dF", "ddF")
 _SHAPES = {"U": (6,), "X": (12,), "Y": (6,), "F": (4, 4), "dF": (4, 4), "ddF": (4, 4)}
 FORMAT = "mca-drake segments v1"
@@ -143,3 +148,51 @@ def package_versions() -> dict[str, str]:
         except importlib.metadata.PackageNotFoundError:
             versions[name] = "not installed"
     return versions
+
+
+def split_of(dataset: SegmentDataset) -> dict[str, SegmentDataset]:
+    """The labelled train/validation/test parts of a merged closed-loop dataset."""
+    column = dataset.source[:, SOURCE_COLUMNS.index("split")]
+    return {name: dataset.subset(column == i) for i, name in enumerate(SPLIT_NAMES)}
+
+
+def long_windows(
+    dataset: SegmentDataset, segments: int, fractions=(0.7, 0.2, 0.1), seed: int = 0
+) -> dict[str, SegmentDataset]:
+    """Windows of `segments` consecutive segments of one flight, joined in time, split
+    train/validation/test by window with `seed` (a split of its own: the per-segment labels
+    of `mca_drake.studies.closed_loop_dataset.merge` would cut most windows apart).
+
+    For DPC training on rollouts longer than n_p: a policy trained on 2.56 s rollouts only
+    ever sees the first 2.56 s of its own drift. Returns {"train", "validation", "test"}.
+    """
+    if segments < 1:
+        raise ValueError(f"segments must be at least 1; got {segments}")
+    seed_col = SOURCE_COLUMNS.index("flight_seed")
+    step_col = SOURCE_COLUMNS.index("start_step")
+    n_p = dataset.horizon
+    windows: list[np.ndarray] = []
+    for flight in np.unique(dataset.source[:, seed_col]):
+        rows = np.flatnonzero(dataset.source[:, seed_col] == flight)
+        rows = rows[np.argsort(dataset.source[rows, step_col])]
+        steps = dataset.source[rows, step_col]
+        run: list[int] = []
+        for row, step in zip(rows, steps, strict=True):
+            if run and step != dataset.source[run[-1], step_col] + n_p:
+                run = []  # a gap: start a new run
+            run.append(int(row))
+            if len(run) == segments:
+                windows.append(np.array(run))
+                run = []
+    if not windows:
+        raise ValueError(f"no run of {segments} consecutive segments in the dataset")
+    index = np.stack(windows)  # (W, segments)
+    arrays = {
+        k: v[index].reshape(len(windows), segments * n_p, *v.shape[2:])
+        for k, v in dataset.arrays.items()
+    }
+    source = dataset.source[index[:, 0]].copy()
+    meta = {**dataset.metadata, "window_segments": segments}
+    joined = SegmentDataset(arrays, source, meta)
+    parts = joined.split(tuple(fractions), seed=seed)
+    return dict(zip(SPLIT_NAMES, parts, strict=True))

@@ -23,10 +23,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from mca_drake.kinematics import GRAVITY
+from mca_drake.conventions import CONTROL_PERIOD_S, GRAVITY
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
-
-DEFAULT_DT = 0.01
+from mca_drake.safety import VIABILITY_TOLERANCE
 
 
 def _check(name: str, tensor: torch.Tensor, last_dim: int) -> None:
@@ -117,7 +116,7 @@ class TorchPlant(nn.Module):
     def __init__(
         self,
         robot: KR500 | None = None,
-        dt: float = DEFAULT_DT,
+        dt: float = CONTROL_PERIOD_S,
         dtype: torch.dtype = torch.float32,
         check_inputs: bool = True,
     ):
@@ -253,3 +252,32 @@ class TorchPlant(nn.Module):
         """Open-loop rollout: x0 (B, 12), U (B, T, 6) -> (X (B, T+1, 12), Y (B, T, 6))."""
         X = self.rollout_states(x0, U)  # checks x0 and U
         return X, self._output(X[..., :-1, :], U)
+
+
+def viable_acceleration_bounds_torch(x, q_min, q_max, qd_max, qdd_max, h: float):
+    """`viable_acceleration_bounds` in torch for states x = [q, qd] (..., 12): (lo, hi),
+    each (..., 6), differentiable almost everywhere. Limits are tensors of shape (6,).
+    For DPC training rollouts, so that the policy learns inside the same safety filter it
+    runs behind (a non-viable state gets lo = hi = the braking command)."""
+    n = q_min.shape[-1]
+    q, qd = x[..., :n], x[..., n:]
+    a = qdd_max
+
+    def upper(q, qd, limit):
+        A2 = h * h / (2 * a)
+        B1 = h * h / 2 + h * qd / a
+        C = q + h * qd + qd * qd / (2 * a) - limit
+        disc = B1 * B1 - 4 * A2 * C
+        root = (torch.sqrt(torch.clamp(disc, min=1e-12)) - B1) / (2 * A2)
+        stop = torch.where((disc >= 0) & (qd + h * root >= 0), root, -qd / h)
+        velocity = (qd_max - qd) / h
+        position = 2 * (limit - q - h * qd) / (h * h)
+        return torch.minimum(torch.minimum(stop, velocity), torch.minimum(position, a))
+
+    hi = torch.minimum(upper(q, qd, q_max), a)
+    lo = torch.maximum(-upper(-q, -qd, -q_min), -a)
+    viable = lo <= hi + VIABILITY_TOLERANCE
+    brake = torch.clamp(-qd / h, -a, a)
+    hi = torch.where(viable, torch.maximum(hi, lo), brake)
+    lo = torch.where(viable, lo, brake)
+    return lo, hi

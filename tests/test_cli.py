@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mca_drake import cli
+from mca_drake.app import cli
+from mca_drake.app.jobs import run_plant_demo
+from mca_drake.app.scenarios import PlantDemoScenario, load_scenario
 from mca_drake.demo_motion import demo_joint_motion
-from mca_drake.diagrams import PlantDemoScenario, load_scenario
-from mca_drake.jobs import run_plant_demo
 from mca_drake.kinematics import plant_output
 
 REPO = Path(__file__).resolve().parent.parent
@@ -67,7 +67,7 @@ def test_simulate_command_on_the_analytical_plant(tmp_path):
 # Per scenario type: an override that makes the file's job a smoke run.
 SMOKE_OVERRIDES = {
     "PlantDemoScenario": "{duration_s: 0.2}",
-    "ClosedLoopScenario": "{duration_s: 0.3, realtime_rate: 0.0, output_dir: OUT}",
+    "ClosedLoopScenario": "{duration_s: 0.3, output_dir: OUT}",
     "EvaluationScenario": (
         "{duration_s: 0.5, light_seeds: [1000], jet_seeds: [2000], mcas: [dpc, washout],"
         " output_dir: OUT}"
@@ -80,7 +80,7 @@ SMOKE_OVERRIDES = {
 
 @pytest.mark.parametrize("path", sorted((REPO / "diagrams").glob("*.yaml")), ids=lambda p: p.stem)
 def test_every_scenario_file_loads_and_runs(path, tmp_path):
-    from mca_drake.jobs import run_scenario
+    from mca_drake.app.jobs import run_scenario
 
     kind = type(load_scenario(path)).__name__
     override = SMOKE_OVERRIDES[kind].replace("OUT", str(tmp_path / "out"))
@@ -106,8 +106,8 @@ def test_diagrams_folder_has_every_job():
 @pytest.mark.parametrize(
     ("override", "match"),
     [
-        ("{scenario: {durration_s: 2}}", "unknown to the schema"),
-        ("{durration_s: 2}", "unknown to the schema"),
+        ("{scenario: {durration_s: 2}}", "unknown field 'durration_s' of PlantDemoScenario"),
+        ("{durration_s: 2}", "unknown field 'durration_s' of PlantDemoScenario"),
         ("{scenario: {duration_s: abc}}", "could not convert"),
         ("{scenario: {duration_s: -1}}", "duration_s must be positive"),
     ],
@@ -119,7 +119,7 @@ def test_bad_scenario_values_fail_clearly(override, match):
 
 def test_console_script_reports_errors_without_traceback():
     result = subprocess.run(
-        [sys.executable, "-m", "mca_drake.cli", "run", "no/such/file.yaml"],
+        [sys.executable, "-m", "mca_drake.app.cli", "run", "no/such/file.yaml"],
         capture_output=True,
         text=True,
         check=False,
@@ -132,9 +132,9 @@ def test_console_script_reports_errors_without_traceback():
 @pytest.mark.parametrize(
     ("override", "match"),
     [
-        ("{station: {torque_limit: true}}", "unknown to the schema"),
-        ("{mca: foo}", "mca must be one of"),
-        ("{plant: mujoco}", "plant must be multibody or analytical"),
+        ("{station: {torque_limit: true}}", "unknown field 'torque_limit' of StationConfig"),
+        ("{mca: foo}", "unknown MCA 'foo'"),
+        ("{plant: mujoco}", "plant must be one of multibody, analytical"),
         ("{station: {measurement_delay_s: -1}}", "measurement_delay_s"),
         ("{flight: {recording: no/such.csv}}", "not found"),
     ],
@@ -142,3 +142,57 @@ def test_console_script_reports_errors_without_traceback():
 def test_bad_closed_loop_scenario_values_fail_clearly(override, match):
     with pytest.raises(ValueError, match=match):
         load_scenario(REPO / "diagrams" / "closed_loop_dpc.yaml", override)
+
+
+@pytest.mark.parametrize(
+    ("override", "match"),
+    [
+        (
+            "{mca: !NmpcConfig {washout_wieght: 0.1}}",
+            "unknown field 'washout_wieght' of NmpcConfig",
+        ),
+        ("{mca: {polcy: x.npz}}", "unknown field 'polcy' of DpcConfig"),
+        ("{mca: !LqrConfig {}}", "unknown type !LqrConfig"),
+        ("{mca: !DpcConfig {policy: no/such.npz}}", "policy file 'no/such.npz' not found"),
+        ("{mca: !NmpcConfig {mode: fast}}", "unknown NMPC mode 'fast'"),
+    ],
+)
+def test_bad_mca_configs_fail_naming_field_and_class(override, match):
+    with pytest.raises(ValueError, match=match):
+        load_scenario(REPO / "diagrams" / "closed_loop_dpc.yaml", override)
+
+
+def test_typed_mca_config_from_set_changes_the_run(tmp_path):
+    """`--set` replaces the MCA with a typed config: a washout weight of 0.1 instead of the
+    default 1.0 moves the PI, and the summary records the config that ran."""
+    base = "{plant: analytical, duration_s: 4.0, output_dir: OUT}".replace("OUT", str(tmp_path))
+    summaries = {}
+    for label, mca in (
+        ("default", "{mca: nmpc-rti}"),
+        ("tuned", "{mca: !NmpcConfig {mode: rti, washout_weight: 0.1}}"),
+    ):
+        path = tmp_path / f"{label}.json"
+        code = cli.main(
+            [
+                *("run", str(REPO / "diagrams" / "closed_loop_dpc.yaml"), "--quiet"),
+                *("--set", base, "--set", mca, "--json", str(path)),
+            ]
+        )
+        assert code == 0
+        summaries[label] = json.loads(path.read_text())
+    default, tuned = summaries["default"], summaries["tuned"]
+    assert default["mca_config"]["type"] == tuned["mca_config"]["type"] == "NmpcConfig"
+    assert default["mca_config"]["washout_weight"] == 1.0
+    assert tuned["mca_config"]["washout_weight"] == 0.1
+    assert tuned["mca_config"]["mode"] == "rti" and tuned["mca"] == "nmpc-rti"
+    assert abs(tuned["pi"] - default["pi"]) > 1e-3
+
+
+def test_an_untagged_override_keeps_the_mca_type():
+    scenario = load_scenario(
+        REPO / "diagrams" / "closed_loop_dpc.yaml",
+        ["{mca: !NmpcConfig {mode: converged, washout_weight: 0.5}}", "{mca: {input_weight: 0.2}}"],
+    )
+    assert type(scenario.mca).__name__ == "NmpcConfig"
+    assert scenario.mca.mode == "converged" and scenario.mca.washout_weight == 0.5
+    assert scenario.mca.input_weight == 0.2

@@ -6,13 +6,12 @@ import numpy as np
 import pytest
 
 from mca_drake import kinematics
-from mca_drake.closed_loop_dataset import (
+from mca_drake.segments import SegmentDataset, split_of
+from mca_drake.studies.closed_loop_dataset import (
     ClosedLoopDatasetConfig,
     flight_path,
     generate_closed_loop_dataset,
-    split_of,
 )
-from mca_drake.segments import SegmentDataset
 
 TINY = ClosedLoopDatasetConfig(flight_seeds=(1, 2), flight_duration_s=4.0, horizon=50)
 
@@ -33,7 +32,8 @@ def test_segments_are_the_plant_under_the_mca(generated, robot):
     np.testing.assert_allclose(data.Y, y, atol=1e-4)
     assert data.R.shape == data.Y.shape
     assert np.all(np.abs(U) <= robot.qdd_max + 1e-6)
-    assert data.metadata["config"]["mca"] == "nmpc-rti"
+    assert data.metadata["config"]["mca"]["type"] == "NmpcConfig"
+    assert data.metadata["config"]["mca"]["mode"] == "rti"
 
 
 def test_rerun_skips_finished_flights(generated):
@@ -59,8 +59,7 @@ def test_bad_config():
 
 
 def test_long_windows_join_consecutive_segments_of_one_flight():
-    from mca_drake.closed_loop_dataset import SOURCE_COLUMNS, long_windows
-    from mca_drake.segments import SegmentDataset
+    from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, long_windows
 
     n_p, rows = 4, []
     # flight 7: steps 0, 4, 8, 12, 16 (one run of 5); flight 9: 0, 4, then a gap, 12, 16

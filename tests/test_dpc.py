@@ -10,7 +10,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pydrake.systems.analysis import Simulator
 
-from mca_drake.learning.dpc import DpcConfig, RolloutPlant, closed_loop_rollout, train_policy
+from mca_drake.cueing.dpc import DpcConfig, PolicyInference
+from mca_drake.learning.dpc import (
+    DpcTrainingConfig,
+    RolloutPlant,
+    closed_loop_rollout,
+    train_policy,
+)
 from mca_drake.learning.policy import (
     PolicyNetwork,
     load_policy_arrays,
@@ -18,7 +24,6 @@ from mca_drake.learning.policy import (
     save_policy,
 )
 from mca_drake.learning.trainer import TrainConfig
-from mca_drake.policy_inference import PolicyInference
 from mca_drake.safety import ViabilityClamp, is_stoppable
 from mca_drake.segments import SegmentDataset
 from mca_drake.systems.dpc_policy import DpcPolicy
@@ -219,7 +224,7 @@ def _sine_target_dataset(n_segments=48, horizon=32, seed=0) -> SegmentDataset:
 def trained(tmp_path_factory):
     folder = tmp_path_factory.mktemp("dpc")
     path = _sine_target_dataset().save(folder / "data.npz")
-    config = DpcConfig(
+    config = DpcTrainingConfig(
         targets="reference",
         compile=False,
         window_segments=1,
@@ -239,14 +244,16 @@ def test_short_training_lowers_the_loss(trained):
 
 
 def test_trained_policy_tracks_better_than_doing_nothing(trained, robot):
-    from mca_drake.evaluation import run_closed_loop
     from mca_drake.metrics import performance_index
     from mca_drake.references.reference import Reference
+    from mca_drake.simulation.closed_loop import run_closed_loop
 
     _, policy_path, _ = trained
     _, y_ref = _sine_motion(1.0 + 0.01 * np.arange(150))
     reference = Reference(y_ref, 0.01, "sine motion")
-    result = run_closed_loop(mca="dpc", reference=reference, policy=policy_path, progress=False)
+    result = run_closed_loop(
+        mca=DpcConfig(policy=str(policy_path)), reference=reference, progress=False
+    )
     zero_pi = performance_index(result.reference, np.zeros_like(result.reference))
     assert result.summary["pi"] < zero_pi - 0.5, (result.summary["pi"], zero_pi)
     assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
@@ -258,7 +265,7 @@ def test_rollout_on_exact_plant_is_the_plant(robot):
 
     torch.manual_seed(5)
     policy = PolicyNetwork()
-    plant = RolloutPlant(DpcConfig(compile=False))
+    plant = RolloutPlant(DpcTrainingConfig(compile=False))
     targets = torch.randn(3, 20, 6)
     with torch.no_grad():
         roll = closed_loop_rollout(policy, plant, torch.zeros(3, 12), torch.zeros(3, 6), targets)
@@ -289,7 +296,7 @@ def test_perturbed_initial_states_stay_inside_the_limits(robot):
     policy = PolicyNetwork()
     x0 = torch.zeros(4000, 12)
     x0[:, :6] = torch.tensor(robot.q_max, dtype=torch.float32) * 0.85
-    out = perturb_initial_states(x0, policy, DpcConfig(perturbed_fraction=0.5))
+    out = perturb_initial_states(x0, policy, DpcTrainingConfig(perturbed_fraction=0.5))
     moved = (out != x0).any(dim=1).float().mean().item()
     assert 0.45 < moved < 0.55
     assert torch.equal(out[:, 6:], x0[:, 6:])  # velocities untouched
@@ -305,13 +312,15 @@ def test_channel_weights_make_every_channel_count_alike():
     g = torch.Generator().manual_seed(0)
     scales = torch.tensor([0.05, 0.02, 0.03, 0.5, 0.14, 0.7], dtype=torch.float64)
     targets = torch.randn(40, 50, 6, generator=g, dtype=torch.float64) * scales
-    weights = tracking_channel_weights(DpcConfig(tracking_channel_weights="normalized"), targets)
+    weights = tracking_channel_weights(
+        DpcTrainingConfig(tracking_channel_weights="normalized"), targets
+    )
     variance = targets.reshape(-1, 6).var(0)
     product = (weights.double() * variance).numpy()
     np.testing.assert_allclose(product, product.mean(), rtol=1e-5)
     assert product.sum() == pytest.approx(variance.sum().item(), rel=1e-5)
-    assert tracking_channel_weights(DpcConfig(), targets) is None
-    given = DpcConfig(tracking_channel_weights=(1, 2, 3, 4, 5, 6))
+    assert tracking_channel_weights(DpcTrainingConfig(), targets) is None
+    given = DpcTrainingConfig(tracking_channel_weights=(1, 2, 3, 4, 5, 6))
     fixed = tracking_channel_weights(given, targets)
     assert fixed.tolist() == [1, 2, 3, 4, 5, 6]
     # the tracking term weights each channel's squared error
@@ -328,14 +337,14 @@ def test_channel_weights_make_every_channel_count_alike():
     torch.testing.assert_close(got, expected)
     for bad in ("loud", (1.0, 2.0), (1, 1, 1, 1, 1, float("nan"))):
         with pytest.raises(ValueError, match="tracking_channel_weights"):
-            DpcConfig(tracking_channel_weights=bad).validate()
+            DpcTrainingConfig(tracking_channel_weights=bad).validate()
 
 
 def test_training_can_start_from_a_policy_file(trained, tmp_path):
     """initial_policy: with a vanishing learning rate the result is the starting policy."""
     policy, policy_path, _ = trained
     data = _sine_target_dataset().save(tmp_path / "data.npz")
-    config = DpcConfig(
+    config = DpcTrainingConfig(
         targets="reference",
         compile=False,
         window_segments=1,
@@ -363,4 +372,4 @@ def test_training_can_start_from_a_policy_file(trained, tmp_path):
         meta["training_wall_s"] + first["training_wall_s"]
     )
     with pytest.raises(ValueError, match="initial_policy file not found"):
-        DpcConfig(initial_policy=str(tmp_path / "missing.npz")).validate()
+        DpcTrainingConfig(initial_policy=str(tmp_path / "missing.npz")).validate()

@@ -14,7 +14,7 @@ import jsbsim
 import numpy as np
 import pytest
 
-from mca_drake.references.jsbsim_flight import (
+from mca_drake.references.jsbsim import (
     FULL_FLIGHT_MIN_DURATION_S,
     AltitudeChange,
     BankReversals,

@@ -14,9 +14,9 @@ import pytest
 from pydrake.geometry import StartMeshcat
 from pydrake.systems.analysis import Simulator
 
-from mca_drake.diagrams import MakeMultibodyClosedLoop
-from mca_drake.references.jsbsim_flight import fly
+from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
+from mca_drake.simulation.builders import MakeMultibodyClosedLoop
 
 
 def _chromium() -> str:

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import scipy.optimize
 
-from mca_drake.evaluation import run_closed_loop
-from mca_drake.nmpc import MotionCueingOcp, NmpcConfig, make_grid
+from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig, make_grid
 from mca_drake.references.reference import Reference
+from mca_drake.simulation.closed_loop import run_closed_loop
 
 SMALL = dict(horizon_steps=40, nodes=6)
 REF = np.array([0.15, -0.1, 0.2, 1.2, -0.8, 0.6])
@@ -164,7 +164,7 @@ def test_no_violation_with_references_beyond_the_robot(mca, duration):
 
 
 def test_solver_failures_fall_back_and_stay_in_limits(monkeypatch, robot):
-    from mca_drake import nmpc
+    from mca_drake.cueing import nmpc
 
     calls = {"n": 0}
     original = nmpc.MotionCueingOcp._solve_qp

@@ -7,7 +7,8 @@ import json
 
 import pytest
 
-from mca_drake.scenario_evaluation import (
+from mca_drake.cueing import DpcConfig, NmpcConfig, mca_config_from_name, mca_config_record
+from mca_drake.studies.evaluation import (
     EvaluationCase,
     EvaluationConfig,
     policy_fingerprint,
@@ -35,27 +36,40 @@ def test_small_suite_report_and_resume(tmp_path):
     again = run_evaluation(config, tmp_path, progress=False)
     assert again == json.loads(json.dumps(report))
     assert (tmp_path / "runs" / "A_washout_1001.json").stat().st_mtime_ns == stamp
+    # runs of another MCA config (same name) or another duration are made again
+    other = dataclasses.replace(
+        config, mcas=(NmpcConfig(mode="rti", washout_weight=0.2), "washout"), duration_s=2.0
+    )
+    changed = run_evaluation(other, tmp_path, progress=False)
+    assert "2 s per flight" in (tmp_path / "evaluation.md").read_text()
+    assert (tmp_path / "runs" / "A_washout_1001.json").stat().st_mtime_ns != stamp
+    run = json.loads((tmp_path / "runs" / "A_nmpc-rti_1000.json").read_text())
+    assert run["mca_config"]["washout_weight"] == 0.2 and run["duration_s"] == 2.0
+    assert changed["cases"]["A"]["mcas"]["nmpc-rti"]["pi"] != case["mcas"]["nmpc-rti"]["pi"]
 
 
 def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
-    from mca_drake.scenario_evaluation import write_report
+    from mca_drake.studies.evaluation import write_report
 
     runs = tmp_path / "runs"
     runs.mkdir()
     base = {
+        "duration_s": 300.0,
+        "pi_zero_motion": 1.5,
         "step_time_s": {"median": 1e-3, "max": 2e-3},
         "violations": {"q": 0, "qd": 0, "qdd": 0},
         "safety_interventions": 0,
         "solver_failures": 0,
     }
     pis = {"dpc": [-1.0, -1.1, -0.9], "nmpc-converged": [-1.2, -1.0, -1.1]}
-    shipped = policy_fingerprint(None)
     for mca, values in pis.items():
+        config = mca_config_from_name(mca)
         for seed, pi in zip((1000, 1001, 1002), values, strict=True):
             step = {"median": 5e-5 if mca == "dpc" else 5e-2, "max": 1e-1}
-            (runs / f"A_{mca}_{seed}.json").write_text(
-                json.dumps({**base, "pi": pi, "step_time_s": step, "policy_sha256": shipped})
-            )
+            run = {**base, "pi": pi, "step_time_s": step, "mca_config": mca_config_record(config)}
+            if mca == "dpc":
+                run["policy_sha256"] = policy_fingerprint(config)
+            (runs / f"A_{mca}_{seed}.json").write_text(json.dumps(run))
     config = EvaluationConfig(
         mcas=("dpc", "nmpc-converged"), cases=(EvaluationCase("A", "light", (1000, 1001, 1002)),)
     )
@@ -106,11 +120,11 @@ def test_dpc_runs_of_another_policy_are_run_again(tmp_path):
     shipped = EvaluationConfig(mcas=("dpc",), cases=(case,), duration_s=2.0)
     first = run_evaluation(shipped, out, progress=False)
     run_file = out / "runs" / "A_dpc_1000.json"
-    assert json.loads(run_file.read_text())["policy_sha256"] == policy_fingerprint(None)
-    assert first["policy_sha256"] == policy_fingerprint(None)
+    assert json.loads(run_file.read_text())["policy_sha256"] == policy_fingerprint(DpcConfig())
+    assert first["policy_sha256"] == policy_fingerprint(DpcConfig())
     # the other policy's evaluation re-runs the flight and records the other file's hash
     second = run_evaluation(
-        EvaluationConfig(mcas=("dpc",), cases=(case,), duration_s=2.0, policy=str(other)),
+        EvaluationConfig(mcas=(DpcConfig(policy=str(other)),), cases=(case,), duration_s=2.0),
         out,
         progress=False,
     )
@@ -118,7 +132,7 @@ def test_dpc_runs_of_another_policy_are_run_again(tmp_path):
     assert json.loads(run_file.read_text())["policy_sha256"] == digest
     assert second["cases"]["A"]["mcas"]["dpc"]["pi"] != first["cases"]["A"]["mcas"]["dpc"]["pi"]
     # a report for the shipped policy now has no DPC run to show, rather than a stale one
-    from mca_drake.scenario_evaluation import write_report
+    from mca_drake.studies.evaluation import write_report
 
     assert "dpc" not in write_report(shipped, out)["cases"]["A"]["mcas"]
 
@@ -128,10 +142,12 @@ def test_training_seeds_are_refused():
         EvaluationConfig(cases=(EvaluationCase("A", "light", (100, 1000)),)).validate()
     with pytest.raises(ValueError, match="unknown MCA"):
         EvaluationConfig(mcas=("lqr",)).validate()
+    with pytest.raises(ValueError, match="share a name"):
+        EvaluationConfig(mcas=("nmpc-rti", NmpcConfig(washout_weight=0.3))).validate()
 
 
 def test_report_wording_of_p_values_and_verdicts():
-    from mca_drake.scenario_evaluation import format_p, rank_sum_verdict
+    from mca_drake.studies.evaluation import format_p, rank_sum_verdict
 
     assert format_p(0.0004) == "p < 0.001"
     # three figures, so a p just under 0.05 does not print as 0.050

@@ -3,13 +3,12 @@ and the measured performance matches the analytical plant's on the same flight."
 
 import numpy as np
 import pytest
-from pydrake.systems.analysis import Simulator
+from pydrake.systems.analysis import Simulator, SimulatorConfig
 
-from mca_drake.diagrams import MakeMultibodyClosedLoop
-from mca_drake.evaluation import run_closed_loop
-from mca_drake.references.jsbsim_flight import fly
+from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
-from mca_drake.station_simulation import run_station_closed_loop
+from mca_drake.simulation.builders import MakeMultibodyClosedLoop
+from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.systems.kr500_station import StationConfig
 
 SUMMARY_KEYS = {
@@ -49,8 +48,13 @@ def test_every_mca_runs_on_the_station(mca, reference):
 def test_measured_pi_matches_the_analytical_plant(reference, tmp_path):
     """The DPC closed loop on the physical model cues like on the analytical plant: PI
     within 0.1 (the issue's target), with near-perfect joint tracking."""
-    station = run_station_closed_loop(
-        mca="dpc", reference=reference, duration_s=10.0, progress=False, plot_dir=tmp_path
+    station = run_closed_loop(
+        plant="multibody",
+        mca="dpc",
+        reference=reference,
+        duration_s=10.0,
+        progress=False,
+        plot_dir=tmp_path,
     )
     analytical = run_closed_loop(mca="dpc", reference=reference, duration_s=10.0, progress=False)
     summary = station.summary
@@ -72,8 +76,13 @@ def test_noise_and_delay_degrade_gracefully(reference):
         measurement_delay_s=0.005,
         torque_limits=True,
     )
-    result = run_station_closed_loop(
-        mca="dpc", reference=reference, duration_s=5.0, station=config, progress=False
+    result = run_closed_loop(
+        plant="multibody",
+        mca="dpc",
+        reference=reference,
+        duration_s=5.0,
+        station=config,
+        progress=False,
     )
     assert np.isfinite(result.summary["pi"])
     assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
@@ -82,9 +91,12 @@ def test_noise_and_delay_degrade_gracefully(reference):
 
 def test_bad_arguments_fail_clearly(reference):
     with pytest.raises(ValueError, match="duration_s"):
-        run_station_closed_loop(mca="dpc", reference=reference, duration_s=1e4, progress=False)
+        run_closed_loop(
+            plant="multibody", mca="dpc", reference=reference, duration_s=1e4, progress=False
+        )
     with pytest.raises(ValueError, match="whole number of plant steps"):
-        run_station_closed_loop(
+        run_closed_loop(
+            plant="multibody",
             mca="dpc",
             reference=reference,
             duration_s=1.0,
@@ -92,11 +104,18 @@ def test_bad_arguments_fail_clearly(reference):
             progress=False,
         )
     with pytest.raises(ValueError, match="unknown MCA"):
-        run_station_closed_loop(mca="lqr", reference=reference, duration_s=1.0, progress=False)
+        run_closed_loop(
+            plant="multibody", mca="lqr", reference=reference, duration_s=1.0, progress=False
+        )
 
 
 def test_realtime_mode_paces_the_simulation(reference):
-    result = run_station_closed_loop(
-        mca="washout", reference=reference, duration_s=0.5, realtime_rate=1.0, progress=False
+    result = run_closed_loop(
+        plant="multibody",
+        mca="washout",
+        reference=reference,
+        duration_s=0.5,
+        simulator_config=SimulatorConfig(target_realtime_rate=1.0),
+        progress=False,
     )
     assert 0.7 < result.summary["realtime_factor"] <= 1.05

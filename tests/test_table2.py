@@ -7,9 +7,9 @@ import json
 
 import pytest
 
-from mca_drake.learning.table2 import Table2Config, run_table2
 from mca_drake.learning.trainer import TrainConfig
 from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
+from mca_drake.studies.table2 import Table2Config, run_table2
 
 
 @pytest.fixture(scope="module")
@@ -74,8 +74,8 @@ def test_table2_resume_trains_a_killed_candidate(datasets, tmp_path):
     """A candidate with a training checkpoint but no result (killed mid-training) is
     trained and scored on resume, not mistaken for a finished one."""
     from mca_drake.learning.plant_candidates import make_state_model, state_objective
-    from mca_drake.learning.table2 import _splits, _stage_saver
     from mca_drake.learning.trainer import CurriculumTrainer
+    from mca_drake.studies.table2 import _splits, _stage_saver
 
     train = TrainConfig(
         horizons=(8, 16), max_epochs=2, batch_size=64, device="cpu", checkpoint_interval_s=0.0
@@ -116,7 +116,7 @@ def test_table2_resume_trains_a_killed_candidate(datasets, tmp_path):
 
 
 def test_cli_table2(tmp_path, capsys):
-    from mca_drake.cli import main
+    from mca_drake.app.cli import main
 
     data = generate_excitation_dataset(
         ExcitationConfig(

@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from mca_drake.evaluation import run_closed_loop
-from mca_drake.kinematics import GRAVITY, head_pose
+from mca_drake.conventions import GRAVITY
+from mca_drake.cueing.washout import WashoutConfig, WashoutFilters
+from mca_drake.kinematics import head_pose
 from mca_drake.references.reference import Reference
-from mca_drake.washout import WashoutConfig, WashoutFilters
+from mca_drake.simulation.closed_loop import run_closed_loop
 
 H = 0.01
 

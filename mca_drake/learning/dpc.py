@@ -8,7 +8,7 @@ the policy and a frozen plant run in a cycle,
     x_(t+1) = step(x_t, u_t)
 
 and the loss per step is, summed over vector components and averaged over steps and
-segments (the NMPC's cost terms, `mca_drake.nmpc`):
+segments (the NMPC's cost terms, `mca_drake.cueing.nmpc`):
 
     w_y ||y_(t+1) - Y_t||^2 + w_x ||x_hat_(t+1) - x_(t+1)||^2 + 0.1 ||u_t||^2 + ||q_t||^2
       + w_b ||violation of the state limits by x_(t+1)||^2
@@ -33,13 +33,16 @@ from pathlib import Path
 import torch
 from torch import nn
 
+from mca_drake.atomic_io import file_sha256
+from mca_drake.cueing.dpc import load_policy_arrays
+from mca_drake.learning.checkpoint import load_checkpoint, load_state_into
 from mca_drake.learning.output_models import MixedAnalyticalOutput
-from mca_drake.learning.policy import PolicyNetwork
+from mca_drake.learning.policy import PolicyNetwork, load_policy_network, save_policy
 from mca_drake.learning.state_models import Node2State
-from mca_drake.learning.trainer import TrainConfig
+from mca_drake.learning.trainer import CurriculumTrainer, TrainConfig
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
-from mca_drake.safety import viable_acceleration_bounds_torch
-from mca_drake.torch_plant import TorchPlant
+from mca_drake.segments import SegmentDataset, long_windows, package_versions, split_of
+from mca_drake.torch_plant import TorchPlant, viable_acceleration_bounds_torch
 
 TARGETS = ("achieved", "reference")
 PLANTS = ("exact", "learned")
@@ -59,7 +62,7 @@ def _default_train() -> TrainConfig:
 
 
 @dataclasses.dataclass
-class DpcConfig:
+class DpcTrainingConfig:
     """DPC policy training settings (defaults: the paper's, see the module docstring)."""
 
     # Targets: "achieved" (NMPC outputs) or "reference" (the NMPC's references).
@@ -98,7 +101,7 @@ class DpcConfig:
     perturbed_fraction: float = 0.5
     initial_state_noise: float = 0.1
     # Train on windows of this many consecutive dataset segments (n_c up to 4 x 256 = 10.24 s;
-    # `mca_drake.closed_loop_dataset.long_windows`); 1 uses the segments and their split.
+    # `mca_drake.segments.long_windows`); 1 uses the segments and their split.
     window_segments: int = 4
     # Hidden neurons of the policy (paper: 128).
     hidden: int = 128
@@ -142,7 +145,7 @@ class RolloutPlant(nn.Module):
     """The frozen plant of the DPC rollouts: step(x, u) -> x_next, output(x, u) -> y, and
     the safety filter `clamp(x, u)` of the deployed robot (identity if switched off)."""
 
-    def __init__(self, config: DpcConfig, robot: KR500 | None = None):
+    def __init__(self, config: DpcTrainingConfig, robot: KR500 | None = None):
         super().__init__()
         robot = robot if robot is not None else load_kr500()
         self.kind = config.plant
@@ -257,9 +260,10 @@ def dpc_loss_terms(
     }
 
 
-def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcConfig):
+def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcTrainingConfig):
     """x0 (B, 12) with the positions of a random `perturbed_fraction` of its rows moved by
-    uniform noise (see DpcConfig), clipped to 90 % of the limits (torch's global generator)."""
+    uniform noise (see DpcTrainingConfig), clipped to 90 % of the limits (torch's global
+    generator)."""
     lower, upper = policy.lower[NUM_JOINTS:], policy.upper[NUM_JOINTS:]
     half_range = 0.5 * (upper - lower)
     half_range[NUM_JOINTS:] = 0.0  # positions only
@@ -268,12 +272,12 @@ def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcC
     return torch.clamp(x0 + chosen * noise, 0.9 * lower, 0.9 * upper)
 
 
-def target_array(config: DpcConfig) -> str:
+def target_array(config: DpcTrainingConfig) -> str:
     """The dataset array the policy tracks: "Y" (NMPC-achieved outputs) or "R" (references)."""
     return "Y" if config.targets == "achieved" else "R"
 
 
-def tracking_channel_weights(config: DpcConfig, targets) -> torch.Tensor | None:
+def tracking_channel_weights(config: DpcTrainingConfig, targets) -> torch.Tensor | None:
     """The tracking term's channel weights (6) of `config` for training targets (..., 6)
     (None for uniform weights). "normalized": mean variance / channel variance."""
     weights = config.tracking_channel_weights
@@ -286,7 +290,7 @@ def tracking_channel_weights(config: DpcConfig, targets) -> torch.Tensor | None:
 
 
 def dpc_objective(
-    config: DpcConfig, plant: RolloutPlant, channel_weights: torch.Tensor | None = None
+    config: DpcTrainingConfig, plant: RolloutPlant, channel_weights: torch.Tensor | None = None
 ):
     """objective(policy, batch) for `CurriculumTrainer`: the weighted DPC loss of the
     closed-loop rollout from each segment's first state over its targets, with the
@@ -322,7 +326,7 @@ def dpc_objective(
 
 
 def train_policy(
-    config: DpcConfig,
+    config: DpcTrainingConfig,
     dataset: str | Path,
     out_dir: str | Path,
     *,
@@ -335,10 +339,6 @@ def train_policy(
     The checkpoint (out_dir/policy.pt with its .json, loss log and curve) makes the run
     resumable. Returns the policy with the best validation weights and the policy file.
     """
-    from mca_drake.closed_loop_dataset import split_of
-    from mca_drake.learning.policy import save_policy
-    from mca_drake.learning.trainer import CurriculumTrainer
-    from mca_drake.segments import SegmentDataset, package_versions
 
     config.validate()
     out = Path(out_dir)
@@ -346,15 +346,11 @@ def train_policy(
     if "R" not in data.arrays and config.targets == "reference":
         raise ValueError(f"{dataset} has no references R; use targets='achieved'")
     if config.window_segments > 1:
-        from mca_drake.closed_loop_dataset import long_windows
-
         splits = long_windows(data, config.window_segments)
     else:
         splits = split_of(data)
     torch.manual_seed(config.seed)
     if config.initial_policy:
-        from mca_drake.learning.policy import load_policy_network
-
         policy = load_policy_network(config.initial_policy)
         if policy.hidden != config.hidden:
             raise ValueError(
@@ -407,9 +403,6 @@ def initial_policy_provenance(path: str) -> dict:
     command, and its training wall time including its own starting weights' ({} for "")."""
     if not path:
         return {}
-    from mca_drake.atomic_io import file_sha256
-    from mca_drake.learning.policy import load_policy_arrays
-
     _, meta = load_policy_arrays(path)
     return {
         "path": str(path),
@@ -426,9 +419,6 @@ def initial_policy_provenance(path: str) -> dict:
 def export_checkpoint_policy(checkpoint: str | Path, out: str | Path) -> Path:
     """Writes the best weights so far of a DPC training checkpoint (policy.pt) as a policy
     file, e.g. to evaluate a run that is still going or was stopped."""
-    from mca_drake.learning.checkpoint import load_checkpoint, load_state_into
-    from mca_drake.learning.policy import save_policy
-
     payload, meta = load_checkpoint(checkpoint)
     if meta.get("model") != "dpc-policy":
         raise ValueError(f"{checkpoint} is not a DPC policy checkpoint (model {meta.get('model')})")

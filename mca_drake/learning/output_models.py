@@ -5,7 +5,7 @@ outputs along it:
 
     forward(X (B, T, 12), U (B, T, 6), y_prev (B, 6)) -> Y (B, T, 6),  Y[:, t] ~ y(X[:, t], U[:, t])
 
-with y = [w_x, w_y, w_z, f_x, f_y, a_z] in the head frame (rad/s, m/s^2; ARCHITECTURE.md).
+with y = [w_x, w_y, w_z, f_x, f_y, a_z] in the head frame (rad/s, m/s^2; `mca_drake.conventions`).
 (The paper writes y_(t+1) for the output produced while u_t acts; here it is Y[:, t].)
 Only the latent model uses y_prev, recursively.
 
@@ -24,7 +24,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from mca_drake.kinematics import GRAVITY
+from mca_drake.conventions import GRAVITY
 from mca_drake.learning.blocks import Mlp, pose_top, sin_cos_features
 from mca_drake.robot import NUM_JOINTS
 from mca_drake.torch_plant import TorchPlant

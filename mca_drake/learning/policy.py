@@ -17,17 +17,25 @@ one; the scales are constants of the network, exported with its weights.
 
 from __future__ import annotations
 
+import io
+import json
+
 import numpy as np
 import torch
 from torch import nn
 
+from mca_drake.atomic_io import atomic_write_bytes
+from mca_drake.cueing.dpc import (
+    INPUT_SIZE,
+    OUTPUT_SIZE,
+    POLICY_FORMAT,
+    load_policy_arrays,
+)
 from mca_drake.learning.blocks import Mlp
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 
 # Typical magnitudes of the output channels [w_x, w_y, w_z, f_x, f_y, a_z]: rad/s, m/s^2.
 OUTPUT_SCALE = (0.5, 0.5, 0.5, 2.0, 2.0, 2.0)
-INPUT_SIZE = 6 + 2 * NUM_JOINTS + 6
-OUTPUT_SIZE = NUM_JOINTS + 2 * NUM_JOINTS
 
 
 def relu_clamp(z: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor) -> torch.Tensor:
@@ -83,58 +91,15 @@ class PolicyNetwork(nn.Module):
         }
 
 
-POLICY_FORMAT = "mca-drake-policy-1"
-_ARRAYS = ("W1", "W2", "input_scale", "lower", "upper")
-
-
 def save_policy(path, policy: PolicyNetwork, metadata: dict) -> None:
-    """Writes the exported weights as .npz with JSON metadata inside, atomically (no pickle).
+    """Writes the exported weights as .npz with JSON metadata inside, atomically (no pickle),
+    in the format that `mca_drake.cueing.dpc.load_policy_arrays` reads.
 
     `metadata` should say how the policy was made (command, config, dataset, versions)."""
-    import io
-    import json
-
-    from mca_drake.atomic_io import atomic_write_bytes
-
     buffer = io.BytesIO()
     meta = {**metadata, "format": POLICY_FORMAT, "hidden": policy.hidden}
     np.savez(buffer, metadata_json=np.array(json.dumps(meta)), **policy.export())
     atomic_write_bytes(path, buffer.getvalue())
-
-
-def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
-    """(arrays, metadata) of a policy file; ValueError with the reason if it is not one or
-    its arrays do not fit together."""
-    import json
-    from pathlib import Path
-
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"policy file not found: {path}")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            metadata = json.loads(str(data["metadata_json"]))
-            arrays = {k: np.asarray(data[k], dtype=float) for k in _ARRAYS}
-    except (OSError, KeyError, ValueError) as err:
-        raise ValueError(f"{path} is not a policy file: {err}") from err
-    if metadata.get("format") != POLICY_FORMAT:
-        raise ValueError(f"{path}: unknown policy format {metadata.get('format')!r}")
-    hidden = arrays["W1"].shape[0]
-    expected = {
-        "W1": (hidden, INPUT_SIZE),
-        "W2": (OUTPUT_SIZE, hidden),
-        "input_scale": (INPUT_SIZE,),
-        "lower": (OUTPUT_SIZE,),
-        "upper": (OUTPUT_SIZE,),
-    }
-    for name, shape in expected.items():
-        if arrays[name].shape != shape:
-            raise ValueError(f"{path}: array {name} has shape {arrays[name].shape}, not {shape}")
-        if not np.all(np.isfinite(arrays[name])):
-            raise ValueError(f"{path}: array {name} holds NaN or inf")
-    if np.any(arrays["lower"] > arrays["upper"]) or np.any(arrays["input_scale"] <= 0):
-        raise ValueError(f"{path}: bounds or input scales are inconsistent")
-    return arrays, metadata
 
 
 def load_policy_network(path, robot: KR500 | None = None) -> PolicyNetwork:

@@ -23,13 +23,13 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.learning.blocks import Mlp
 from mca_drake.learning.ode_adjoint import odeint_step
 from mca_drake.robot import NUM_JOINTS
 from mca_drake.torch_plant import integrate_double_integrator
 
 STATE_SIZE, INPUT_SIZE = 2 * NUM_JOINTS, NUM_JOINTS
-DEFAULT_DT = 0.01
 
 
 def _check(x0: torch.Tensor, U: torch.Tensor) -> None:
@@ -46,7 +46,7 @@ class StateModel(nn.Module):
 
     learnable = True
 
-    def __init__(self, dt: float = DEFAULT_DT):
+    def __init__(self, dt: float = CONTROL_PERIOD_S):
         super().__init__()
         if not dt > 0:
             raise ValueError(f"dt must be positive; got {dt}")
@@ -67,7 +67,7 @@ class StateModel(nn.Module):
 class NssmState(StateModel):
     """Equation (2): x_(t+1) = f1(x_t) + f2(u_t), f1 and f2 two-layer GELU networks."""
 
-    def __init__(self, dt: float = DEFAULT_DT, hidden: int = 64):
+    def __init__(self, dt: float = CONTROL_PERIOD_S, hidden: int = 64):
         super().__init__(dt)
         self.f1 = Mlp(STATE_SIZE, STATE_SIZE, hidden)
         self.f2 = Mlp(INPUT_SIZE, STATE_SIZE, hidden)
@@ -93,7 +93,7 @@ class Node1State(StateModel):
             False backpropagates through the solver (faster on small problems).
     """
 
-    def __init__(self, dt: float = DEFAULT_DT, hidden: int = 64, adjoint: bool = True):
+    def __init__(self, dt: float = CONTROL_PERIOD_S, hidden: int = 64, adjoint: bool = True):
         super().__init__(dt)
         self.derivative = _Derivative(hidden)
         self.adjoint = adjoint

@@ -1,7 +1,7 @@
 """Vehicle motion recordings: what an IMU at the occupant's head measured, and its CSV file.
 
 A recording holds, at times t (s), the angular velocity omega (rad/s) and the specific force
-f (m/s^2) in head-frame axes: x forward, y left, z up (ARCHITECTURE.md). Specific force is
+f (m/s^2) in head-frame axes: x forward, y left, z up (`mca_drake.conventions`). Specific force is
 what an accelerometer reads: level and unaccelerated, f = (0, 0, +9.81).
 
 File format (CSV, UTF-8):
@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from mca_drake.atomic_io import atomic_write_text
-from mca_drake.kinematics import GRAVITY
+from mca_drake.conventions import GRAVITY
 
 COLUMNS = ("t", "omega_x", "omega_y", "omega_z", "f_x", "f_y", "f_z")
 DEFAULT_RATE_HZ = 100.0

@@ -14,8 +14,7 @@ import dataclasses
 
 import numpy as np
 
-from mca_drake.kinematics import GRAVITY
-from mca_drake.metrics import CHANNELS
+from mca_drake.conventions import CHANNELS, GRAVITY
 from mca_drake.references.recording import DEFAULT_RATE_HZ, Recording
 
 DEFAULT_ANGULAR_SCALE = 0.5

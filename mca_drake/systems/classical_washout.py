@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from pydrake.common.value import AbstractValue
 from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.multibody.inverse_kinematics import (
     DifferentialInverseKinematicsParameters,
@@ -13,18 +14,16 @@ from pydrake.multibody.inverse_kinematics import (
 )
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import Context, LeafSystem, State
+from pydrake.systems.framework import Context, LeafSystem, State, ValueProducer
 
+from mca_drake.conventions import CONTROL_PERIOD_S, MCA_STATISTICS
+from mca_drake.cueing.washout import WashoutConfig, WashoutFilters
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.safety import ViabilityClamp
-from mca_drake.systems.nmpc_controller import STATISTICS
-from mca_drake.washout import WashoutConfig, WashoutFilters
-
-DEFAULT_DT = 0.01
 
 
 class ClassicalWashout(LeafSystem):
-    """Classical washout motion cueing (`mca_drake.washout`) mapped to joint accelerations.
+    """Classical washout motion cueing (`mca_drake.cueing.washout`) mapped to joint accelerations.
 
     .. pydrake_system::
 
@@ -43,8 +42,10 @@ class ClassicalWashout(LeafSystem):
     error), and calls Drake's `DoDifferentialInverseKinematics` on a MultibodyPlant of the
     KR500 with the joint position, velocity and acceleration limits. The joint velocity it
     returns becomes the acceleration u = (v_next - qd) / h, which passes the viability clamp
-    (`mca_drake.safety.ViabilityClamp`). `statistics` follows NmpcController's STATISTICS
-    layout: step time, differential-IK failures, safety interventions, 0.
+    (`mca_drake.safety.ViabilityClamp`). `statistics` has the layout of
+    `mca_drake.conventions.MCA_STATISTICS`: step time, differential-IK failures, safety
+    interventions, 0. The plant context and IK parameters each step overwrites are kept per
+    context (a cache entry), so contexts can be cloned and run side by side.
 
     Args:
         config: filter cut-offs, gains and the tilt-rate limit.
@@ -56,7 +57,7 @@ class ClassicalWashout(LeafSystem):
         self,
         config: WashoutConfig | None = None,
         robot: KR500 | None = None,
-        time_step: float = DEFAULT_DT,
+        time_step: float = CONTROL_PERIOD_S,
     ):
         super().__init__()
         self._config = config or WashoutConfig()
@@ -67,37 +68,38 @@ class ClassicalWashout(LeafSystem):
         plant = MultibodyPlant(0.0)
         Parser(plant).AddModels(str(self._robot.urdf_path))
         plant.Finalize()
-        self._plant = plant
-        self._plant_context = plant.CreateDefaultContext()
+        self._plant = plant  # finalized: never changed again, so shared by every context
         self._head = plant.GetFrameByName("head")
         self._home = np.array(self._config.home_position, dtype=float)
         r = self._robot
         if np.any(self._home < r.q_min) or np.any(self._home > r.q_max):
             raise ValueError(f"home_position {self._home} is outside the joint limits")
-        plant.SetPositions(self._plant_context, self._home)
-        X_WH0 = self._head.CalcPoseInWorld(self._plant_context)
+        home_context = plant.CreateDefaultContext()
+        plant.SetPositions(home_context, self._home)
+        X_WH0 = self._head.CalcPoseInWorld(home_context)
         self._p_neutral = X_WH0.translation().copy()
         self._R_neutral = X_WH0.rotation()
-        params = DifferentialInverseKinematicsParameters(NUM_JOINTS, NUM_JOINTS)
-        params.set_time_step(self._h)
         margin = 0.02 * (r.q_max - r.q_min)
         # The IK keeps 2 % of every range in reserve; _update widens these bounds to the
         # current position when the robot is already inside the reserve (see there).
         self._ik_lower, self._ik_upper = r.q_min + margin, r.q_max - margin
-        params.set_joint_position_limits((self._ik_lower, self._ik_upper))
-        params.set_joint_velocity_limits((-r.qd_max, r.qd_max))
-        # No acceleration limits here: with them, v_next = 0 is infeasible whenever a joint
-        # moves faster than qdd_max h, and the QP reports no solution at ordinary speeds.
-        # The acceleration is clipped afterwards and then passes the viability clamp.
-        params.set_nominal_joint_position(self._home)
-        params.set_joint_centering_gain(np.zeros((NUM_JOINTS, NUM_JOINTS)))
-        self._params = params
+        # The plant context and IK parameters that each step overwrites live in a cache
+        # entry, one per context (not on self), so contexts can be cloned and diagrams run
+        # in parallel. Nothing invalidates it: every step sets all it reads.
+        self._scratch_entry = self.DeclareCacheEntry(
+            description="differential IK scratch",
+            value_producer=ValueProducer(
+                allocate=lambda: AbstractValue.Make(_IkScratch(self)),
+                calc=lambda context, value: None,
+            ),
+            prerequisites_of_calc={self.nothing_ticket()},
+        )
 
         self._reference_port = self.DeclareVectorInputPort("reference", 6)
         self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
         self._filter_index = self.DeclareDiscreteState(self._filters.state_size)
         self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
-        self._statistics_index = self.DeclareDiscreteState(len(STATISTICS))
+        self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
         self.DeclarePeriodicUnrestrictedUpdateEvent(self._h, 0.0, self._update)
         self.DeclareStateOutputPort("joint_acceleration", self._command_index)
         self.DeclareStateOutputPort("statistics", self._statistics_index)
@@ -115,7 +117,7 @@ class ClassicalWashout(LeafSystem):
     def statistics(self, context: Context) -> dict[str, float]:
         """The `statistics` values in `context`, by name."""
         values = context.get_discrete_state(self._statistics_index).value()
-        return dict(zip(STATISTICS, (float(v) for v in values), strict=True))
+        return dict(zip(MCA_STATISTICS, (float(v) for v in values), strict=True))
 
     def _update(self, context: Context, state: State) -> None:
         x = self._state_port.Eval(context)
@@ -132,7 +134,8 @@ class ClassicalWashout(LeafSystem):
         filters, target = self._filters.step(filters, reference)
         _, failures, interventions, _ = context.get_discrete_state(self._statistics_index).value()
 
-        plant, pc = self._plant, self._plant_context
+        scratch = self._scratch_entry.Eval(context)
+        plant, pc, params = self._plant, scratch.plant_context, scratch.parameters
         plant.SetPositions(pc, q)
         plant.SetVelocities(pc, qd)
         X_WH = self._head.CalcPoseInWorld(pc)
@@ -149,11 +152,11 @@ class ClassicalWashout(LeafSystem):
         # cannot get back inside in one step at its velocity limit) and the IK keeps failing.
         # Widened to the current q, the bounds admit v = 0, the QP stays feasible, and a
         # joint in the band can only move back towards the middle.
-        self._params.set_joint_position_limits(
+        params.set_joint_position_limits(
             (np.minimum(self._ik_lower, q), np.maximum(self._ik_upper, q))
         )
         result = DoDifferentialInverseKinematics(
-            plant, pc, np.concatenate([omega, v]), self._head, self._params
+            plant, pc, np.concatenate([omega, v]), self._head, params
         )
         if result.status == DifferentialInverseKinematicsStatus.kNoSolutionFound:
             failures += 1
@@ -169,3 +172,27 @@ class ClassicalWashout(LeafSystem):
             self._statistics_index,
             [time.perf_counter() - start, failures, interventions + intervened, 0.0],
         )
+
+
+class _IkScratch:
+    """What one ClassicalWashout step overwrites: a MultibodyPlant context set to the
+    measured state and the differential-IK parameters with that step's position bounds.
+    A copy is a fresh scratch (each step sets everything it reads before use)."""
+
+    def __init__(self, washout: ClassicalWashout):
+        self._washout = washout
+        r, h = washout._robot, washout._h
+        self.plant_context = washout._plant.CreateDefaultContext()
+        params = DifferentialInverseKinematicsParameters(NUM_JOINTS, NUM_JOINTS)
+        params.set_time_step(h)
+        params.set_joint_position_limits((washout._ik_lower, washout._ik_upper))
+        params.set_joint_velocity_limits((-r.qd_max, r.qd_max))
+        # No acceleration limits here: with them, v_next = 0 is infeasible whenever a joint
+        # moves faster than qdd_max h, and the QP reports no solution at ordinary speeds.
+        # The acceleration is clipped afterwards and then passes the viability clamp.
+        params.set_nominal_joint_position(washout._home)
+        params.set_joint_centering_gain(np.zeros((NUM_JOINTS, NUM_JOINTS)))
+        self.parameters = params
+
+    def __deepcopy__(self, memo) -> _IkScratch:
+        return _IkScratch(self._washout)

@@ -9,12 +9,10 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.framework import Context, LeafSystem, State
 
-from mca_drake.policy_inference import PolicyInference
+from mca_drake.conventions import CONTROL_PERIOD_S, MCA_STATISTICS
+from mca_drake.cueing.dpc import PolicyInference, load_policy_arrays
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.safety import ViabilityClamp
-from mca_drake.systems.nmpc_controller import STATISTICS
-
-DEFAULT_DT = 0.01
 
 
 class DpcPolicy(LeafSystem):
@@ -33,11 +31,12 @@ class DpcPolicy(LeafSystem):
 
     Every `time_step` an unrestricted update reads the reference Y_t (6), the state x_t = [q, qd]
     (12) and the measured output y_t (6), evaluates the network in numpy (weights exported
-    from torch, `mca_drake.policy_inference`), clamps u_t into the viability interval of the
+    from torch, `mca_drake.cueing.dpc`), clamps u_t into the viability interval of the
     true joint limits (`mca_drake.safety.ViabilityClamp`: the robot can always brake inside
     its limits) and stores it; `joint_acceleration` outputs it, so the command computed from
-    x_n acts from t_n (like NmpcController). `statistics` has the layout of NmpcController's
-    STATISTICS: step time (s), 0 solver failures, safety interventions, 0 QP iterations.
+    x_n acts from t_n (like NmpcController). `statistics` has the layout of
+    `mca_drake.conventions.MCA_STATISTICS`: step time (s), 0 solver failures, safety
+    interventions, 0 QP iterations.
 
     Args:
         policy: a policy file (`mca_drake.learning.policy.save_policy`) or its arrays.
@@ -49,11 +48,9 @@ class DpcPolicy(LeafSystem):
         self,
         policy: str | Path | dict,
         robot: KR500 | None = None,
-        time_step: float = DEFAULT_DT,
+        time_step: float = CONTROL_PERIOD_S,
     ):
         super().__init__()
-        from mca_drake.learning.policy import load_policy_arrays
-
         arrays = load_policy_arrays(policy)[0] if isinstance(policy, str | Path) else policy
         self._robot = robot if robot is not None else load_kr500()
         self._inference = PolicyInference(arrays)
@@ -62,7 +59,7 @@ class DpcPolicy(LeafSystem):
         self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
         self._output_port = self.DeclareVectorInputPort("inertial_output", 6)
         self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
-        self._statistics_index = self.DeclareDiscreteState(len(STATISTICS))
+        self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
         # Unrestricted, like NmpcController: it runs before the plant's discrete update at
         # the same instant, so the command computed from x_n acts from t_n (no extra delay).
         self.DeclarePeriodicUnrestrictedUpdateEvent(time_step, 0.0, self._update)
@@ -72,7 +69,7 @@ class DpcPolicy(LeafSystem):
     def statistics(self, context: Context) -> dict[str, float]:
         """The `statistics` values in `context`, by name."""
         values = context.get_discrete_state(self._statistics_index).value()
-        return dict(zip(STATISTICS, (float(v) for v in values), strict=True))
+        return dict(zip(MCA_STATISTICS, (float(v) for v in values), strict=True))
 
     def _update(self, context: Context, state: State) -> None:
         x = self._state_port.Eval(context)

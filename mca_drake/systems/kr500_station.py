@@ -12,7 +12,7 @@
   + ki integral) + C(q, qd) qd - tau_g(q), with kp = w^2, kd = 2 zeta w per joint;
 - actuator torque limits at the URDF efforts, or ideal actuators (the default);
 - Drake's Accelerometer and Gyroscope on the head frame H, optional Gaussian sensor noise,
-  and `HeadImuOutput`, which turns their readings into the measured y of ARCHITECTURE.md;
+  and `HeadImuOutput`, which turns their readings into the measured y of `mca_drake.conventions`;
 - an optional measurement delay on everything the MCA reads (state and measured y).
 """
 
@@ -43,7 +43,8 @@ from pydrake.systems.primitives import (
 )
 from pydrake.systems.sensors import Accelerometer, Gyroscope
 
-from mca_drake.kinematics import GRAVITY, plant_output
+from mca_drake.conventions import GRAVITY
+from mca_drake.kinematics import plant_output
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 
 

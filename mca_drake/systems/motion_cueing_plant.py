@@ -7,10 +7,10 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
+from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import as_float_array
 from mca_drake.kinematics import head_pose, plant_output
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
-from mca_drake.torch_plant import DEFAULT_DT
 
 
 class MotionCueingPlant(LeafSystem):
@@ -42,7 +42,7 @@ class MotionCueingPlant(LeafSystem):
     def __init__(
         self,
         robot: KR500 | None = None,
-        time_step: float = DEFAULT_DT,
+        time_step: float = CONTROL_PERIOD_S,
         initial_state: np.ndarray | None = None,
     ):
         super().__init__()

@@ -7,15 +7,14 @@ import time
 import numpy as np
 from pydrake.systems.framework import Context, LeafSystem, State
 
-from mca_drake.nmpc import MotionCueingOcp, NmpcConfig
+from mca_drake.conventions import MCA_STATISTICS
+from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
 from mca_drake.robot import KR500, NUM_JOINTS
 from mca_drake.safety import ViabilityClamp
 
-STATISTICS = ("step_time_s", "solver_failures", "safety_interventions", "qp_iterations")
-
 
 class NmpcController(LeafSystem):
-    """NMPC motion cueing (see `mca_drake.nmpc` for the optimal control problem).
+    """NMPC motion cueing (see `mca_drake.cueing.nmpc` for the optimal control problem).
 
     .. pydrake_system::
 
@@ -39,7 +38,7 @@ class NmpcController(LeafSystem):
     passes the viability clamp of `mca_drake.safety` (the robot can always brake inside its
     limits); failures and clamp interventions are counted and the output is never NaN.
 
-    `statistics` (4) holds STATISTICS: the wall-clock time of the last control step (s) and
+    `statistics` (4) holds MCA_STATISTICS: the wall-clock time of the last control step (s) and
     running counts of solver failures, safety-filter interventions and QPs solved; log it to get the
     per-step times. The plan (the next warm start) is discrete state too, so contexts can be
     cloned and diagrams run in parallel.
@@ -71,7 +70,7 @@ class NmpcController(LeafSystem):
             )
         self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
         self._plan_index = self.DeclareDiscreteState(self._ocp.N * NUM_JOINTS)
-        self._statistics_index = self.DeclareDiscreteState(len(STATISTICS))
+        self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
         self.DeclarePeriodicUnrestrictedUpdateEvent(self._config.time_step, 0.0, self._update)
         self._command_port = self.DeclareStateOutputPort("joint_acceleration", self._command_index)
         self._statistics_port = self.DeclareStateOutputPort("statistics", self._statistics_index)
@@ -84,7 +83,7 @@ class NmpcController(LeafSystem):
     def statistics(self, context: Context) -> dict[str, float]:
         """The controller's `statistics` in its `context`, by name."""
         values = context.get_discrete_state(self._statistics_index).value()
-        return dict(zip(STATISTICS, (float(v) for v in values), strict=True))
+        return dict(zip(MCA_STATISTICS, (float(v) for v in values), strict=True))
 
     def _node_references(self, context: Context) -> np.ndarray:
         reference = self._reference_port.Eval(context)

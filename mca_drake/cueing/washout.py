@@ -18,14 +18,13 @@ cut-offs are the textbook ones scaled to the KR500's small workspace; every one 
 of `WashoutConfig`.
 """
 
-from __future__ import annotations
-
 import dataclasses
+import math
 
 import numpy as np
 from scipy import signal
 
-from mca_drake.kinematics import GRAVITY
+from mca_drake.conventions import GRAVITY
 
 
 @dataclasses.dataclass
@@ -43,9 +42,9 @@ class WashoutConfig:
     # 3 deg/s, below the vestibular threshold of rotation perception).
     tilt_frequency: float = 5.0
     tilt_damping: float = 1.0
-    tilt_rate_limit: float = np.deg2rad(3.0)
+    tilt_rate_limit: float = math.radians(3.0)
     # Largest tilt angle (rad).
-    tilt_limit: float = np.deg2rad(20.0)
+    tilt_limit: float = math.radians(20.0)
     # Rotational high-pass of the angular rates: break frequency and damping, and gain.
     rotation_frequency: float = 1.0
     rotation_damping: float = 1.0
@@ -56,7 +55,9 @@ class WashoutConfig:
     # is singular (joints 4 and 6 aligned) and no joint velocity rolls or yaws the head
     # about the head point. Bending joints 3 and 5 by +-0.5 rad keeps the head level
     # (R_WH = I) and the Jacobian well conditioned.
-    home_position: tuple[float, ...] = (0.0, 0.0, 0.5, 0.0, -0.5, 0.0)
+    home_position: list[float] = dataclasses.field(
+        default_factory=lambda: [0.0, 0.0, 0.5, 0.0, -0.5, 0.0]
+    )
 
     def validate(self) -> None:
         values = {k: v for k, v in dataclasses.asdict(self).items() if k != "home_position"}

@@ -1,29 +1,42 @@
 """Evaluation over a scenario set (the paper's Section VI-B, Fig. 3), with more MCAs.
 
 For every case (Case A: light-aircraft flights with seeds never used in training; Case B:
-jet flights) and every MCA (dpc, nmpc-converged, nmpc-rti, washout) the closed loop on the
-analytical plant is run over each flight; per run the result summary of ARCHITECTURE.md is
-written as one JSON file (atomically; a re-run skips finished runs, so a killed evaluation
-resumes). The report gives per case and MCA the PI distribution, step times, violations
-and safety interventions; the Wilcoxon rank-sum test of DPC against converged NMPC; the
-converged-NMPC / DPC step-time ratio; a box-plot figure like the paper's Fig. 3; markdown
-and JSON.
+jet flights) and every MCA config (default: dpc, nmpc-converged, nmpc-rti, washout) the
+closed loop on the analytical plant is run over each flight; per run the result summary
+(README, "Result summary") is written as one JSON file, atomically. A re-run skips
+finished runs of the same MCA config, duration and policy, so a killed evaluation resumes.
+
+The report gives per case and MCA the PI distribution beside the zero-motion PI, step
+times, violations and safety interventions; the Wilcoxon rank-sum test of DPC against
+every other MCA and the paired signed-rank test; the step-time ratios; a box-plot figure
+like the paper's Fig. 3; markdown and JSON.
 """
 
 from __future__ import annotations
 
-import concurrent.futures
 import dataclasses
 import json
-import multiprocessing
 from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from mca_drake.atomic_io import atomic_write_json, atomic_write_text, file_sha256
-from mca_drake.diagrams import MCA_NAMES
+from mca_drake.cueing import (
+    DpcConfig,
+    McaConfig,
+    as_mca_config,
+    mca_config_from_name,
+    mca_config_record,
+    mca_name,
+)
 from mca_drake.metrics import wilcoxon_rank_sum, wilcoxon_signed_rank
+from mca_drake.plotting import plot_pi_boxes, save_figure
+from mca_drake.references.flights import FlightSpec, flight_reference
+from mca_drake.simulation.closed_loop import run_closed_loop
+from mca_drake.studies.parallel import run_tasks
+
+# The MCAs a suite compares by default (DPC is tested against each other one).
+DEFAULT_MCAS = ("dpc", "nmpc-converged", "nmpc-rti", "washout")
 
 
 @dataclasses.dataclass
@@ -32,7 +45,7 @@ class EvaluationCase:
 
     # Label in the report ("A", "B").
     name: str
-    # "light" or "jet" (`mca_drake.references.jsbsim_flight`).
+    # "light" or "jet" (`mca_drake.references.jsbsim`).
     vehicle: str
     # Flight seeds; training used 100-104, so these must differ.
     seeds: tuple[int, ...]
@@ -54,78 +67,78 @@ def default_cases() -> tuple[EvaluationCase, ...]:
 class EvaluationConfig:
     """What to evaluate; defaults: the paper's scenario set, 5 minutes per flight."""
 
-    mcas: tuple[str, ...] = ("dpc", "nmpc-converged", "nmpc-rti", "washout")
+    # The MCAs compared, as typed configs (names stand for their default configs); each is
+    # labelled in the report by its name (`mca_drake.cueing.mca_name`), so no two may share
+    # one.
+    mcas: tuple[McaConfig, ...] = dataclasses.field(
+        default_factory=lambda: tuple(mca_config_from_name(n) for n in DEFAULT_MCAS)
+    )
     cases: tuple[EvaluationCase, ...] = dataclasses.field(default_factory=default_cases)
     # Simulated seconds per flight.
     duration_s: float = 300.0
-    # Policy file of "dpc" (None: the one shipped with the package).
-    policy: str | None = None
+
+    def __post_init__(self) -> None:
+        self.mcas = tuple(as_mca_config(m) for m in self.mcas)
 
     def validate(self) -> None:
-        bad = [m for m in self.mcas if m not in MCA_NAMES]
-        if bad:
-            raise ValueError(f"unknown MCA {bad}; valid: {', '.join(MCA_NAMES)}")
+        """Raises ValueError for two MCAs of one name, training seeds or a bad duration."""
+        names = self.names()
+        if len(set(names)) != len(names):
+            raise ValueError(f"two MCAs share a name in {names}; compare distinct MCAs")
         for case in self.cases:
             if set(case.seeds) & set(range(100, 105)) and case.vehicle == "light":
                 raise ValueError(f"case {case.name} uses training flight seeds 100-104")
         if not self.duration_s > 0:
             raise ValueError("duration_s must be positive")
 
+    def names(self) -> list[str]:
+        """The report's label of every MCA, in order."""
+        return [mca_name(m) for m in self.mcas]
+
 
 def _run_path(out: Path, case: str, mca: str, seed: int) -> Path:
     return out / "runs" / f"{case}_{mca}_{seed}.json"
 
 
-def policy_fingerprint(policy: str | None) -> str:
-    """SHA-256 of the policy file (`None`: the shipped one), recorded in every DPC run so
-    that a resumed evaluation never mixes runs of two policies."""
-    from mca_drake.policy_inference import default_policy_path
-
-    return file_sha256(Path(policy) if policy else default_policy_path())
+def policy_fingerprint(config: McaConfig) -> str:
+    """SHA-256 of a DpcConfig's policy file (recorded in every DPC run so that a resumed
+    evaluation never mixes runs of two policies); "" for other MCAs."""
+    return file_sha256(config.policy_path()) if isinstance(config, DpcConfig) else ""
 
 
-def _finished_run(out: Path, case: str, mca: str, seed: int, fingerprint: str) -> dict | None:
-    """The summary of a finished run of (case, mca, seed) on disk, or None: not there,
-    unreadable, or a DPC run of another policy (which is then re-run and overwritten)."""
-    path = _run_path(out, case, mca, seed)
+def _finished_run(
+    out: Path, case: str, config: McaConfig, seed: int, duration_s: float
+) -> dict | None:
+    """The summary of a finished run of (case, MCA, seed) on disk, or None: not there,
+    unreadable, or made with another MCA config, duration or DPC policy (then it is run
+    again and overwritten)."""
+    path = _run_path(out, case, mca_name(config), seed)
     if not path.is_file():
         return None
     try:
         summary = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
-    if mca == "dpc" and summary.get("policy_sha256") != fingerprint:
-        return None
-    return summary
+    same = (
+        summary.get("mca_config") == mca_config_record(config)
+        and summary.get("duration_s") == duration_s
+        and summary.get("policy_sha256", "") == policy_fingerprint(config)
+    )
+    return summary if same else None
 
 
 def _run_one(
-    config: EvaluationConfig, case: EvaluationCase, mca: str, seed: int, out: str, fingerprint: str
-):
-    from mca_drake.evaluation import run_closed_loop
-    from mca_drake.references.jsbsim_flight import fly
-    from mca_drake.references.recording import load_recording, save_recording
-    from mca_drake.references.reference import reference_from_recording
-
+    config: McaConfig, case: EvaluationCase, seed: int, duration_s: float, out: str
+) -> dict:
     out_dir = Path(out)
-    flight = out_dir / "flights" / f"{case.vehicle}_{seed}_{config.duration_s:g}s.csv"
-    if flight.is_file():
-        recording = load_recording(flight)
-    else:
-        recording = fly(case.vehicle, config.duration_s, seed, progress=False)
-        save_recording(flight, recording)
-    reference = reference_from_recording(recording, name=str(flight.name))
-    result = run_closed_loop(
-        mca=mca,
-        reference=reference,
-        duration_s=config.duration_s,
-        progress=False,
-        policy=config.policy,
-    )
+    flight = FlightSpec(vehicle=case.vehicle, seed=seed)
+    reference = flight_reference(flight, duration_s, cache_dir=out_dir / "flights")
+    result = run_closed_loop(mca=config, reference=reference, duration_s=duration_s, progress=False)
     summary = {**result.summary, "case": case.name, "seed": seed, "vehicle": case.vehicle}
-    if mca == "dpc":
+    fingerprint = policy_fingerprint(config)
+    if fingerprint:
         summary["policy_sha256"] = fingerprint
-    atomic_write_json(_run_path(out_dir, case.name, mca, seed), summary)
+    atomic_write_json(_run_path(out_dir, case.name, mca_name(config), seed), summary)
     return summary
 
 
@@ -136,30 +149,23 @@ def run_evaluation(
     config.validate()
     out = Path(out_dir)
     (out / "runs").mkdir(parents=True, exist_ok=True)
-    fingerprint = policy_fingerprint(config.policy) if "dpc" in config.mcas else ""
-    jobs = [
-        (case, mca, seed)
+    tasks = [
+        (mca, case, seed, config.duration_s, str(out))
         for case in config.cases
         for seed in case.seeds
         for mca in config.mcas
-        if _finished_run(out, case.name, mca, seed, fingerprint) is None
+        if _finished_run(out, case.name, mca, seed, config.duration_s) is None
     ]
     total = sum(len(c.seeds) for c in config.cases) * len(config.mcas)
-    bar = tqdm(total=total, initial=total - len(jobs), desc="evaluation runs", disable=not progress)
-    with bar:
-        if workers <= 1:
-            for job in jobs:
-                _run_one(config, *job, str(out), fingerprint)
-                bar.update(1)
-        else:
-            context = multiprocessing.get_context("spawn")
-            with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-                futures = [
-                    pool.submit(_run_one, config, *job, str(out), fingerprint) for job in jobs
-                ]
-                for future in concurrent.futures.as_completed(futures):
-                    future.result()
-                    bar.update(1)
+    run_tasks(
+        _run_one,
+        tasks,
+        workers=workers,
+        total=total,
+        description="evaluation runs",
+        unit="run",
+        progress=progress,
+    )
     return write_report(config, out)
 
 
@@ -167,21 +173,21 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
     """Aggregates the run files of `config` into evaluation.json, evaluation.md and
     evaluation.png in `out`; returns the JSON dictionary. DPC runs of another policy
     than `config.policy` are left out."""
-    fingerprint = policy_fingerprint(config.policy) if "dpc" in config.mcas else ""
-    runs = {}  # (case, mca) -> {seed: run summary}, finished runs only
+    runs = {}  # (case, mca name) -> {seed: run summary}, finished runs only
     for c in config.cases:
         for m in config.mcas:
-            found = {s: _finished_run(out, c.name, m, s, fingerprint) for s in c.seeds}
-            runs[(c.name, m)] = {s: r for s, r in found.items() if r is not None}
+            found = {s: _finished_run(out, c.name, m, s, config.duration_s) for s in c.seeds}
+            runs[(c.name, mca_name(m))] = {s: r for s, r in found.items() if r is not None}
     report = {
         "duration_s": config.duration_s,
-        "policy_sha256": fingerprint,
-        "mcas": list(config.mcas),
+        "policy_sha256": next(filter(None, map(policy_fingerprint, config.mcas)), ""),
+        "mcas": config.names(),
+        "mca_configs": {mca_name(m): mca_config_record(m) for m in config.mcas},
         "cases": {},
     }
     for case in config.cases:
         entry = {"vehicle": case.vehicle, "seeds": list(case.seeds), "mcas": {}}
-        for mca in config.mcas:
+        for mca in config.names():
             rs = list(runs[(case.name, mca)].values())
             if not rs:
                 continue
@@ -193,6 +199,7 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                 "pi": pis.tolist(),
                 "pi_median": float(np.median(pis)),
                 "pi_iqr": [float(np.percentile(pis, 25)), float(np.percentile(pis, 75))],
+                "pi_zero_motion_median": float(np.median([r["pi_zero_motion"] for r in rs])),
                 "step_time_median_s": float(np.median(steps)),
                 "step_time_max_s": float(max(r["step_time_s"]["max"] for r in rs)),
                 "violations": int(sum(sum(r["violations"].values()) for r in rs)),
@@ -219,8 +226,6 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
     atomic_write_json(out / "evaluation.json", report)
     atomic_write_text(out / "evaluation.md", evaluation_markdown(report))
     if any(e["mcas"] for e in report["cases"].values()):
-        from mca_drake.plotting import plot_pi_boxes, save_figure
-
         save_figure(plot_pi_boxes(report), out / "evaluation.png")
     return report
 
@@ -273,16 +278,17 @@ def evaluation_markdown(report: dict) -> str:
             f"## Case {name}: {case['vehicle']} flights, seeds "
             f"{case['seeds'][0]}-{case['seeds'][-1]}",
             "",
-            "| MCA | runs | PI median | PI IQR | step median | step max | violations | "
-            "safety interventions | solver failures |",
-            "|---|---|---|---|---|---|---|---|---|",
+            "| MCA | runs | PI median | PI IQR | zero-motion PI median | step median | step max | "
+            "violations | safety interventions | solver failures |",
+            "|---|---|---|---|---|---|---|---|---|---|",
         ]
         flights = len(case["seeds"])
         for mca, m in case["mcas"].items():
             runs = f"{m['runs']}" if m["runs"] == flights else f"{m['runs']} of {flights}"
             lines.append(
                 f"| {mca} | {runs} | {m['pi_median']:.3f} | {m['pi_iqr'][0]:.3f} to "
-                f"{m['pi_iqr'][1]:.3f} | {m['step_time_median_s'] * 1e3:.3f} ms | "
+                f"{m['pi_iqr'][1]:.3f} | {m['pi_zero_motion_median']:.3f} | "
+                f"{m['step_time_median_s'] * 1e3:.3f} ms | "
                 f"{m['step_time_max_s'] * 1e3:.2f} ms | {m['violations']} | "
                 f"{m['safety_interventions']} | {m['solver_failures']} |"
             )

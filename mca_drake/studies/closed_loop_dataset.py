@@ -1,6 +1,6 @@
 """Closed-loop dataset: NMPC motion cueing over JSBSim flights, cut into n_p-long segments.
 
-For each flight seed: fly the vehicle (`mca_drake.references.jsbsim_flight.fly`), scale the
+For each flight seed: fly the vehicle (`mca_drake.references.flights`), scale the
 recording into a reference, run ReferenceSource -> MCA -> MotionCueingPlant at 100 Hz, and
 cut the logged trajectory into non-overlapping segments holding U, X, Y, F, dF, ddF and the
 reference R (see `mca_drake.segments`). Each flight is one file, written atomically; a
@@ -15,25 +15,24 @@ to within a few 1e-4 of PI (benchmarks/bench_nmpc.py) at a fraction of the cost.
 
 from __future__ import annotations
 
-import concurrent.futures
 import dataclasses
 import hashlib
 import itertools
 import json
-import multiprocessing
 import time
 from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
 
+from mca_drake.cueing import McaConfig, NmpcConfig, as_mca_config, mca_config_record
 from mca_drake.kinematics import head_motion, output_from_motion, pose_derivatives_from_motion
+from mca_drake.references.flights import FlightSpec, flight_recording
+from mca_drake.references.jsbsim import VEHICLES
 from mca_drake.references.reference import ReferenceScaling, reference_from_recording
 from mca_drake.robot import NUM_JOINTS, load_kr500
-from mca_drake.segments import SegmentDataset, package_versions
-
-SOURCE_COLUMNS = ("flight_seed", "start_step", "split")
-SPLIT_NAMES = ("train", "validation", "test")
+from mca_drake.segments import SOURCE_COLUMNS, SPLIT_NAMES, SegmentDataset, package_versions
+from mca_drake.simulation.closed_loop import run_closed_loop
+from mca_drake.studies.parallel import run_tasks
 
 
 @dataclasses.dataclass
@@ -48,8 +47,9 @@ class ClosedLoopDatasetConfig:
     flight_duration_s: float = 900.0
     # Segment length n_p, steps.
     horizon: int = 256
-    # Motion cueing algorithm that generates the trajectories.
-    mca: str = "nmpc-rti"
+    # Motion cueing algorithm that generates the trajectories (a config, or a name for its
+    # default config).
+    mca: McaConfig = dataclasses.field(default_factory=lambda: NmpcConfig(mode="rti"))
     # Scaling of the recordings into references.
     scaling: ReferenceScaling = dataclasses.field(default_factory=ReferenceScaling)
     # Train, validation and test fractions, and the seed of the shuffle before the split.
@@ -58,22 +58,26 @@ class ClosedLoopDatasetConfig:
     # Floating-point type of the stored arrays.
     dtype: str = "float32"
 
-    def validate(self) -> None:
-        from mca_drake.diagrams import MCA_NAMES
+    def __post_init__(self) -> None:
+        self.mca = as_mca_config(self.mca)
 
-        if self.vehicle not in ("light", "jet"):
-            raise ValueError(f"unknown vehicle '{self.vehicle}'; valid: light, jet")
+    def validate(self) -> None:
+        """Raises ValueError for an unknown vehicle, no seeds or too short flights."""
+        if self.vehicle not in VEHICLES:
+            raise ValueError(f"unknown vehicle '{self.vehicle}'; valid: {', '.join(VEHICLES)}")
         if not self.flight_seeds:
             raise ValueError("flight_seeds is empty")
-        if self.mca not in MCA_NAMES:
-            raise ValueError(f"unknown MCA '{self.mca}'; valid: {', '.join(MCA_NAMES)}")
         if self.flight_duration_s < self.horizon * 0.01:
             raise ValueError("flight_duration_s is shorter than one segment")
         self.scaling.validate()
 
+    def record(self) -> dict:
+        """The config as a JSON-ready dict, the MCA's tagged with its class."""
+        return {**dataclasses.asdict(self), "mca": mca_config_record(self.mca)}
+
     def flight_key(self) -> str:
         """Hash of everything that shapes one flight's file (not the seeds list or split)."""
-        fields = dataclasses.asdict(self)
+        fields = self.record()
         for name in ("flight_seeds", "split_fractions", "split_seed"):
             fields.pop(name)
         return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:16]
@@ -86,12 +90,10 @@ def flight_path(out_dir: Path, seed: int) -> Path:
 
 def simulate_flight(config: ClosedLoopDatasetConfig, seed: int) -> SegmentDataset:
     """One flight through the closed loop, cut into segments (no file written)."""
-    from mca_drake.evaluation import run_closed_loop
-    from mca_drake.references.jsbsim_flight import fly
-
     robot = load_kr500()
     started = time.perf_counter()
-    recording = fly(config.vehicle, config.flight_duration_s, seed)
+    flight = FlightSpec(vehicle=config.vehicle, seed=seed)
+    recording = flight_recording(flight, config.flight_duration_s)
     reference = reference_from_recording(
         recording, config.scaling, name=f"{config.vehicle} flight seed {seed}"
     )
@@ -121,7 +123,7 @@ def simulate_flight(config: ClosedLoopDatasetConfig, seed: int) -> SegmentDatase
     ).astype(np.int64)
     metadata = {
         "kind": "closed-loop MCA dataset, one flight",
-        "config": dataclasses.asdict(config),
+        "config": config.record(),
         "config_key": config.flight_key(),
         "flight_seed": seed,
         "source_columns": list(SOURCE_COLUMNS),
@@ -161,31 +163,23 @@ def generate_closed_loop_dataset(
     """
     config = config or ClosedLoopDatasetConfig()
     config.validate()
-    if workers < 1:
-        raise ValueError(f"workers must be at least 1; got {workers}")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     key = config.flight_key()
-    todo = [s for s in config.flight_seeds if not _flight_is_done(flight_path(out_dir, s), key)]
-    bar = tqdm(
+    todo = [
+        (config, s, str(out_dir))
+        for s in config.flight_seeds
+        if not _flight_is_done(flight_path(out_dir, s), key)
+    ]
+    run_tasks(
+        _run_one,
+        todo,
+        workers=workers,
         total=len(config.flight_seeds),
-        initial=len(config.flight_seeds) - len(todo),
-        desc="closed-loop flights",
+        description="closed-loop flights",
         unit="flight",
-        disable=not progress,
+        progress=progress,
     )
-    with bar:
-        if workers == 1:
-            for seed in todo:
-                _run_one(config, seed, str(out_dir))
-                bar.update(1)
-        else:
-            context = multiprocessing.get_context("spawn")
-            with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-                futures = [pool.submit(_run_one, config, s, str(out_dir)) for s in todo]
-                for future in concurrent.futures.as_completed(futures):
-                    future.result()  # re-raises a worker's error with its message
-                    bar.update(1)
     return merge(config, out_dir)
 
 
@@ -202,58 +196,10 @@ def merge(config: ClosedLoopDatasetConfig, out_dir: str | Path) -> Path:
     merged.source[:, SOURCE_COLUMNS.index("split")] = labels
     merged.metadata = {
         "kind": "closed-loop MCA dataset",
-        "config": dataclasses.asdict(config),
+        "config": config.record(),
         "source_columns": list(SOURCE_COLUMNS),
         "split_names": list(SPLIT_NAMES),
         "flights": {str(p.metadata["flight_seed"]): p.metadata["summary"] for p in parts},
         "versions": package_versions(),
     }
     return merged.save(out_dir / "dataset.npz")
-
-
-def split_of(dataset: SegmentDataset) -> dict[str, SegmentDataset]:
-    """The labelled train/validation/test parts of a merged closed-loop dataset."""
-    column = dataset.source[:, SOURCE_COLUMNS.index("split")]
-    return {name: dataset.subset(column == i) for i, name in enumerate(SPLIT_NAMES)}
-
-
-def long_windows(
-    dataset: SegmentDataset, segments: int, fractions=(0.7, 0.2, 0.1), seed: int = 0
-) -> dict[str, SegmentDataset]:
-    """Windows of `segments` consecutive segments of one flight, joined in time, split
-    train/validation/test by window with `seed` (a split of its own: the per-segment labels
-    of `merge` would cut most windows apart).
-
-    For DPC training on rollouts longer than n_p: a policy trained on 2.56 s rollouts only
-    ever sees the first 2.56 s of its own drift. Returns {"train", "validation", "test"}.
-    """
-    if segments < 1:
-        raise ValueError(f"segments must be at least 1; got {segments}")
-    seed_col = SOURCE_COLUMNS.index("flight_seed")
-    step_col = SOURCE_COLUMNS.index("start_step")
-    n_p = dataset.horizon
-    windows: list[np.ndarray] = []
-    for flight in np.unique(dataset.source[:, seed_col]):
-        rows = np.flatnonzero(dataset.source[:, seed_col] == flight)
-        rows = rows[np.argsort(dataset.source[rows, step_col])]
-        steps = dataset.source[rows, step_col]
-        run: list[int] = []
-        for row, step in zip(rows, steps, strict=True):
-            if run and step != dataset.source[run[-1], step_col] + n_p:
-                run = []  # a gap: start a new run
-            run.append(int(row))
-            if len(run) == segments:
-                windows.append(np.array(run))
-                run = []
-    if not windows:
-        raise ValueError(f"no run of {segments} consecutive segments in the dataset")
-    index = np.stack(windows)  # (W, segments)
-    arrays = {
-        k: v[index].reshape(len(windows), segments * n_p, *v.shape[2:])
-        for k, v in dataset.arrays.items()
-    }
-    source = dataset.source[index[:, 0]].copy()
-    meta = {**dataset.metadata, "window_segments": segments}
-    joined = SegmentDataset(arrays, source, meta)
-    parts = joined.split(tuple(fractions), seed=seed)
-    return dict(zip(SPLIT_NAMES, parts, strict=True))

@@ -30,7 +30,6 @@ import numpy as np
 import torch
 
 from mca_drake.atomic_io import atomic_write_bytes, atomic_write_json, atomic_write_text
-from mca_drake.closed_loop_dataset import SOURCE_COLUMNS, split_of
 from mca_drake.learning.checkpoint import load_state_into
 from mca_drake.learning.data import to_tensors
 from mca_drake.learning.plant_candidates import (
@@ -43,7 +42,7 @@ from mca_drake.learning.plant_candidates import (
     state_objective,
 )
 from mca_drake.learning.trainer import CurriculumTrainer, StageResult, TrainConfig
-from mca_drake.segments import SegmentDataset, package_versions
+from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, package_versions, split_of
 
 # Table II of the paper: RMSE (validation, test) per n_p, iteration time (s) at n_p 1 and
 # 256, open-loop RMSE at 256. None: not reported.

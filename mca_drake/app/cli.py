@@ -11,25 +11,60 @@ from pathlib import Path
 import numpy as np
 
 from mca_drake import __version__
+from mca_drake.app.jobs import run_closed_loop_scenario, run_scenario
+from mca_drake.app.scenarios import (
+    ClosedLoopScenario,
+    DatasetScenario,
+    EvaluationScenario,
+    load_scenario,
+)
+from mca_drake.conventions import CHANNELS
+from mca_drake.cueing import DpcConfig, mca_config_from_name
+from mca_drake.plotting import plot_recording, save_figure
+from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
+from mca_drake.references.jsbsim import fly
+from mca_drake.references.recording import load_recording, save_recording
+from mca_drake.simulation.builders import default_visualization
+from mca_drake.simulation.plots import tracking_figure
+from mca_drake.studies.closed_loop_dataset import (
+    ClosedLoopDatasetConfig,
+    generate_closed_loop_dataset,
+)
+from mca_drake.studies.evaluation import default_cases, run_evaluation
 
-DEFAULT_FLIGHT_SEED = 1000
+
+def _given(args: argparse.Namespace, **names: str) -> dict:
+    """{field: value} of the flags that were given (flag attribute -> field name): the CLI's
+    flags default to None and only override the defaults of the config they fill."""
+    return {
+        field: getattr(args, flag)
+        for flag, field in names.items()
+        if getattr(args, flag) is not None
+    }
+
+
+def _mca_from_flags(args: argparse.Namespace, default):
+    """The MCA config of --mca NAME and --policy FILE (a DPC policy), or `default`."""
+    mca = mca_config_from_name(args.mca) if args.mca is not None else default
+    if args.policy is not None:
+        if not isinstance(mca, DpcConfig):
+            raise ValueError("--policy is the policy file of --mca dpc")
+        mca = DpcConfig(policy=args.policy)
+    return mca
 
 
 def _print_outputs_table(result, every_s: float = 1.0) -> None:
-    from mca_drake.metrics import CHANNELS
-
     step = max(round(every_s / (result.times[1] - result.times[0])), 1)
     print(f"{'t [s]':>7} " + " ".join(f"{c:>9}" for c in CHANNELS))
     for k in range(0, result.times.size, step):
         print(f"{result.times[k]:7.2f} " + " ".join(f"{v:9.4f}" for v in result.outputs[k]))
 
 
-def _start_meshcat():
-    from pydrake.geometry import StartMeshcat
-
-    meshcat = StartMeshcat()
-    print(f"Meshcat: open {meshcat.web_url()} in a browser")
-    return meshcat
+def _print_pi(summary: dict) -> None:
+    print(
+        f"PI {summary['pi']:.3f} (zero motion {summary['pi_zero_motion']:.3f}; lower is "
+        "better, minimum -6)"
+    )
 
 
 def _hold_meshcat(meshcat) -> None:
@@ -42,43 +77,52 @@ def _hold_meshcat(meshcat) -> None:
         pass
 
 
-def _cmd_simulate(args: argparse.Namespace) -> int:
-    from mca_drake.diagrams import ClosedLoopScenario, FlightSpec
-    from mca_drake.jobs import run_closed_loop_scenario
+def _closed_loop_scenario_from_flags(args: argparse.Namespace, **fixed) -> ClosedLoopScenario:
+    """A ClosedLoopScenario: its defaults, overridden by the flags that were given."""
+    scenario = ClosedLoopScenario(**fixed)
+    scenario.mca = _mca_from_flags(args, scenario.mca)
+    if args.reference is not None:
+        scenario.flight.recording = args.reference
+    if args.duration is not None:
+        scenario.duration_s = args.duration
+    return scenario
 
-    scenario = ClosedLoopScenario(
-        mca=args.mca,
-        plant=args.plant,
-        # The built-in default flight: deterministic for its seed, never used in training.
-        flight=FlightSpec(
-            recording=args.reference or "", vehicle="light", seed=DEFAULT_FLIGHT_SEED
-        ),
-        duration_s=args.duration,
-        policy=args.policy or "",
-        meshcat=args.meshcat,
-        realtime_rate=1.0 if args.realtime else 0.0,
-    )
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    scenario = _closed_loop_scenario_from_flags(args)
+    if args.plant is not None:
+        scenario.plant = args.plant
+    if args.meshcat:
+        scenario.visualization = default_visualization()
+    if args.realtime:
+        scenario.simulator_config.target_realtime_rate = 1.0
+    if args.seed is not None:
+        scenario.random_seed = args.seed
     scenario.validate()
-    meshcat = _start_meshcat() if args.meshcat else None
+    meshcat = None
+    if scenario.visualization is not None:
+        from pydrake.geometry import StartMeshcat  # a web server: only when asked for
+
+        meshcat = StartMeshcat()
+        print(f"Meshcat: open {meshcat.web_url()} in a browser")
     result = run_closed_loop_scenario(
         scenario,
         progress=not args.quiet,
         meshcat=meshcat,
-        json_path=args.json or "",
+        json_path=args.json,
         plot_dir=args.plots,
     )
     _print_outputs_table(result, every_s=max(result.times[-1] / 20, 0.1))
     print(json.dumps(result.summary, indent=2))
-    if args.plots:
-        print(f"plots written to {args.plots}/tracking.png and {args.plots}/joint_usage.png")
+    _print_pi(result.summary)
+    plots = scenario.output_dir if args.plots is None else args.plots
+    if plots:
+        print(f"plots written to {plots}/tracking.png and {plots}/joint_usage.png")
     _hold_meshcat(meshcat)
     return 0
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from mca_drake.diagrams import load_scenario
-    from mca_drake.jobs import run_scenario
-
     scenario = load_scenario(args.scenario, args.set)
     summary = run_scenario(scenario, progress=not args.quiet, json_path=args.json)
     print(json.dumps(summary, indent=2, default=str))
@@ -86,9 +130,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_flight(args: argparse.Namespace) -> int:
-    from mca_drake.references.jsbsim_flight import fly
-    from mca_drake.references.recording import save_recording
-
     recording = fly(args.vehicle, args.minutes * 60.0, args.seed, progress=not args.quiet)
     save_recording(args.out, recording)
     print(
@@ -96,17 +137,12 @@ def _cmd_flight(args: argparse.Namespace) -> int:
         f"{recording.rate_hz:.0f} Hz written to {args.out}"
     )
     if args.plot:
-        from mca_drake.plotting import plot_recording, save_figure
-
         save_figure(plot_recording(recording), args.plot)
         print(f"plot written to {args.plot}")
     return 0
 
 
 def _cmd_plot_recording(args: argparse.Namespace) -> int:
-    from mca_drake.plotting import plot_recording, save_figure
-    from mca_drake.references.recording import load_recording
-
     recording = load_recording(args.recording)
     out = args.out or str(args.recording).rsplit(".", 1)[0] + ".png"
     save_figure(plot_recording(recording, title=str(args.recording)), out)
@@ -115,14 +151,15 @@ def _cmd_plot_recording(args: argparse.Namespace) -> int:
 
 
 def _cmd_dataset_open_loop(args: argparse.Namespace) -> int:
-    from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
-
     config = ExcitationConfig(
-        repetitions=args.repetitions,
-        duration_s=args.duration,
-        horizon=args.horizon,
-        seed=args.seed,
-        initial_state_fraction=args.initial_state_fraction,
+        **_given(
+            args,
+            repetitions="repetitions",
+            duration="duration_s",
+            horizon="horizon",
+            seed="seed",
+            initial_state_fraction="initial_state_fraction",
+        )
     )
     dataset = generate_excitation_dataset(config, progress=not args.quiet)
     dataset.save(args.out)
@@ -135,23 +172,21 @@ def _cmd_dataset_open_loop(args: argparse.Namespace) -> int:
 
 
 def _cmd_dataset_closed_loop(args: argparse.Namespace) -> int:
-    from mca_drake.closed_loop_dataset import (
-        ClosedLoopDatasetConfig,
-        generate_closed_loop_dataset,
+    scenario = DatasetScenario(
+        **_given(
+            args, vehicle="vehicle", horizon="horizon", workers="workers", out_dir="output_dir"
+        )
     )
-
-    seeds = tuple(range(args.first_seed, args.first_seed + args.flights))
-    config = ClosedLoopDatasetConfig(
-        vehicle=args.vehicle,
-        flight_seeds=seeds,
-        flight_duration_s=args.minutes * 60.0,
-        horizon=args.horizon,
-        mca=args.mca,
-    )
-    path = generate_closed_loop_dataset(
-        config, args.out_dir, workers=args.workers, progress=not args.quiet
-    )
-    print(f"closed-loop dataset written to {path}")
+    if args.mca is not None:
+        scenario.mca = mca_config_from_name(args.mca)
+    if args.minutes is not None:
+        scenario.flight_duration_s = args.minutes * 60.0
+    if args.flights is not None or args.first_seed is not None:
+        first = args.first_seed if args.first_seed is not None else scenario.flight_seeds[0]
+        count = args.flights if args.flights is not None else len(scenario.flight_seeds)
+        scenario.flight_seeds = list(range(first, first + count))
+    summary = run_scenario(scenario, progress=not args.quiet)
+    print(f"closed-loop dataset written to {summary['dataset']}")
     return 0
 
 
@@ -160,61 +195,56 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         return _evaluate_suite(args)
     if not args.reference:
         raise ValueError("give --reference flight.csv (one recording) or --suite (scenario set)")
-    from mca_drake.evaluation import run_closed_loop
-    from mca_drake.references.recording import load_recording
-    from mca_drake.references.reference import reference_from_recording
-
-    reference = reference_from_recording(load_recording(args.reference), name=args.reference)
-    result = run_closed_loop(
-        mca=args.mca,
-        reference=reference,
-        duration_s=args.duration,
-        progress=not args.quiet,
-        json_path=args.json,
-        plot_path=args.plot,
-        policy=args.policy,
+    scenario = _closed_loop_scenario_from_flags(args, plant="analytical")
+    if args.duration is None:
+        scenario.duration_s = load_recording(args.reference).duration_s
+    result = run_closed_loop_scenario(
+        scenario, progress=not args.quiet, json_path=args.json or "", plot_dir=""
     )
+    if args.plot:
+        save_figure(tracking_figure(result), args.plot)
     print(json.dumps(result.summary, indent=2))
+    _print_pi(result.summary)
     return 0
 
 
 def _evaluate_suite(args: argparse.Namespace) -> int:
-    from mca_drake.scenario_evaluation import (
-        EvaluationCase,
-        EvaluationConfig,
-        default_cases,
-        run_evaluation,
+    scenario = EvaluationScenario(
+        **_given(args, duration="duration_s", workers="workers", out_dir="output_dir")
     )
-
-    cases = tuple(
-        EvaluationCase(c.name, c.vehicle, c.seeds[: args.flights])
-        for c in default_cases()
-        if c.name in args.cases.split(",")
+    if args.mcas is not None:
+        scenario.mcas = [mca_config_from_name(n) for n in args.mcas.split(",")]
+    if args.policy is not None:
+        scenario.mcas = [
+            DpcConfig(policy=args.policy) if isinstance(m, DpcConfig) else m for m in scenario.mcas
+        ]
+    config = scenario.to_config()
+    wanted = args.cases.split(",") if args.cases is not None else [c.name for c in default_cases()]
+    config.cases = tuple(
+        dataclasses.replace(c, seeds=c.seeds[: args.flights] if args.flights else c.seeds)
+        for c in config.cases
+        if c.name in wanted
     )
-    config = EvaluationConfig(
-        mcas=tuple(args.mcas.split(",")),
-        cases=cases,
-        duration_s=args.duration or 300.0,
-        policy=args.policy,
-    )
-    run_evaluation(config, args.out_dir, workers=args.workers, progress=not args.quiet)
-    print((Path(args.out_dir) / "evaluation.md").read_text())
+    run_evaluation(config, scenario.output_dir, workers=scenario.workers, progress=not args.quiet)
+    print((Path(scenario.output_dir) / "evaluation.md").read_text())
     return 0
 
 
 def _cmd_table2(args: argparse.Namespace) -> int:
-    from mca_drake.learning.table2 import Table2Config, quick_config, run_table2
+    # torch: loaded by the training commands only, so the others start fast
+    from mca_drake.studies.table2 import Table2Config, quick_config, run_table2
 
     out = Path(args.out_dir)
     closed, open_loop = args.closed_loop_dataset, args.open_loop_dataset
+    defaults = Table2Config()
     if args.quick:
         closed = closed or str(_quick_closed_loop_dataset(out / "data", not args.quiet))
         open_loop = open_loop or str(_quick_open_loop_dataset(out / "data"))
         config = quick_config(closed, open_loop)
     else:
         config = Table2Config(
-            closed_loop_dataset=closed or Table2Config.closed_loop_dataset,
-            open_loop_dataset=open_loop or Table2Config.open_loop_dataset,
+            closed_loop_dataset=closed or defaults.closed_loop_dataset,
+            open_loop_dataset=open_loop or defaults.open_loop_dataset,
         )
         for path, command in (
             (config.closed_loop_dataset, "mca-drake dataset closed-loop"),
@@ -222,9 +252,9 @@ def _cmd_table2(args: argparse.Namespace) -> int:
         ):
             if not Path(path).is_file():
                 raise FileNotFoundError(f"dataset {path} not found; make it with `{command}`")
-    config.train = dataclasses.replace(config.train, device=args.device)
-    if args.max_epochs:
-        config.train = dataclasses.replace(config.train, max_epochs=args.max_epochs)
+    config.train = dataclasses.replace(
+        config.train, **_given(args, device="device", max_epochs="max_epochs")
+    )
     if args.only:
         wanted = set(args.only.split(","))
         config.state_models = tuple(n for n in config.state_models if f"state_{n}" in wanted)
@@ -248,23 +278,29 @@ def _channel_weights(text: str) -> str | tuple[float, ...]:
 
 
 def _cmd_train_policy(args: argparse.Namespace) -> int:
-    from mca_drake.learning.dpc import DpcConfig, train_policy
+    # torch: loaded by the training commands only, so the others start fast
+    from mca_drake.learning.dpc import DpcTrainingConfig, train_policy
 
-    config = DpcConfig(
-        targets=args.targets,
-        plant=args.plant,
-        learned_output_weights=args.learned_output_weights or "",
-        compile=not args.no_compile,
-        seed=args.seed,
-        window_segments=args.window_segments,
-        tracking_channel_weights=_channel_weights(args.channel_weights),
-        initial_policy=args.init_policy or "",
+    config = DpcTrainingConfig(
+        **_given(
+            args,
+            targets="targets",
+            plant="plant",
+            learned_output_weights="learned_output_weights",
+            seed="seed",
+            window_segments="window_segments",
+            init_policy="initial_policy",
+        )
     )
-    train = dict(device=args.device, horizons=tuple(int(h) for h in args.horizons.split(",")))
-    if args.max_epochs:
-        train["max_epochs"] = args.max_epochs
-    if args.patience:
-        train["early_stopping_patience"] = args.patience
+    if args.no_compile:
+        config.compile = False
+    if args.channel_weights is not None:
+        config.tracking_channel_weights = _channel_weights(args.channel_weights)
+    train = _given(
+        args, device="device", max_epochs="max_epochs", patience="early_stopping_patience"
+    )
+    if args.horizons is not None:
+        train["horizons"] = tuple(int(h) for h in args.horizons.split(","))
     config.train = dataclasses.replace(config.train, **train)
     command = "mca-drake " + " ".join(sys.argv[1:]) if sys.argv[0].endswith("mca-drake") else ""
     _, path = train_policy(
@@ -280,6 +316,7 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
 
 
 def _cmd_export_policy(args: argparse.Namespace) -> int:
+    # torch: loaded by the training commands only, so the others start fast
     from mca_drake.learning.dpc import export_checkpoint_policy
 
     print(f"policy written to {export_checkpoint_policy(args.checkpoint, args.out)}")
@@ -287,15 +324,11 @@ def _cmd_export_policy(args: argparse.Namespace) -> int:
 
 
 def _quick_closed_loop_dataset(folder: Path, progress: bool) -> Path:
-    from mca_drake.closed_loop_dataset import ClosedLoopDatasetConfig, generate_closed_loop_dataset
-
     config = ClosedLoopDatasetConfig(flight_seeds=(100,), flight_duration_s=60.0, horizon=32)
     return generate_closed_loop_dataset(config, folder / "closed_loop", progress=progress)
 
 
 def _quick_open_loop_dataset(folder: Path) -> Path:
-    from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
-
     path = folder / "open_loop_quick.npz"
     if not path.is_file():
         config = ExcitationConfig(repetitions=3, duration_s=4.0, horizon=32)
@@ -316,14 +349,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="the main job: closed-loop motion cueing (default: the shipped DPC policy) on a "
         "built-in flight or a recording; prints the outputs and the result summary, plots",
     )
-    simulate.add_argument("--duration", type=float, default=60.0, help="simulated seconds")
-    simulate.add_argument("--mca", default="dpc", help="dpc, nmpc-rti, nmpc-converged, washout")
+    simulate.add_argument("--duration", type=float, help="simulated seconds (default 60)")
+    simulate.add_argument(
+        "--mca", help="dpc (default), nmpc-rti, nmpc-converged or washout, at its default config"
+    )
+    simulate.add_argument("--seed", type=int, help="seed of the IMU noise (random_seed, default 0)")
     simulate.add_argument("--reference", help="recording CSV (default: the built-in flight)")
     simulate.add_argument("--policy", help="policy file for dpc (default: the shipped one)")
     simulate.add_argument("--json", help="write the result summary to this JSON file")
     simulate.add_argument(
         "--plant",
-        default="multibody",
         choices=("multibody", "analytical"),
         help="multibody: the KR500 MultibodyPlant with inverse-dynamics control and head IMU "
         "(default); analytical: the ideal joint-space plant of the paper",
@@ -332,8 +367,8 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("--realtime", action="store_true", help="run at real-time rate 1")
     simulate.add_argument(
         "--plots",
-        default="simulate_plots",
-        help="folder for tracking.png (Fig. 4) and joint_usage.png (Fig. 5); '' for none",
+        help="folder for tracking.png (Fig. 4) and joint_usage.png (Fig. 5) (default: the "
+        "scenario's output_dir, results/closed_loop); '' for none",
     )
     simulate.add_argument("--quiet", action="store_true", help="no progress bar")
     simulate.set_defaults(func=_cmd_simulate)
@@ -342,8 +377,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("scenario", help="YAML scenario file, e.g. diagrams/plant_demo.yaml")
     run.add_argument(
         "--set",
-        help="YAML override of the scenario, e.g. "
-        "'{duration_s: 5, station: {torque_limits: true}}'",
+        action="append",
+        help="YAML override of the scenario (repeatable, applied in order), e.g. "
+        "'{duration_s: 5, station: {torque_limits: true}}' or "
+        "'{mca: !NmpcConfig {mode: rti, washout_weight: 0.3}}'",
     )
     run.add_argument("--json", help="write the result summary to this JSON file")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -368,15 +405,14 @@ def build_parser() -> argparse.ArgumentParser:
     open_loop = dataset_sub.add_parser(
         "open-loop", help="open-loop excitation dataset (Algorithm 1; defaults: paper size)"
     )
-    open_loop.add_argument("--repetitions", type=int, default=100)
-    open_loop.add_argument("--duration", type=float, default=20.0, help="s per simulation")
-    open_loop.add_argument("--horizon", type=int, default=256, help="n_p, steps per segment")
-    open_loop.add_argument("--seed", type=int, default=0)
+    open_loop.add_argument("--repetitions", type=int)
+    open_loop.add_argument("--duration", type=float, help="s per simulation")
+    open_loop.add_argument("--horizon", type=int, help="n_p, steps per segment")
+    open_loop.add_argument("--seed", type=int)
     open_loop.add_argument(
         "--initial-state-fraction",
         type=float,
-        default=1.0,
-        help="draw initial states from this fraction of the limits",
+        help="draw initial states from this fraction of the limits (default 1)",
     )
     open_loop.add_argument("--out", default="open_loop.npz")
     open_loop.add_argument("--quiet", action="store_true")
@@ -384,35 +420,33 @@ def build_parser() -> argparse.ArgumentParser:
     closed = dataset_sub.add_parser(
         "closed-loop", help="NMPC closed loop over JSBSim flights (defaults: paper size)"
     )
-    closed.add_argument("--vehicle", default="light")
-    closed.add_argument("--flights", type=int, default=5)
-    closed.add_argument("--first-seed", type=int, default=100)
-    closed.add_argument("--minutes", type=float, default=15.0, help="per flight")
-    closed.add_argument("--horizon", type=int, default=256, help="n_p")
-    closed.add_argument("--mca", default="nmpc-rti")
-    closed.add_argument("--workers", type=int, default=1, help="parallel processes")
-    closed.add_argument("--out-dir", default="datasets/closed_loop")
+    closed.add_argument("--vehicle", help="light (default) or jet")
+    closed.add_argument("--flights", type=int, help="number of flights (default 5)")
+    closed.add_argument("--first-seed", type=int, help="seed of the first flight (default 100)")
+    closed.add_argument("--minutes", type=float, help="per flight (default 15)")
+    closed.add_argument("--horizon", type=int, help="n_p (default 256)")
+    closed.add_argument("--mca", help="MCA that generates the data (default nmpc-rti)")
+    closed.add_argument("--workers", type=int, help="parallel processes (default 1)")
+    closed.add_argument("--out-dir", help="default datasets/closed_loop")
     closed.add_argument("--quiet", action="store_true")
     closed.set_defaults(func=_cmd_dataset_closed_loop)
 
     evaluate = sub.add_parser(
         "evaluate", help="run one recording through an MCA on the analytical plant"
     )
-    evaluate.add_argument(
-        "--mca", default="nmpc-rti", help="dpc, nmpc-rti, nmpc-converged or washout"
-    )
+    evaluate.add_argument("--mca", help="dpc (default), nmpc-rti, nmpc-converged or washout")
     evaluate.add_argument("--policy", help="policy file for --mca dpc (default: the shipped one)")
     evaluate.add_argument("--reference", help="recording CSV (one run)")
     evaluate.add_argument(
         "--suite", action="store_true", help="the scenario set: cases A and B, report, box plot"
     )
-    evaluate.add_argument("--cases", default="A,B", help="suite: cases to run")
-    evaluate.add_argument("--flights", type=int, default=10, help="suite: flights per case")
+    evaluate.add_argument("--cases", help="suite: cases to run (default A,B)")
+    evaluate.add_argument("--flights", type=int, help="suite: flights per case (default all 10)")
     evaluate.add_argument(
-        "--mcas", default="dpc,nmpc-converged,nmpc-rti,washout", help="suite: MCAs to compare"
+        "--mcas", help="suite: MCAs to compare (default dpc,nmpc-converged,nmpc-rti,washout)"
     )
-    evaluate.add_argument("--workers", type=int, default=1, help="suite: parallel processes")
-    evaluate.add_argument("--out-dir", default="results/evaluation", help="suite: output folder")
+    evaluate.add_argument("--workers", type=int, help="suite: parallel processes (default 1)")
+    evaluate.add_argument("--out-dir", help="suite: output folder (default results/evaluation)")
     evaluate.add_argument(
         "--duration", type=float, help="simulated seconds (default: all; suite: 300)"
     )
@@ -429,7 +463,7 @@ def build_parser() -> argparse.ArgumentParser:
     table2.add_argument("--open-loop-dataset", help="default datasets/open_loop.npz")
     table2.add_argument("--out-dir", default="results/table2")
     table2.add_argument("--resume", action="store_true", help="continue a killed run")
-    table2.add_argument("--device", default="auto", help="auto (CUDA if present), cpu, cuda")
+    table2.add_argument("--device", help="auto (CUDA if present; default), cpu, cuda")
     table2.add_argument("--max-epochs", type=int, help="override epochs per curriculum step")
     table2.add_argument(
         "--only", help="comma-separated candidates, e.g. state_node1,output_mixed (default all)"
@@ -440,28 +474,25 @@ def build_parser() -> argparse.ArgumentParser:
     policy = sub.add_parser("train-policy", help="train the DPC policy on a closed-loop dataset")
     policy.add_argument("--dataset", default="datasets/closed_loop/dataset.npz")
     policy.add_argument("--out-dir", default="results/policy")
-    policy.add_argument(
-        "--targets", default="achieved", help="achieved (NMPC outputs) or reference"
-    )
-    policy.add_argument("--plant", default="exact", help="exact or learned (NODE 2 + mixed)")
+    policy.add_argument("--targets", help="achieved (NMPC outputs; default) or reference")
+    policy.add_argument("--plant", help="exact (default) or learned (NODE 2 + mixed)")
     policy.add_argument("--learned-output-weights", help="output_mixed_n256.pt of a table2 run")
     policy.add_argument(
-        "--horizons", default="256,1024", help="curriculum of rollout lengths n_c, steps"
+        "--horizons", help="curriculum of rollout lengths n_c, steps (default 256,1024)"
     )
     policy.add_argument(
-        "--window-segments", type=int, default=4, help="dataset segments joined per window"
+        "--window-segments", type=int, help="dataset segments joined per window (default 4)"
     )
     policy.add_argument(
         "--channel-weights",
-        default="uniform",
-        help="tracking weights per output channel: uniform (the paper's), normalized "
+        help="tracking weights per output channel: uniform (the paper's; default), normalized "
         "(1 / target variance) or six numbers",
     )
     policy.add_argument("--init-policy", help="start from this policy file's weights")
     policy.add_argument("--max-epochs", type=int, help="default 3000 (the paper's)")
     policy.add_argument("--patience", type=int, help="early stopping, default 500 epochs")
-    policy.add_argument("--seed", type=int, default=0)
-    policy.add_argument("--device", default="auto")
+    policy.add_argument("--seed", type=int, help="weight initialisation (default 0)")
+    policy.add_argument("--device", help="auto (default), cpu, cuda")
     policy.add_argument("--no-compile", action="store_true", help="eager torch (slower)")
     policy.add_argument("--resume", action="store_true", help="continue a killed run")
     policy.add_argument("--quiet", action="store_true")

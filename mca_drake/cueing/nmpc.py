@@ -25,8 +25,6 @@ feasible, and a backtracking line search on the true cost makes the `converged` 
 descent method that stops at a KKT point of the nonlinear program.
 """
 
-from __future__ import annotations
-
 import dataclasses
 import time
 
@@ -40,6 +38,7 @@ from pydrake.solvers import (
     SolverOptions,
 )
 
+from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.safety import viable_acceleration_bounds
@@ -55,14 +54,14 @@ class NmpcConfig:
 
     # Solve mode: "rti" (one Gauss-Newton QP per step) or "converged" (iterate to tolerance).
     mode: str = "rti"
-    # Control period, s.
-    time_step: float = 0.01
+    # Control period, s; must equal the period of the reference it cues.
+    time_step: float = CONTROL_PERIOD_S
     # Prediction horizon in control periods (256 x 0.01 s = 2.56 s, the paper's).
     horizon_steps: int = 256
     # Number of intervals of the non-uniform grid over the horizon.
     nodes: int = 20
     # Weights of the six output channels (w_x, w_y, w_z, f_x, f_y, a_z) in ||y - r||^2.
-    output_weights: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
+    output_weights: list[float] = dataclasses.field(default_factory=lambda: [1.0] * 6)
     # Weight of ||u||^2 (rad/s^2)^-2.
     input_weight: float = 0.1
     # Washout weight on ||q||^2.

@@ -1,0 +1,2 @@
+"""The application: typed scenarios (diagrams/*.yaml), runnable jobs and the `mca-drake`
+command."""

@@ -1,0 +1,306 @@
+"""The typed scenarios that the YAML files in diagrams/ load into, one per job.
+
+Each scenario is a dataclass with a comment on every field; `load_scenario` reads one with
+`pydrake.common.yaml.yaml_load_typed`, so a misspelt key fails loudly and names the class
+it belongs to. The MCA of a scenario is a typed config (`mca_drake.cueing.McaConfig`) picked
+by its YAML tag, `mca: !NmpcConfig {mode: rti, washout_weight: 0.3}`; a name such as
+`mca: nmpc-rti` stands for that MCA's default config. Drake's own configs carry the
+simulator (`SimulatorConfig`: real-time rate, publishing) and Meshcat
+(`VisualizationConfig`) settings.
+(No `from __future__ import annotations` here: the YAML loader needs real type objects.)
+"""
+
+import dataclasses
+import types
+import typing
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Optional, Union
+
+from pydrake.common.yaml import yaml_dump, yaml_load, yaml_load_typed
+from pydrake.systems.analysis import SimulatorConfig
+from pydrake.visualization import VisualizationConfig
+
+from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.cueing import MCA_NAMES, DpcConfig, McaConfig, NmpcConfig, mca_config_from_name
+from mca_drake.references.flights import FlightSpec
+from mca_drake.studies.closed_loop_dataset import ClosedLoopDatasetConfig
+from mca_drake.studies.evaluation import (
+    DEFAULT_MCAS,
+    EvaluationCase,
+    EvaluationConfig,
+)
+from mca_drake.systems.kr500_station import StationConfig
+
+PLANTS = ("multibody", "analytical")
+
+
+@dataclasses.dataclass
+class PlantDemoScenario:
+    """The analytical plant driven by the built-in demo joint motion (no MCA yet)."""
+
+    # Simulated time, s.
+    duration_s: float = 20.0
+    # Control period of the plant and of the logged signals, s.
+    time_step: float = CONTROL_PERIOD_S
+    # URDF of the robot; empty means the packaged models/kr500.urdf.
+    robot_urdf: str = ""
+
+    def validate(self) -> None:
+        """Raises ValueError for values that cannot run."""
+        if not self.duration_s > 0:
+            raise ValueError(f"duration_s must be positive; got {self.duration_s}")
+        if not 0 < self.time_step <= 0.1:
+            raise ValueError(f"time_step must be in (0, 0.1] s; got {self.time_step}")
+
+
+def _fast_simulator() -> SimulatorConfig:
+    # As fast as possible; the diagrams are discrete, so the integrator settings are unused.
+    return SimulatorConfig(target_realtime_rate=0.0, publish_every_time_step=False)
+
+
+@dataclasses.dataclass
+class ClosedLoopScenario:
+    """Closed-loop motion cueing on the KR500 (MultibodyPlant station or analytical plant)."""
+
+    # The motion cueing algorithm and its settings: !DpcConfig, !NmpcConfig or
+    # !WashoutConfig (`mca_drake.cueing`), or a name (dpc, nmpc-rti, nmpc-converged,
+    # washout) for its default config.
+    mca: McaConfig = dataclasses.field(default_factory=DpcConfig)
+    # "multibody" (KR500 MultibodyPlant, inverse dynamics, head IMU) or "analytical".
+    plant: str = "multibody"
+    # The flight to cue.
+    flight: FlightSpec = dataclasses.field(default_factory=FlightSpec)
+    # Simulated time, s.
+    duration_s: float = 60.0
+    # The simulated robot, its controller and sensors (multibody plant only).
+    station: StationConfig = dataclasses.field(default_factory=StationConfig)
+    # Drake's simulator settings: target_realtime_rate 1 for live use (multibody only),
+    # 0 as fast as possible.
+    simulator_config: SimulatorConfig = dataclasses.field(default_factory=_fast_simulator)
+    # Watch it in Meshcat with Drake's visualization settings (multibody only; `{}` for the
+    # defaults of `mca_drake.simulation.builders.default_visualization`); null: no Meshcat.
+    visualization: Optional[VisualizationConfig] = None  # noqa: UP045 (YAML loader)
+    # Seed of the diagram's random sources (the IMU noise of `station`).
+    random_seed: int = 0
+    # Folder for summary.json, tracking.png (Fig. 4) and joint_usage.png (Fig. 5).
+    output_dir: str = "results/closed_loop"
+
+    def validate(self) -> None:
+        """Raises ValueError (FileNotFoundError for a missing file) for values that cannot
+        run, naming the field."""
+        if self.plant not in PLANTS:
+            raise ValueError(f"plant must be one of {', '.join(PLANTS)}; got {self.plant!r}")
+        if not self.duration_s > 0:
+            raise ValueError(f"duration_s must be positive; got {self.duration_s}")
+        realtime = self.simulator_config.target_realtime_rate
+        if not realtime >= 0:
+            raise ValueError(f"simulator_config.target_realtime_rate must be >= 0; got {realtime}")
+        if self.plant == "analytical" and (self.visualization is not None or realtime):
+            raise ValueError("visualization and a real-time rate need plant multibody")
+        self.mca.validate()
+        self.flight.validate()
+        self.station.validate()
+
+
+@dataclasses.dataclass
+class EvaluationScenario:
+    """The scenario evaluation of the MCAs (Case A light aircraft, Case B jet)."""
+
+    # MCAs compared (DPC is tested against each other one): configs or names.
+    mcas: list[McaConfig] = dataclasses.field(
+        default_factory=lambda: [mca_config_from_name(n) for n in DEFAULT_MCAS]
+    )
+    # Case A flight seeds (light aircraft); empty: skip the case.
+    light_seeds: list[int] = dataclasses.field(default_factory=lambda: list(range(1000, 1010)))
+    # Case B flight seeds (jet); empty: skip the case.
+    jet_seeds: list[int] = dataclasses.field(default_factory=lambda: list(range(2000, 2010)))
+    # Simulated seconds per flight.
+    duration_s: float = 300.0
+    # Parallel worker processes.
+    workers: int = 1
+    # Folder of the per-run JSON files (resumable), evaluation.md/json and the box plot.
+    output_dir: str = "results/evaluation"
+
+    def validate(self) -> None:
+        """Raises ValueError for values that cannot run."""
+        if not (self.light_seeds or self.jet_seeds):
+            raise ValueError("light_seeds and jet_seeds are both empty: nothing to evaluate")
+        if self.workers < 1:
+            raise ValueError(f"workers must be >= 1; got {self.workers}")
+        for mca in self.mcas:
+            mca.validate()
+        self.to_config().validate()
+
+    def to_config(self) -> EvaluationConfig:
+        """The `mca_drake.studies.evaluation.EvaluationConfig` of this scenario."""
+        cases = []
+        if self.light_seeds:
+            cases.append(EvaluationCase("A", "light", tuple(self.light_seeds)))
+        if self.jet_seeds:
+            cases.append(EvaluationCase("B", "jet", tuple(self.jet_seeds)))
+        return EvaluationConfig(
+            mcas=tuple(self.mcas), cases=tuple(cases), duration_s=self.duration_s
+        )
+
+
+@dataclasses.dataclass
+class DatasetScenario:
+    """Closed-loop dataset generation (the training data of the plant models and DPC)."""
+
+    # Vehicle class flown by JSBSim: "light" or "jet".
+    vehicle: str = "light"
+    # Flight seeds (evaluation uses 1000 on; keep these apart).
+    flight_seeds: list[int] = dataclasses.field(default_factory=lambda: [100, 101, 102, 103, 104])
+    # Length of each flight, s.
+    flight_duration_s: float = 900.0
+    # Segment length n_p, steps.
+    horizon: int = 256
+    # MCA that generates the trajectories: a config or a name.
+    mca: McaConfig = dataclasses.field(default_factory=lambda: NmpcConfig(mode="rti"))
+    # Seed of the shuffle before the 70/20/10 split.
+    split_seed: int = 0
+    # Parallel worker processes (one flight each).
+    workers: int = 1
+    # Folder of the per-flight files and the merged dataset.npz (resumable).
+    output_dir: str = "datasets/closed_loop"
+
+    def validate(self) -> None:
+        """Raises ValueError for values that cannot run."""
+        if self.workers < 1:
+            raise ValueError(f"workers must be >= 1; got {self.workers}")
+        self.mca.validate()
+        self.to_config().validate()
+
+    def to_config(self) -> ClosedLoopDatasetConfig:
+        """The `mca_drake.studies.closed_loop_dataset.ClosedLoopDatasetConfig` of this
+        scenario."""
+        return ClosedLoopDatasetConfig(
+            vehicle=self.vehicle,
+            flight_seeds=tuple(self.flight_seeds),
+            flight_duration_s=self.flight_duration_s,
+            horizon=self.horizon,
+            mca=self.mca,
+            split_seed=self.split_seed,
+        )
+
+
+Scenario = PlantDemoScenario | ClosedLoopScenario | EvaluationScenario | DatasetScenario
+
+
+@dataclasses.dataclass
+class ScenarioFile:
+    """What a diagrams/*.yaml file holds: one job, tagged with its type, e.g.
+    `scenario: !ClosedLoopScenario {mca: !DpcConfig {}, duration_s: 600}`."""
+
+    # The job to run and its settings.
+    scenario: Union[  # noqa: UP007 (the YAML loader needs typing.Union)
+        PlantDemoScenario, ClosedLoopScenario, EvaluationScenario, DatasetScenario
+    ] = dataclasses.field(default_factory=PlantDemoScenario)
+
+
+def _union_members(schema) -> tuple:
+    """The members of a Union or Optional type (without None); () for any other type."""
+    if typing.get_origin(schema) in (Union, types.UnionType):
+        return tuple(t for t in typing.get_args(schema) if t is not type(None))
+    return ()
+
+
+def _prepare(schema, raw, current, where: str):
+    """Checks untyped YAML `raw` against `schema` before Drake loads it, so that an unknown
+    field fails naming the field and its class, and resolves two shorthands:
+
+    - a union field given a name of `mca_drake.cueing.MCA_NAMES` becomes that MCA's
+      default config, tagged (`mca: nmpc-rti`);
+    - a union field given an untagged mapping keeps the type of its `current` value (an
+      override `{mca: {washout_weight: 0.1}}` of an NmpcConfig stays an NmpcConfig).
+
+    Returns the prepared raw value. Raises ValueError.
+    """
+    members = _union_members(schema)
+    if len(members) == 1:  # Optional[X]: X or null
+        return raw if raw is None else _prepare(members[0], raw, current, where)
+    if members:
+        if isinstance(raw, str) and set(members) == set(typing.get_args(McaConfig)):
+            if raw not in MCA_NAMES:
+                raise ValueError(f"{where}: unknown MCA '{raw}'; valid: {', '.join(MCA_NAMES)}")
+            config = mca_config_from_name(raw)
+            return {"_tag": f"!{type(config).__name__}", **dataclasses.asdict(config)}
+        if not isinstance(raw, dict):
+            return raw
+        by_tag = {f"!{t.__name__}": t for t in members}
+        tag = raw.get("_tag")
+        if tag is None:  # keep the current value's type
+            kind = type(current) if type(current) in members else members[0]
+            tag = f"!{kind.__name__}"
+        elif tag not in by_tag:
+            raise ValueError(f"{where}: unknown type {tag}; valid: {', '.join(by_tag)}")
+        kind = by_tag[tag]
+        body = {k: v for k, v in raw.items() if k != "_tag"}
+        same = current if type(current) is kind else None
+        return {"_tag": tag, **_prepare(kind, body, same, where)}
+    origin = typing.get_origin(schema)
+    if origin is list and isinstance(raw, list):
+        (item,) = typing.get_args(schema)
+        return [_prepare(item, v, None, f"{where}[{i}]") for i, v in enumerate(raw)]
+    if dataclasses.is_dataclass(schema) and isinstance(raw, dict):
+        fields = {f.name: f for f in dataclasses.fields(schema)}
+        unknown = [k for k in raw if k not in fields]
+        if unknown:
+            raise ValueError(
+                f"{where}: unknown field {', '.join(map(repr, unknown))} of "
+                f"{schema.__name__}; valid: {', '.join(fields)}"
+            )
+        return {
+            k: _prepare(
+                fields[k].type,
+                v,
+                getattr(current, k) if current is not None else None,
+                f"{where}.{k}" if where else k,
+            )
+            for k, v in raw.items()
+        }
+    return raw
+
+
+def load_scenario(path: str | Path, overrides: str | Sequence[str] | None = None) -> Scenario:
+    """Loads the `scenario` of a YAML file in diagrams/, with optional text overrides.
+
+    Args:
+        path: the YAML file.
+        overrides: optional YAML text (or several, applied in order) on top of the file's
+            scenario, for quick changes: '{scenario: {duration_s: 5}}' or just
+            '{duration_s: 5}'; an MCA is replaced with its tag,
+            `{mca: !NmpcConfig {mode: rti, washout_weight: 0.1}}`, or its fields changed
+            without one, `{mca: {washout_weight: 0.1}}`.
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: unknown field (named with its class), a value of the wrong type, or a
+            value out of range.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"scenario file not found: {path}")
+    try:
+        raw_file = yaml_load(filename=str(path))
+        raw_file = _prepare(ScenarioFile, raw_file, None, "")
+        scenario = yaml_load_typed(schema=ScenarioFile, data=yaml_dump(raw_file)).scenario
+        for override in [overrides] if isinstance(overrides, str) else overrides or ():
+            raw = yaml_load(data=override)
+            if not isinstance(raw, dict):
+                raise ValueError(f"an override must be a YAML mapping; got {override!r}")
+            if set(raw) == {"scenario"}:
+                raw = raw["scenario"]
+            # Applied to the loaded scenario's own type, so a tagged file needs no tag here.
+            raw = _prepare(type(scenario), raw, scenario, "")
+            scenario = yaml_load_typed(
+                schema=type(scenario), data=yaml_dump(raw), defaults=scenario
+            )
+    except (RuntimeError, ValueError, TypeError, AssertionError) as err:
+        raise ValueError(f"{path}: {err}") from err
+    try:
+        scenario.validate()
+    except (ValueError, FileNotFoundError) as err:
+        raise ValueError(f"{path}: {err}") from err
+    return scenario

@@ -1,0 +1,33 @@
+"""The motion cueing algorithms as plain numpy math, each with its typed config.
+
+- `nmpc`: NmpcConfig and the NMPC optimal control problem (Drake MathematicalProgram).
+- `washout`: WashoutConfig and the classical washout filters.
+- `dpc`: DpcConfig, the policy-file reader and numpy inference of the DPC policy.
+- `configs`: the union of the three configs (`McaConfig`) and their shorthand names.
+
+The Drake systems that run them in a diagram are in `mca_drake.systems`.
+"""
+
+from mca_drake.cueing.configs import (
+    MCA_NAMES,
+    McaConfig,
+    as_mca_config,
+    mca_config_from_name,
+    mca_config_record,
+    mca_name,
+)
+from mca_drake.cueing.dpc import DpcConfig
+from mca_drake.cueing.nmpc import NmpcConfig
+from mca_drake.cueing.washout import WashoutConfig
+
+__all__ = [
+    "MCA_NAMES",
+    "DpcConfig",
+    "McaConfig",
+    "NmpcConfig",
+    "WashoutConfig",
+    "as_mca_config",
+    "mca_config_from_name",
+    "mca_config_record",
+    "mca_name",
+]

@@ -1,0 +1,115 @@
+"""DPC inference: the policy-file format, its reader and the numpy policy (no torch).
+
+A policy file (.npz, no pickle) holds the exported weights of
+`mca_drake.learning.policy.PolicyNetwork` and a JSON metadata string: W1 (hidden, 24),
+W2 (18, hidden), input_scale (24), lower, upper (18). `PolicyInference` evaluates it in
+numpy, equal to the torch network (tested to 1e-6): the same scaled inputs, two bias-free
+layers with the exact (erf) GELU between, and the saturation to the limits.
+"""
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+from scipy.special import erf
+
+from mca_drake.robot import NUM_JOINTS
+
+_SQRT_HALF = np.sqrt(0.5)
+
+POLICY_FORMAT = "mca-drake-policy-1"
+# The arrays of a policy file, in the order `PolicyNetwork.export` writes them.
+POLICY_ARRAYS = ("W1", "W2", "input_scale", "lower", "upper")
+# Inputs [y (6), x = [q, qd] (12), target (6)] and outputs [u (6), x_hat (12)] of the policy.
+INPUT_SIZE = 6 + 2 * NUM_JOINTS + 6
+OUTPUT_SIZE = NUM_JOINTS + 2 * NUM_JOINTS
+
+
+@dataclasses.dataclass
+class DpcConfig:
+    """The DPC motion-cueing algorithm: which trained policy runs (paper eq. 11).
+
+    In YAML: `mca: !DpcConfig {policy: results/policy/policy.npz}`.
+    """
+
+    # Policy file (`mca-drake train-policy`); empty: the policy shipped with the package.
+    policy: str = ""
+
+    def validate(self) -> None:
+        """Raises FileNotFoundError when the policy file does not exist."""
+        if self.policy and not Path(self.policy).is_file():
+            raise FileNotFoundError(f"DpcConfig.policy: policy file {self.policy!r} not found")
+
+    def policy_path(self) -> Path:
+        """The policy file this config runs: `policy`, or the shipped one."""
+        return Path(self.policy) if self.policy else default_policy_path()
+
+
+def default_policy_path() -> Path:
+    """The policy shipped with the package (mca_drake/data/default_policy.npz); raises
+    FileNotFoundError with the command that makes one if it is missing."""
+    path = Path(__file__).resolve().parents[1] / "data" / "default_policy.npz"
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"no default policy at {path}; train one with `mca-drake train-policy` and pass "
+            "--policy, or reinstall the package"
+        )
+    return path
+
+
+def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
+    """(arrays, metadata) of a policy file; ValueError with the reason if it is not one or
+    its arrays do not fit together, FileNotFoundError if it is missing."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"policy file not found: {path}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            metadata = json.loads(str(data["metadata_json"]))
+            arrays = {k: np.asarray(data[k], dtype=float) for k in POLICY_ARRAYS}
+    except (OSError, KeyError, ValueError) as err:
+        raise ValueError(f"{path} is not a policy file: {err}") from err
+    if metadata.get("format") != POLICY_FORMAT:
+        raise ValueError(f"{path}: unknown policy format {metadata.get('format')!r}")
+    hidden = arrays["W1"].shape[0]
+    expected = {
+        "W1": (hidden, INPUT_SIZE),
+        "W2": (OUTPUT_SIZE, hidden),
+        "input_scale": (INPUT_SIZE,),
+        "lower": (OUTPUT_SIZE,),
+        "upper": (OUTPUT_SIZE,),
+    }
+    for name, shape in expected.items():
+        if arrays[name].shape != shape:
+            raise ValueError(f"{path}: array {name} has shape {arrays[name].shape}, not {shape}")
+        if not np.all(np.isfinite(arrays[name])):
+            raise ValueError(f"{path}: array {name} holds NaN or inf")
+    if np.any(arrays["lower"] > arrays["upper"]) or np.any(arrays["input_scale"] <= 0):
+        raise ValueError(f"{path}: bounds or input scales are inconsistent")
+    return arrays, metadata
+
+
+class PolicyInference:
+    """u, x_hat = policy(y, x, target) in numpy from the arrays of a policy file.
+
+    Args:
+        arrays: W1 (hidden, 24), W2 (18, hidden), input_scale (24), lower, upper (18), as
+            written by `mca_drake.learning.policy.save_policy` (see `load_policy_arrays`).
+    """
+
+    def __init__(self, arrays: dict[str, np.ndarray]):
+        # Fold the input scaling into the first layer: W1 (v / s) = (W1 / s) v.
+        self._W1 = np.ascontiguousarray(arrays["W1"] / arrays["input_scale"][None, :])
+        self._W2 = np.ascontiguousarray(arrays["W2"])
+        self._lower, self._upper = arrays["lower"].copy(), arrays["upper"].copy()
+        self._features = np.empty(self._W1.shape[1])
+
+    def __call__(self, y, x, target) -> tuple[np.ndarray, np.ndarray]:
+        """(u (6), x_hat (12)) for y (6), x (12), target (6); 1-D numpy arrays."""
+        f = self._features
+        f[:6], f[6:18], f[18:] = y, x, target
+        a = self._W1 @ f
+        a = 0.5 * a * (1.0 + erf(a * _SQRT_HALF))
+        z = np.minimum(np.maximum(self._W2 @ a, self._lower), self._upper)
+        return z[:NUM_JOINTS], z[NUM_JOINTS:]

@@ -1,0 +1,289 @@
+"""Diagram builders (Make*/Add*): the plant demo and the closed loops on both plants.
+
+`AddMca` adds any MCA from its typed config (`mca_drake.cueing.McaConfig`);
+`MakeAnalyticalClosedLoop` wires ReferenceSource -> MCA -> MotionCueingPlant and
+`MakeMultibodyClosedLoop` ReferenceSource -> MCA -> KR500 station, each with 100 Hz logs.
+`mca_drake.simulation.closed_loop.run_closed_loop` simulates either and summarises it.
+"""
+
+import numpy as np
+from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, Rgba, Role
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
+from pydrake.visualization import VisualizationConfig
+
+from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.cueing import DpcConfig, McaConfig, NmpcConfig, WashoutConfig, as_mca_config
+from mca_drake.cueing.dpc import load_policy_arrays
+from mca_drake.demo_motion import demo_joint_motion
+from mca_drake.references.reference import Reference
+from mca_drake.robot import KR500, load_kr500
+from mca_drake.systems import MotionCueingPlant, ReferenceSource
+from mca_drake.systems.classical_washout import ClassicalWashout
+from mca_drake.systems.dpc_policy import DpcPolicy
+from mca_drake.systems.kr500_station import AddKR500Station, StationConfig
+from mca_drake.systems.meshcat_traces import MeshcatOutputTraces
+from mca_drake.systems.nmpc_controller import NmpcController
+
+
+def MakePlantDemoDiagram(
+    *,
+    duration_s: float = 20.0,
+    time_step: float = CONTROL_PERIOD_S,
+    robot: KR500 | None = None,
+) -> tuple[Diagram, dict]:
+    """Demo joint accelerations -> MotionCueingPlant, with 100 Hz logs.
+
+    Returns:
+        (diagram, handles): handles has the `plant` system and the `output_log` and
+        `state_log` VectorLogSinks (inertial_output y and state [q, qd]).
+    """
+    if not duration_s > 0 or not 0 < time_step <= 0.1:
+        raise ValueError(
+            f"duration_s must be positive and time_step in (0, 0.1] s; got {duration_s}, "
+            f"{time_step}"
+        )
+    robot = robot if robot is not None else load_kr500()
+    h = time_step
+    times = np.arange(0.0, duration_s + 2 * h, h)
+    _, _, qdd = demo_joint_motion(times, robot)
+    builder = DiagramBuilder()
+    source = builder.AddNamedSystem(
+        "demo_motion", TrajectorySource(PiecewisePolynomial.ZeroOrderHold(times, qdd.T))
+    )
+    plant = builder.AddNamedSystem("plant", MotionCueingPlant(robot=robot, time_step=h))
+    builder.Connect(source.get_output_port(), plant.GetInputPort("joint_acceleration"))
+    output_log = LogVectorOutput(plant.GetOutputPort("inertial_output"), builder, h)
+    state_log = LogVectorOutput(plant.GetOutputPort("state"), builder, h)
+    output_log.set_name("output_log")
+    state_log.set_name("state_log")
+    input_log = LogVectorOutput(source.get_output_port(), builder, h)
+    input_log.set_name("input_log")
+    diagram = builder.Build()
+    diagram.set_name("plant_demo")
+    handles = dict(plant=plant, output_log=output_log, state_log=state_log, input_log=input_log)
+    return diagram, handles
+
+
+def AddMca(
+    builder: DiagramBuilder,
+    mca: McaConfig | str,
+    robot: KR500,
+    time_step: float = CONTROL_PERIOD_S,
+) -> LeafSystem:
+    """Adds the motion cueing algorithm of `mca` (a typed config, or a name of
+    `mca_drake.cueing.MCA_NAMES` for its default config) to `builder` as system "mca".
+
+    Every MCA has input ports `state` (12) and `reference` (6), the output ports
+    `joint_acceleration` (6) and `statistics` (`mca_drake.conventions.MCA_STATISTICS`), and
+    DPC also the input `inertial_output` (6).
+
+    Args:
+        time_step: the control period, s; an NmpcConfig must state the same.
+
+    Raises:
+        ValueError: an unknown name, a config that does not validate, or an NmpcConfig
+            whose time_step is not the control period.
+    """
+    config = as_mca_config(mca)
+    if isinstance(config, NmpcConfig):
+        if abs(config.time_step - time_step) > 1e-12:
+            raise ValueError(
+                f"NmpcConfig.time_step {config.time_step} s differs from the control period "
+                f"{time_step} s of the reference"
+            )
+        return builder.AddNamedSystem("mca", NmpcController(config, robot))
+    if isinstance(config, DpcConfig):
+        config.validate()
+        arrays, _ = load_policy_arrays(config.policy_path())
+        return builder.AddNamedSystem("mca", DpcPolicy(arrays, robot, time_step))
+    if isinstance(config, WashoutConfig):
+        return builder.AddNamedSystem(
+            "mca", ClassicalWashout(config=config, robot=robot, time_step=time_step)
+        )
+    raise TypeError(f"not an MCA config: {type(config).__name__}")
+
+
+def _add_source_and_mca(builder, reference, mca, robot):
+    """ReferenceSource and the MCA, wired together; returns (source, mca, initial_state):
+    the robot starts at rest at the MCA's home pose (q = 0 unless the MCA has one)."""
+    source = builder.AddNamedSystem("reference_source", ReferenceSource(reference))
+    controller = AddMca(builder, mca, robot, reference.time_step)
+    builder.Connect(source.GetOutputPort("reference"), controller.GetInputPort("reference"))
+    home = getattr(controller, "home_position", np.zeros(len(robot.joint_names)))
+    return source, controller, np.concatenate([home, np.zeros_like(home)])
+
+
+def _connect_mca(builder, controller, state, inertial_output, joint_acceleration) -> None:
+    """Feeds the MCA the robot's `state` (and `inertial_output` where it reads one) and
+    drives the robot's `joint_acceleration` input with its command."""
+    builder.Connect(state, controller.GetInputPort("state"))
+    if controller.HasInputPort("inertial_output"):
+        builder.Connect(inertial_output, controller.GetInputPort("inertial_output"))
+    builder.Connect(controller.GetOutputPort("joint_acceleration"), joint_acceleration)
+
+
+def _add_logs(builder: DiagramBuilder, ports: dict, controller, time_step: float) -> dict:
+    """Named VectorLogSinks of `ports` (name -> output port), plus the MCA's
+    `statistics_log`, all sampled every `time_step`."""
+    ports = ports | {"statistics_log": controller.GetOutputPort("statistics")}
+    logs = {}
+    for name, port in ports.items():
+        logs[name] = LogVectorOutput(port, builder, time_step)
+        logs[name].set_name(name)
+    return logs
+
+
+def MakeAnalyticalClosedLoop(
+    reference: Reference,
+    mca: McaConfig | str,
+    robot: KR500 | None = None,
+) -> tuple[Diagram, dict]:
+    """ReferenceSource -> MCA -> MotionCueingPlant, the MCA fed the plant state, with logs.
+
+    The control period is the reference's time step. Logs (VectorLogSinks at the control
+    period): `reference_log`, `state_log` (x_n at t_n), `command_log` and `statistics_log`.
+    Publishing happens before the control update at the same instant, so the command logged
+    at t_(n+1) is u_n, the one applied over [t_n, t_(n+1)).
+
+    Args:
+        reference: the target outputs.
+        mca: an MCA config or name (`mca_drake.cueing`).
+        robot: the KR500 description (default: models/kr500.urdf).
+
+    Returns:
+        (diagram, handles) with the systems `source`, `mca`, `plant` and the logs.
+    """
+    robot = robot if robot is not None else load_kr500()
+    time_step = reference.time_step
+    builder = DiagramBuilder()
+    source, controller, initial_state = _add_source_and_mca(builder, reference, mca, robot)
+    plant = builder.AddNamedSystem(
+        "plant", MotionCueingPlant(robot=robot, time_step=time_step, initial_state=initial_state)
+    )
+    _connect_mca(
+        builder,
+        controller,
+        plant.GetOutputPort("state"),
+        plant.GetOutputPort("inertial_output"),
+        plant.GetInputPort("joint_acceleration"),
+    )
+    handles = dict(source=source, mca=controller, plant=plant)
+    ports = {
+        "reference_log": source.GetOutputPort("reference"),
+        "state_log": plant.GetOutputPort("state"),
+        "command_log": controller.GetOutputPort("joint_acceleration"),
+    }
+    handles |= _add_logs(builder, ports, controller, time_step)
+    diagram = builder.Build()
+    diagram.set_name("analytical_closed_loop")
+    return diagram, handles
+
+
+def MakeMultibodyClosedLoop(
+    reference: Reference,
+    mca: McaConfig | str,
+    robot: KR500 | None = None,
+    station: StationConfig | None = None,
+    meshcat=None,
+    visualization: VisualizationConfig | None = None,
+) -> tuple[Diagram, dict]:
+    """ReferenceSource -> MCA -> KR500 station (MultibodyPlant, inverse dynamics, head IMU),
+    the MCA fed the station's measured state (and measured y where it reads one).
+
+    Logs (at the control period, the reference's time step): `reference_log`,
+    `command_log` (the MCA's joint accelerations), `desired_state_log` ([q_d, qd_d] the
+    controller tracks), `measured_state_log` ([q, qd] of the MultibodyPlant),
+    `measured_output_log` (y from the head IMU, without the measurement delay: what the
+    occupant felt) and `statistics_log`.
+
+    Args:
+        reference: the target outputs (a `Reference`).
+        mca: an MCA config or name (`mca_drake.cueing`).
+        station: a `StationConfig` (default: 1 ms plant, 40 rad/s tracking, no limits,
+            no noise, no delay).
+        meshcat: a pydrake Meshcat to draw the robot, the cabin and live target/measured
+            strip charts in; None for none.
+        visualization: Drake's VisualizationConfig of the Meshcat drawing (publish period,
+            illustration/proximity/inertia layers); default: illustration only at 30 Hz.
+
+    Returns:
+        (diagram, handles): handles has `source`, `mca`, `station` (StationHandles) and the
+        logs; call `handles["station"].SetInitialState(root_context)` before simulating
+        (the robot starts at rest at the MCA's home pose).
+    """
+    robot = robot if robot is not None else load_kr500()
+    time_step = reference.time_step
+    builder = DiagramBuilder()
+    source, controller, initial_state = _add_source_and_mca(builder, reference, mca, robot)
+    station_handles = AddKR500Station(
+        builder, robot, station, initial_state, with_geometry=meshcat is not None
+    )
+    _connect_mca(
+        builder,
+        controller,
+        station_handles.measured_state,
+        station_handles.measured_output,
+        station_handles.joint_acceleration,
+    )
+    handles = dict(source=source, mca=controller, station=station_handles)
+    ports = {
+        "reference_log": source.GetOutputPort("reference"),
+        "command_log": controller.GetOutputPort("joint_acceleration"),
+        "desired_state_log": station_handles.desired_state,
+        "measured_state_log": station_handles.true_state,
+        "measured_output_log": station_handles.true_output,
+    }
+    handles |= _add_logs(builder, ports, controller, time_step)
+    if meshcat is not None:
+        handles["traces"] = _add_meshcat(
+            builder, meshcat, visualization, station_handles, source, time_step
+        )
+    diagram = builder.Build()
+    diagram.set_name("multibody_closed_loop")
+    return diagram, handles
+
+
+def default_visualization() -> VisualizationConfig:
+    """The Meshcat drawing of a closed loop: the robot and cabin (illustration) at 30 Hz,
+    without the collision layer."""
+    return VisualizationConfig(publish_period=1 / 30, publish_proximity=False)
+
+
+def _add_meshcat(builder, meshcat, visualization, station_handles, source, time_step):
+    """Meshcat drawing of the station and the live target/measured strip charts; returns
+    the MeshcatOutputTraces system.
+
+    The drawing follows Drake's VisualizationConfig: the illustration and proximity layers
+    with their colours, publish period and alpha sliders, as ApplyVisualizationConfig
+    would draw them, but straight into `meshcat` with no LCM (nothing on the network).
+    Contact and inertia layers are not drawn: a motion simulator touches nothing.
+    """
+    config = visualization if visualization is not None else default_visualization()
+    layers = []
+    if config.publish_illustration:
+        layers.append((Role.kIllustration, config.default_illustration_color, True))
+    if config.publish_proximity:
+        color = config.default_proximity_color
+        faded = Rgba(color.r(), color.g(), color.b(), config.initial_proximity_alpha)
+        layers.append((Role.kProximity, faded, False))
+    for role, color, visible in layers:
+        params = MeshcatVisualizerParams(
+            publish_period=config.publish_period,
+            role=role,
+            default_color=color,
+            prefix="illustration" if role == Role.kIllustration else "proximity",
+            delete_on_initialization_event=config.delete_on_initialization_event,
+            enable_alpha_slider=config.enable_alpha_sliders,
+            visible_by_default=visible,
+        )
+        MeshcatVisualizer.AddToBuilder(builder, station_handles.scene_graph, meshcat, params)
+    # A view of the whole robot with the strip-chart board behind it, to its left.
+    meshcat.SetCameraPose(np.array([3.5, -4.5, 3.2]), np.array([-0.5, 1.5, 1.6]))
+    traces = builder.AddNamedSystem(
+        "output_traces", MeshcatOutputTraces(meshcat, sample_period=time_step)
+    )
+    builder.Connect(source.GetOutputPort("reference"), traces.GetInputPort("reference"))
+    builder.Connect(station_handles.true_output, traces.GetInputPort("measured_output"))
+    return traces

@@ -1,0 +1,292 @@
+"""The closed-loop runner for both plants, its one result type and its summary.
+
+`run_closed_loop` simulates ReferenceSource -> MCA -> plant over a reference and returns
+aligned signals at the control period (t_n = n h) with the result summary (README,
+"Result summary"). The plant is
+
+- "analytical": the exact joint-space plant of the paper (`MotionCueingPlant`); y_n =
+  y(x_n, u_n) is computed from the logged state and command, and the logs are checked to
+  satisfy x_(n+1) = step(x_n, u_n) exactly;
+- "multibody": the KR500 station (MultibodyPlant at 1 kHz, inverse-dynamics control, head
+  IMU). Alignment with the analytical convention: the angular velocity of sample n is the
+  gyroscope at t_n; the specific force and vertical acceleration are the accelerometer at
+  t_(n+1), whose plant step is the first that carries the command u_n (the command reaches
+  the robot one plant step after it is computed).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+import numpy as np
+from pydrake.common import RandomGenerator
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
+from tqdm.auto import tqdm
+
+from mca_drake.atomic_io import atomic_write_json
+from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
+from mca_drake.kinematics import plant_output
+from mca_drake.metrics import joint_usage, tracking_score
+from mca_drake.references.reference import Reference
+from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.simulation.builders import MakeAnalyticalClosedLoop, MakeMultibodyClosedLoop
+from mca_drake.systems.kr500_station import StationConfig
+
+PLANTS = ("analytical", "multibody")
+# Tolerance of the timing self-check x_(n+1) = step(x_n, u_n) on the analytical plant.
+_CONSISTENCY_TOL = 1e-9
+
+
+@dataclasses.dataclass
+class ClosedLoopResult:
+    """Aligned closed-loop signals (T samples at t_n = n h) and the result summary."""
+
+    times: np.ndarray  # (T,), s
+    reference: np.ndarray  # (T, 6), r_n
+    outputs: np.ndarray  # (T, 6), y_n (analytical: y(x_n, u_n); multibody: the head IMU)
+    commands: np.ndarray  # (T, 6), u_n, the MCA's joint accelerations, rad/s^2
+    states: np.ndarray  # (T, 12), x_n = [q_n, qd_n] (multibody: measured)
+    accelerations: np.ndarray  # (T, 6), joint accelerations over [t_n, t_(n+1)), rad/s^2
+    step_times_s: np.ndarray  # (T,), MCA compute time per control step, s
+    summary: dict
+    # (T, 12), [q_d, qd_d] the station's controller tracks at t_n; None on the analytical plant.
+    desired_states: np.ndarray | None = None
+
+
+def simulate_with_progress(simulator: Simulator, duration_s: float, progress: bool) -> float:
+    """Advances `simulator` by `duration_s` in chunks with a progress bar; returns wall s."""
+    start = time.perf_counter()
+    t0 = simulator.get_context().get_time()
+    chunk = max(duration_s / 100, 0.1)
+    with tqdm(total=round(duration_s, 3), unit="sim s", disable=not progress, leave=False) as bar:
+        t = t0
+        while t < t0 + duration_s - 1e-9:
+            t_next = min(t + chunk, t0 + duration_s)
+            simulator.AdvanceTo(t_next)
+            bar.update(round(t_next - t, 3))
+            t = t_next
+    return time.perf_counter() - start
+
+
+def step_time_summary(step_times_s: np.ndarray) -> dict[str, float]:
+    """Median, 99th percentile and maximum of per-step compute times, s."""
+    if step_times_s.size == 0:
+        return {"median": float("nan"), "p99": float("nan"), "max": float("nan")}
+    return {
+        "median": float(np.median(step_times_s)),
+        "p99": float(np.percentile(step_times_s, 99)),
+        "max": float(np.max(step_times_s)),
+    }
+
+
+def checked_duration(reference: Reference, duration_s: float | None) -> float:
+    """The simulated time of a closed loop over `reference`: `duration_s`, or the whole
+    reference when None; raises ValueError outside (0, reference duration]."""
+    duration = reference.duration_s if duration_s is None else float(duration_s)
+    if not 0 < duration <= reference.duration_s + 1e-9:
+        raise ValueError(
+            f"duration_s must be in (0, {reference.duration_s:g}] s (the reference); got "
+            f"{duration_s}"
+        )
+    return duration
+
+
+def closed_loop_summary(
+    *,
+    config: McaConfig,
+    plant: str,
+    reference_name: str,
+    duration_s: float,
+    reference: np.ndarray,
+    outputs: np.ndarray,
+    states: np.ndarray,
+    accelerations: np.ndarray,
+    statistics: np.ndarray,
+    wall_s: float,
+    robot: KR500,
+) -> tuple[dict, np.ndarray]:
+    """The result summary (README, "Result summary") for n aligned samples, and the MCA step times.
+
+    Args:
+        config: the MCA config that ran (recorded in full as `mca_config`).
+        reference, outputs: r_n and y_n, shape (n, 6).
+        states, accelerations: x_n (n, 12) and the joint accelerations over each step (n, 6).
+        statistics: the MCA's `statistics` log (row k published at t_k, so row n holds the
+            totals after n steps), shape (n + 1 or more, 4).
+        wall_s: wall time of the simulation, s.
+    """
+    n = reference.shape[0]
+    step_times = statistics[1 : n + 1, 0]
+    score = tracking_score(reference, outputs)
+    # Not moving at all renders y = 0 (at rest, the head is level at every home pose).
+    zero_motion = tracking_score(reference, np.zeros_like(reference))
+    usage = joint_usage(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], accelerations, robot)
+    summary = {
+        "mca": mca_name(config),
+        "mca_config": mca_config_record(config),
+        "plant": plant,
+        "reference": reference_name,
+        "duration_s": duration_s,
+        "pi": score.pi,
+        "pi_zero_motion": zero_motion.pi,
+        "rmse": score.rmse.tolist(),
+        "cc": score.cc.tolist(),
+        "step_time_s": step_time_summary(step_times),
+        "violations": usage.violations(),
+        "safety_interventions": int(statistics[n, 2]),
+        "solver_failures": int(statistics[n, 1]),
+        "realtime_factor": duration_s / max(wall_s, 1e-9),
+        "wall_time_s": wall_s,
+    }
+    return summary, step_times
+
+
+def run_closed_loop(
+    *,
+    mca: McaConfig | str,
+    reference: Reference,
+    plant: str = "analytical",
+    duration_s: float | None = None,
+    robot: KR500 | None = None,
+    station: StationConfig | None = None,
+    meshcat=None,
+    visualization=None,
+    simulator_config: SimulatorConfig | None = None,
+    random_seed: int | None = None,
+    progress: bool = True,
+    json_path: str | Path | None = None,
+    plot_dir: str | Path | None = None,
+) -> ClosedLoopResult:
+    """Runs the closed loop of an MCA over `reference` on the analytical or multibody plant.
+
+    Args:
+        mca: an MCA config (`mca_drake.cueing`: DpcConfig, NmpcConfig, WashoutConfig) or the
+            name of a default one ("dpc", "nmpc-rti", "nmpc-converged", "washout").
+        reference: the target outputs; its time step is the control period.
+        plant: "analytical" (the paper's joint-space plant) or "multibody" (the KR500
+            station).
+        duration_s: simulated time, s; default the whole reference.
+        station: the station settings (multibody only; default StationConfig()).
+        meshcat: a pydrake Meshcat to watch the run in (multibody only; None: none); the
+            run is recorded into it for replay.
+        visualization: Drake's VisualizationConfig of the Meshcat drawing (multibody only).
+        simulator_config: Drake's SimulatorConfig (target_realtime_rate 1 for live use;
+            default: as fast as possible).
+        random_seed: seed of the diagram's random sources (the IMU noise); None keeps Drake's
+            default seeds.
+        json_path: optional result summary (JSON), written atomically.
+        plot_dir: optional folder for `tracking.png` (Fig. 4) and `joint_usage.png` (Fig. 5).
+
+    Raises:
+        ValueError: an unknown plant or MCA, a bad duration, or settings the plant cannot
+            take (Meshcat on the analytical plant, a control period that is not a whole
+            number of plant steps).
+    """
+    if plant not in PLANTS:
+        raise ValueError(f"unknown plant '{plant}'; valid: {', '.join(PLANTS)}")
+    config = as_mca_config(mca)
+    robot = robot if robot is not None else load_kr500()
+    h = reference.time_step
+    duration = checked_duration(reference, duration_s)
+    if plant == "analytical":
+        if meshcat is not None or station is not None:
+            raise ValueError("meshcat and station need plant 'multibody'")
+        diagram, handles = MakeAnalyticalClosedLoop(reference, config, robot)
+    else:
+        station = station if station is not None else StationConfig()
+        ratio = h / station.plant_time_step
+        if abs(ratio - round(ratio)) > 1e-9:
+            raise ValueError(
+                f"the control period {h} s must be a whole number of plant steps "
+                f"({station.plant_time_step} s)"
+            )
+        diagram, handles = MakeMultibodyClosedLoop(
+            reference, config, robot, station, meshcat=meshcat, visualization=visualization
+        )
+    simulator = Simulator(diagram)
+    if simulator_config is not None:
+        ApplySimulatorConfig(simulator_config, simulator)
+    context = simulator.get_mutable_context()
+    if random_seed is not None:
+        diagram.SetRandomContext(context, RandomGenerator(int(random_seed)))
+    if plant == "multibody":
+        handles["station"].SetInitialState(context)
+    if meshcat is not None:
+        meshcat.StartRecording(frames_per_second=30)
+    simulator.Initialize()
+    # One period past the end so that the sample after the last kept one is logged.
+    wall_s = simulate_with_progress(simulator, duration + 1.5 * h, progress)
+    if meshcat is not None:
+        meshcat.StopRecording()
+        meshcat.PublishRecording()
+
+    def log(name):
+        return handles[name].FindLog(context).data().T
+
+    n = round(duration / h) + 1
+    commands = log("command_log")[1 : n + 1]
+    desired = None
+    if plant == "analytical":
+        states = log("state_log")[:n]
+        _check_alignment(states, commands, h)
+        accelerations = commands
+        outputs = plant_output(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], commands, robot)
+    else:
+        measured_y = log("measured_output_log")
+        outputs = np.concatenate([measured_y[:n, :3], measured_y[1 : n + 1, 3:]], axis=1)
+        measured = log("measured_state_log")
+        accelerations = (measured[1 : n + 1, NUM_JOINTS:] - measured[:n, NUM_JOINTS:]) / h
+        states = measured[:n]
+        desired = log("desired_state_log")[:n]
+    ref = log("reference_log")[:n]
+    summary, step_times = closed_loop_summary(
+        config=config,
+        plant=plant,
+        reference_name=reference.name,
+        duration_s=duration,
+        reference=ref,
+        outputs=outputs,
+        states=states,
+        accelerations=accelerations,
+        statistics=log("statistics_log"),
+        wall_s=wall_s,
+        robot=robot,
+    )
+    if random_seed is not None:
+        summary["random_seed"] = int(random_seed)
+    if plant == "multibody":
+        tracking_error = np.abs(states[:, :NUM_JOINTS] - desired[:, :NUM_JOINTS])
+        summary["plant_time_step_s"] = station.plant_time_step
+        summary["joint_tracking_error_rad"] = {
+            "rms": float(np.sqrt(np.mean(tracking_error**2))),
+            "max": float(tracking_error.max()),
+        }
+        summary["station"] = dataclasses.asdict(station)
+    result = ClosedLoopResult(
+        times=np.arange(n) * h,
+        reference=ref,
+        outputs=outputs,
+        commands=commands,
+        states=states,
+        accelerations=accelerations,
+        step_times_s=step_times,
+        summary=summary,
+        desired_states=desired,
+    )
+    if json_path:
+        atomic_write_json(json_path, summary)
+    if plot_dir:
+        from mca_drake.simulation.plots import write_closed_loop_plots  # matplotlib: only here
+
+        write_closed_loop_plots(result, plot_dir, robot)
+    return result
+
+
+def _check_alignment(states: np.ndarray, commands: np.ndarray, h: float) -> None:
+    """Raises RuntimeError unless x_(n+1) = step(x_n, u_n) (the logs are aligned)."""
+    q, qd, u = states[:-1, :NUM_JOINTS], states[:-1, NUM_JOINTS:], commands[:-1]
+    step = np.concatenate([q + h * qd + 0.5 * h * h * u, qd + h * u], axis=1)
+    if not np.allclose(step, states[1:], rtol=0, atol=_CONSISTENCY_TOL):
+        raise RuntimeError("closed-loop logs are not aligned: x_(n+1) != step(x_n, u_n)")

@@ -1,0 +1,43 @@
+"""The plots of a closed-loop run: tracking (the paper's Fig. 4) and joint usage (Fig. 5)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from mca_drake.metrics import joint_usage
+from mca_drake.plotting import plot_joint_usage, plot_tracking, save_figure
+from mca_drake.robot import KR500, NUM_JOINTS
+
+_PLANT_NAMES = {"multibody": "KR500 MultibodyPlant", "analytical": "analytical plant"}
+
+
+def tracking_figure(result):
+    """Target against measured output per channel, RMSE and CC in the panel titles, the
+    run's PI and the zero-motion PI in the title (Fig. 4). `result`: a ClosedLoopResult."""
+    s = result.summary
+    title = (
+        f"{s['mca']} on the {_PLANT_NAMES.get(s['plant'], s['plant'])}: PI {s['pi']:.3f} "
+        f"(zero motion {s['pi_zero_motion']:.3f})"
+    )
+    return plot_tracking(result.times, result.reference, result.outputs, title)
+
+
+def joint_usage_figure(result, robot: KR500 | None = None):
+    """Normalised joint positions, velocities and accelerations as strip charts (Fig. 5)."""
+    usage = joint_usage(
+        result.states[:, :NUM_JOINTS], result.states[:, NUM_JOINTS:], result.accelerations, robot
+    )
+    return plot_joint_usage(usage, title=f"{result.summary['mca']}: normalised joint usage")
+
+
+def write_closed_loop_plots(
+    result, folder: str | Path, robot: KR500 | None = None
+) -> tuple[Path, Path]:
+    """Writes `tracking.png` (Fig. 4) and `joint_usage.png` (Fig. 5) of a ClosedLoopResult
+    into `folder` (created if missing); returns their paths."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    tracking, usage = folder / "tracking.png", folder / "joint_usage.png"
+    save_figure(tracking_figure(result), tracking)
+    save_figure(joint_usage_figure(result, robot), usage)
+    return tracking, usage

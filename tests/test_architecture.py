@@ -1,0 +1,133 @@
+"""The package's layering (README, "Layers"): imports point down, never in a circle, and
+the Drake-side layers load no torch.
+
+The import graph is built from the source with `ast`, counting every import, those inside
+functions included: a function-level import still ties two modules together.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "mca_drake"
+# Bottom to top; the core is every module directly in mca_drake/.
+LAYERS = (
+    "core",
+    "references",
+    "cueing",
+    "learning",
+    "systems",
+    "simulation",
+    "live",
+    "studies",
+    "app",
+)
+
+
+def _modules() -> dict[str, Path]:
+    modules = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        modules[".".join(parts)] = path
+    return modules
+
+
+def _layer(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) >= 2 and parts[1] in LAYERS else "core"
+
+
+def import_graph() -> dict[str, set[str]]:
+    """module -> the package modules it imports (a `from package import name` counts as an
+    import of the package and, where `name` is a submodule, of that submodule)."""
+    modules = _modules()
+    graph: dict[str, set[str]] = {m: set() for m in modules}
+    for module, path in modules.items():
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            targets = []
+            if isinstance(node, ast.Import):
+                targets = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                targets = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                pytest.fail(f"{module}: relative import (use absolute mca_drake imports)")
+            graph[module] |= {t for t in targets if t in modules and t != module}
+    return graph
+
+
+def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One import cycle as a list of modules, or None."""
+    state: dict[str, int] = {}  # 1: on the stack, 2: done
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == 1:
+                return [*stack[stack.index(nxt) :], nxt]
+            if nxt not in state and (found := visit(nxt)):
+                return found
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state and (found := visit(node)):
+            return found
+    return None
+
+
+def test_the_graph_sees_function_level_imports():
+    """The oracle itself: a hand-made cycle through a function-level import is found."""
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}}
+    assert _cycle(graph) == ["a", "b", "c", "a"]
+    assert _cycle({"a": {"b"}, "b": set()}) is None
+    assert "mca_drake.simulation.plots" in import_graph()["mca_drake.simulation.closed_loop"]
+
+
+def test_no_import_cycle():
+    cycle = _cycle(import_graph())
+    assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+def test_imports_point_down_the_layers():
+    rank = {name: i for i, name in enumerate(LAYERS)}
+    upward = [
+        f"{module} ({_layer(module)}) imports {target} ({_layer(target)})"
+        for module, targets in import_graph().items()
+        for target in targets
+        if rank[_layer(target)] > rank[_layer(module)]
+    ]
+    assert not upward, "imports pointing up the layers:\n" + "\n".join(upward)
+
+
+@pytest.mark.parametrize(
+    "modules",
+    [
+        "mca_drake.systems",
+        "mca_drake.cueing",
+        "mca_drake.simulation",
+        # every module of those layers, not just the packages
+        ",".join(
+            m for m in _modules() if _layer(m) in ("systems", "cueing", "simulation", "references")
+        ),
+    ],
+)
+def test_drake_layers_load_no_torch(modules):
+    code = (
+        "import importlib, sys\n"
+        f"for name in {modules!r}.split(','): importlib.import_module(name)\n"
+        "print('torch' in sys.modules)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
+    assert out.strip() == "False", f"importing {modules} loaded torch"
