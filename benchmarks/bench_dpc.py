@@ -62,7 +62,8 @@ def main() -> None:
                 f"{mca:15s} {seconds:4.0f} s: step median {np.median(t) * 1e6:9.1f} us, "
                 f"p10 {np.percentile(t, 10) * 1e6:9.1f}, p90 {np.percentile(t, 90) * 1e6:9.1f}, "
                 f"p99 {np.percentile(t, 99) * 1e6:9.1f}, max {t.max() * 1e6:9.1f}; "
-                f"PI {r.summary['pi']:.3f}; {r.summary['realtime_factor']:.1f}x real time"
+                f"PI {r.summary['pi']:.3f} (zero motion {r.summary['pi_zero_motion']:.3f}); "
+                f"{r.summary['realtime_factor']:.1f}x real time"
             )
     ratio = np.median(results["nmpc-converged"].step_times_s) / np.median(
         results["dpc"].step_times_s

@@ -45,7 +45,8 @@ def main() -> None:
         s = r.summary
         t = {k: f"{v * 1e3:.2f} ms" for k, v in s["step_time_s"].items()}
         print(
-            f"{mca:15s} {duration:5.0f} s: PI {s['pi']:.4f}, step {t}, violations "
+            f"{mca:15s} {duration:5.0f} s: PI {s['pi']:.4f} (zero motion "
+            f"{s['pi_zero_motion']:.4f}), step {t}, violations "
             f"{s['violations']}, failures {s['solver_failures']}, "
             f"interventions {s['safety_interventions']}, {s['realtime_factor']:.2f}x real time"
         )

@@ -62,7 +62,8 @@ def main() -> None:
         print(f"{name + ' RMSE':<16}" + "".join(f"{v:9.4f}" for v in summ["rmse"]))
         print(f"{name + ' CC':<16}" + "".join(f"{v:9.4f}" for v in summ["cc"]))
     print(
-        f"PI multibody {s['pi']:.4f}, analytical {a['pi']:.4f}, "
+        f"PI multibody {s['pi']:.4f}, analytical {a['pi']:.4f} (zero motion "
+        f"{a['pi_zero_motion']:.4f}), "
         f"difference {s['pi'] - a['pi']:+.4f} (target |d| <= 0.1)"
     )
     print(

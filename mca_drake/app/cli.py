@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from pydrake.geometry import StartMeshcat
 
 from mca_drake import __version__
 from mca_drake.app.jobs import run_closed_loop_scenario, run_scenario
@@ -27,6 +28,7 @@ from mca_drake.references.recording import load_recording, save_recording
 from mca_drake.simulation.builders import default_visualization
 from mca_drake.simulation.plots import tracking_figure
 from mca_drake.studies.closed_loop_dataset import (
+    DEFAULT_DATASET,
     ClosedLoopDatasetConfig,
     generate_closed_loop_dataset,
 )
@@ -101,8 +103,6 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     scenario.validate()
     meshcat = None
     if scenario.visualization is not None:
-        from pydrake.geometry import StartMeshcat  # a web server: only when asked for
-
         meshcat = StartMeshcat()
         print(f"Meshcat: open {meshcat.web_url()} in a browser")
     result = run_closed_loop_scenario(
@@ -472,7 +472,7 @@ def build_parser() -> argparse.ArgumentParser:
     table2.set_defaults(func=_cmd_table2)
 
     policy = sub.add_parser("train-policy", help="train the DPC policy on a closed-loop dataset")
-    policy.add_argument("--dataset", default="datasets/closed_loop/dataset.npz")
+    policy.add_argument("--dataset", default=DEFAULT_DATASET)
     policy.add_argument("--out-dir", default="results/policy")
     policy.add_argument("--targets", help="achieved (NMPC outputs; default) or reference")
     policy.add_argument("--plant", help="exact (default) or learned (NODE 2 + mixed)")

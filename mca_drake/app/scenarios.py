@@ -22,13 +22,14 @@ from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
 
 from mca_drake.conventions import CONTROL_PERIOD_S
-from mca_drake.cueing import MCA_NAMES, DpcConfig, McaConfig, NmpcConfig, mca_config_from_name
+from mca_drake.cueing import MCA_NAMES, DpcConfig, McaConfig, mca_config_from_name
 from mca_drake.references.flights import FlightSpec
-from mca_drake.studies.closed_loop_dataset import ClosedLoopDatasetConfig
+from mca_drake.studies.closed_loop_dataset import DEFAULT_DATASET_DIR, ClosedLoopDatasetConfig
 from mca_drake.studies.evaluation import (
     DEFAULT_MCAS,
     EvaluationCase,
     EvaluationConfig,
+    default_cases,
 )
 from mca_drake.systems.kr500_station import StationConfig
 
@@ -112,11 +113,13 @@ class EvaluationScenario:
         default_factory=lambda: [mca_config_from_name(n) for n in DEFAULT_MCAS]
     )
     # Case A flight seeds (light aircraft); empty: skip the case.
-    light_seeds: list[int] = dataclasses.field(default_factory=lambda: list(range(1000, 1010)))
+    light_seeds: list[int] = dataclasses.field(
+        default_factory=lambda: list(default_cases()[0].seeds)
+    )
     # Case B flight seeds (jet); empty: skip the case.
-    jet_seeds: list[int] = dataclasses.field(default_factory=lambda: list(range(2000, 2010)))
+    jet_seeds: list[int] = dataclasses.field(default_factory=lambda: list(default_cases()[1].seeds))
     # Simulated seconds per flight.
-    duration_s: float = 300.0
+    duration_s: float = EvaluationConfig.duration_s
     # Parallel worker processes.
     workers: int = 1
     # Folder of the per-run JSON files (resumable), evaluation.md/json and the box plot.
@@ -149,21 +152,23 @@ class DatasetScenario:
     """Closed-loop dataset generation (the training data of the plant models and DPC)."""
 
     # Vehicle class flown by JSBSim: "light" or "jet".
-    vehicle: str = "light"
+    vehicle: str = ClosedLoopDatasetConfig.vehicle
     # Flight seeds (evaluation uses 1000 on; keep these apart).
-    flight_seeds: list[int] = dataclasses.field(default_factory=lambda: [100, 101, 102, 103, 104])
+    flight_seeds: list[int] = dataclasses.field(
+        default_factory=lambda: list(ClosedLoopDatasetConfig().flight_seeds)
+    )
     # Length of each flight, s.
-    flight_duration_s: float = 900.0
+    flight_duration_s: float = ClosedLoopDatasetConfig.flight_duration_s
     # Segment length n_p, steps.
-    horizon: int = 256
+    horizon: int = ClosedLoopDatasetConfig.horizon
     # MCA that generates the trajectories: a config or a name.
-    mca: McaConfig = dataclasses.field(default_factory=lambda: NmpcConfig(mode="rti"))
+    mca: McaConfig = dataclasses.field(default_factory=lambda: ClosedLoopDatasetConfig().mca)
     # Seed of the shuffle before the 70/20/10 split.
-    split_seed: int = 0
+    split_seed: int = ClosedLoopDatasetConfig.split_seed
     # Parallel worker processes (one flight each).
     workers: int = 1
     # Folder of the per-flight files and the merged dataset.npz (resumable).
-    output_dir: str = "datasets/closed_loop"
+    output_dir: str = DEFAULT_DATASET_DIR
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""

@@ -161,8 +161,6 @@ class RolloutPlant(nn.Module):
             self.state_model = Node2State()
             self.output_model = MixedAnalyticalOutput()
             state = torch.load(config.learned_output_weights, map_location="cpu", weights_only=True)
-            from mca_drake.learning.checkpoint import load_state_into
-
             load_state_into(self.output_model, state, config.learned_output_weights)
         for p in self.parameters():
             p.requires_grad_(False)

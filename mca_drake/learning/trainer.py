@@ -379,6 +379,7 @@ class CurriculumTrainer:
     def _plot(self, history: list[EpochRecord]) -> None:
         if not history:
             return
+        # matplotlib (heavy): loaded only when a training run draws its loss curve
         from mca_drake.plotting import plot_loss_curves, save_figure
 
         save_figure(plot_loss_curves(history, title=self.metadata.get("model", "")), self.plot_path)

@@ -34,6 +34,10 @@ from mca_drake.segments import SOURCE_COLUMNS, SPLIT_NAMES, SegmentDataset, pack
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.parallel import run_tasks
 
+# Where `mca-drake dataset closed-loop` writes, and where training looks by default.
+DEFAULT_DATASET_DIR = "datasets/closed_loop"
+DEFAULT_DATASET = f"{DEFAULT_DATASET_DIR}/dataset.npz"
+
 
 @dataclasses.dataclass
 class ClosedLoopDatasetConfig:
@@ -152,7 +156,7 @@ def _run_one(config: ClosedLoopDatasetConfig, seed: int, out_dir: str) -> str:
 
 def generate_closed_loop_dataset(
     config: ClosedLoopDatasetConfig | None = None,
-    out_dir: str | Path = "datasets/closed_loop",
+    out_dir: str | Path = DEFAULT_DATASET_DIR,
     workers: int = 1,
     progress: bool = True,
 ) -> Path:

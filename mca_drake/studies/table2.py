@@ -43,6 +43,7 @@ from mca_drake.learning.plant_candidates import (
 )
 from mca_drake.learning.trainer import CurriculumTrainer, StageResult, TrainConfig
 from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, package_versions, split_of
+from mca_drake.studies.closed_loop_dataset import DEFAULT_DATASET
 
 # Table II of the paper: RMSE (validation, test) per n_p, iteration time (s) at n_p 1 and
 # 256, open-loop RMSE at 256. None: not reported.
@@ -104,7 +105,7 @@ class Table2Config:
 
     # Closed-loop dataset (a merged file of `mca-drake dataset closed-loop`; one without
     # split labels is split 70:20:10 with `split_seed`). Its n_p must be >= the horizons.
-    closed_loop_dataset: str = "datasets/closed_loop/dataset.npz"
+    closed_loop_dataset: str = DEFAULT_DATASET
     # Open-loop dataset (`mca-drake dataset open-loop`), scored at its own n_p.
     open_loop_dataset: str = "datasets/open_loop.npz"
     state_models: tuple[str, ...] = ("nssm", "node1", "node2", "exact")
