@@ -1,7 +1,11 @@
-"""Drake LeafSystems of the motion-cueing toolbox.
+"""Drake LeafSystems of the motion-cueing toolbox (numpy and Drake only, never torch).
 
 - MotionCueingPlant: the exact joint-space plant of equation (1), discrete at 100 Hz.
 - ReferenceSource: plays a motion-cueing reference, with a preview for the NMPC.
+- NmpcController, DpcPolicy, ClassicalWashout (their modules): the MCAs, each configured
+  by its config of `mca_drake.cueing`.
+- kr500_station: `AddKR500Station`, the KR500 MultibodyPlant with inverse-dynamics control
+  and a head IMU; meshcat_traces: live strip charts in Meshcat.
 """
 
 from mca_drake.systems.motion_cueing_plant import MotionCueingPlant
