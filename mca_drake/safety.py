@@ -8,9 +8,17 @@ and mirrored for q_min. Under the exact zero-order-hold step of period h, brakin
 keeps a stoppable state stoppable (the left side is invariant: q' + qd'^2 / 2a =
 q + qd^2 / 2a), so the set is viable. `viable_acceleration_bounds` gives, per joint, the
 interval of u for which the next state x' = step(x, u) is stoppable, within |qd'| <= qd_max
-and |u| <= a: every u in it keeps the robot inside its limits forever (by braking later),
-and the interval is never empty from a viable state. Clamping any command into it is the
+and |u| <= a, and which does not pass the limit within the step either (a command that
+reverses the joint peaks at q + qd^2 / 2|u| mid-step: near a limit it must brake at least
+qd^2 / 2 (q_max - q)): every u in it keeps the robot inside its limits forever (by braking
+later), and the interval is never empty from a viable state. Clamping any command into it is the
 safety filter ("viability clamp") that every MCA can use.
+
+The step need not be the exact one: N semi-implicit Euler substeps of h / N (qd += h u / N,
+then q += h qd / N, as Drake's discrete MultibodyPlant steps) give
+q' = q + h qd + c h^2 u with c = (N + 1) / (2 N) >= 1/2 and the same qd' = qd + h u. Braking
+at -a then changes q + qd^2 / 2a by (1/2 - c) h^2 a <= 0, so the set stays viable, and the
+bounds below take the `position_coefficient` c (1/2: the exact step).
 """
 
 from __future__ import annotations
@@ -22,14 +30,14 @@ import numpy as np
 VIABILITY_TOLERANCE = 1e-6  # rad/s^2
 
 
-def _upper_bound(q, qd, q_max, qd_max, a, h):
+def _upper_bound(q, qd, q_max, qd_max, a, h, c=0.5):
     """Largest u keeping the upper side viable: stoppability below q_max after one step,
-    qd' <= qd_max and q' <= q_max. Shapes (..., 6)."""
+    qd' <= qd_max and q' <= q_max. Shapes (..., 6); c: the position coefficient."""
     with np.errstate(invalid="ignore", divide="ignore"):
-        # q' + qd'^2 / 2a <= q_max with q' = q + h qd + h^2 u / 2, qd' = qd + h u (qd' >= 0):
+        # q' + qd'^2 / 2a <= q_max with q' = q + h qd + c h^2 u, qd' = qd + h u (qd' >= 0):
         # A2 u^2 + B1 u + C <= 0
         A2 = h * h / (2 * a)
-        B1 = h * h / 2 + h * qd / a
+        B1 = c * (h * h) + h * qd / a
         C = q + h * qd + qd * qd / (2 * a) - q_max
         disc = B1 * B1 - 4 * A2 * C
         root = (-B1 + np.sqrt(np.maximum(disc, 0.0))) / (2 * A2)
@@ -38,17 +46,27 @@ def _upper_bound(q, qd, q_max, qd_max, a, h):
         # must make qd' negative (then only q' <= q_max, the position bound, remains).
         stop = np.where((disc >= 0) & (qd + h * root >= 0), root, -qd / h)
     velocity = (qd_max - qd) / h
-    position = 2 * (q_max - q - h * qd) / (h * h)
-    return np.minimum(np.minimum(stop, velocity), np.minimum(position, a))
+    position = (q_max - q - h * qd) / (c * (h * h))
+    bound = np.minimum(np.minimum(stop, velocity), np.minimum(position, a))
+    # Within half a period of the limit at the current speed, a command that reverses the
+    # joint inside the period may peak beyond q_max while its end state is below it.
+    # From a stoppable state that braking is at most a; a state stoppable only within the
+    # tolerance gets the strongest braking, -a.
+    room = q_max - q
+    with np.errstate(invalid="ignore", divide="ignore"):
+        peak = np.maximum(np.where(room > 0, -qd * qd / (2 * room), -a), -a)
+    return np.where((qd > 0) & (2 * room < h * qd), np.minimum(bound, peak), bound)
 
 
-def viable_acceleration_bounds(q, qd, q_min, q_max, qd_max, qdd_max, h):
+def viable_acceleration_bounds(q, qd, q_min, q_max, qd_max, qdd_max, h, position_coefficient=0.5):
     """Per-joint interval [lo, hi] of accelerations (rad/s^2) that keep the robot viable.
 
     Args:
         q, qd: joint positions (rad) and velocities (rad/s), shape (..., 6).
         q_min, q_max, qd_max, qdd_max: limits, shape (6,).
         h: control period, s.
+        position_coefficient: c of the step q' = q + h qd + c h^2 u (module docstring);
+            1/2, the exact zero-order-hold step, by default.
 
     Returns:
         (lo, hi, viable): lo <= hi where `viable`; where the state is already not viable
@@ -57,8 +75,9 @@ def viable_acceleration_bounds(q, qd, q_min, q_max, qd_max, qdd_max, h):
     """
     q, qd = np.asarray(q, float), np.asarray(qd, float)
     a = np.asarray(qdd_max, float)
-    hi = _upper_bound(q, qd, q_max, qd_max, a, h)
-    lo = -_upper_bound(-q, -qd, -np.asarray(q_min, float), qd_max, a, h)
+    c = _checked_coefficient(position_coefficient)
+    hi = _upper_bound(q, qd, q_max, qd_max, a, h, c)
+    lo = -_upper_bound(-q, -qd, -np.asarray(q_min, float), qd_max, a, h, c)
     lo, hi = np.maximum(lo, -a), np.minimum(hi, a)
     # On the stopping boundary the braking command is the bound itself; round-off of order
     # 1e-12 may put it on the wrong side, which a tolerance of 1e-6 rad/s^2 (5e-11 rad of
@@ -69,6 +88,19 @@ def viable_acceleration_bounds(q, qd, q_min, q_max, qd_max, qdd_max, h):
     lo = np.where(viable, lo, brake)
     hi = np.where(viable, hi, brake)
     return lo, hi, viable
+
+
+def _checked_coefficient(c: float) -> float:
+    if not (math.isfinite(c) and 0.5 <= c <= 1.0):
+        raise ValueError(f"position_coefficient must be in [0.5, 1]; got {c}")
+    return float(c)
+
+
+def substep_position_coefficient(substeps: int) -> float:
+    """c = (N + 1) / (2 N) of N semi-implicit Euler substeps per step (module docstring)."""
+    if substeps < 1:
+        raise ValueError(f"substeps must be >= 1; got {substeps}")
+    return (substeps + 1) / (2 * substeps)
 
 
 def is_stoppable(q, qd, q_min, q_max, qdd_max, tol: float = 1e-9) -> np.ndarray:
@@ -92,15 +124,27 @@ class ViabilityClamp:
         h: control period, s.
         tolerance: a change of the command larger than this (rad/s^2) counts as an
             intervention.
+        position_coefficient: c of the step q' = q + h qd + c h^2 u (module docstring);
+            1/2, the exact zero-order-hold step, by default.
     """
 
-    def __init__(self, q_min, q_max, qd_max, qdd_max, h: float, tolerance: float = 1e-9):
+    def __init__(
+        self,
+        q_min,
+        q_max,
+        qd_max,
+        qdd_max,
+        h: float,
+        tolerance: float = 1e-9,
+        position_coefficient: float = 0.5,
+    ):
         self.q_min, self.q_max = np.asarray(q_min, float), np.asarray(q_max, float)
         self.qd_max, self.qdd_max = np.asarray(qd_max, float), np.asarray(qdd_max, float)
         self.h, self.tolerance = float(h), float(tolerance)
         self._n = self.q_min.size
         h = self.h
-        self._b0 = h * h / 2
+        self._c = _checked_coefficient(position_coefficient)
+        self._b0 = self._c * (h * h)
         # Per joint, as Python floats (numpy scalars make arithmetic slow): a, h/a, 1/2a,
         # 4 A2 and 1/(2 A2) with A2 = h^2/2a, qd_max, and the upper and mirrored lower limit.
         self._joint_constants = [
@@ -115,9 +159,16 @@ class ViabilityClamp:
         ]
 
     @classmethod
-    def for_robot(cls, robot, h: float) -> ViabilityClamp:
+    def for_robot(cls, robot, h: float, position_coefficient: float = 0.5) -> ViabilityClamp:
         """The clamp of a `mca_drake.robot.KR500` description."""
-        return cls(robot.q_min, robot.q_max, robot.qd_max, robot.qdd_max, h)
+        return cls(
+            robot.q_min,
+            robot.q_max,
+            robot.qd_max,
+            robot.qdd_max,
+            h,
+            position_coefficient=position_coefficient,
+        )
 
     def _joint_interval(self, j: int, q: float, v: float) -> tuple[float, float]:
         """(lo, hi) of joint j, in plain floats: for one state, Python arithmetic on six
@@ -130,7 +181,10 @@ class ViabilityClamp:
             disc = B1 * B1 - four_A2 * (qs + h * vs + vs * vs * inv_2a - lim)
             root = (math.sqrt(disc if disc > 0.0 else 0.0) - B1) * inv_2A2
             stop = root if (disc >= 0.0 and vs + h * root >= 0.0) else -vs / h
-            bound = min(stop, (vmax - vs) / h, 2.0 * (lim - qs - h * vs) / (h * h), a)
+            bound = min(stop, (vmax - vs) / h, (lim - qs - h * vs) / b0, a)
+            room = lim - qs
+            if vs > 0.0 and 2.0 * room < h * vs:  # may peak beyond the limit mid-period
+                bound = min(bound, max(-vs * vs / (2.0 * room) if room > 0.0 else -a, -a))
             if side > 0:
                 hi = bound
             else:

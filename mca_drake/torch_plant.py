@@ -272,7 +272,11 @@ def viable_acceleration_bounds_torch(x, q_min, q_max, qd_max, qdd_max, h: float)
         stop = torch.where((disc >= 0) & (qd + h * root >= 0), root, -qd / h)
         velocity = (qd_max - qd) / h
         position = 2 * (limit - q - h * qd) / (h * h)
-        return torch.minimum(torch.minimum(stop, velocity), torch.minimum(position, a))
+        bound = torch.minimum(torch.minimum(stop, velocity), torch.minimum(position, a))
+        # a reversal inside the step must not peak beyond the limit (`mca_drake.safety`)
+        room = limit - q
+        peak = torch.maximum(-qd * qd / (2 * torch.clamp(room, min=1e-12)), -a)
+        return torch.where((qd > 0) & (2 * room < h * qd), torch.minimum(bound, peak), bound)
 
     hi = torch.minimum(upper(q, qd, q_max), a)
     lo = torch.maximum(-upper(-q, -qd, -q_min), -a)

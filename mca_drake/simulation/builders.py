@@ -218,7 +218,12 @@ def MakeMultibodyClosedLoop(
     builder = DiagramBuilder()
     source, controller, initial_state = _add_source_and_mca(builder, reference, mca, robot)
     station_handles = AddKR500Station(
-        builder, robot, station, initial_state, with_geometry=meshcat is not None
+        builder,
+        robot,
+        station,
+        initial_state,
+        with_geometry=meshcat is not None,
+        control_period=time_step,
     )
     _connect_mca(
         builder,

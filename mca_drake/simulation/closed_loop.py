@@ -191,17 +191,11 @@ def run_closed_loop(
     h = reference.time_step
     duration = checked_duration(reference, duration_s)
     if plant == "analytical":
-        if meshcat is not None or station is not None:
-            raise ValueError("meshcat and station need plant 'multibody'")
+        if meshcat is not None or station is not None or visualization is not None:
+            raise ValueError("meshcat, visualization and station need plant 'multibody'")
         diagram, handles = MakeAnalyticalClosedLoop(reference, config, robot)
     else:
         station = station if station is not None else StationConfig()
-        ratio = h / station.plant_time_step
-        if abs(ratio - round(ratio)) > 1e-9:
-            raise ValueError(
-                f"the control period {h} s must be a whole number of plant steps "
-                f"({station.plant_time_step} s)"
-            )
         diagram, handles = MakeMultibodyClosedLoop(
             reference, config, robot, station, meshcat=meshcat, visualization=visualization
         )
@@ -264,6 +258,11 @@ def run_closed_loop(
             "max": float(tracking_error.max()),
         }
         summary["station"] = dataclasses.asdict(station)
+        limiter = handles["station"].limiter
+        # Commands the station's limiter had to change: 0 when the MCA's own clamp held.
+        summary["station_interventions"] = limiter.interventions(
+            limiter.GetMyContextFromRoot(context)
+        )
     result = ClosedLoopResult(
         times=np.arange(n) * h,
         reference=ref,

@@ -4,10 +4,14 @@
 
 - a discrete MultibodyPlant of models/kr500.urdf (1 ms by default, no contact: a motion
   simulator touches nothing, so every collision pair of the robot is filtered out);
-- a desired-trajectory generator: the exact zero-order-hold double integrator of the MCA's
-  joint accelerations, stepped at the plant rate (a Drake LinearSystem, so no Python runs at
-  1 kHz). The command the MCA computes at t_n enters at the next plant step: a one-step
-  (1 ms) transport delay, as on hardware;
+- `CommandLimiter`: every command passes it before it reaches the robot; it clamps the
+  command into the viability interval of the commanded trajectory, so that trajectory never
+  leaves the joint limits, and the command computed at t_n enters at the next plant step (a
+  one-step, 1 ms, transport delay, as on hardware);
+- a desired-trajectory generator: the double integrator of the limited command, stepped at
+  the plant rate with the plant's own semi-implicit Euler step (qd += h u, q += h qd), so
+  that the inverse-dynamics controller of an exact model tracks it exactly and the measured
+  motion is the commanded one (a Drake LinearSystem, so no Python runs at 1 kHz);
 - Drake's InverseDynamicsController: tau = M(q) (qdd_d + kp (q_d - q) + kd (qd_d - qd)
   + ki integral) + C(q, qd) qd - tau_g(q), with kp = w^2, kd = 2 zeta w per joint;
 - actuator torque limits at the URDF efforts, or ideal actuators (the default);
@@ -43,9 +47,10 @@ from pydrake.systems.primitives import (
 )
 from pydrake.systems.sensors import Accelerometer, Gyroscope
 
-from mca_drake.conventions import GRAVITY
+from mca_drake.conventions import CONTROL_PERIOD_S, GRAVITY
 from mca_drake.kinematics import plant_output
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.systems.command_limiter import CommandLimiter
 
 
 @dataclasses.dataclass
@@ -151,6 +156,7 @@ class StationHandles:
         scene_graph: its SceneGraph, or None when geometry was not requested.
         controller: the InverseDynamicsController.
         desired: the desired-trajectory LinearSystem (state [q_d, qd_d]).
+        limiter: the CommandLimiter every command passes.
         joint_acceleration: input port for the MCA's command, rad/s^2 (6).
         measured_state: output port [q, qd] the MCA reads (after the delay), (12).
         measured_output: output port measured y the MCA reads (after the delay), (6).
@@ -166,6 +172,7 @@ class StationHandles:
     scene_graph: SceneGraph | None
     controller: InverseDynamicsController
     desired: LinearSystem
+    limiter: CommandLimiter
     joint_acceleration: object
     measured_state: OutputPort
     measured_output: OutputPort
@@ -189,11 +196,12 @@ class StationHandles:
 
 
 def _double_integrator(h: float) -> LinearSystem:
-    """x = [q, qd] (12), u = qdd (6): the exact zero-order-hold step, output x."""
+    """x = [q, qd] (12), u = qdd (6): the semi-implicit Euler step of the discrete
+    MultibodyPlant (qd' = qd + h u, q' = q + h qd'), output x."""
     n = NUM_JOINTS
     eye = np.eye(n)
     A = np.block([[eye, h * eye], [np.zeros((n, n)), eye]])
-    B = np.vstack([0.5 * h * h * eye, h * eye])
+    B = np.vstack([h * h * eye, h * eye])
     return LinearSystem(A, B, np.eye(2 * n), np.zeros((2 * n, n)), h)
 
 
@@ -203,6 +211,7 @@ def AddKR500Station(
     config: StationConfig | None = None,
     initial_state: np.ndarray | None = None,
     with_geometry: bool = False,
+    control_period: float = CONTROL_PERIOD_S,
 ) -> StationHandles:
     """Adds the simulated KR500 with its controller and head IMU to `builder`.
 
@@ -214,6 +223,8 @@ def AddKR500Station(
             to a context with `StationHandles.SetInitialState`.
         with_geometry: also add a SceneGraph (needed for Meshcat); off, the plant runs
             without geometry, which is faster.
+        control_period: the period of the MCA that drives it, s: the command limiter acts
+            once per period (a whole number of plant steps).
 
     Returns:
         StationHandles; connect an MCA's `joint_acceleration` output to
@@ -278,13 +289,13 @@ def AddKR500Station(
         # Ideal actuators: generalized forces bypass the actuators' effort clamp.
         builder.Connect(torque, plant.get_applied_generalized_force_input_port())
 
-    # The MCA's command feeds both the integrator and the controller's feedforward, so
+    # The limited command feeds both the integrator and the controller's feedforward, so
     # the two stay consistent within every plant step.
-    command_split = builder.AddNamedSystem("joint_acceleration_command", Gain(1.0, NUM_JOINTS))
-    builder.Connect(command_split.get_output_port(), desired.get_input_port())
-    builder.Connect(
-        command_split.get_output_port(), controller.get_input_port_desired_acceleration()
-    )
+    limiter = builder.AddNamedSystem("command_limiter", CommandLimiter(robot, control_period, h))
+    builder.Connect(desired.get_output_port(), limiter.GetInputPort("desired_state"))
+    command_split = limiter.GetOutputPort("limited_command")
+    builder.Connect(command_split, desired.get_input_port())
+    builder.Connect(command_split, controller.get_input_port_desired_acceleration())
 
     head = plant.GetBodyByName("head")
     gyroscope = builder.AddNamedSystem("gyroscope", Gyroscope(head, RigidTransform()))
@@ -341,7 +352,8 @@ def AddKR500Station(
         scene_graph=scene_graph,
         controller=controller,
         desired=desired,
-        joint_acceleration=command_split.get_input_port(),
+        limiter=limiter,
+        joint_acceleration=limiter.GetInputPort("command"),
         measured_state=state_out,
         measured_output=y_out,
         desired_state=desired.get_output_port(),

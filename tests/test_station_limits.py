@@ -1,0 +1,150 @@
+"""The KR500 station holds its joint limits whatever the reference asks.
+
+Adversarial references (3 g steps in each axis, 3 rad/s spins about each axis, a 1 g surge
+chirp from 0.1 to 5 Hz) through every MCA on the multibody station: the measured joint
+positions, velocities and mean accelerations per control period stay inside the limits.
+
+Tolerance 1e-9 of each limit (`JointUsage.violations`): the station's commanded trajectory
+is held viable exactly by its `CommandLimiter`, and the inverse-dynamics controller of an
+exact model tracks that trajectory to round-off (the desired integrator takes the plant's
+own semi-implicit step), so nothing but floating-point error separates the measured motion
+from the commanded one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mca_drake.conventions import GRAVITY
+from mca_drake.metrics import joint_usage
+from mca_drake.references.recording import Recording
+from mca_drake.references.reference import Reference, reference_from_recording
+from mca_drake.safety import ViabilityClamp, substep_position_coefficient
+from mca_drake.simulation.closed_loop import run_closed_loop
+
+DURATION_S = 5.0
+ONSET_S = 1.0
+KINDS = ("step_fx", "step_fy", "step_fz", "spin_x", "spin_y", "spin_z", "chirp")
+
+
+def adversarial_reference(kind: str, duration_s: float = DURATION_S) -> Reference:
+    """A vehicle recording that no robot can render: a 3 g step of specific force along
+    one head axis, a 3 rad/s spin about one, or a 1 g surge chirp (0.1 to 5 Hz)."""
+    t = np.arange(0.0, duration_s + 1e-9, 0.01)
+    omega = np.zeros((t.size, 3))
+    f = np.tile([0.0, 0.0, GRAVITY], (t.size, 1))
+    on = t >= ONSET_S
+    if kind.startswith("step_f"):
+        f[on, "xyz".index(kind[-1])] += 3 * GRAVITY
+    elif kind.startswith("spin_"):
+        omega[on, "xyz".index(kind[-1])] = 3.0
+    elif kind == "chirp":
+        rate = (5.0 - 0.1) / duration_s
+        f[:, 0] += GRAVITY * np.sin(2 * np.pi * (0.1 * t + 0.5 * rate * t * t))
+    else:
+        raise ValueError(f"unknown adversarial reference {kind!r}")
+    return reference_from_recording(Recording(t, omega, f), name=kind)
+
+
+def _assert_no_violation(result, robot) -> None:
+    usage = joint_usage(result.states[:, :6], result.states[:, 6:], result.accelerations, robot)
+    assert usage.violations() == {"q": 0, "qd": 0, "qdd": 0}, {
+        k: float(np.abs(v).max()) for k, v in usage.peak().items()
+    }
+    assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    # the commanded trajectory too, and the robot really was pushed to its limits
+    desired = joint_usage(
+        result.desired_states[:, :6], result.desired_states[:, 6:], result.commands, robot
+    )
+    assert desired.violations()["q"] == 0 and desired.violations()["qd"] == 0
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("mca", ["dpc", "washout", "nmpc-rti"])
+def test_station_holds_the_limits(mca, kind, robot):
+    result = run_closed_loop(
+        mca=mca, reference=adversarial_reference(kind), plant="multibody", progress=False
+    )
+    _assert_no_violation(result, robot)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", KINDS)
+def test_station_holds_the_limits_with_converged_nmpc(kind, robot):
+    result = run_closed_loop(
+        mca="nmpc-converged",
+        reference=adversarial_reference(kind),
+        plant="multibody",
+        progress=False,
+    )
+    _assert_no_violation(result, robot)
+
+
+def test_adversarial_references_reach_the_limits(robot):
+    """The set is adversarial: DPC drives a joint to within 1 % of its position and velocity
+    limits."""
+    peaks = {"q": 0.0, "qd": 0.0}
+    for kind in ("step_fx", "step_fy"):
+        result = run_closed_loop(
+            mca="dpc", reference=adversarial_reference(kind), plant="multibody", progress=False
+        )
+        usage = joint_usage(
+            result.desired_states[:, :6], result.desired_states[:, 6:], result.commands, robot
+        )
+        for name in peaks:
+            peaks[name] = max(peaks[name], float(np.abs(getattr(usage, name)).max()))
+    assert peaks["q"] > 0.99 and peaks["qd"] > 0.99
+
+
+def test_limiter_keeps_a_reckless_command_inside(robot):
+    """An MCA that always commands full acceleration in one direction: the station's limiter
+    alone keeps the robot inside its limits, and counts what it changed."""
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
+
+    from mca_drake.systems.kr500_station import AddKR500Station
+
+    builder = DiagramBuilder()
+    station = AddKR500Station(builder, robot)
+    reckless = builder.AddSystem(ConstantVectorSource(10.0 * robot.qdd_max))
+    builder.Connect(reckless.get_output_port(), station.joint_acceleration)
+    state_log = LogVectorOutput(station.true_state, builder, 0.001)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    station.SetInitialState(simulator.get_mutable_context())
+    simulator.AdvanceTo(6.0)
+    context = simulator.get_context()
+    states = state_log.FindLog(context).data().T
+    accelerations = np.diff(states[:, 6:], axis=0) / 0.001
+    usage = joint_usage(states[1:, :6], states[1:, 6:], accelerations, robot)
+    assert usage.violations() == {"q": 0, "qd": 0, "qdd": 0}
+    assert np.abs(usage.q).max() > 0.99  # it did run into the limits
+    limiter = station.limiter
+    assert limiter.interventions(limiter.GetMyContextFromRoot(context)) > 500
+
+
+def test_substep_coefficient_matches_semi_implicit_substeps():
+    """Oracle: ten explicit semi-implicit Euler substeps against q + h qd + c h^2 u."""
+    h, n, q, qd, u = 0.01, 10, 0.3, -0.2, 1.7
+    qs, vs = q, qd
+    for _ in range(n):
+        vs += h / n * u
+        qs += h / n * vs
+    c = substep_position_coefficient(n)
+    assert c == pytest.approx(0.55)
+    assert qs == pytest.approx(q + h * qd + c * h * h * u, abs=1e-15)
+    assert vs == pytest.approx(qd + h * u, abs=1e-15)
+
+
+def test_clamp_forbids_a_mid_step_peak_past_the_limit():
+    """A joint 1e-5 rad below its limit moving up at 0.005 rad/s: a gentle brake would end
+    the step below the limit but pass it on the way; the clamp demands at least
+    qd^2 / 2 (q_max - q) of braking."""
+    clamp = ViabilityClamp([-1.0], [1.0], [2.0], [2.0], 0.01)
+    q, qd = 1.0 - 1e-5, 0.005
+    safe, intervened = clamp(np.array([q, qd]), np.array([-0.6]))
+    assert intervened and safe[0] <= -qd * qd / (2 * 1e-5) + 1e-12
+    # the continuous peak of the clamped command stays inside
+    assert q + qd * qd / (2 * -safe[0]) <= 1.0 + 1e-12
