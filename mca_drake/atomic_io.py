@@ -2,23 +2,53 @@
 and file fingerprints.
 
 Writes go to a temporary file in the same folder, are flushed to disk, then renamed over
-the target (rename is atomic on POSIX), so a killed process never leaves half a file.
+the target (rename is atomic on POSIX), so a killed process never leaves half a file. A
+process killed mid-write (kill -9: no cleanup runs) leaves its temporary file behind; the
+next write of the same target removes those of processes that are gone.
+
+`check_writable` tells, before a long job starts, whether its output can be written at all.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
+
+
+def _temporary_prefix(path: Path, pid: int | str) -> str:
+    return f".{path.name}.{pid}."
+
+
+def _remove_orphaned_temporaries(path: Path) -> None:
+    """Deletes temporary files of `path` left by writers that no longer run."""
+    for tmp in path.parent.glob(f".{path.name}.*.tmp"):
+        pid = tmp.name[len(path.name) + 2 :].split(".", 1)[0]
+        if pid.isdigit() and not _process_alive(int(pid)):
+            tmp.unlink(missing_ok=True)
+
+
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # another user's process
+    return True
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     """Writes `data` to `path` atomically, creating parent folders; returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    _remove_orphaned_temporaries(path)
+    fd, tmp = tempfile.mkstemp(
+        prefix=_temporary_prefix(path, os.getpid()), suffix=".tmp", dir=path.parent
+    )
     try:
         # mkstemp creates the file 0600; give it the permissions a plain open() would.
         umask = os.umask(0)
@@ -41,8 +71,37 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
 
 
 def atomic_write_json(path: str | os.PathLike, obj) -> Path:
-    """Writes `obj` as indented JSON to `path` atomically."""
-    return atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=False) + "\n")
+    """Writes `obj` as indented JSON to `path` atomically. Non-finite floats (NaN, inf),
+    which JSON cannot hold, are written as null rather than as invalid `NaN`/`Infinity`."""
+    text = json.dumps(_finite_or_none(obj), indent=2, sort_keys=False, allow_nan=False)
+    return atomic_write_text(path, text + "\n")
+
+
+def _finite_or_none(obj):
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite_or_none(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite_or_none(v) for v in obj]
+    return obj
+
+
+def check_writable(path: str | os.PathLike, *, folder: bool = False) -> Path:
+    """Raises OSError naming `path` unless a file can be written there (or, with
+    `folder`, into that folder), creating missing parent folders: called before a long job
+    so that its result is not lost at the end. Returns the path."""
+    path = Path(path)
+    target = path if folder else path.parent
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OSError(f"cannot create the folder {target}: {err.strerror}") from None
+    if path.is_dir() and not folder:
+        raise OSError(f"cannot write {path}: it is a folder")
+    if not os.access(target, os.W_OK | os.X_OK):
+        raise OSError(f"cannot write into {target}: permission denied")
+    return path
 
 
 def file_sha256(path: str | os.PathLike) -> str:

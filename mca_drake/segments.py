@@ -23,6 +23,7 @@ import io
 import itertools
 import json
 import os
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -132,8 +133,11 @@ class SegmentDataset:
                 metadata = json.loads(str(data["metadata_json"]))
                 arrays = {k: data[k] for k in data.files if k not in ("source", "metadata_json")}
                 source = data["source"]
-        except (OSError, KeyError, ValueError) as err:
+        # a damaged, truncated or empty file fails inside numpy or zipfile in several ways
+        except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as err:
             raise ValueError(f"{path} is not a segment dataset file: {err}") from err
+        if not isinstance(metadata, dict):
+            raise ValueError(f"{path}: its metadata is a {type(metadata).__name__}, not a mapping")
         if metadata.get("format") != FORMAT:
             raise ValueError(f"{path}: unknown format {metadata.get('format')!r}; want {FORMAT}")
         return SegmentDataset(arrays, source, metadata)

@@ -1,4 +1,4 @@
-"""The package's layering (README, "Layers"): imports point down, never in a circle, and
+"""The package's layering (README, "A tour"): imports point down, never in a circle, and
 the Drake-side layers load no torch.
 
 The import graph is built from the source with `ast`, counting every import, those inside
@@ -86,11 +86,42 @@ def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
 
 
 def test_the_graph_sees_function_level_imports():
-    """The oracle itself: a hand-made cycle through a function-level import is found."""
+    """The oracle itself: a hand-made cycle is found, and an import inside a function (in
+    a parsed snippet and in the package) is an edge of the graph."""
     graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}}
     assert _cycle(graph) == ["a", "b", "c", "a"]
     assert _cycle({"a": {"b"}, "b": set()}) is None
+    snippet = "def f():\n    if True:\n        from mca_drake.cueing import nmpc\n"
+    assert [m for m, _ in _function_level_imports(ast.parse(snippet))] == ["mca_drake.cueing"]
     assert "mca_drake.simulation.plots" in import_graph()["mca_drake.simulation.closed_loop"]
+
+
+def _function_level_imports(tree: ast.AST) -> list[tuple[str, int]]:
+    """(module, line) of every import inside a function body."""
+    found = []
+    for function in ast.walk(tree):
+        if isinstance(function, ast.FunctionDef | ast.AsyncFunctionDef):
+            for node in ast.walk(function):
+                if isinstance(node, ast.ImportFrom):
+                    found.append((node.module or "", node.lineno))
+                elif isinstance(node, ast.Import):
+                    found += [(alias.name, node.lineno) for alias in node.names]
+    return found
+
+
+def test_function_level_imports_say_why():
+    """An import inside a function is for a heavy dependency the caller may not need; a
+    comment on its line, or above its block of imports, must say which."""
+    silent = []
+    for module, path in _modules().items():
+        lines = path.read_text().splitlines()
+        for target, line in _function_level_imports(ast.parse("\n".join(lines))):
+            row = line - 1
+            while row > 0 and lines[row - 1].strip().startswith(("import ", "from ")):
+                row -= 1
+            if "#" not in lines[line - 1] and "#" not in lines[row - 1]:
+                silent.append(f"{module}:{line} imports {target}")
+    assert not silent, "function-level imports without a comment:\n" + "\n".join(silent)
 
 
 def test_no_import_cycle():

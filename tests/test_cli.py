@@ -134,7 +134,7 @@ def test_console_script_reports_errors_without_traceback():
     [
         ("{station: {torque_limit: true}}", "unknown field 'torque_limit' of StationConfig"),
         ("{mca: foo}", "unknown MCA 'foo'"),
-        ("{plant: mujoco}", "plant must be one of multibody, analytical"),
+        ("{plant: mujoco}", "plant must be one of analytical, multibody"),
         ("{station: {measurement_delay_s: -1}}", "measurement_delay_s"),
         ("{flight: {recording: no/such.csv}}", "not found"),
     ],
@@ -155,6 +155,15 @@ def test_bad_closed_loop_scenario_values_fail_clearly(override, match):
         ("{mca: !LqrConfig {}}", "unknown type !LqrConfig"),
         ("{mca: !DpcConfig {policy: no/such.npz}}", "policy file 'no/such.npz' not found"),
         ("{mca: !NmpcConfig {mode: fast}}", "unknown NMPC mode 'fast'"),
+        ("{mca: null}", "mca: give a tagged value"),
+        ("{mca: 3}", "mca: give a tagged value"),
+        ("{random_seed: -1}", "random_seed must be in"),
+        (
+            "{simulator_config: {target_realtime_rat: 1}}",
+            "'target_realtime_rat' of SimulatorConfig",
+        ),
+        ("{flight: null}", "flight: a FlightSpec is required, not null"),
+        ("{duration_s: [1", "not valid YAML"),
     ],
 )
 def test_bad_mca_configs_fail_naming_field_and_class(override, match):
@@ -196,3 +205,56 @@ def test_an_untagged_override_keeps_the_mca_type():
     assert type(scenario.mca).__name__ == "NmpcConfig"
     assert scenario.mca.mode == "converged" and scenario.mca.washout_weight == 0.5
     assert scenario.mca.input_weight == 0.2
+
+
+def test_a_tag_of_the_same_class_replaces_the_config():
+    """A tagged MCA is a fresh config of that class; only an untagged mapping edits the one
+    there."""
+    path = REPO / "diagrams" / "closed_loop_dpc.yaml"
+    first = "{mca: !NmpcConfig {mode: converged, nodes: 10}}"
+    scenario = load_scenario(path, [first, "{mca: !NmpcConfig {washout_weight: 0.1}}"])
+    assert (scenario.mca.mode, scenario.mca.nodes) == ("rti", 20)  # NmpcConfig's defaults
+    assert scenario.mca.washout_weight == 0.1
+    edited = load_scenario(path, [first, "{mca: {washout_weight: 0.1}}"])
+    assert (edited.mca.mode, edited.mca.nodes, edited.mca.washout_weight) == (
+        "converged",
+        10,
+        0.1,
+    )
+
+
+def test_an_untagged_scenario_file_is_refused(tmp_path):
+    path = tmp_path / "untagged.yaml"
+    path.write_text("scenario: {duration_s: 5}\n")
+    with pytest.raises(ValueError, match="scenario: give a tagged value"):
+        load_scenario(path)
+
+
+def test_scenarios_take_mca_names_in_python():
+    from mca_drake.app.scenarios import ClosedLoopScenario, EvaluationScenario
+
+    assert ClosedLoopScenario(mca="nmpc-rti").mca.mode == "rti"
+    assert [type(m).__name__ for m in EvaluationScenario(mcas=["dpc", "washout"]).mcas] == [
+        "DpcConfig",
+        "WashoutConfig",
+    ]
+
+
+@pytest.mark.parametrize(
+    ("argv", "match"),
+    [
+        (
+            ["run", "diagrams/closed_loop_dpc.yaml", "--set", "{mca: !NmpcConfig {nodez: 3}}"],
+            "unknown field 'nodez' of NmpcConfig",
+        ),
+        (["evaluate", "--suite", "--cases", "C"], "unknown case"),
+        (["evaluate", "--suite", "--flights", "0"], "--flights must be at least 1"),
+        (["evaluate", "--suite", "--mcas", "washout", "--policy", "p.npz"], "--policy"),
+        (["simulate", "--mca", "lqr"], "unknown MCA 'lqr'"),
+    ],
+)
+def test_cli_misuse_is_one_line_and_exit_2(argv, match, capsys, monkeypatch):
+    monkeypatch.chdir(REPO)
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert match in err and "Traceback" not in err and err.count("\n") == 1

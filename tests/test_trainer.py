@@ -157,3 +157,78 @@ def test_horizon_longer_than_data_is_rejected(tiny_split, tmp_path):
     )
     with pytest.raises(ValueError, match="exceeds the dataset horizon 16"):
         trainer.fit(train, validation, progress=False)
+
+
+def _noisy_objective(model, batch):
+    """An objective that draws from torch's global generator, as DPC's perturbed initial
+    states do: a resumed run matches an uninterrupted one only if that state is saved."""
+    return state_objective(model, batch) * (1.0 + 0.1 * torch.rand(()))
+
+
+def _run(tmp_path, name, train, validation, *, kill_at=None, resume=False, **config):
+    torch.manual_seed(0)
+    model = make_state_model("nssm")
+
+    def kill(record):
+        if kill_at is not None and record.epoch == kill_at and not resume:
+            raise SimulatedKillError
+
+    trainer = CurriculumTrainer(
+        model,
+        _noisy_objective,
+        _config(**config),
+        tmp_path / name,
+        {"model": "nssm"},
+        callbacks=[kill],
+    )
+    return trainer.fit(train, validation, resume=resume, progress=False)
+
+
+def test_resume_restores_torch_global_generator(tiny_split, tmp_path):
+    train, validation = tiny_split
+    reference = _run(tmp_path, "a.pt", train, validation)
+    with pytest.raises(SimulatedKillError):
+        _run(tmp_path, "b.pt", train, validation, kill_at=3)
+    torch.manual_seed(123)  # whatever the new process's global state is
+    resumed = _run(tmp_path, "b.pt", train, validation, resume=True)
+    for key, value in reference.model.state_dict().items():
+        torch.testing.assert_close(resumed.model.state_dict()[key], value, rtol=0, atol=0)
+
+
+def test_a_kill_between_the_checkpoint_and_its_json_still_resumes(tiny_split, tmp_path):
+    """The .pt is the whole checkpoint: a stale or missing .json (the process killed after
+    the .pt was renamed into place) does not stop a resume."""
+    train, validation = tiny_split
+    reference = _run(tmp_path, "a.pt", train, validation)
+    with pytest.raises(SimulatedKillError):
+        _run(tmp_path, "b.pt", train, validation, kill_at=3)
+    (tmp_path / "b.json").unlink()
+    resumed = _run(tmp_path, "b.pt", train, validation, resume=True)
+    for key, value in reference.model.state_dict().items():
+        torch.testing.assert_close(resumed.model.state_dict()[key], value, rtol=0, atol=0)
+
+
+def test_resume_refuses_other_data_or_curriculum(tiny_split, tmp_path):
+    train, validation = tiny_split
+    with pytest.raises(SimulatedKillError):
+        _run(tmp_path, "c.pt", train, validation, kill_at=2)
+    with pytest.raises(CheckpointError, match="trained on other data"):
+        _run(tmp_path, "c.pt", validation, train, resume=True)
+    with pytest.raises(CheckpointError, match=r"other settings \(horizons\)"):
+        _run(tmp_path, "c.pt", train, validation, resume=True, horizons=(16,))
+    # training longer is a legitimate resume
+    longer = _run(tmp_path, "c.pt", train, validation, resume=True, max_epochs=8)
+    assert len(longer.history) == 16
+
+
+def test_a_checkpoint_without_its_parts_is_refused(tiny_split, tmp_path):
+    from mca_drake.learning.checkpoint import save_checkpoint
+
+    train, validation = tiny_split
+    path = tmp_path / "d.pt"
+    _run(tmp_path, "d.pt", train, validation, max_epochs=1)
+    payload, meta = load_checkpoint(path)
+    del payload["best_model"]
+    save_checkpoint(path, payload, {k: v for k, v in meta.items() if k != "format"})
+    with pytest.raises(CheckpointError, match=r"lacks \['best_model'\]"):
+        _run(tmp_path, "d.pt", train, validation, resume=True, max_epochs=1)

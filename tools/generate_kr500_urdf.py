@@ -15,7 +15,7 @@ A URDF joint rotates *after* its fixed origin, so the DH product is regrouped as
     origin of head weld    = X_6H                                          on flange
 
 Table I prints alpha and offset rounded to 3 decimals (1.571); they are +-pi/2 exactly,
-which is what makes R_WH = I at q = 0 (ARCHITECTURE.md).
+which is what makes R_WH = I at q = 0 (the README's "Conventions").
 
 Inertia. Plausible KR500-class numbers (about 2.4 t of links, from the public KR500
 data sheet mass class), each link a solid cylinder along its DH segments, plus a 600 kg

@@ -9,30 +9,43 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from pydrake.geometry import StartMeshcat
 
 from mca_drake import __version__
-from mca_drake.app.jobs import run_closed_loop_scenario, run_scenario
+from mca_drake.app.jobs import (
+    closed_loop_outputs,
+    run_closed_loop_scenario,
+    run_scenario,
+    start_meshcat,
+)
 from mca_drake.app.scenarios import (
     ClosedLoopScenario,
     DatasetScenario,
     EvaluationScenario,
     load_scenario,
 )
+from mca_drake.atomic_io import check_writable
 from mca_drake.conventions import CHANNELS
-from mca_drake.cueing import DpcConfig, mca_config_from_name
+from mca_drake.cueing import MCA_NAMES, DpcConfig, mca_config_from_name, mca_name
 from mca_drake.plotting import plot_recording, save_figure
 from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
 from mca_drake.references.jsbsim import fly
 from mca_drake.references.recording import load_recording, save_recording
 from mca_drake.simulation.builders import default_visualization
+from mca_drake.simulation.closed_loop import PLANTS
 from mca_drake.simulation.plots import tracking_figure
 from mca_drake.studies.closed_loop_dataset import (
     DEFAULT_DATASET,
     ClosedLoopDatasetConfig,
     generate_closed_loop_dataset,
 )
-from mca_drake.studies.evaluation import default_cases, run_evaluation
+from mca_drake.studies.evaluation import default_cases
+
+
+def _check_outputs(*paths) -> None:
+    """Refuses, before any work, output files that cannot be written (None: not asked)."""
+    for path in paths:
+        if path:
+            check_writable(path)
 
 
 def _given(args: argparse.Namespace, **names: str) -> dict:
@@ -101,10 +114,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.seed is not None:
         scenario.random_seed = args.seed
     scenario.validate()
-    meshcat = None
-    if scenario.visualization is not None:
-        meshcat = StartMeshcat()
-        print(f"Meshcat: open {meshcat.web_url()} in a browser")
+    meshcat = start_meshcat() if scenario.visualization is not None else None
     result = run_closed_loop_scenario(
         scenario,
         progress=not args.quiet,
@@ -115,7 +125,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     _print_outputs_table(result, every_s=max(result.times[-1] / 20, 0.1))
     print(json.dumps(result.summary, indent=2))
     _print_pi(result.summary)
-    plots = scenario.output_dir if args.plots is None else args.plots
+    _, plots = closed_loop_outputs(scenario, args.json, args.plots)
     if plots:
         print(f"plots written to {plots}/tracking.png and {plots}/joint_usage.png")
     _hold_meshcat(meshcat)
@@ -130,6 +140,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_flight(args: argparse.Namespace) -> int:
+    _check_outputs(args.out, args.plot)
     recording = fly(args.vehicle, args.minutes * 60.0, args.seed, progress=not args.quiet)
     save_recording(args.out, recording)
     print(
@@ -143,8 +154,9 @@ def _cmd_flight(args: argparse.Namespace) -> int:
 
 
 def _cmd_plot_recording(args: argparse.Namespace) -> int:
-    recording = load_recording(args.recording)
     out = args.out or str(args.recording).rsplit(".", 1)[0] + ".png"
+    _check_outputs(out)
+    recording = load_recording(args.recording)
     save_figure(plot_recording(recording, title=str(args.recording)), out)
     print(f"plot written to {out}")
     return 0
@@ -161,6 +173,8 @@ def _cmd_dataset_open_loop(args: argparse.Namespace) -> int:
             initial_state_fraction="initial_state_fraction",
         )
     )
+    config.validate()
+    _check_outputs(args.out)
     dataset = generate_excitation_dataset(config, progress=not args.quiet)
     dataset.save(args.out)
     print(
@@ -196,6 +210,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     if not args.reference:
         raise ValueError("give --reference flight.csv (one recording) or --suite (scenario set)")
     scenario = _closed_loop_scenario_from_flags(args, plant="analytical")
+    _check_outputs(args.plot)
     if args.duration is None:
         scenario.duration_s = load_recording(args.reference).duration_s
     result = run_closed_loop_scenario(
@@ -215,17 +230,22 @@ def _evaluate_suite(args: argparse.Namespace) -> int:
     if args.mcas is not None:
         scenario.mcas = [mca_config_from_name(n) for n in args.mcas.split(",")]
     if args.policy is not None:
+        if not any(isinstance(m, DpcConfig) for m in scenario.mcas):
+            raise ValueError("--policy is the policy file of dpc, which --mcas leaves out")
         scenario.mcas = [
             DpcConfig(policy=args.policy) if isinstance(m, DpcConfig) else m for m in scenario.mcas
         ]
-    config = scenario.to_config()
-    wanted = args.cases.split(",") if args.cases is not None else [c.name for c in default_cases()]
-    config.cases = tuple(
-        dataclasses.replace(c, seeds=c.seeds[: args.flights] if args.flights else c.seeds)
-        for c in config.cases
-        if c.name in wanted
-    )
-    run_evaluation(config, scenario.output_dir, workers=scenario.workers, progress=not args.quiet)
+    if args.flights is not None and args.flights < 1:
+        raise ValueError(f"--flights must be at least 1; got {args.flights}")
+    cases = {c.name: c for c in default_cases()}  # A: light_seeds, B: jet_seeds
+    wanted = args.cases.split(",") if args.cases is not None else list(cases)
+    unknown = [c for c in wanted if c not in cases]
+    if unknown:
+        raise ValueError(f"--cases: unknown case {unknown}; valid: {', '.join(cases)}")
+    flights = args.flights
+    scenario.light_seeds = list(cases["A"].seeds[:flights]) if "A" in wanted else []
+    scenario.jet_seeds = list(cases["B"].seeds[:flights]) if "B" in wanted else []
+    run_scenario(scenario, progress=not args.quiet)
     print((Path(scenario.output_dir) / "evaluation.md").read_text())
     return 0
 
@@ -316,6 +336,7 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
 
 
 def _cmd_export_policy(args: argparse.Namespace) -> int:
+    _check_outputs(args.out)
     # torch: loaded by the training commands only, so the others start fast
     from mca_drake.learning.dpc import export_checkpoint_policy
 
@@ -342,33 +363,48 @@ def build_parser() -> argparse.ArgumentParser:
         prog="mca-drake", description="Motion cueing for a KUKA KR500 motion simulator, on Drake."
     )
     parser.add_argument("--version", action="version", version=f"mca-drake {__version__}")
+    parser.add_argument(
+        "--debug", action="store_true", help="show the traceback of an error (for reports)"
+    )
     sub = parser.add_subparsers(dest="command", required=True)
+    # Defaults shown in the help come from the configs they fill: one home for each.
+    closed_loop, dataset_defaults, suite = (
+        ClosedLoopScenario(),
+        DatasetScenario(),
+        EvaluationScenario(),
+    )
 
     simulate = sub.add_parser(
         "simulate",
         help="the main job: closed-loop motion cueing (default: the shipped DPC policy) on a "
         "built-in flight or a recording; prints the outputs and the result summary, plots",
     )
-    simulate.add_argument("--duration", type=float, help="simulated seconds (default 60)")
     simulate.add_argument(
-        "--mca", help="dpc (default), nmpc-rti, nmpc-converged or washout, at its default config"
+        "--duration", type=float, help=f"simulated seconds (default {closed_loop.duration_s:g})"
     )
-    simulate.add_argument("--seed", type=int, help="seed of the IMU noise (random_seed, default 0)")
+    simulate.add_argument(
+        "--mca",
+        help=f"{', '.join(MCA_NAMES)}, each at its default config (default "
+        f"{mca_name(closed_loop.mca)})",
+    )
+    simulate.add_argument(
+        "--seed", type=int, help=f"seed of the IMU noise (default {closed_loop.random_seed})"
+    )
     simulate.add_argument("--reference", help="recording CSV (default: the built-in flight)")
     simulate.add_argument("--policy", help="policy file for dpc (default: the shipped one)")
     simulate.add_argument("--json", help="write the result summary to this JSON file")
     simulate.add_argument(
         "--plant",
-        choices=("multibody", "analytical"),
-        help="multibody: the KR500 MultibodyPlant with inverse-dynamics control and head IMU "
-        "(default); analytical: the ideal joint-space plant of the paper",
+        choices=PLANTS,
+        help="multibody: the KR500 MultibodyPlant with inverse-dynamics control and head IMU; "
+        f"analytical: the ideal joint-space plant of the paper (default {closed_loop.plant})",
     )
     simulate.add_argument("--meshcat", action="store_true", help="watch it in Meshcat")
     simulate.add_argument("--realtime", action="store_true", help="run at real-time rate 1")
     simulate.add_argument(
         "--plots",
         help="folder for tracking.png (Fig. 4) and joint_usage.png (Fig. 5) (default: the "
-        "scenario's output_dir, results/closed_loop); '' for none",
+        f"scenario's output_dir, {closed_loop.output_dir}); '' for none",
     )
     simulate.add_argument("--quiet", action="store_true", help="no progress bar")
     simulate.set_defaults(func=_cmd_simulate)
@@ -412,43 +448,72 @@ def build_parser() -> argparse.ArgumentParser:
     open_loop.add_argument(
         "--initial-state-fraction",
         type=float,
-        help="draw initial states from this fraction of the limits (default 1)",
+        help="draw initial states from this fraction of the limits (default "
+        f"{ExcitationConfig.initial_state_fraction:g})",
     )
     open_loop.add_argument("--out", default="open_loop.npz")
     open_loop.add_argument("--quiet", action="store_true")
     open_loop.set_defaults(func=_cmd_dataset_open_loop)
     closed = dataset_sub.add_parser(
-        "closed-loop", help="NMPC closed loop over JSBSim flights (defaults: paper size)"
+        "closed-loop", help="MCA closed loops over JSBSim flights (defaults: paper size)"
     )
-    closed.add_argument("--vehicle", help="light (default) or jet")
-    closed.add_argument("--flights", type=int, help="number of flights (default 5)")
-    closed.add_argument("--first-seed", type=int, help="seed of the first flight (default 100)")
-    closed.add_argument("--minutes", type=float, help="per flight (default 15)")
-    closed.add_argument("--horizon", type=int, help="n_p (default 256)")
-    closed.add_argument("--mca", help="MCA that generates the data (default nmpc-rti)")
-    closed.add_argument("--workers", type=int, help="parallel processes (default 1)")
-    closed.add_argument("--out-dir", help="default datasets/closed_loop")
+    closed.add_argument("--vehicle", help=f"light or jet (default {dataset_defaults.vehicle})")
+    closed.add_argument(
+        "--flights", type=int, help=f"flights (default {len(dataset_defaults.flight_seeds)})"
+    )
+    closed.add_argument(
+        "--first-seed",
+        type=int,
+        help=f"seed of the first flight (default {dataset_defaults.flight_seeds[0]})",
+    )
+    closed.add_argument(
+        "--minutes",
+        type=float,
+        help=f"per flight (default {dataset_defaults.flight_duration_s / 60:g})",
+    )
+    closed.add_argument("--horizon", type=int, help=f"n_p (default {dataset_defaults.horizon})")
+    closed.add_argument(
+        "--mca", help=f"MCA that generates the data (default {mca_name(dataset_defaults.mca)})"
+    )
+    closed.add_argument(
+        "--workers", type=int, help=f"parallel processes (default {dataset_defaults.workers})"
+    )
+    closed.add_argument("--out-dir", help=f"default {dataset_defaults.output_dir}")
     closed.add_argument("--quiet", action="store_true")
     closed.set_defaults(func=_cmd_dataset_closed_loop)
 
     evaluate = sub.add_parser(
         "evaluate", help="run one recording through an MCA on the analytical plant"
     )
-    evaluate.add_argument("--mca", help="dpc (default), nmpc-rti, nmpc-converged or washout")
+    evaluate.add_argument(
+        "--mca",
+        help=f"{', '.join(MCA_NAMES)}, each at its default config (default "
+        f"{mca_name(closed_loop.mca)})",
+    )
     evaluate.add_argument("--policy", help="policy file for --mca dpc (default: the shipped one)")
     evaluate.add_argument("--reference", help="recording CSV (one run)")
     evaluate.add_argument(
         "--suite", action="store_true", help="the scenario set: cases A and B, report, box plot"
     )
-    evaluate.add_argument("--cases", help="suite: cases to run (default A,B)")
-    evaluate.add_argument("--flights", type=int, help="suite: flights per case (default all 10)")
     evaluate.add_argument(
-        "--mcas", help="suite: MCAs to compare (default dpc,nmpc-converged,nmpc-rti,washout)"
+        "--cases",
+        help=f"suite: cases to run (default {','.join(c.name for c in default_cases())})",
     )
-    evaluate.add_argument("--workers", type=int, help="suite: parallel processes (default 1)")
-    evaluate.add_argument("--out-dir", help="suite: output folder (default results/evaluation)")
     evaluate.add_argument(
-        "--duration", type=float, help="simulated seconds (default: all; suite: 300)"
+        "--flights", type=int, help="suite: the first N flights of each case (default all)"
+    )
+    evaluate.add_argument(
+        "--mcas",
+        help=f"suite: MCAs to compare (default {','.join(mca_name(m) for m in suite.mcas)})",
+    )
+    evaluate.add_argument(
+        "--workers", type=int, help=f"suite: parallel processes (default {suite.workers})"
+    )
+    evaluate.add_argument("--out-dir", help=f"suite: output folder (default {suite.output_dir})")
+    evaluate.add_argument(
+        "--duration",
+        type=float,
+        help=f"simulated seconds (default: all; suite: {suite.duration_s:g})",
     )
     evaluate.add_argument("--json", help="write the result summary here")
     evaluate.add_argument("--plot", help="PNG of target versus achieved outputs")
@@ -459,11 +524,11 @@ def build_parser() -> argparse.ArgumentParser:
         "table2", help="train and score every plant-model candidate (the paper's Table II)"
     )
     table2.add_argument("--quick", action="store_true", help="a few minutes: small data, epochs")
-    table2.add_argument("--closed-loop-dataset", help="default datasets/closed_loop/dataset.npz")
+    table2.add_argument("--closed-loop-dataset", help=f"default {DEFAULT_DATASET}")
     table2.add_argument("--open-loop-dataset", help="default datasets/open_loop.npz")
     table2.add_argument("--out-dir", default="results/table2")
     table2.add_argument("--resume", action="store_true", help="continue a killed run")
-    table2.add_argument("--device", help="auto (CUDA if present; default), cpu, cuda")
+    table2.add_argument("--device", help="auto (CUDA if present), cpu, cuda")
     table2.add_argument("--max-epochs", type=int, help="override epochs per curriculum step")
     table2.add_argument(
         "--only", help="comma-separated candidates, e.g. state_node1,output_mixed (default all)"
@@ -471,28 +536,30 @@ def build_parser() -> argparse.ArgumentParser:
     table2.add_argument("--quiet", action="store_true")
     table2.set_defaults(func=_cmd_table2)
 
-    policy = sub.add_parser("train-policy", help="train the DPC policy on a closed-loop dataset")
+    policy = sub.add_parser(
+        "train-policy",
+        help="train the DPC policy on a closed-loop dataset (unset flags: the defaults of "
+        "mca_drake.learning.dpc.DpcTrainingConfig, the paper's)",
+    )
     policy.add_argument("--dataset", default=DEFAULT_DATASET)
     policy.add_argument("--out-dir", default="results/policy")
-    policy.add_argument("--targets", help="achieved (NMPC outputs; default) or reference")
-    policy.add_argument("--plant", help="exact (default) or learned (NODE 2 + mixed)")
+    policy.add_argument("--targets", help="achieved (NMPC outputs) or reference")
+    policy.add_argument("--plant", help="exact or learned (NODE 2 + mixed)")
     policy.add_argument("--learned-output-weights", help="output_mixed_n256.pt of a table2 run")
     policy.add_argument(
-        "--horizons", help="curriculum of rollout lengths n_c, steps (default 256,1024)"
+        "--horizons", help="curriculum of rollout lengths n_c, steps, e.g. 256,1024"
     )
-    policy.add_argument(
-        "--window-segments", type=int, help="dataset segments joined per window (default 4)"
-    )
+    policy.add_argument("--window-segments", type=int, help="dataset segments joined per window")
     policy.add_argument(
         "--channel-weights",
-        help="tracking weights per output channel: uniform (the paper's; default), normalized "
+        help="tracking weights per output channel: uniform (the paper's), normalized "
         "(1 / target variance) or six numbers",
     )
     policy.add_argument("--init-policy", help="start from this policy file's weights")
-    policy.add_argument("--max-epochs", type=int, help="default 3000 (the paper's)")
-    policy.add_argument("--patience", type=int, help="early stopping, default 500 epochs")
-    policy.add_argument("--seed", type=int, help="weight initialisation (default 0)")
-    policy.add_argument("--device", help="auto (default), cpu, cuda")
+    policy.add_argument("--max-epochs", type=int, help="epochs per curriculum step")
+    policy.add_argument("--patience", type=int, help="early stopping, epochs")
+    policy.add_argument("--seed", type=int, help="seed of the weight initialisation")
+    policy.add_argument("--device", help="auto (CUDA if present), cpu, cuda")
     policy.add_argument("--no-compile", action="store_true", help="eager torch (slower)")
     policy.add_argument("--resume", action="store_true", help="continue a killed run")
     policy.add_argument("--quiet", action="store_true")
@@ -507,14 +574,34 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# Errors a user can act on from the message alone (bad input, a missing or unwritable file,
+# a run that cannot go on); anything else is a bug, reported with a pointer to --debug.
+_USER_ERRORS = (ValueError, OSError, RuntimeError)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the `mca-drake` console script."""
+    """Entry point of the `mca-drake` console script.
+
+    Every error ends as one line on stderr and exit status 2 (130 when interrupted), never a
+    traceback; `--debug` shows the traceback instead.
+    """
     args = build_parser().parse_args(argv)
     np.set_printoptions(precision=4, suppress=True)
     try:
         return args.func(args)
-    except (ValueError, FileNotFoundError, RuntimeError) as err:
-        print(f"mca-drake: error: {err}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print("mca-drake: interrupted (finished result files are kept)", file=sys.stderr)
+        return 130
+    except Exception as err:
+        if args.debug:
+            raise
+        message = " ".join(str(err).split()) or type(err).__name__
+        if not isinstance(err, _USER_ERRORS):
+            message = (
+                f"{type(err).__name__}: {message} (unexpected: rerun with --debug for the "
+                "traceback and report it)"
+            )
+        print(f"mca-drake: error: {message}", file=sys.stderr)
         return 2
 
 

@@ -9,7 +9,7 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
-from pydrake.geometry import StartMeshcat
+from pydrake.geometry import Meshcat, MeshcatParams
 from pydrake.systems.analysis import Simulator
 
 from mca_drake.app.scenarios import (
@@ -17,9 +17,11 @@ from mca_drake.app.scenarios import (
     DatasetScenario,
     EvaluationScenario,
     PlantDemoScenario,
+    Scenario,
 )
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.conventions import CHANNELS
+from mca_drake.cueing import mca_config_record, mca_name
 from mca_drake.metrics import joint_usage
 from mca_drake.plotting import plot_outputs, save_figure
 from mca_drake.references.flights import flight_reference
@@ -94,6 +96,27 @@ def run_plant_demo(
     return PlantDemoResult(out.sample_times(), outputs, states, accelerations, summary)
 
 
+def start_meshcat() -> Meshcat:
+    """A Meshcat server that listens on localhost only (Drake's default is every
+    interface), its address printed."""
+    meshcat = Meshcat(MeshcatParams(host="localhost"))
+    print(f"Meshcat: open {meshcat.web_url()} in a browser")
+    return meshcat
+
+
+def closed_loop_outputs(
+    scenario: ClosedLoopScenario,
+    json_path: str | Path | None = None,
+    plot_dir: str | Path | None = None,
+) -> tuple[Path | None, Path | None]:
+    """Where a closed-loop scenario writes its summary and its plots: `json_path` and
+    `plot_dir` when given ("" for none), else `output_dir/summary.json` and `output_dir`."""
+    out = Path(scenario.output_dir)
+    json_path = out / "summary.json" if json_path is None else json_path or None
+    plot_dir = out if plot_dir is None else plot_dir or None
+    return (Path(json_path) if json_path else None, Path(plot_dir) if plot_dir else None)
+
+
 def run_closed_loop_scenario(
     scenario: ClosedLoopScenario,
     *,
@@ -113,13 +136,10 @@ def run_closed_loop_scenario(
     """
     scenario.validate()
     reference = flight_reference(scenario.flight, scenario.duration_s)
-    out = Path(scenario.output_dir)
-    json_path = out / "summary.json" if json_path is None else json_path or None
-    plot_dir = out if plot_dir is None else plot_dir or None
+    json_path, plot_dir = closed_loop_outputs(scenario, json_path, plot_dir)
     multibody = scenario.plant == "multibody"
     if multibody and scenario.visualization is not None and meshcat is None:
-        meshcat = StartMeshcat()
-        print(f"Meshcat: open {meshcat.web_url()} in a browser")
+        meshcat = start_meshcat()
     return run_closed_loop(
         mca=scenario.mca,
         reference=reference,
@@ -136,7 +156,9 @@ def run_closed_loop_scenario(
     )
 
 
-def run_scenario(scenario, *, progress: bool = True, json_path: str | Path | None = None):
+def run_scenario(
+    scenario: Scenario, *, progress: bool = True, json_path: str | Path | None = None
+) -> dict:
     """Runs any scenario of a diagrams/*.yaml file; returns its result summary (a dict),
     also written to `json_path` when given."""
     if isinstance(scenario, PlantDemoScenario):
@@ -157,7 +179,13 @@ def run_scenario(scenario, *, progress: bool = True, json_path: str | Path | Non
             scenario.to_config(), scenario.output_dir, workers=scenario.workers, progress=progress
         )
         data = SegmentDataset.load(path)
-        summary = {"dataset": str(path), "segments": len(data), "horizon": data.horizon}
+        summary = {
+            "dataset": str(path),
+            "segments": len(data),
+            "horizon": data.horizon,
+            "mca": mca_name(scenario.mca),
+            "mca_config": mca_config_record(scenario.mca),
+        }
     else:
         raise TypeError(f"not a scenario: {type(scenario).__name__}")
     if json_path:

@@ -17,13 +17,22 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Optional, Union
 
+import yaml
 from pydrake.common.yaml import yaml_dump, yaml_load, yaml_load_typed
 from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
 
 from mca_drake.conventions import CONTROL_PERIOD_S
-from mca_drake.cueing import MCA_NAMES, DpcConfig, McaConfig, mca_config_from_name
+from mca_drake.cueing import (
+    MCA_NAMES,
+    DpcConfig,
+    McaConfig,
+    as_mca_config,
+    mca_config_from_name,
+)
+from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
 from mca_drake.references.flights import FlightSpec
+from mca_drake.simulation.closed_loop import PLANTS
 from mca_drake.studies.closed_loop_dataset import DEFAULT_DATASET_DIR, ClosedLoopDatasetConfig
 from mca_drake.studies.evaluation import (
     DEFAULT_MCAS,
@@ -32,8 +41,6 @@ from mca_drake.studies.evaluation import (
     default_cases,
 )
 from mca_drake.systems.kr500_station import StationConfig
-
-PLANTS = ("multibody", "analytical")
 
 
 @dataclasses.dataclass
@@ -49,8 +56,10 @@ class PlantDemoScenario:
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""
+        check_config_numbers(self)
         if not self.duration_s > 0:
             raise ValueError(f"duration_s must be positive; got {self.duration_s}")
+        check_range("PlantDemoScenario", "duration_s", self.duration_s, 0.0, MAX_DURATION_S)
         if not 0 < self.time_step <= 0.1:
             raise ValueError(f"time_step must be in (0, 0.1] s; got {self.time_step}")
 
@@ -79,26 +88,34 @@ class ClosedLoopScenario:
     # Drake's simulator settings: target_realtime_rate 1 for live use (multibody only),
     # 0 as fast as possible.
     simulator_config: SimulatorConfig = dataclasses.field(default_factory=_fast_simulator)
-    # Watch it in Meshcat with Drake's visualization settings (multibody only; `{}` for the
-    # defaults of `mca_drake.simulation.builders.default_visualization`); null: no Meshcat.
+    # Watch it in Meshcat with Drake's visualization settings (multibody only; `{}` for
+    # Drake's defaults, which also draw the collision layer; `--meshcat` takes
+    # `mca_drake.simulation.builders.default_visualization`); null: no Meshcat.
     visualization: Optional[VisualizationConfig] = None  # noqa: UP045 (YAML loader)
     # Seed of the diagram's random sources (the IMU noise of `station`).
     random_seed: int = 0
     # Folder for summary.json, tracking.png (Fig. 4) and joint_usage.png (Fig. 5).
     output_dir: str = "results/closed_loop"
 
+    def __post_init__(self) -> None:
+        self.mca = as_mca_config(self.mca)
+
     def validate(self) -> None:
         """Raises ValueError (FileNotFoundError for a missing file) for values that cannot
         run, naming the field."""
+        check_config_numbers(self)
         if self.plant not in PLANTS:
             raise ValueError(f"plant must be one of {', '.join(PLANTS)}; got {self.plant!r}")
-        if not self.duration_s > 0:
-            raise ValueError(f"duration_s must be positive; got {self.duration_s}")
+        check_range(
+            "ClosedLoopScenario", "duration_s", self.duration_s, 0.0, MAX_DURATION_S, low_open=True
+        )
         realtime = self.simulator_config.target_realtime_rate
         if not realtime >= 0:
             raise ValueError(f"simulator_config.target_realtime_rate must be >= 0; got {realtime}")
         if self.plant == "analytical" and (self.visualization is not None or realtime):
             raise ValueError("visualization and a real-time rate need plant multibody")
+        if not 0 <= self.random_seed < 2**32:
+            raise ValueError(f"random_seed must be in [0, 2^32); got {self.random_seed}")
         self.mca.validate()
         self.flight.validate()
         self.station.validate()
@@ -124,6 +141,9 @@ class EvaluationScenario:
     workers: int = 1
     # Folder of the per-run JSON files (resumable), evaluation.md/json and the box plot.
     output_dir: str = "results/evaluation"
+
+    def __post_init__(self) -> None:
+        self.mcas = [as_mca_config(m) for m in self.mcas]
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""
@@ -170,6 +190,9 @@ class DatasetScenario:
     # Folder of the per-flight files and the merged dataset.npz (resumable).
     output_dir: str = DEFAULT_DATASET_DIR
 
+    def __post_init__(self) -> None:
+        self.mca = as_mca_config(self.mca)
+
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""
         if self.workers < 1:
@@ -190,7 +213,10 @@ class DatasetScenario:
         )
 
 
-Scenario = PlantDemoScenario | ClosedLoopScenario | EvaluationScenario | DatasetScenario
+# typing.Union, not `|`: Drake's YAML loader reads the members' tags from it.
+Scenario = Union[  # noqa: UP007
+    PlantDemoScenario, ClosedLoopScenario, EvaluationScenario, DatasetScenario
+]
 
 
 @dataclasses.dataclass
@@ -199,9 +225,7 @@ class ScenarioFile:
     `scenario: !ClosedLoopScenario {mca: !DpcConfig {}, duration_s: 600}`."""
 
     # The job to run and its settings.
-    scenario: Union[  # noqa: UP007 (the YAML loader needs typing.Union)
-        PlantDemoScenario, ClosedLoopScenario, EvaluationScenario, DatasetScenario
-    ] = dataclasses.field(default_factory=PlantDemoScenario)
+    scenario: Scenario = dataclasses.field(default_factory=PlantDemoScenario)
 
 
 def _union_members(schema) -> tuple:
@@ -211,14 +235,30 @@ def _union_members(schema) -> tuple:
     return ()
 
 
-def _prepare(schema, raw, current, where: str):
-    """Checks untyped YAML `raw` against `schema` before Drake loads it, so that an unknown
-    field fails naming the field and its class, and resolves two shorthands:
+def _field_types(schema) -> dict | None:
+    """{field name: type} of a dataclass or of a Drake config class (`__fields__`), else
+    None."""
+    if dataclasses.is_dataclass(schema):
+        return typing.get_type_hints(schema)
+    fields = getattr(schema, "__fields__", None)
+    if isinstance(fields, tuple) and all(hasattr(f, "name") for f in fields):
+        return {f.name: f.type for f in fields}
+    return None
 
-    - a union field given a name of `mca_drake.cueing.MCA_NAMES` becomes that MCA's
-      default config, tagged (`mca: nmpc-rti`);
-    - a union field given an untagged mapping keeps the type of its `current` value (an
-      override `{mca: {washout_weight: 0.1}}` of an NmpcConfig stays an NmpcConfig).
+
+def _at(where: str) -> str:
+    return f"{where}: " if where else ""
+
+
+def _prepare(schema, raw, current, where: str):
+    """Checks untyped YAML `raw` against `schema` before Drake loads it, so that a mistake
+    fails naming the field and its class, and resolves the shorthands of a union field:
+
+    - an MCA given by name (`mca: nmpc-rti`) becomes that MCA's default config, tagged;
+    - a tagged value replaces the field with a config of that class, every field not given
+      at its default (`mca: !NmpcConfig {washout_weight: 0.1}`);
+    - an untagged mapping changes fields of the `current` value and keeps its class (an
+      override `{mca: {washout_weight: 0.1}}` of an NmpcConfig stays that NmpcConfig).
 
     Returns the prepared raw value. Raises ValueError.
     """
@@ -226,46 +266,66 @@ def _prepare(schema, raw, current, where: str):
     if len(members) == 1:  # Optional[X]: X or null
         return raw if raw is None else _prepare(members[0], raw, current, where)
     if members:
-        if isinstance(raw, str) and set(members) == set(typing.get_args(McaConfig)):
-            if raw not in MCA_NAMES:
-                raise ValueError(f"{where}: unknown MCA '{raw}'; valid: {', '.join(MCA_NAMES)}")
-            config = mca_config_from_name(raw)
-            return {"_tag": f"!{type(config).__name__}", **dataclasses.asdict(config)}
-        if not isinstance(raw, dict):
-            return raw
-        by_tag = {f"!{t.__name__}": t for t in members}
-        tag = raw.get("_tag")
-        if tag is None:  # keep the current value's type
-            kind = type(current) if type(current) in members else members[0]
-            tag = f"!{kind.__name__}"
-        elif tag not in by_tag:
-            raise ValueError(f"{where}: unknown type {tag}; valid: {', '.join(by_tag)}")
-        kind = by_tag[tag]
-        body = {k: v for k, v in raw.items() if k != "_tag"}
-        same = current if type(current) is kind else None
-        return {"_tag": tag, **_prepare(kind, body, same, where)}
-    origin = typing.get_origin(schema)
-    if origin is list and isinstance(raw, list):
+        return _prepare_union(members, raw, current, where)
+    if typing.get_origin(schema) is list:
+        if not isinstance(raw, list):
+            return raw  # Drake's loader names the type it expected
         (item,) = typing.get_args(schema)
         return [_prepare(item, v, None, f"{where}[{i}]") for i, v in enumerate(raw)]
-    if dataclasses.is_dataclass(schema) and isinstance(raw, dict):
-        fields = {f.name: f for f in dataclasses.fields(schema)}
-        unknown = [k for k in raw if k not in fields]
-        if unknown:
-            raise ValueError(
-                f"{where}: unknown field {', '.join(map(repr, unknown))} of "
-                f"{schema.__name__}; valid: {', '.join(fields)}"
-            )
+    fields = _field_types(schema)
+    if fields is None:
+        return raw
+    if raw is None:
+        raise ValueError(f"{_at(where)}a {schema.__name__} is required, not null")
+    if not isinstance(raw, dict):
+        return raw
+    unknown = [k for k in raw if k not in fields]
+    if unknown:
+        raise ValueError(
+            f"{_at(where)}unknown field {', '.join(map(repr, unknown))} of "
+            f"{schema.__name__}; valid: {', '.join(fields)}"
+        )
+    return {
+        k: _prepare(
+            fields[k],
+            v,
+            getattr(current, k) if current is not None else None,
+            f"{where}.{k}" if where else k,
+        )
+        for k, v in raw.items()
+    }
+
+
+def _prepare_union(members: tuple, raw, current, where: str):
+    """`_prepare` for a union field (the MCA, or a file's scenario)."""
+    is_mca = set(members) == set(typing.get_args(McaConfig))
+    by_tag = {f"!{t.__name__}": t for t in members}
+    expected = f"a tagged value ({', '.join(by_tag)})"
+    if is_mca:
+        expected += f" or an MCA name ({', '.join(MCA_NAMES)})"
+    if isinstance(raw, str) and is_mca:
+        if raw not in MCA_NAMES:
+            raise ValueError(f"{_at(where)}unknown MCA '{raw}'; valid: {', '.join(MCA_NAMES)}")
+        config = mca_config_from_name(raw)
+        return {"_tag": f"!{type(config).__name__}", **dataclasses.asdict(config)}
+    if not isinstance(raw, dict):
+        raise ValueError(f"{_at(where)}give {expected}; got {raw!r}")
+    tag = raw.get("_tag")
+    body = {k: v for k, v in raw.items() if k != "_tag"}
+    if tag is None:
+        if type(current) not in members:
+            raise ValueError(f"{_at(where)}give {expected}: the type is not known here")
         return {
-            k: _prepare(
-                fields[k].type,
-                v,
-                getattr(current, k) if current is not None else None,
-                f"{where}.{k}" if where else k,
-            )
-            for k, v in raw.items()
+            "_tag": f"!{type(current).__name__}",
+            **_prepare(type(current), body, current, where),
         }
-    return raw
+    if tag not in by_tag:
+        raise ValueError(f"{_at(where)}unknown type {tag}; valid: {', '.join(by_tag)}")
+    kind = by_tag[tag]
+    body = _prepare(kind, body, None, where)
+    if is_mca:  # a fresh config of that class: every field not given at its default
+        body = {**dataclasses.asdict(kind()), **body}
+    return {"_tag": tag, **body}
 
 
 def load_scenario(path: str | Path, overrides: str | Sequence[str] | None = None) -> Scenario:
@@ -288,8 +348,7 @@ def load_scenario(path: str | Path, overrides: str | Sequence[str] | None = None
     if not path.is_file():
         raise FileNotFoundError(f"scenario file not found: {path}")
     try:
-        raw_file = yaml_load(filename=str(path))
-        raw_file = _prepare(ScenarioFile, raw_file, None, "")
+        raw_file = _prepare(ScenarioFile, yaml_load(filename=str(path)), None, "")
         scenario = yaml_load_typed(schema=ScenarioFile, data=yaml_dump(raw_file)).scenario
         for override in [overrides] if isinstance(overrides, str) else overrides or ():
             raw = yaml_load(data=override)
@@ -302,6 +361,8 @@ def load_scenario(path: str | Path, overrides: str | Sequence[str] | None = None
             scenario = yaml_load_typed(
                 schema=type(scenario), data=yaml_dump(raw), defaults=scenario
             )
+    except yaml.YAMLError as err:
+        raise ValueError(f"{path}: not valid YAML: {err}".replace("\n", " ")) from err
     except (RuntimeError, ValueError, TypeError, AssertionError) as err:
         raise ValueError(f"{path}: {err}") from err
     try:

@@ -9,6 +9,7 @@ layers with the exact (erf) GELU between, and the saturation to the limits.
 
 import dataclasses
 import json
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -67,9 +68,16 @@ def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
     try:
         with np.load(path, allow_pickle=False) as data:
             metadata = json.loads(str(data["metadata_json"]))
-            arrays = {k: np.asarray(data[k], dtype=float) for k in POLICY_ARRAYS}
-    except (OSError, KeyError, ValueError) as err:
+            raw = {k: data[k] for k in POLICY_ARRAYS}
+    # a damaged, truncated or empty file fails inside numpy or zipfile in several ways
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as err:
         raise ValueError(f"{path} is not a policy file: {err}") from err
+    if not isinstance(metadata, dict):
+        raise ValueError(f"{path}: its metadata is a {type(metadata).__name__}, not a mapping")
+    not_real = [k for k, v in raw.items() if v.dtype.kind not in "fiu"]
+    if not_real:
+        raise ValueError(f"{path}: arrays {not_real} are not real numbers")
+    arrays = {k: v.astype(float) for k, v in raw.items()}
     if metadata.get("format") != POLICY_FORMAT:
         raise ValueError(f"{path}: unknown policy format {metadata.get('format')!r}")
     hidden = arrays["W1"].shape[0]
@@ -103,13 +111,12 @@ class PolicyInference:
         self._W1 = np.ascontiguousarray(arrays["W1"] / arrays["input_scale"][None, :])
         self._W2 = np.ascontiguousarray(arrays["W2"])
         self._lower, self._upper = arrays["lower"].copy(), arrays["upper"].copy()
-        self._features = np.empty(self._W1.shape[1])
 
     def __call__(self, y, x, target) -> tuple[np.ndarray, np.ndarray]:
         """(u (6), x_hat (12)) for y (6), x (12), target (6); 1-D numpy arrays."""
-        f = self._features
-        f[:6], f[6:18], f[18:] = y, x, target
-        a = self._W1 @ f
+        # A new feature vector per call (0.1 us), not a buffer on self: one inference object
+        # may serve several contexts at once.
+        a = self._W1 @ np.concatenate((y, x, target))
         a = 0.5 * a * (1.0 + erf(a * _SQRT_HALF))
         z = np.minimum(np.maximum(self._W2 @ a, self._lower), self._upper)
         return z[:NUM_JOINTS], z[NUM_JOINTS:]

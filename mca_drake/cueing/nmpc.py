@@ -39,6 +39,7 @@ from pydrake.solvers import (
 )
 
 from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.input_checks import check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.safety import viable_acceleration_bounds
@@ -94,6 +95,8 @@ class NmpcConfig:
     step_tolerance: float = 1e-6
 
     def validate(self) -> None:
+        """Raises ValueError for a setting that cannot run, naming it."""
+        check_config_numbers(self)
         if self.mode not in MODES:
             raise ValueError(f"unknown NMPC mode '{self.mode}'; valid: {', '.join(MODES)}")
         if self.qp_solver not in QP_SOLVERS:
@@ -101,6 +104,10 @@ class NmpcConfig:
             raise ValueError(f"unknown QP solver '{self.qp_solver}'; valid: {valid}")
         if self.osqp_max_iterations < 0 or self.stoppability_tangents < 0:
             raise ValueError("osqp_max_iterations and stoppability_tangents must be >= 0")
+        if self.horizon_steps < 1 or self.max_iterations < 1:
+            raise ValueError("horizon_steps and max_iterations must be at least 1")
+        if min(self.osqp_tolerance, self.clarabel_tolerance, self.step_tolerance) <= 0:
+            raise ValueError("osqp_tolerance, clarabel_tolerance and step_tolerance must be > 0")
         if not 1 <= self.nodes <= self.horizon_steps:
             raise ValueError(f"nodes must be in [1, horizon_steps]; got {self.nodes}")
         if len(self.output_weights) != 6 or min(self.output_weights) < 0:

@@ -25,6 +25,7 @@ import numpy as np
 from scipy import signal
 
 from mca_drake.conventions import GRAVITY
+from mca_drake.input_checks import check_config_numbers
 
 
 @dataclasses.dataclass
@@ -60,19 +61,14 @@ class WashoutConfig:
     )
 
     def validate(self) -> None:
+        """Raises ValueError for a setting that cannot run, naming it."""
+        check_config_numbers(self)
         values = {k: v for k, v in dataclasses.asdict(self).items() if k != "home_position"}
         if len(self.home_position) != 6:
             raise ValueError("home_position must hold six joint positions")
         if any(not (v > 0) for v in values.values()):
             bad = [k for k, v in values.items() if not v > 0]
             raise ValueError(f"washout settings must be positive; got {bad}")
-
-
-def _discrete(num, den, h):
-    """Exact (zero-order hold) discretisation of a SISO transfer function: (A, B, C, D)."""
-    A, B, C, D = signal.tf2ss(num, den)
-    Ad, Bd, Cd, Dd, _ = signal.cont2discrete((A, B, C, D), h, method="zoh")
-    return Ad, Bd[:, 0], Cd, Dd[:, 0]
 
 
 class _Channel:

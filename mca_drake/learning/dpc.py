@@ -33,9 +33,10 @@ from pathlib import Path
 import torch
 from torch import nn
 
-from mca_drake.atomic_io import file_sha256
+from mca_drake.atomic_io import check_writable, file_sha256
+from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing.dpc import load_policy_arrays
-from mca_drake.learning.checkpoint import load_checkpoint, load_state_into
+from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
 from mca_drake.learning.output_models import MixedAnalyticalOutput
 from mca_drake.learning.policy import PolicyNetwork, load_policy_network, save_policy
 from mca_drake.learning.state_models import Node2State
@@ -150,7 +151,7 @@ class RolloutPlant(nn.Module):
         robot = robot if robot is not None else load_kr500()
         self.kind = config.plant
         self.safety_filter = config.safety_filter
-        self.dt = 0.01
+        self.dt = CONTROL_PERIOD_S
         for name in ("q_min", "q_max", "qd_max", "qdd_max"):
             self.register_buffer(
                 name, torch.tensor(getattr(robot, name), dtype=torch.float32), persistent=False
@@ -339,7 +340,7 @@ def train_policy(
     """
 
     config.validate()
-    out = Path(out_dir)
+    out = check_writable(out_dir, folder=True)
     data = SegmentDataset.load(dataset)
     if "R" not in data.arrays and config.targets == "reference":
         raise ValueError(f"{dataset} has no references R; use targets='achieved'")
@@ -421,6 +422,8 @@ def export_checkpoint_policy(checkpoint: str | Path, out: str | Path) -> Path:
     if meta.get("model") != "dpc-policy":
         raise ValueError(f"{checkpoint} is not a DPC policy checkpoint (model {meta.get('model')})")
     policy = PolicyNetwork(hidden=meta.get("model_kwargs", {}).get("hidden", 128))
+    if "best_model" not in payload:
+        raise CheckpointError(f"{checkpoint} holds no best weights (best_model) to export")
     load_state_into(policy, payload["best_model"], str(checkpoint))
     epochs = meta.get("epochs_logged", 0)
     save_policy(out, policy, {**meta, "exported_from": str(checkpoint), "epochs": epochs})

@@ -24,7 +24,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from mca_drake.conventions import GRAVITY
+from mca_drake.conventions import CONTROL_PERIOD_S, GRAVITY
 from mca_drake.learning.blocks import Mlp, pose_top, sin_cos_features
 from mca_drake.robot import NUM_JOINTS
 from mca_drake.torch_plant import TorchPlant
@@ -118,7 +118,9 @@ class LatentOutput(OutputModel):
 class MixedAnalyticalOutput(OutputModel):
     """Equation (8): exact F(q); learned dF and ddF; exact y(F, dF, ddF)."""
 
-    def __init__(self, hidden: int = 64, dt: float = 0.01, dtype: torch.dtype = torch.float32):
+    def __init__(
+        self, hidden: int = 64, dt: float = CONTROL_PERIOD_S, dtype: torch.dtype = torch.float32
+    ):
         super().__init__()
         # Pass dtype rather than converting later: a float32 module converted to float64
         # keeps its float32-rounded kinematic constants.
@@ -162,7 +164,7 @@ class ExactOutput(OutputModel):
 
     learnable = False
 
-    def __init__(self, dt: float = 0.01, dtype: torch.dtype = torch.float32):
+    def __init__(self, dt: float = CONTROL_PERIOD_S, dtype: torch.dtype = torch.float32):
         super().__init__()
         self.plant = TorchPlant(dt=dt, dtype=dtype, check_inputs=False)
 

@@ -13,12 +13,15 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import hashlib
 import io
+import json
 import math
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import numpy as np
 import torch
 from torch import nn
 from tqdm.auto import tqdm
@@ -115,6 +118,54 @@ class TrainResult:
     wall_s: float
 
 
+# Train settings a resumed run may change (train longer, on another device); every other
+# one, and the data, must be those of the checkpoint.
+_RESUMABLE_CHANGES = ("max_epochs", "early_stopping_patience", "device")
+_PAYLOAD_KEYS = ("model", "best_model", "optimiser", "scheduler", "generator", "progress")
+
+
+def run_identity(
+    config: TrainConfig, train: SegmentDataset, validation: SegmentDataset, names
+) -> dict:
+    """What makes a training run this run: its settings (less those a resume may change)
+    and the SHA-256 of the arrays it trains and validates on."""
+    digest = hashlib.sha256()
+    for part in (train, validation):
+        for name in sorted(names):
+            if name in part.arrays:
+                array = np.ascontiguousarray(part.arrays[name])
+                digest.update(f"{name}{array.shape}{array.dtype}".encode())
+                digest.update(array.tobytes())
+    settings = {k: v for k, v in dataclasses.asdict(config).items() if k not in _RESUMABLE_CHANGES}
+    return {"train_config": json.loads(json.dumps(settings)), "data_sha256": digest.hexdigest()}
+
+
+def _check_resumable(path: Path, payload: dict, meta: dict, identity: dict) -> None:
+    """Raises CheckpointError unless the checkpoint holds every part a resume needs and was
+    made by a run with this identity (same settings, same data)."""
+    missing = [k for k in _PAYLOAD_KEYS if k not in payload]
+    if missing:
+        raise CheckpointError(f"checkpoint {path} lacks {missing}: it cannot be resumed")
+    saved = meta.get("run_identity")
+    if saved is None:
+        return  # written before run identities were recorded
+    if saved.get("data_sha256") != identity["data_sha256"]:
+        raise CheckpointError(
+            f"checkpoint {path} was trained on other data; resume it with the same dataset, "
+            "or train afresh in another output folder"
+        )
+    changed = sorted(
+        k
+        for k in set(saved["train_config"]) | set(identity["train_config"])
+        if saved["train_config"].get(k) != identity["train_config"].get(k)
+    )
+    if changed:
+        raise CheckpointError(
+            f"checkpoint {path} was trained with other settings ({', '.join(changed)}); a "
+            f"resume may change only {', '.join(_RESUMABLE_CHANGES)}"
+        )
+
+
 class CurriculumTrainer:
     """Trains `model` by `objective` over the curriculum of `config.horizons`.
 
@@ -186,12 +237,16 @@ class CurriculumTrainer:
             "optimiser": optimiser.state_dict(),
             "scheduler": scheduler.state_dict(),
             "generator": generator.get_state(),
+            # torch's global generator too: objectives draw from it (DPC's perturbed
+            # initial states), so a resumed run continues the same random sequence.
+            "torch_rng": torch.get_rng_state(),
             "progress": progress,
         }
 
     def _save(self, payload: dict, history: list[EpochRecord], stages: list[StageResult]):
         meta = {
             **self.metadata,
+            "run_identity": self._identity,
             "train_config": dataclasses.asdict(self.config),
             "stages": [dataclasses.asdict(s) for s in stages],
             "epochs_logged": len(history),
@@ -243,6 +298,7 @@ class CurriculumTrainer:
             )
         history: list[EpochRecord] = []
         stages: list[StageResult] = []
+        self._identity = run_identity(cfg, train, validation, self.arrays)
         generator = torch.Generator().manual_seed(cfg.seed)
         start_stage, start_epoch = 0, 0
         saved = None
@@ -259,6 +315,7 @@ class CurriculumTrainer:
                         f"checkpoint {self.checkpoint_path} holds {key}={meta.get(key)!r}; "
                         f"this run trains {key}={self.metadata[key]!r}"
                     )
+            _check_resumable(self.checkpoint_path, payload, meta, self._identity)
             saved = payload
             load_state_into(self.model, payload["model"], str(self.checkpoint_path))
             p = payload["progress"]
@@ -266,6 +323,8 @@ class CurriculumTrainer:
             history = [EpochRecord(**r) for r in p["history"]]
             stages = [StageResult(**s) for s in p["stages"]]
             generator.set_state(payload["generator"])
+            if "torch_rng" in payload:
+                torch.set_rng_state(payload["torch_rng"])
         wall_start = time.perf_counter() - (history[-1].wall_s if history else 0.0)
 
         for stage in range(start_stage, len(cfg.horizons)):

@@ -22,6 +22,8 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from tqdm.auto import tqdm
 
+from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
 from mca_drake.kinematics import head_motion, output_from_motion, pose_derivatives_from_motion
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.segments import SegmentDataset, package_versions
@@ -43,7 +45,7 @@ class ExcitationConfig:
     # Segment length n_p, steps.
     horizon: int = 256
     # Plant period, s.
-    time_step: float = 0.01
+    time_step: float = CONTROL_PERIOD_S
     # Seed of every random draw (profiles and initial states).
     seed: int = 0
     # Initial states are drawn uniformly from this fraction of the position and velocity
@@ -53,6 +55,11 @@ class ExcitationConfig:
     dtype: str = "float32"
 
     def validate(self) -> None:
+        """Raises ValueError for a setting that cannot run, naming it."""
+        check_config_numbers(self)
+        if not 0 <= self.seed < 2**32:
+            raise ValueError(f"seed must be in [0, 2^32); got {self.seed}")
+        check_range("ExcitationConfig", "duration_s", self.duration_s, 0.0, MAX_DURATION_S)
         unknown = [s for s in self.signals if s not in SIGNALS]
         if unknown or not self.signals:
             raise ValueError(f"unknown signals {unknown}; valid: {', '.join(SIGNALS)}")

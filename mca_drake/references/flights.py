@@ -31,6 +31,8 @@ class FlightSpec:
         if not self.recording and self.vehicle not in VEHICLES:
             valid = ", ".join(VEHICLES)
             raise ValueError(f"unknown vehicle '{self.vehicle}'; valid: {valid}")
+        if not self.recording and not 0 <= self.seed < 2**32:
+            raise ValueError(f"flight.seed must be in [0, 2^32); got {self.seed}")
         if self.recording and not Path(self.recording).is_file():
             raise ValueError(f"flight.recording {self.recording!r} not found")
 

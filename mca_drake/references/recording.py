@@ -14,7 +14,16 @@ File format (CSV, UTF-8):
 
 Columns may come in any order and extra columns are ignored; units are SI. The loader
 validates everything and resamples to a uniform grid (100 Hz by default); every error names
-the file, the line and the column.
+the file, the line and the column, and says how to fix it. What it checks:
+
+- text: UTF-8 (a byte-order mark is fine), '.' for decimals (a decimal comma adds cells);
+- time base: increasing, at least `MIN_RATE_HZ` (a time column in ms reads as 0.1 Hz), no
+  gap longer than `MAX_GAP_S` (it would be interpolated into motion that never happened);
+  absolute time stamps (Unix epoch) are shifted to start at 0, the start kept in metadata;
+- units and axes (`check_units`): specific force in m/s^2 with gravity, z up, every value
+  below `MAX_SPECIFIC_FORCE` (20 g), angular velocity in rad/s (a deg/s file is caught by
+  its peak above 8 rad/s). A header may name units in brackets, `omega_x [deg/s]`,
+  `f_z [g]`, `t [ms]`: they are converted to SI.
 """
 
 from __future__ import annotations
@@ -23,6 +32,7 @@ import csv
 import dataclasses
 import io
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -33,10 +43,18 @@ from mca_drake.conventions import GRAVITY
 COLUMNS = ("t", "omega_x", "omega_y", "omega_z", "f_x", "f_y", "f_z")
 DEFAULT_RATE_HZ = 100.0
 FORMAT_TAG = "mca-drake recording v1"
+# Slowest sample rate, Hz: motion cues reach a few Hz, so slower files cannot hold them (and
+# a time column in ms reads as 0.1 Hz).
+MIN_RATE_HZ = 10.0
+# Longest gap between samples, s: resampling would fill a longer one with invented motion.
+MAX_GAP_S = 0.5
+# Largest plausible specific force, m/s^2 (20 g: beyond any crewed vehicle).
+MAX_SPECIFIC_FORCE = 20 * GRAVITY
 # Unit plausibility thresholds (see `check_units`).
 _MAX_PLAUSIBLE_RATE = 8.0  # rad/s; beyond aerobatic roll rates, typical of a file in deg/s
-_G_FILE_RANGE = (0.5, 2.0)  # median |f| in this range: the file is in g, not m/s^2
+_G_FILE_RANGE = (0.5, 2.0)  # median |f| in this range, with f_z about +1: the file is in g
 _SI_F_RANGE = (4.0, 25.0)  # median |f| of any real vehicle, in m/s^2
+_SI_FZ_RANGE = (0.5 * GRAVITY, 1.5 * GRAVITY)  # median f_z of a vehicle that is mostly level
 
 
 class RecordingError(ValueError):
@@ -113,31 +131,52 @@ class Recording:
 def check_units(recording: Recording, where: str = "recording") -> None:
     """Catches recordings in the wrong units or axes with a message that says how to fix them.
 
-    - median |f| near 1: specific force in g, not m/s^2;
+    - median |f| near 1 with f_z near +1: specific force in g, not m/s^2;
     - median f_z near -9.81: z-down (aircraft body) axes, not z-up head axes;
-    - |omega| above 8 rad/s: angular velocity in deg/s, not rad/s;
-    - median |f| far from 9.81 otherwise: not a specific force (gravity removed?).
+    - median |f| far from 9.81, or median f_z far from +9.81: not a specific force with
+      gravity (gravity removed?), or the wrong units;
+    - any |f| component above MAX_SPECIFIC_FORCE: a corrupt or mis-scaled value;
+    - |omega| above 8 rad/s: angular velocity in deg/s, not rad/s. A deg/s file whose rates
+      stay below 8 deg/s is not told apart from data alone (the specific force of a vehicle
+      in coordinated motion does not show its rotation); name the units in the header
+      (`omega_x [deg/s]`, see `load_recording`) and it is converted.
 
     Raises:
-        RecordingError: naming `where` and the column at fault.
+        RecordingError: naming `where`, the column at fault and the fix.
     """
-    f_norm = np.median(np.linalg.norm(recording.f, axis=1))
-    if _G_FILE_RANGE[0] <= f_norm <= _G_FILE_RANGE[1]:
+    f = recording.f
+    worst = np.unravel_index(np.argmax(np.abs(f)), f.shape)
+    if abs(f[worst]) > MAX_SPECIFIC_FORCE:
         raise RecordingError(
-            f"{where}: columns f_x, f_y, f_z look like g (median |f| = {f_norm:.3g}); "
-            f"the format needs m/s^2: multiply by {GRAVITY}"
+            f"{where}: column {COLUMNS[4 + worst[1]]} at t = {recording.t[worst[0]]:.6g} s is "
+            f"{f[worst]:.3g} m/s^2, beyond any vehicle ({MAX_SPECIFIC_FORCE:.0f} m/s^2 = 20 g): "
+            "a corrupt value or the wrong units"
         )
-    if np.median(recording.f[:, 2]) < -0.5 * GRAVITY:
+    f_norm = np.median(np.linalg.norm(f, axis=1))
+    fz = float(np.median(f[:, 2]))
+    if _G_FILE_RANGE[0] <= f_norm <= _G_FILE_RANGE[1] and 0.5 <= fz <= 1.5:
         raise RecordingError(
-            f"{where}: column f_z is about -9.81 (median {np.median(recording.f[:, 2]):.3g}): the"
-            " axes look z-down (aircraft body axes); the format is x forward, y left, z up, so"
-            " negate y and z of both omega and f"
+            f"{where}: columns f_x, f_y, f_z look like g (median |f| = {f_norm:.3g}, median "
+            f"f_z = {fz:.3g}); the format needs m/s^2: multiply by {GRAVITY}"
         )
-    if not _SI_F_RANGE[0] <= f_norm <= _SI_F_RANGE[1]:
+    if fz < -0.5 * GRAVITY:
         raise RecordingError(
-            f"{where}: columns f_x, f_y, f_z have median |f| = {f_norm:.3g} m/s^2; a specific"
-            " force has about 9.81 (gravity included): is gravity subtracted, or are the units"
-            " wrong?"
+            f"{where}: column f_z is about -9.81 (median {fz:.3g}): the axes look z-down "
+            "(aircraft body axes); the format is x forward, y left, z up, so negate y and z "
+            "of both omega and f"
+        )
+    if not (
+        _SI_F_RANGE[0] <= f_norm <= _SI_F_RANGE[1] and _SI_FZ_RANGE[0] <= fz <= _SI_FZ_RANGE[1]
+    ):
+        hint = (
+            "gravity looks subtracted: the format wants the specific force, add 9.81 to f_z"
+            if abs(fz) < 0.2 * GRAVITY
+            else "check the units (m/s^2) and that z points up"
+        )
+        raise RecordingError(
+            f"{where}: columns f_x, f_y, f_z have median |f| = {f_norm:.3g} and median f_z = "
+            f"{fz:.3g} m/s^2; a specific force of a mostly level vehicle has about +9.81 on "
+            f"z (gravity included): {hint}"
         )
     peak = np.max(np.abs(recording.omega), axis=0)
     if np.any(peak > _MAX_PLAUSIBLE_RATE):
@@ -166,6 +205,79 @@ def save_recording(path: str | os.PathLike, recording: Recording) -> Path:
     return atomic_write_text(path, recording_to_csv(recording))
 
 
+# Units a header may name in brackets, and the factor to SI.
+UNITS = {
+    "t": {"s": 1.0, "ms": 1e-3},
+    "omega": {"rad/s": 1.0, "deg/s": np.pi / 180},
+    "f": {"m/s^2": 1.0, "m/s2": 1.0, "g": GRAVITY},
+}
+_HEADER_CELL = re.compile(r"^\s*([A-Za-z_]\w*)\s*(?:[\[(]\s*([^\])]*?)\s*[\])])?\s*$")
+
+
+def _read_text(path: Path) -> str:
+    """The file as text: UTF-8, a byte-order mark dropped; a clear error otherwise."""
+    data = path.read_bytes()
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        line = data[: err.start].count(b"\n") + 1
+        raise RecordingError(
+            f"{path}: line {line}: byte {err.start} is not UTF-8 text ({err.reason}); save "
+            "the file as UTF-8 CSV"
+        ) from None
+
+
+def _parse_header(path: Path, line_no: int, row: list[str]) -> tuple[list[str], list[float]]:
+    """(column names, SI factor of each) of a header row; names may carry units."""
+    names, factors = [], []
+    for cell in row:
+        match = _HEADER_CELL.match(cell)
+        name, unit = (match.group(1), match.group(2)) if match else (cell.strip(), None)
+        factor = 1.0
+        if unit is not None and name in COLUMNS:
+            kind = name.split("_")[0]
+            if unit not in UNITS[kind]:
+                raise RecordingError(
+                    f"{path}: line {line_no}, column {name}: unknown unit '{unit}'; valid: "
+                    f"{', '.join(UNITS[kind])}"
+                )
+            factor = UNITS[kind][unit]
+        names.append(name)
+        factors.append(factor)
+    missing = [c for c in COLUMNS if c not in names]
+    if missing:
+        raise RecordingError(
+            f"{path}: line {line_no}: missing columns {missing}; the header must name "
+            f"{', '.join(COLUMNS)} (found {[cell.strip() for cell in row]})"
+        )
+    return names, factors
+
+
+def _check_time_base(path: Path, t: np.ndarray, lines: list[int]) -> None:
+    """Increasing times, a rate of at least MIN_RATE_HZ, no gap over MAX_GAP_S."""
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        k = int(np.argmax(steps <= 0))
+        raise RecordingError(
+            f"{path}: line {lines[k + 1]}, column t: time {t[k + 1]} does not increase "
+            f"(previous line {lines[k]}: {t[k]})"
+        )
+    typical = float(np.median(steps))
+    if typical > 1 / MIN_RATE_HZ:
+        hint = " (is t in ms? name it `t [ms]` or divide by 1000)" if typical >= 1 else ""
+        raise RecordingError(
+            f"{path}: column t: samples {typical:.6g} s apart ({1 / typical:.3g} Hz), slower "
+            f"than the {MIN_RATE_HZ:g} Hz that motion cues need{hint}"
+        )
+    k = int(np.argmax(steps))
+    if steps[k] > MAX_GAP_S:
+        raise RecordingError(
+            f"{path}: lines {lines[k]} to {lines[k + 1]}, column t: a gap of {steps[k]:.6g} s "
+            f"(from {t[k]:.6g} to {t[k + 1]:.6g}); resampling would invent the motion in it: "
+            "split the file there or fill the gap"
+        )
+
+
 def load_recording(
     path: str | os.PathLike,
     *,
@@ -174,10 +286,16 @@ def load_recording(
 ) -> Recording:
     """Reads and validates a recording CSV; resamples it to `rate_hz` (None: keep as is).
 
+    Times start at 0: a file with absolute time stamps (Unix epoch) is shifted, its first
+    stamp kept in the metadata as `t0_s`. Header cells may name units in brackets
+    (`UNITS`: `t [ms]`, `omega_x [deg/s]`, `f_z [g]`); values are converted to SI.
+
     Raises:
         FileNotFoundError: no such file.
-        RecordingError: a missing column, a value that is not a finite number, times that do
-            not increase, or implausible units; the message names file, line and column.
+        RecordingError: text that is not UTF-8, a missing column, a row with too many or
+            too few values (a decimal comma?), a value that is not a finite number, times
+            that do not increase or leave a gap, too slow a rate, or implausible units; the
+            message names file, line and column and says how to fix it.
     """
     path = Path(path)
     if not path.is_file():
@@ -186,59 +304,56 @@ def load_recording(
     header: list[str] | None = None
     rows: list[list[float]] = []
     line_numbers: list[int] = []
-    with path.open(newline="", encoding="utf-8") as handle:
-        for line_no, row in enumerate(csv.reader(handle), start=1):
-            if not row or all(not cell.strip() for cell in row):
-                continue
-            if row[0].lstrip().startswith("#"):
-                text = ",".join(row).lstrip()[1:].strip()
-                if ":" in text:
-                    key, value = text.split(":", 1)
-                    metadata[key.strip()] = value.strip()
-                continue
-            if header is None:
-                header = [cell.strip() for cell in row]
-                missing = [c for c in COLUMNS if c not in header]
-                if missing:
-                    raise RecordingError(
-                        f"{path}: line {line_no}: missing columns {missing}; the header must "
-                        f"name {', '.join(COLUMNS)} (found {header})"
-                    )
-                index = [header.index(c) for c in COLUMNS]
-                continue
-            if len(row) < len(header):
+    for line_no, row in enumerate(csv.reader(io.StringIO(_read_text(path))), start=1):
+        if not row or all(not cell.strip() for cell in row):
+            continue
+        if row[0].lstrip().startswith("#"):
+            text = ",".join(row).lstrip()[1:].strip()
+            if ":" in text:
+                key, value = text.split(":", 1)
+                metadata[key.strip()] = value.strip()
+            continue
+        if header is None:
+            header, factors = _parse_header(path, line_no, row)
+            index = [header.index(c) for c in COLUMNS]
+            scale = [factors[i] for i in index]
+            continue
+        if len(row) != len(header):
+            hint = (
+                ": a decimal comma? Use '.' for decimals, ',' between values"
+                if len(row) > len(header)
+                else ""
+            )
+            raise RecordingError(
+                f"{path}: line {line_no}: {len(row)} values for {len(header)} columns{hint}"
+            )
+        values = []
+        for column, i, factor in zip(COLUMNS, index, scale, strict=True):
+            cell = row[i].strip()
+            try:
+                value = float(cell)
+            except ValueError:
                 raise RecordingError(
-                    f"{path}: line {line_no}: {len(row)} values for {len(header)} columns"
+                    f"{path}: line {line_no}, column {column}: '{cell}' is not a number"
+                ) from None
+            if not np.isfinite(value):
+                raise RecordingError(
+                    f"{path}: line {line_no}, column {column}: value {cell} is not finite"
                 )
-            values = []
-            for column, i in zip(COLUMNS, index, strict=True):
-                cell = row[i].strip()
-                try:
-                    value = float(cell)
-                except ValueError:
-                    raise RecordingError(
-                        f"{path}: line {line_no}, column {column}: '{cell}' is not a number"
-                    ) from None
-                if not np.isfinite(value):
-                    raise RecordingError(
-                        f"{path}: line {line_no}, column {column}: value {cell} is not finite"
-                    )
-                values.append(value)
-            rows.append(values)
-            line_numbers.append(line_no)
+            values.append(value * factor)
+        rows.append(values)
+        line_numbers.append(line_no)
     if header is None:
         raise RecordingError(f"{path}: no header line; expected {','.join(COLUMNS)}")
     if len(rows) < 2:
         raise RecordingError(f"{path}: needs at least 2 samples; found {len(rows)}")
     data = np.array(rows)
-    steps = np.diff(data[:, 0])
-    if np.any(steps <= 0):
-        k = int(np.argmax(steps <= 0))
-        raise RecordingError(
-            f"{path}: line {line_numbers[k + 1]}, column t: time {data[k + 1, 0]} does not "
-            f"increase (previous line {line_numbers[k]}: {data[k, 0]})"
-        )
-    recording = Recording(data[:, 0], data[:, 1:4], data[:, 4:7], metadata)
+    _check_time_base(path, data[:, 0], line_numbers)
+    t = data[:, 0]
+    if t[0] != 0.0:
+        metadata["t0_s"] = repr(float(t[0]))
+        t = t - t[0]
+    recording = Recording(t, data[:, 1:4], data[:, 4:7], metadata)
     if validate_units:
         check_units(recording, where=str(path))
     if rate_hz is not None:

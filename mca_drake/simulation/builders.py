@@ -29,7 +29,7 @@ from mca_drake.systems.nmpc_controller import NmpcController
 
 def MakePlantDemoDiagram(
     *,
-    duration_s: float = 20.0,
+    duration_s: float,
     time_step: float = CONTROL_PERIOD_S,
     robot: KR500 | None = None,
 ) -> tuple[Diagram, dict]:

@@ -25,7 +25,7 @@ from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
 from tqdm.auto import tqdm
 
-from mca_drake.atomic_io import atomic_write_json
+from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
 from mca_drake.kinematics import plant_output
 from mca_drake.metrics import joint_usage, tracking_score
@@ -34,6 +34,7 @@ from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop, MakeMultibodyClosedLoop
 from mca_drake.systems.kr500_station import StationConfig
 
+# The plants a closed loop runs on: the paper's joint-space plant, or the KR500 station.
 PLANTS = ("analytical", "multibody")
 # Tolerance of the timing self-check x_(n+1) = step(x_n, u_n) on the analytical plant.
 _CONSISTENCY_TOL = 1e-9
@@ -60,12 +61,14 @@ def simulate_with_progress(simulator: Simulator, duration_s: float, progress: bo
     start = time.perf_counter()
     t0 = simulator.get_context().get_time()
     chunk = max(duration_s / 100, 0.1)
-    with tqdm(total=round(duration_s, 3), unit="sim s", disable=not progress, leave=False) as bar:
+    with tqdm(total=round(duration_s, 2), unit="sim s", disable=not progress, leave=False) as bar:
         t = t0
         while t < t0 + duration_s - 1e-9:
             t_next = min(t + chunk, t0 + duration_s)
             simulator.AdvanceTo(t_next)
-            bar.update(round(t_next - t, 3))
+            # set, not add: summed float steps would show as 5.999999999999999
+            bar.n = round(t_next - t0, 2)
+            bar.refresh()
             t = t_next
     return time.perf_counter() - start
 
@@ -186,6 +189,11 @@ def run_closed_loop(
     """
     if plant not in PLANTS:
         raise ValueError(f"unknown plant '{plant}'; valid: {', '.join(PLANTS)}")
+    # Outputs are checked before the run, so that a long simulation is not lost at its end.
+    if json_path:
+        check_writable(json_path)
+    if plot_dir:
+        check_writable(plot_dir, folder=True)
     config = as_mca_config(mca)
     robot = robot if robot is not None else load_kr500()
     h = reference.time_step

@@ -1,4 +1,4 @@
-"""Closed-loop dataset: NMPC motion cueing over JSBSim flights, cut into n_p-long segments.
+"""Closed-loop dataset: an MCA cueing JSBSim flights, cut into n_p-long segments.
 
 For each flight seed: fly the vehicle (`mca_drake.references.flights`), scale the
 recording into a reference, run ReferenceSource -> MCA -> MotionCueingPlant at 100 Hz, and
@@ -24,7 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
+from mca_drake.atomic_io import check_writable
+from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import McaConfig, NmpcConfig, as_mca_config, mca_config_record
+from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
 from mca_drake.kinematics import head_motion, output_from_motion, pose_derivatives_from_motion
 from mca_drake.references.flights import FlightSpec, flight_recording
 from mca_drake.references.jsbsim import VEHICLES
@@ -66,13 +69,32 @@ class ClosedLoopDatasetConfig:
         self.mca = as_mca_config(self.mca)
 
     def validate(self) -> None:
-        """Raises ValueError for an unknown vehicle, no seeds or too short flights."""
+        """Raises ValueError for an unknown vehicle, no seeds, a bad horizon, split or
+        flight length; before any flight is simulated."""
+        check_config_numbers(self)
         if self.vehicle not in VEHICLES:
             raise ValueError(f"unknown vehicle '{self.vehicle}'; valid: {', '.join(VEHICLES)}")
         if not self.flight_seeds:
             raise ValueError("flight_seeds is empty")
-        if self.flight_duration_s < self.horizon * 0.01:
+        if any(not 0 <= s < 2**32 for s in self.flight_seeds):
+            raise ValueError(f"flight_seeds must be in [0, 2^32); got {self.flight_seeds}")
+        if self.horizon < 1:
+            raise ValueError(f"horizon must be at least 1 step; got {self.horizon}")
+        check_range(
+            "ClosedLoopDatasetConfig",
+            "flight_duration_s",
+            self.flight_duration_s,
+            0.0,
+            MAX_DURATION_S,
+            low_open=True,
+        )
+        if self.flight_duration_s < self.horizon * CONTROL_PERIOD_S:
             raise ValueError("flight_duration_s is shorter than one segment")
+        if not 0 <= self.split_seed < 2**32:
+            raise ValueError(f"split_seed must be in [0, 2^32); got {self.split_seed}")
+        fractions = self.split_fractions
+        if len(fractions) != 3 or min(fractions) < 0 or abs(sum(fractions) - 1) > 1e-9:
+            raise ValueError(f"split_fractions must be three shares summing to 1; got {fractions}")
         self.scaling.validate()
 
     def record(self) -> dict:
@@ -167,8 +189,7 @@ def generate_closed_loop_dataset(
     """
     config = config or ClosedLoopDatasetConfig()
     config.validate()
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir = check_writable(out_dir, folder=True)
     key = config.flight_key()
     todo = [
         (config, s, str(out_dir))

@@ -20,7 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from mca_drake.atomic_io import atomic_write_json, atomic_write_text, file_sha256
+from mca_drake.atomic_io import (
+    atomic_write_json,
+    atomic_write_text,
+    check_writable,
+    file_sha256,
+)
 from mca_drake.cueing import (
     DpcConfig,
     McaConfig,
@@ -29,6 +34,7 @@ from mca_drake.cueing import (
     mca_config_record,
     mca_name,
 )
+from mca_drake.input_checks import MAX_DURATION_S, check_range
 from mca_drake.metrics import wilcoxon_rank_sum, wilcoxon_signed_rank
 from mca_drake.plotting import plot_pi_boxes, save_figure
 from mca_drake.references.flights import FlightSpec, flight_reference
@@ -81,15 +87,24 @@ class EvaluationConfig:
         self.mcas = tuple(as_mca_config(m) for m in self.mcas)
 
     def validate(self) -> None:
-        """Raises ValueError for two MCAs of one name, training seeds or a bad duration."""
+        """Raises ValueError for no or two MCAs of one name, training seeds, no flight or a
+        bad duration."""
+        if not self.mcas:
+            raise ValueError("mcas is empty: nothing to evaluate")
+        if not any(case.seeds for case in self.cases):
+            raise ValueError("no flight to evaluate: every case is empty")
+        check_range(
+            "EvaluationConfig", "duration_s", self.duration_s, 0.0, MAX_DURATION_S, low_open=True
+        )
+        for case in self.cases:
+            if any(not 0 <= s < 2**32 for s in case.seeds):
+                raise ValueError(f"case {case.name}: flight seeds must be in [0, 2^32)")
         names = self.names()
         if len(set(names)) != len(names):
             raise ValueError(f"two MCAs share a name in {names}; compare distinct MCAs")
         for case in self.cases:
             if set(case.seeds) & set(range(100, 105)) and case.vehicle == "light":
                 raise ValueError(f"case {case.name} uses training flight seeds 100-104")
-        if not self.duration_s > 0:
-            raise ValueError("duration_s must be positive")
 
     def names(self) -> list[str]:
         """The report's label of every MCA, in order."""
@@ -148,7 +163,7 @@ def run_evaluation(
     """Runs every (case, MCA, flight) not yet on disk, then writes the report."""
     config.validate()
     out = Path(out_dir)
-    (out / "runs").mkdir(parents=True, exist_ok=True)
+    check_writable(out / "runs", folder=True)
     tasks = [
         (mca, case, seed, config.duration_s, str(out))
         for case in config.cases
@@ -172,7 +187,7 @@ def run_evaluation(
 def write_report(config: EvaluationConfig, out: Path) -> dict:
     """Aggregates the run files of `config` into evaluation.json, evaluation.md and
     evaluation.png in `out`; returns the JSON dictionary. DPC runs of another policy
-    than `config.policy` are left out."""
+    than each DpcConfig's policy, and runs of another MCA config or duration, are left out."""
     runs = {}  # (case, mca name) -> {seed: run summary}, finished runs only
     for c in config.cases:
         for m in config.mcas:

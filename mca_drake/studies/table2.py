@@ -29,7 +29,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mca_drake.atomic_io import atomic_write_bytes, atomic_write_json, atomic_write_text
+from mca_drake.atomic_io import (
+    atomic_write_bytes,
+    atomic_write_json,
+    atomic_write_text,
+    check_writable,
+)
 from mca_drake.learning.checkpoint import load_state_into
 from mca_drake.learning.data import to_tensors
 from mca_drake.learning.plant_candidates import (
@@ -181,8 +186,7 @@ def run_table2(
     """Trains and scores every candidate; writes table2.md/json in `out_dir`; returns the
     JSON dictionary. With `resume`, finished candidates are read back and a killed one
     continues from its checkpoint."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_writable(out_dir, folder=True)
     started = time.perf_counter()
     splits = _splits(config.closed_loop_dataset, config.split_seed)
     open_loop = SegmentDataset.load(config.open_loop_dataset)

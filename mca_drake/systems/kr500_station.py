@@ -48,6 +48,7 @@ from pydrake.systems.primitives import (
 from pydrake.systems.sensors import Accelerometer, Gyroscope
 
 from mca_drake.conventions import CONTROL_PERIOD_S, GRAVITY
+from mca_drake.input_checks import check_config_numbers, check_range
 from mca_drake.kinematics import plant_output
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.systems.command_limiter import CommandLimiter
@@ -78,6 +79,7 @@ class StationConfig:
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""
+        check_config_numbers(self)
         if not 0 < self.plant_time_step <= 0.01:
             raise ValueError(f"plant_time_step must be in (0, 0.01] s; got {self.plant_time_step}")
         if not self.tracking_bandwidth > 0 or not self.tracking_damping > 0:
@@ -92,8 +94,9 @@ class StationConfig:
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be finite and >= 0; got {value}")
-        if not (np.isfinite(self.measurement_delay_s) and self.measurement_delay_s >= 0):
-            raise ValueError(f"measurement_delay_s must be >= 0; got {self.measurement_delay_s}")
+        # A delay line holds every plant step of the delay: 1 s is 1000 steps, and more is
+        # no longer a motion simulator.
+        check_range("StationConfig", "measurement_delay_s", self.measurement_delay_s, 0.0, 1.0)
 
     @property
     def delay_steps(self) -> int:

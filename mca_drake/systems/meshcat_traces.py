@@ -7,6 +7,8 @@ from pydrake.common.value import AbstractValue
 from pydrake.geometry import Meshcat, Rgba
 from pydrake.systems.framework import Context, LeafSystem, State
 
+from mca_drake.conventions import CONTROL_PERIOD_S
+
 # Half-height of a strip corresponds to these magnitudes (rad/s for w, m/s^2 for f, a).
 DEFAULT_SCALES = (0.5, 0.5, 0.5, 3.0, 3.0, 3.0)
 _TARGET_RGBA = Rgba(0.55, 0.55, 0.55, 1.0)
@@ -43,7 +45,7 @@ class MeshcatOutputTraces(LeafSystem):
     def __init__(
         self,
         meshcat: Meshcat,
-        sample_period: float = 0.01,
+        sample_period: float = CONTROL_PERIOD_S,
         publish_period: float = 0.1,
         window_s: float = 10.0,
         origin=(-5.5, 2.5, 0.2),
