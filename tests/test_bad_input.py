@@ -169,3 +169,31 @@ def test_the_console_script_never_prints_a_traceback(tmp_path):
 def test_dpc_config_with_a_missing_policy_names_it():
     with pytest.raises(FileNotFoundError, match=r"no/such\.npz"):
         DpcConfig(policy="no/such.npz").validate()
+
+
+def test_a_killed_dataset_job_resumes_to_the_same_dataset(tmp_path):
+    """kill -9 of `mca-drake dataset closed-loop` after its first flight file: the rerun
+    simulates only what is missing and merges the same dataset as an uninterrupted run."""
+    import signal
+    import time
+
+    args = ["dataset", "closed-loop", "--flights", "2", "--minutes", "0.05", "--horizon", "20"]
+    script = [sys.executable, "-m", "mca_drake.app.cli", *args, "--quiet", "--out-dir"]
+    whole = tmp_path / "whole"
+    subprocess.run([*script, str(whole)], check=True, capture_output=True)
+    killed = tmp_path / "killed"
+    job = subprocess.Popen([*script, str(killed)], stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not flight_path(killed, 100).is_file():
+        time.sleep(0.05)
+    os.kill(job.pid, signal.SIGKILL)
+    job.wait(timeout=10)
+    assert not (killed / "dataset.npz").is_file(), "the job finished before the kill"
+    stamp = flight_path(killed, 100).stat().st_mtime_ns
+    subprocess.run([*script, str(killed)], check=True, capture_output=True)
+    assert flight_path(killed, 100).stat().st_mtime_ns == stamp  # not simulated again
+    a = SegmentDataset.load(whole / "dataset.npz")
+    b = SegmentDataset.load(killed / "dataset.npz")
+    for name in a.arrays:
+        np.testing.assert_array_equal(a.arrays[name], b.arrays[name])
+    np.testing.assert_array_equal(a.source, b.source)

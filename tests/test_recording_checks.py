@@ -130,3 +130,11 @@ def test_an_unknown_unit_is_named(motion, tmp_path):
     path = _write(tmp_path, _table(motion, HEADER.replace("omega_x", "omega_x [rpm]")))
     with pytest.raises(RecordingError, match="column omega_x: unknown unit 'rpm'"):
         load_recording(path)
+
+
+def test_epoch_time_stamps_in_python_give_the_exact_control_period(motion):
+    """A Recording built in Python with Unix-epoch times resolves each step only to 2.4e-7
+    s; its reference still gets the 0.01 s period (to the nanosecond)."""
+    epoch = Recording(motion.t + 1_763_884_800.0, motion.omega, motion.f)
+    reference = reference_from_recording(epoch.resampled())
+    assert reference.time_step == 0.01

@@ -19,7 +19,7 @@ from mca_drake.app.scenarios import (
     PlantDemoScenario,
     Scenario,
 )
-from mca_drake.atomic_io import atomic_write_json
+from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.conventions import CHANNELS
 from mca_drake.cueing import mca_config_record, mca_name
 from mca_drake.metrics import joint_usage
@@ -135,8 +135,12 @@ def run_closed_loop_scenario(
             none).
     """
     scenario.validate()
-    reference = flight_reference(scenario.flight, scenario.duration_s)
     json_path, plot_dir = closed_loop_outputs(scenario, json_path, plot_dir)
+    if json_path:  # before the flight is flown: a long run is not lost at its end
+        check_writable(json_path)
+    if plot_dir:
+        check_writable(plot_dir, folder=True)
+    reference = flight_reference(scenario.flight, scenario.duration_s)
     multibody = scenario.plant == "multibody"
     if multibody and scenario.visualization is not None and meshcat is None:
         meshcat = start_meshcat()
