@@ -65,6 +65,11 @@ def recording_cases(folder: Path) -> list[tuple[str, str, str | bytes]]:
     return [
         ("units", "omega in deg/s", _table(m, scale=(1, 180 / np.pi, 1))),
         ("units", "omega in deg/s, peak below 8 deg/s", _table(m, scale=(1, 20, 1))),
+        (
+            "valid",
+            "omega in deg/s, peak below 8 deg/s, unit named",
+            _table(m, "t,omega_x [deg/s],omega_y [deg/s],omega_z [deg/s],f_x,f_y,f_z", (1, 20, 1)),
+        ),
         ("units", "time in ms", _table(m, scale=(1000, 1, 1))),
         ("units", "specific force in g", _table(m, scale=(1, 1, 1 / GRAVITY))),
         ("units", "gravity removed", _table(no_g)),

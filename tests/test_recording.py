@@ -45,7 +45,8 @@ def test_round_trip_is_exact(tmp_path):
 def test_columns_in_any_order_with_extras(tmp_path):
     rec = level_flight(n=5)
     order = ["f_z", "extra", *reversed(COLUMNS[:-1])]
-    lines = [",".join(order)]
+    # gentle rates (peak 0.12 rad/s) must name their unit
+    lines = [",".join(f"{c} [rad/s]" if c.startswith("omega") else c for c in order)]
     for row in rec.as_array():
         values = dict(zip(COLUMNS, row, strict=True))
         lines.append(",".join("1.0" if c == "extra" else repr(float(values[c])) for c in order))

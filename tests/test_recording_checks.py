@@ -138,3 +138,34 @@ def test_epoch_time_stamps_in_python_give_the_exact_control_period(motion):
     epoch = Recording(motion.t + 1_763_884_800.0, motion.omega, motion.f)
     reference = reference_from_recording(epoch.resampled())
     assert reference.time_step == 0.01
+
+
+def test_gentle_rates_without_a_unit_are_ambiguous(motion, tmp_path):
+    """Rates peaking below 8 deg/s fit both readings: rad/s or deg/s must be named; named,
+    either loads, and a file this module writes names it."""
+    slow = Recording(motion.t, motion.omega * 0.2, motion.f)  # peaks at 0.06 rad/s
+    path = _write(tmp_path, _table(slow, HEADER), "bare.csv")
+    with pytest.raises(RecordingError, match=r"name the unit in the header"):
+        load_recording(path)
+    named = _write(tmp_path, _table(slow, HEADER.replace("omega_x", "omega_x [rad/s]")))
+    with pytest.raises(RecordingError, match="omega_y, omega_z peak"):
+        load_recording(named)  # every rate column needs its unit
+    written = _write(tmp_path, recording_to_csv(slow), "written.csv")
+    np.testing.assert_allclose(load_recording(written).omega, slow.omega, rtol=0, atol=1e-15)
+    in_deg = _table(
+        slow,
+        HEADER.replace("omega_x", "omega_x [deg/s]")
+        .replace("omega_y", "omega_y [deg/s]")
+        .replace("omega_z", "omega_z [deg/s]"),
+        (1, 180 / np.pi, 1),
+    )
+    loaded = load_recording(_write(tmp_path, in_deg, "deg.csv"))
+    np.testing.assert_allclose(loaded.omega, slow.omega, rtol=0, atol=1e-12)
+
+
+def test_rates_that_fit_both_readings_need_a_unit(motion, tmp_path):
+    """A deg/s file peaking at 6 deg/s reads as 6 rad/s, aerobatic but possible: both fit,
+    so the loader asks for the unit instead of guessing."""
+    gentle_deg = Recording(motion.t, motion.omega * 20.0, motion.f)  # numbers peak at 6
+    with pytest.raises(RecordingError, match="6 rad/s or 6 deg/s"):
+        load_recording(_write(tmp_path, _table(gentle_deg, HEADER)))

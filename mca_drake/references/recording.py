@@ -8,7 +8,7 @@ File format (CSV, UTF-8):
 
     # mca-drake recording v1            <- optional comment lines, `# key: value` metadata
     # vehicle: light
-    t,omega_x,omega_y,omega_z,f_x,f_y,f_z
+    t [s],omega_x [rad/s],omega_y [rad/s],omega_z [rad/s],f_x [m/s^2],f_y [m/s^2],f_z [m/s^2]
     0.00,0.0,0.0,0.0,0.0,0.0,9.81
     ...
 
@@ -23,7 +23,9 @@ the file, the line and the column, and says how to fix it. What it checks:
 - units and axes (`check_units`): specific force in m/s^2 with gravity, z up, every value
   below `MAX_SPECIFIC_FORCE` (20 g), angular velocity in rad/s (a deg/s file is caught by
   its peak above 8 rad/s). A header may name units in brackets, `omega_x [deg/s]`,
-  `f_z [g]`, `t [ms]`: they are converted to SI.
+  `f_z [g]`, `t [ms]`: they are converted to SI. A file whose angular velocity peaks where
+  both readings are plausible (below 0.14, or from 2 to 8) must name its unit; this module
+  always writes the units.
 """
 
 from __future__ import annotations
@@ -194,7 +196,7 @@ def recording_to_csv(recording: Recording) -> str:
     for key, value in recording.metadata.items():
         clean = str(value).replace("\n", " ")
         out.write(f"# {key}: {clean}\n")
-    out.write(",".join(COLUMNS) + "\n")
+    out.write(",".join(f"{c} [{u}]" for c, u in zip(COLUMNS, SI_UNITS, strict=True)) + "\n")
     for row in recording.as_array():
         out.write(",".join(repr(float(v)) for v in row) + "\n")
     return out.getvalue()
@@ -211,6 +213,13 @@ UNITS = {
     "omega": {"rad/s": 1.0, "deg/s": np.pi / 180},
     "f": {"m/s^2": 1.0, "m/s2": 1.0, "g": GRAVITY},
 }
+# The units this module writes into a header, column by column.
+SI_UNITS = ("s", "rad/s", "rad/s", "rad/s", "m/s^2", "m/s^2", "m/s^2")
+# Peaks of an angular velocity without a declared unit that fit both readings, so the file
+# must name its unit: below 8 deg/s in rad/s (0.14: all but still in deg/s too), and from 2
+# to 8 (aerobatic in rad/s, gentle in deg/s). Between them rad/s is assumed: a deg/s file
+# would have to peak below 2 deg/s, a vehicle that hardly turns. Above 8, deg/s (an error).
+_AMBIGUOUS_RATES = ((0.0, np.deg2rad(8.0)), (2.0, 8.0))
 _HEADER_CELL = re.compile(r"^\s*([A-Za-z_]\w*)\s*(?:[\[(]\s*([^\])]*?)\s*[\])])?\s*$")
 
 
@@ -227,9 +236,11 @@ def _read_text(path: Path) -> str:
         ) from None
 
 
-def _parse_header(path: Path, line_no: int, row: list[str]) -> tuple[list[str], list[float]]:
-    """(column names, SI factor of each) of a header row; names may carry units."""
-    names, factors = [], []
+def _parse_header(
+    path: Path, line_no: int, row: list[str]
+) -> tuple[list[str], list[float], set[str]]:
+    """(column names, SI factor of each, names with a declared unit) of a header row."""
+    names, factors, declared = [], [], set()
     for cell in row:
         match = _HEADER_CELL.match(cell)
         name, unit = (match.group(1), match.group(2)) if match else (cell.strip(), None)
@@ -242,6 +253,7 @@ def _parse_header(path: Path, line_no: int, row: list[str]) -> tuple[list[str], 
                     f"{', '.join(UNITS[kind])}"
                 )
             factor = UNITS[kind][unit]
+            declared.add(name)
         names.append(name)
         factors.append(factor)
     missing = [c for c in COLUMNS if c not in names]
@@ -250,7 +262,7 @@ def _parse_header(path: Path, line_no: int, row: list[str]) -> tuple[list[str], 
             f"{path}: line {line_no}: missing columns {missing}; the header must name "
             f"{', '.join(COLUMNS)} (found {[cell.strip() for cell in row]})"
         )
-    return names, factors
+    return names, factors, declared
 
 
 def _check_time_base(path: Path, t: np.ndarray, lines: list[int]) -> None:
@@ -314,7 +326,7 @@ def load_recording(
                 metadata[key.strip()] = value.strip()
             continue
         if header is None:
-            header, factors = _parse_header(path, line_no, row)
+            header, factors, declared = _parse_header(path, line_no, row)
             index = [header.index(c) for c in COLUMNS]
             scale = [factors[i] for i in index]
             continue
@@ -356,6 +368,14 @@ def load_recording(
     recording = Recording(t, data[:, 1:4], data[:, 4:7], metadata)
     if validate_units:
         check_units(recording, where=str(path))
+        peak = float(np.max(np.abs(recording.omega)))
+        undeclared = [c for c in COLUMNS[1:4] if c not in declared]
+        if undeclared and any(low < peak <= high for low, high in _AMBIGUOUS_RATES):
+            raise RecordingError(
+                f"{path}: columns {', '.join(undeclared)} peak at {peak:.3g}: that is "
+                f"{peak:.3g} rad/s or {peak:.3g} deg/s, and the numbers cannot tell; name the "
+                "unit in the header, e.g. `omega_x [rad/s]` or `omega_x [deg/s]`"
+            )
     if rate_hz is not None:
         recording = recording.resampled(rate_hz)
     return recording
