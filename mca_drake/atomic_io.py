@@ -6,7 +6,9 @@ the target (rename is atomic on POSIX), so a killed process never leaves half a 
 process killed mid-write (kill -9: no cleanup runs) leaves its temporary file behind; the
 next write of the same target removes those of processes that are gone.
 
-`check_writable` tells, before a long job starts, whether its output can be written at all.
+`check_writable` tells, before a long job starts, whether its output can be written at all;
+`load_npz_with_metadata` reads the .npz files the tool writes (arrays plus JSON metadata, no
+pickle) with one clear error for every way such a file can be damaged.
 """
 
 from __future__ import annotations
@@ -16,7 +18,10 @@ import json
 import math
 import os
 import tempfile
+import zipfile
 from pathlib import Path
+
+import numpy as np
 
 
 def _temporary_prefix(path: Path, pid: int | str) -> str:
@@ -111,3 +116,27 @@ def file_sha256(path: str | os.PathLike) -> str:
     if not path.is_file():
         raise FileNotFoundError(f"file not found: {path}")
     return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def load_npz_with_metadata(path: str | os.PathLike, what: str) -> tuple[dict, dict]:
+    """(arrays, metadata) of an .npz holding numpy arrays and a `metadata_json` string,
+    loaded without pickle.
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: "<path> is not a <what> file: <reason>" for a truncated, empty, damaged
+            or foreign file, or metadata that is not a JSON mapping.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{what} file not found: {path}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            metadata = json.loads(str(data["metadata_json"]))
+            arrays = {k: data[k] for k in data.files if k != "metadata_json"}
+    # a damaged, truncated or empty file fails inside numpy or zipfile in several ways
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as err:
+        raise ValueError(f"{path} is not a {what} file: {err}") from err
+    if not isinstance(metadata, dict):
+        raise ValueError(f"{path}: its metadata is a {type(metadata).__name__}, not a mapping")
+    return arrays, metadata

@@ -23,12 +23,11 @@ import io
 import itertools
 import json
 import os
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
-from mca_drake.atomic_io import atomic_write_bytes
+from mca_drake.atomic_io import atomic_write_bytes, load_npz_with_metadata
 
 # Columns of `SegmentDataset.source` in the closed-loop datasets, and the split labels of
 # the "split" column (`mca_drake.studies.closed_loop_dataset.merge`).
@@ -125,19 +124,10 @@ class SegmentDataset:
     @staticmethod
     def load(path: str | os.PathLike) -> SegmentDataset:
         """Reads a file written by `save`; raises ValueError if it is not one."""
-        path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(f"segment dataset not found: {path}")
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                metadata = json.loads(str(data["metadata_json"]))
-                arrays = {k: data[k] for k in data.files if k not in ("source", "metadata_json")}
-                source = data["source"]
-        # a damaged, truncated or empty file fails inside numpy or zipfile in several ways
-        except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as err:
-            raise ValueError(f"{path} is not a segment dataset file: {err}") from err
-        if not isinstance(metadata, dict):
-            raise ValueError(f"{path}: its metadata is a {type(metadata).__name__}, not a mapping")
+        arrays, metadata = load_npz_with_metadata(path, "segment dataset")
+        if "source" not in arrays:
+            raise ValueError(f"{path} is not a segment dataset file: no source array")
+        source = arrays.pop("source")
         if metadata.get("format") != FORMAT:
             raise ValueError(f"{path}: unknown format {metadata.get('format')!r}; want {FORMAT}")
         return SegmentDataset(arrays, source, metadata)

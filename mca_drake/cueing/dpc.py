@@ -8,13 +8,12 @@ layers with the exact (erf) GELU between, and the saturation to the limits.
 """
 
 import dataclasses
-import json
-import zipfile
 from pathlib import Path
 
 import numpy as np
 from scipy.special import erf
 
+from mca_drake.atomic_io import load_npz_with_metadata
 from mca_drake.robot import NUM_JOINTS
 
 _SQRT_HALF = np.sqrt(0.5)
@@ -63,17 +62,11 @@ def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
     """(arrays, metadata) of a policy file; ValueError with the reason if it is not one or
     its arrays do not fit together, FileNotFoundError if it is missing."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"policy file not found: {path}")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            metadata = json.loads(str(data["metadata_json"]))
-            raw = {k: data[k] for k in POLICY_ARRAYS}
-    # a damaged, truncated or empty file fails inside numpy or zipfile in several ways
-    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as err:
-        raise ValueError(f"{path} is not a policy file: {err}") from err
-    if not isinstance(metadata, dict):
-        raise ValueError(f"{path}: its metadata is a {type(metadata).__name__}, not a mapping")
+    stored, metadata = load_npz_with_metadata(path, "policy")
+    missing = [k for k in POLICY_ARRAYS if k not in stored]
+    if missing:
+        raise ValueError(f"{path} is not a policy file: arrays {missing} are missing")
+    raw = {k: stored[k] for k in POLICY_ARRAYS}
     not_real = [k for k, v in raw.items() if v.dtype.kind not in "fiu"]
     if not_real:
         raise ValueError(f"{path}: arrays {not_real} are not real numbers")
