@@ -215,3 +215,11 @@ def joint_usage(q, qd, qdd, robot: KR500 | None = None) -> JointUsage:
 def limit_violations(q, qd, qdd, robot: KR500 | None = None, tolerance: float = 1e-9) -> dict:
     """Samples outside the Table I limits, per limit type: {"q": n, "qd": n, "qdd": n}."""
     return joint_usage(q, qd, qdd, robot).violations(tolerance)
+
+
+def joint_range_used(q, robot: KR500 | None = None) -> np.ndarray:
+    """Per joint, the fraction of its range a run swept: (max q - min q) / (q_max - q_min),
+    shape (6,), for q of shape (T, 6), rad. How much of the robot an MCA uses."""
+    q = as_float_array("q", q, last_dim=NUM_JOINTS)
+    robot = robot if robot is not None else load_kr500()
+    return (q.max(axis=0) - q.min(axis=0)) / (robot.q_max - robot.q_min)

@@ -129,3 +129,14 @@ def test_wilcoxon_signed_rank_exact_closed_form():
     assert metrics.wilcoxon_signed_rank(a, a).p == 1.0
     with pytest.raises(ValueError, match="paired"):
         metrics.wilcoxon_signed_rank(a, b[:4])
+
+
+def test_joint_range_used_is_the_swept_share_of_each_range(robot):
+    q = np.zeros((3, 6))
+    q[0, 0], q[2, 0] = robot.q_min[0] / 2, robot.q_max[0] / 2  # half of joint 1's range
+    q[1, 4] = robot.q_max[4]  # from 0 to the upper limit of joint 5
+    used = metrics.joint_range_used(q, robot)
+    np.testing.assert_allclose(used[0], 0.5, atol=1e-12)
+    expected = robot.q_max[4] / (robot.q_max[4] - robot.q_min[4])
+    np.testing.assert_allclose(used[4], expected, atol=1e-12)
+    assert used[1] == used[2] == used[3] == used[5] == 0.0

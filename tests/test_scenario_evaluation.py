@@ -56,6 +56,7 @@ def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
     base = {
         "duration_s": 300.0,
         "pi_zero_motion": 1.5,
+        "joint_range_used": [0.1, 0.2, 0.05, 0.0, 0.3, 0.0],
         "step_time_s": {"median": 1e-3, "max": 2e-3},
         "violations": {"q": 0, "qd": 0, "qdd": 0},
         "safety_interventions": 0,

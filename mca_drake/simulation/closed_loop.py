@@ -28,7 +28,7 @@ from tqdm.auto import tqdm
 from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
 from mca_drake.kinematics import plant_output
-from mca_drake.metrics import joint_usage, tracking_score
+from mca_drake.metrics import joint_range_used, joint_usage, tracking_score
 from mca_drake.references.reference import Reference
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop, MakeMultibodyClosedLoop
@@ -138,6 +138,7 @@ def closed_loop_summary(
         "cc": score.cc.tolist(),
         "step_time_s": step_time_summary(step_times),
         "violations": usage.violations(),
+        "joint_range_used": joint_range_used(states[:, :NUM_JOINTS], robot).round(4).tolist(),
         "safety_interventions": int(statistics[n, 2]),
         "solver_failures": int(statistics[n, 1]),
         "realtime_factor": duration_s / max(wall_s, 1e-9),

@@ -215,6 +215,10 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                 "pi_median": float(np.median(pis)),
                 "pi_iqr": [float(np.percentile(pis, 25)), float(np.percentile(pis, 75))],
                 "pi_zero_motion_median": float(np.median([r["pi_zero_motion"] for r in rs])),
+                # the most-used joint's share of its range, median over flights
+                "joint_range_used_median": float(
+                    np.median([max(r["joint_range_used"]) for r in rs])
+                ),
                 "step_time_median_s": float(np.median(steps)),
                 "step_time_max_s": float(max(r["step_time_s"]["max"] for r in rs)),
                 "violations": int(sum(sum(r["violations"].values()) for r in rs)),
@@ -293,9 +297,9 @@ def evaluation_markdown(report: dict) -> str:
             f"## Case {name}: {case['vehicle']} flights, seeds "
             f"{case['seeds'][0]}-{case['seeds'][-1]}",
             "",
-            "| MCA | runs | PI median | PI IQR | zero-motion PI median | step median | step max | "
-            "violations | safety interventions | solver failures |",
-            "|---|---|---|---|---|---|---|---|---|---|",
+            "| MCA | runs | PI median | PI IQR | zero-motion PI median | joint range used | "
+            "step median | step max | violations | safety interventions | solver failures |",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         flights = len(case["seeds"])
         for mca, m in case["mcas"].items():
@@ -303,6 +307,7 @@ def evaluation_markdown(report: dict) -> str:
             lines.append(
                 f"| {mca} | {runs} | {m['pi_median']:.3f} | {m['pi_iqr'][0]:.3f} to "
                 f"{m['pi_iqr'][1]:.3f} | {m['pi_zero_motion_median']:.3f} | "
+                f"{m['joint_range_used_median']:.0%} | "
                 f"{m['step_time_median_s'] * 1e3:.3f} ms | "
                 f"{m['step_time_max_s'] * 1e3:.2f} ms | {m['violations']} | "
                 f"{m['safety_interventions']} | {m['solver_failures']} |"
