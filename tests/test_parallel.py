@@ -37,34 +37,54 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
+def _ray_task_workers() -> list[int]:
+    """Processes running a task of `run_tasks` (Ray names them after the task function)."""
+    found = []
+    for cmdline in Path("/proc").glob("[0-9]*/cmdline"):
+        try:
+            text = cmdline.read_bytes().decode(errors="ignore")
+        except OSError:
+            continue
+        if text.startswith("ray::_call"):
+            found.append(int(cmdline.parent.name))
+    return found
+
+
 def test_workers_exit_when_their_parent_is_killed():
+    """kill -9 of a study's driver: the Ray workers running its tasks end with it."""
     code = (
         "import time\n"
         "from mca_drake.studies.parallel import run_tasks\n"
-        "run_tasks(time.sleep, [(60,), (60,)], workers=2, progress=False)\n"
+        "run_tasks(time.sleep, [(120,), (120,)], workers=2, progress=False)\n"
     )
-    parent = subprocess.Popen([sys.executable, "-c", code])
+    before = set(_ray_task_workers())
+    parent = subprocess.Popen([sys.executable, "-c", code], stderr=subprocess.DEVNULL)
     try:
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 90
         workers: list[int] = []
         while time.monotonic() < deadline and len(workers) < 2:
             time.sleep(0.2)
-            workers = [
-                pid
-                for pid in _children(parent.pid)
-                if "spawn_main" in Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="ignore")
-            ]
+            workers = [pid for pid in _ray_task_workers() if pid not in before]
         assert len(workers) == 2, "the workers did not start"
-        time.sleep(1.0)  # both are inside their 60 s task
         os.kill(parent.pid, signal.SIGKILL)
         parent.wait(timeout=10)
-        deadline = time.monotonic() + 10
+        deadline = time.monotonic() + 30
         while time.monotonic() < deadline and any(_alive(pid) for pid in workers):
             time.sleep(0.2)
         assert not any(_alive(pid) for pid in workers), "orphaned workers still run"
     finally:
         if parent.poll() is None:
             parent.kill()
+
+
+def test_tasks_run_on_a_local_ray_and_a_failure_names_its_cause(tmp_path):
+    """Two workers: every task runs once (each writes its file), and a failing task stops
+    the study with the task's own message."""
+    targets = [tmp_path / f"{k}.txt" for k in range(4)]
+    run_tasks(Path.write_text, [(t, "done") for t in targets], workers=2, progress=False)
+    assert all(t.read_text() == "done" for t in targets)
+    with pytest.raises(RuntimeError, match="invalid literal for int"):
+        run_tasks(int, [("x",)], workers=2, progress=False)
 
 
 def test_serial_loop_runs_every_task_and_rejects_no_workers(tmp_path):

@@ -39,6 +39,7 @@ from mca_drake.studies.closed_loop_dataset import (
     generate_closed_loop_dataset,
 )
 from mca_drake.studies.evaluation import default_cases
+from mca_drake.studies.tuning import TUNABLE_MCAS, TuningConfig, run_tuning
 
 
 def _check_outputs(*paths) -> None:
@@ -188,7 +189,12 @@ def _cmd_dataset_open_loop(args: argparse.Namespace) -> int:
 def _cmd_dataset_closed_loop(args: argparse.Namespace) -> int:
     scenario = DatasetScenario(
         **_given(
-            args, vehicle="vehicle", horizon="horizon", workers="workers", out_dir="output_dir"
+            args,
+            vehicle="vehicle",
+            horizon="horizon",
+            workers="workers",
+            out_dir="output_dir",
+            address="address",
         )
     )
     if args.mca is not None:
@@ -225,7 +231,9 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 def _evaluate_suite(args: argparse.Namespace) -> int:
     scenario = EvaluationScenario(
-        **_given(args, duration="duration_s", workers="workers", out_dir="output_dir")
+        **_given(
+            args, duration="duration_s", workers="workers", out_dir="output_dir", address="address"
+        )
     )
     if args.mcas is not None:
         scenario.mcas = [mca_config_from_name(n) for n in args.mcas.split(",")]
@@ -248,6 +256,54 @@ def _evaluate_suite(args: argparse.Namespace) -> int:
     run_scenario(scenario, progress=not args.quiet)
     print((Path(scenario.output_dir) / "evaluation.md").read_text())
     return 0
+
+
+def _flights(args: argparse.Namespace, default: tuple) -> tuple[tuple[str, int], ...]:
+    """--flights vehicle:seed,... or the product of --vehicles and --seeds (each defaulting
+    to the vehicles and seeds of `default`)."""
+    if args.flights is not None:
+        flights = []
+        for item in args.flights.split(","):
+            vehicle, _, seed = item.partition(":")
+            if not seed.strip().lstrip("-").isdigit():
+                raise ValueError(f"--flights: '{item}' is not vehicle:seed (e.g. light:100)")
+            flights.append((vehicle.strip(), int(seed)))
+        return tuple(flights)
+    vehicles = (
+        args.vehicles.split(",") if args.vehicles else list(dict.fromkeys(v for v, _ in default))
+    )
+    try:
+        seeds = [int(s) for s in args.seeds.split(",")] if args.seeds else None
+    except ValueError:
+        raise ValueError(
+            f"--seeds: whole numbers separated by commas, not '{args.seeds}'"
+        ) from None
+    seeds = seeds or list(dict.fromkeys(s for _, s in default))
+    return tuple((v, s) for v in vehicles for s in seeds)
+
+
+def _cmd_tune(args: argparse.Namespace) -> int:
+    defaults = TuningConfig()
+    tuning = TuningConfig(
+        **_given(args, mca="mca", trials="trials", duration="duration_s", seed="seed"),
+        flights=_flights(args, defaults.flights),
+    )
+    if args.budget_ms is not None:
+        tuning.step_time_budget_s = args.budget_ms / 1e3
+    command = "mca-drake " + " ".join(sys.argv[1:]) if sys.argv[0].endswith("mca-drake") else ""
+    report = run_tuning(
+        tuning,
+        args.out_dir,
+        workers=args.workers if args.workers is not None else 1,
+        address=args.address,
+        resume=args.resume,
+        command=command,
+        progress=not args.quiet,
+    )
+    out = Path(args.out_dir)
+    print((out / "report.md").read_text())
+    print(f"best config: {out / 'best.yaml'}; all trials: {out / 'trials.csv'}")
+    return 0 if report else 1
 
 
 def _cmd_table2(args: argparse.Namespace) -> int:
@@ -355,6 +411,12 @@ def _quick_open_loop_dataset(folder: Path) -> Path:
         config = ExcitationConfig(repetitions=3, duration_s=4.0, horizon=32)
         generate_excitation_dataset(config, progress=False).save(path)
     return path
+
+
+ADDRESS_HELP = (
+    "run the tasks on this Ray cluster ('auto', 'ray://host:10001'; default: RAY_ADDRESS, "
+    "else a local Ray with --workers CPUs); its nodes need mca-drake installed"
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -476,8 +538,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--mca", help=f"MCA that generates the data (default {mca_name(dataset_defaults.mca)})"
     )
     closed.add_argument(
-        "--workers", type=int, help=f"parallel processes (default {dataset_defaults.workers})"
+        "--workers",
+        type=int,
+        help=f"CPUs of a local Ray, one flight each (default {dataset_defaults.workers}: here)",
     )
+    closed.add_argument("--address", help=ADDRESS_HELP)
     closed.add_argument("--out-dir", help=f"default {dataset_defaults.output_dir}")
     closed.add_argument("--quiet", action="store_true")
     closed.set_defaults(func=_cmd_dataset_closed_loop)
@@ -507,8 +572,11 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"suite: MCAs to compare (default {','.join(mca_name(m) for m in suite.mcas)})",
     )
     evaluate.add_argument(
-        "--workers", type=int, help=f"suite: parallel processes (default {suite.workers})"
+        "--workers",
+        type=int,
+        help=f"suite: CPUs of a local Ray (default {suite.workers}: runs here, in turn)",
     )
+    evaluate.add_argument("--address", help=ADDRESS_HELP)
     evaluate.add_argument("--out-dir", help=f"suite: output folder (default {suite.output_dir})")
     evaluate.add_argument(
         "--duration",
@@ -519,6 +587,31 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--plot", help="PNG of target versus achieved outputs")
     evaluate.add_argument("--quiet", action="store_true")
     evaluate.set_defaults(func=_cmd_evaluate)
+
+    tuning_defaults = TuningConfig()
+    tune = sub.add_parser(
+        "tune",
+        help="tune an MCA's config (Ray Tune, Optuna TPE) on training flights; writes "
+        "best.yaml, trials.csv and a report",
+    )
+    tune.add_argument("--mca", help=f"{', '.join(TUNABLE_MCAS)} (default {tuning_defaults.mca})")
+    tune.add_argument("--trials", type=int, help=f"default {tuning_defaults.trials}")
+    tune.add_argument(
+        "--duration", type=float, help=f"s per flight (default {tuning_defaults.duration_s:g})"
+    )
+    tune.add_argument(
+        "--flights", help="vehicle:seed list, e.g. light:100,jet:101 (seeds below 1000)"
+    )
+    tune.add_argument("--vehicles", help="with --seeds: every vehicle on every seed")
+    tune.add_argument("--seeds", help="e.g. 100,101,102 (the training range: below 1000)")
+    tune.add_argument("--budget-ms", type=float, help="step-time p99 budget, ms (default none)")
+    tune.add_argument("--workers", type=int, help="trials at once, on a local Ray (default 1)")
+    tune.add_argument("--address", help=ADDRESS_HELP)
+    tune.add_argument("--out-dir", default="results/tune")
+    tune.add_argument("--resume", action="store_true", help="continue the tune in --out-dir")
+    tune.add_argument("--seed", type=int, help="seed of the TPE sampler")
+    tune.add_argument("--quiet", action="store_true")
+    tune.set_defaults(func=_cmd_tune)
 
     table2 = sub.add_parser(
         "table2", help="train and score every plant-model candidate (the paper's Table II)"

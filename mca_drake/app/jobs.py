@@ -172,7 +172,11 @@ def run_scenario(
     elif isinstance(scenario, EvaluationScenario):
         scenario.validate()
         report = run_evaluation(
-            scenario.to_config(), scenario.output_dir, workers=scenario.workers, progress=progress
+            scenario.to_config(),
+            scenario.output_dir,
+            workers=scenario.workers,
+            address=scenario.address or None,
+            progress=progress,
         )
         summary = {"report": str(Path(scenario.output_dir) / "evaluation.md")} | {
             k: v for k, v in report.items() if k != "runs"
@@ -180,7 +184,11 @@ def run_scenario(
     elif isinstance(scenario, DatasetScenario):
         scenario.validate()
         path = generate_closed_loop_dataset(
-            scenario.to_config(), scenario.output_dir, workers=scenario.workers, progress=progress
+            scenario.to_config(),
+            scenario.output_dir,
+            workers=scenario.workers,
+            progress=progress,
+            address=scenario.address or None,
         )
         data = SegmentDataset.load(path)
         summary = {

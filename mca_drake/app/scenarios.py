@@ -137,8 +137,11 @@ class EvaluationScenario:
     jet_seeds: list[int] = dataclasses.field(default_factory=lambda: list(default_cases()[1].seeds))
     # Simulated seconds per flight.
     duration_s: float = EvaluationConfig.duration_s
-    # Parallel worker processes.
+    # CPUs of the local Ray the runs go to (1: one after the other, in this process).
     workers: int = 1
+    # A Ray cluster to run on instead ("auto", "ray://host:10001"); empty: RAY_ADDRESS or
+    # a local Ray.
+    address: str = ""
     # Folder of the per-run JSON files (resumable), evaluation.md/json and the box plot.
     output_dir: str = "results/evaluation"
 
@@ -185,8 +188,10 @@ class DatasetScenario:
     mca: McaConfig = dataclasses.field(default_factory=lambda: ClosedLoopDatasetConfig().mca)
     # Seed of the shuffle before the 70/20/10 split.
     split_seed: int = ClosedLoopDatasetConfig.split_seed
-    # Parallel worker processes (one flight each).
+    # CPUs of the local Ray, one flight each (1: one after the other, in this process).
     workers: int = 1
+    # A Ray cluster to run on instead; empty: RAY_ADDRESS or a local Ray.
+    address: str = ""
     # Folder of the per-flight files and the merged dataset.npz (resumable).
     output_dir: str = DEFAULT_DATASET_DIR
 

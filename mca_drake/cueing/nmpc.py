@@ -94,6 +94,19 @@ class NmpcConfig:
     max_iterations: int = 50
     step_tolerance: float = 1e-6
 
+    @classmethod
+    def paper(cls, mode: str = "rti") -> "NmpcConfig":
+        """The paper's weights (equation 9: tracking 1 per channel, input 0.1, washout 1 on
+        ||q||^2, terminal 1 and 1), whatever the defaults: the reproduction's baseline."""
+        return cls(
+            mode=mode,
+            output_weights=[1.0] * 6,
+            input_weight=0.1,
+            washout_weight=1.0,
+            terminal_position_weight=1.0,
+            terminal_velocity_weight=1.0,
+        )
+
     def validate(self) -> None:
         """Raises ValueError for a setting that cannot run, naming it."""
         check_config_numbers(self)

@@ -181,6 +181,7 @@ def generate_closed_loop_dataset(
     out_dir: str | Path = DEFAULT_DATASET_DIR,
     workers: int = 1,
     progress: bool = True,
+    address: str | None = None,
 ) -> Path:
     """Simulates every flight not yet on disk (in `workers` processes), then merges them.
 
@@ -200,6 +201,7 @@ def generate_closed_loop_dataset(
         _run_one,
         todo,
         workers=workers,
+        address=address,
         total=len(config.flight_seeds),
         description="closed-loop flights",
         unit="flight",

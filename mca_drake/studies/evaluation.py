@@ -158,9 +158,19 @@ def _run_one(
 
 
 def run_evaluation(
-    config: EvaluationConfig, out_dir: str | Path, *, workers: int = 1, progress: bool = True
+    config: EvaluationConfig,
+    out_dir: str | Path,
+    *,
+    workers: int = 1,
+    address: str | None = None,
+    progress: bool = True,
 ) -> dict:
-    """Runs every (case, MCA, flight) not yet on disk, then writes the report."""
+    """Runs every (case, MCA, flight) not yet on disk, then writes the report.
+
+    Args:
+        workers: CPUs of a local Ray (1: in this process).
+        address: a Ray cluster to run on (`mca_drake.studies.parallel.run_tasks`).
+    """
     config.validate()
     out = Path(out_dir)
     check_writable(out / "runs", folder=True)
@@ -176,6 +186,7 @@ def run_evaluation(
         _run_one,
         tasks,
         workers=workers,
+        address=address,
         total=total,
         description="evaluation runs",
         unit="run",

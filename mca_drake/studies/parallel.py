@@ -1,23 +1,25 @@
-"""The parallel, resumable task loop that every batch study shares.
+"""The parallel, resumable task loop that every batch study shares, on Ray.
 
-A study lists its unfinished tasks (small picklable arguments); each task writes its own
-result file atomically, so a killed study resumes by listing again. Tasks run in this
-process (`workers == 1`) or in a pool of fresh (spawned) worker processes, each building its
-own Drake diagram: diagrams and MathematicalPrograms do not pickle. A worker watches its
-parent and exits when the parent is gone (killed with -9, say), so no orphan goes on
-simulating and writing files.
+A study lists its unfinished tasks (small picklable arguments: configs, seeds, paths); each
+task writes its own result file atomically, so a killed study resumes by listing again.
+Tasks run in this process (`workers == 1`, no cluster address) or as Ray tasks: on a local
+Ray started with `workers` CPUs, or on an existing cluster (`address`, or the RAY_ADDRESS
+environment variable). Each task builds its own Drake diagram: diagrams and
+MathematicalPrograms do not pickle. When the driver dies (kill -9), Ray ends its workers,
+so no orphan goes on simulating and writing files.
 """
 
 from __future__ import annotations
 
-import concurrent.futures
-import multiprocessing
 import os
-import threading
-import time
 from collections.abc import Callable, Sequence
 
 from tqdm.auto import tqdm
+
+
+def ray_address(address: str | None = None) -> str | None:
+    """The cluster to run on: `address`, else RAY_ADDRESS, else None (a local Ray)."""
+    return address or os.environ.get("RAY_ADDRESS") or None
 
 
 def run_tasks(
@@ -25,56 +27,78 @@ def run_tasks(
     tasks: Sequence[tuple],
     *,
     workers: int = 1,
+    address: str | None = None,
     total: int | None = None,
     description: str = "tasks",
     unit: str = "task",
     progress: bool = True,
 ) -> None:
-    """Calls `function(*task)` for every task, in `workers` processes, with a progress bar.
+    """Calls `function(*task)` for every task, with a progress bar over tasks.
 
     Args:
-        function: a module-level function (picklable), which writes its own result.
+        function: a module-level function (Ray ships it by reference), which writes its own
+            result.
         tasks: the argument tuples of the unfinished tasks.
+        workers: CPUs of the local Ray (1 with no `address`: run here, serially).
+        address: a Ray cluster to run on ("auto", "ray://host:10001", ...); default
+            RAY_ADDRESS, else a local Ray with `workers` CPUs.
         total: the study's size, finished tasks included (the bar starts at
             total - len(tasks)); default len(tasks).
 
     Raises:
         ValueError: workers below 1.
-        Exception: the first error a task raised, with its message.
+        RuntimeError: a task failed; the message is the task's error.
     """
     if workers < 1:
         raise ValueError(f"workers must be at least 1; got {workers}")
+    address = ray_address(address)
     total = len(tasks) if total is None else total
     bar = tqdm(
         total=total, initial=total - len(tasks), desc=description, unit=unit, disable=not progress
     )
     with bar:
-        if workers == 1:
+        if workers == 1 and address is None:
             for task in tasks:
                 function(*task)
                 bar.update(1)
-            return
-        context = multiprocessing.get_context("spawn")
-        with concurrent.futures.ProcessPoolExecutor(
-            workers, mp_context=context, initializer=_watch_parent, initargs=(os.getpid(),)
-        ) as pool:
-            futures = [pool.submit(function, *task) for task in tasks]
-            for future in concurrent.futures.as_completed(futures):
-                future.result()  # re-raises a worker's error with its message
-                bar.update(1)
+        elif tasks:
+            _run_on_ray(function, tasks, workers, address, bar)
 
 
-# How often a worker checks that its parent still runs, s.
-_PARENT_POLL_S = 0.5
+def _run_on_ray(function: Callable, tasks: Sequence[tuple], workers: int, address, bar) -> None:
+    # ray (heavy: about a second to import) only for parallel runs
+    import ray
+
+    started = not ray.is_initialized()
+    if started:
+        if address is None:
+            ray.init(
+                num_cpus=workers,
+                include_dashboard=False,
+                log_to_driver=False,
+                configure_logging=False,
+            )
+        else:
+            ray.init(address=address, log_to_driver=False, configure_logging=False)
+    try:
+        remote = ray.remote(num_cpus=1, max_retries=0)(_call)
+        pending = [remote.remote(function, task) for task in tasks]
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            try:
+                ray.get(done[0])
+            except ray.exceptions.RayTaskError as err:
+                for ref in pending:
+                    ray.cancel(ref, force=True)
+                name = getattr(function, "__name__", "study")
+                raise RuntimeError(f"a {name} task failed: {err.cause}") from err
+            bar.update(1)
+    finally:
+        if started:
+            ray.shutdown()
 
 
-def _watch_parent(parent_pid: int) -> None:
-    """Worker initialiser: a daemon thread that ends this process once `parent_pid` is no
-    longer its parent (the parent died and the worker was re-parented)."""
-
-    def watch() -> None:
-        while os.getppid() == parent_pid:
-            time.sleep(_PARENT_POLL_S)
-        os._exit(1)  # no cleanup to run: results are written atomically, per task
-
-    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+def _call(function: Callable, task: tuple):
+    """The Ray task: `function(*task)`; the function travels by reference (any picklable
+    callable, builtins included)."""
+    return function(*task)

@@ -1,0 +1,424 @@
+"""MCA tuning: Ray Tune with Optuna's TPE searcher over an MCA's typed config.
+
+A trial is one MCA config (`NmpcConfig` in rti mode, or `WashoutConfig`) run in closed loop
+on the analytical plant over a set of training flights; its objective is the median PI.
+Any limit violation or solver failure makes a trial infeasible: it then scores its median
+PI plus `INFEASIBLE_PENALTY`, so the searcher learns to avoid it. Optionally a trial whose
+99th-percentile step time exceeds a budget is infeasible too.
+
+Flights are built-in JSBSim flights of the training range (seeds below 1000: evaluation
+uses 1000 on) and never a reserved aircraft (only `mca_drake.references.jsbsim.VEHICLES`
+fly). Every trial is a Ray task that builds its own diagrams; Ray Tune keeps the study's
+state in `out_dir/ray`, so a killed tune resumes with `resume=True`.
+
+Outputs in `out_dir`: `best.yaml` (the best config as a scenario override,
+`mca: !NmpcConfig {...}`, with where it came from), `trials.csv` (every trial's parameters
+and results), `report.md` (the best trials; per flight, the best config's PI against the
+paper's config and zero motion), `convergence.png` and `importance.png`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import spearmanr
+
+from mca_drake.atomic_io import (
+    atomic_write_json,
+    atomic_write_text,
+    check_writable,
+)
+from mca_drake.cueing import NmpcConfig, WashoutConfig, mca_config_record
+from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
+from mca_drake.plotting import save_figure
+from mca_drake.references.flights import FlightSpec, flight_reference
+from mca_drake.references.jsbsim import VEHICLES
+from mca_drake.simulation.closed_loop import run_closed_loop
+from mca_drake.studies.parallel import ray_address
+
+# Added to an infeasible trial's median PI (the PI's range is about -6 to +10).
+INFEASIBLE_PENALTY = 10.0
+# Seeds from here on are evaluation flights: never tuned on.
+FIRST_EVALUATION_SEED = 1000
+TUNABLE_MCAS = ("nmpc-rti", "washout")
+CHANNELS_WEIGHTED = ("w_x", "w_y", "w_z", "f_x", "f_y", "a_z")
+
+
+@dataclasses.dataclass
+class TuningConfig:
+    """What to tune, on which flights, with what budget."""
+
+    # The MCA: "nmpc-rti" (NmpcConfig weights) or "washout" (WashoutConfig filters).
+    mca: str = "nmpc-rti"
+    # Trials (MCA configs tried).
+    trials: int = 40
+    # Simulated seconds of each training flight.
+    duration_s: float = 120.0
+    # Training flights as (vehicle, seed); seeds below 1000 (evaluation uses 1000 on).
+    flights: tuple[tuple[str, int], ...] = (
+        ("light", 100),
+        ("light", 101),
+        ("light", 102),
+        ("jet", 100),
+        ("jet", 101),
+        ("jet", 102),
+    )
+    # A trial whose 99th-percentile MCA step time exceeds this is infeasible, s (0: none).
+    step_time_budget_s: float = 0.0
+    # Seed of the TPE sampler.
+    seed: int = 0
+
+    def validate(self) -> None:
+        """Raises ValueError for a setting that cannot run or that would tune on evaluation
+        flights."""
+        check_config_numbers(self)
+        if self.mca not in TUNABLE_MCAS:
+            raise ValueError(f"cannot tune '{self.mca}'; valid: {', '.join(TUNABLE_MCAS)}")
+        if self.trials < 1:
+            raise ValueError(f"trials must be at least 1; got {self.trials}")
+        check_range(
+            "TuningConfig", "duration_s", self.duration_s, 0.0, MAX_DURATION_S, low_open=True
+        )
+        if not self.flights:
+            raise ValueError("flights is empty: nothing to tune on")
+        for vehicle, seed in self.flights:
+            if vehicle not in VEHICLES:
+                raise ValueError(f"unknown vehicle '{vehicle}'; valid: {', '.join(VEHICLES)}")
+            if not 0 <= seed < FIRST_EVALUATION_SEED:
+                raise ValueError(
+                    f"flight seed {seed}: tuning uses seeds 0 to {FIRST_EVALUATION_SEED - 1}; "
+                    "evaluation flights are never tuned on"
+                )
+        if self.step_time_budget_s < 0:
+            raise ValueError("step_time_budget_s must be >= 0")
+
+
+def search_space(mca: str) -> dict:
+    """Ray Tune's search space of `mca`'s tunable fields (log-uniform for weights and gains
+    that span decades, uniform for frequencies, damping and angles)."""
+    from ray import tune  # ray (heavy) only where a tune runs
+
+    if mca == "nmpc-rti":
+        space = {f"weight_{c}": tune.loguniform(0.1, 10.0) for c in CHANNELS_WEIGHTED}
+        space |= {
+            "input_weight": tune.loguniform(0.01, 1.0),
+            "washout_weight": tune.loguniform(0.01, 10.0),
+            "terminal_position_weight": tune.loguniform(0.1, 10.0),
+            "terminal_velocity_weight": tune.loguniform(0.1, 10.0),
+        }
+        return space
+    if mca == "washout":
+        return {
+            "translation_frequency": tune.uniform(0.5, 5.0),
+            "translation_damping": tune.uniform(0.5, 1.5),
+            "translation_washout_frequency": tune.uniform(0.1, 2.0),
+            "translation_gain": tune.uniform(0.2, 1.5),
+            "tilt_frequency": tune.uniform(1.0, 10.0),
+            "tilt_damping": tune.uniform(0.5, 1.5),
+            "tilt_rate_limit": tune.uniform(math.radians(1.0), math.radians(8.0)),
+            "tilt_limit": tune.uniform(math.radians(5.0), math.radians(30.0)),
+            "rotation_frequency": tune.uniform(0.2, 3.0),
+            "rotation_damping": tune.uniform(0.5, 1.5),
+            "rotation_gain": tune.uniform(0.2, 1.5),
+            "pose_feedback_gain": tune.uniform(2.0, 20.0),
+        }
+    raise ValueError(f"cannot tune '{mca}'; valid: {', '.join(TUNABLE_MCAS)}")
+
+
+def config_from_parameters(mca: str, parameters: dict) -> NmpcConfig | WashoutConfig:
+    """The MCA config a trial's parameters stand for (fields not tuned at their defaults)."""
+    if mca == "nmpc-rti":
+        weights = [float(parameters[f"weight_{c}"]) for c in CHANNELS_WEIGHTED]
+        rest = {k: float(v) for k, v in parameters.items() if not k.startswith("weight_")}
+        return NmpcConfig(mode="rti", output_weights=weights, **rest)
+    return WashoutConfig(**{k: float(v) for k, v in parameters.items()})
+
+
+def baseline_config(mca: str) -> NmpcConfig | WashoutConfig:
+    """What a tuned config is compared with: the paper's NMPC weights, or the washout's
+    textbook defaults."""
+    return NmpcConfig.paper() if mca == "nmpc-rti" else WashoutConfig()
+
+
+def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
+    """Runs `config` over the training flights: {"objective", "pi_median", "feasible",
+    "pi" (per flight), "pi_zero_motion" (per flight), "step_time_p99_s", "why"}."""
+    pis, zero, p99, why = [], [], 0.0, ""
+    for vehicle, seed in tuning.flights:
+        reference = flight_reference(
+            FlightSpec(vehicle=vehicle, seed=seed), tuning.duration_s, cache_dir=flights_dir
+        )
+        result = run_closed_loop(
+            mca=config, reference=reference, duration_s=tuning.duration_s, progress=False
+        )
+        s = result.summary
+        pis.append(s["pi"])
+        zero.append(s["pi_zero_motion"])
+        p99 = max(p99, s["step_time_s"]["p99"])
+        if sum(s["violations"].values()):
+            why = why or f"limit violations on {vehicle} {seed}"
+        if s["solver_failures"]:
+            why = why or f"solver failures on {vehicle} {seed}"
+    if tuning.step_time_budget_s and p99 > tuning.step_time_budget_s:
+        why = why or f"step p99 {p99 * 1e3:.2f} ms over the budget"
+    median = float(np.median(pis))
+    return {
+        "objective": median + (INFEASIBLE_PENALTY if why else 0.0),
+        "pi_median": median,
+        "feasible": not why,
+        "why": why,
+        "pi": pis,
+        "pi_zero_motion": zero,
+        "step_time_p99_s": p99,
+    }
+
+
+def _trial(parameters: dict, *, tuning: TuningConfig, flights_dir: str) -> None:
+    """A Ray Tune trial: score one config and report it."""
+    from ray import tune  # ray (heavy) only where a tune runs
+
+    scores = score_config(config_from_parameters(tuning.mca, parameters), tuning, flights_dir)
+    tune.report(
+        {
+            **scores,
+            "pi": json.dumps(scores["pi"]),
+            "pi_zero_motion": json.dumps(scores["pi_zero_motion"]),
+        }
+    )
+
+
+def run_tuning(
+    tuning: TuningConfig,
+    out_dir: str | Path,
+    *,
+    workers: int = 1,
+    address: str | None = None,
+    resume: bool = False,
+    command: str = "",
+    progress: bool = True,
+) -> dict:
+    """Tunes `tuning.mca` and writes best.yaml, trials.csv, report.md and the plots.
+
+    Args:
+        workers: trials run at once, on a local Ray with this many CPUs.
+        address: a Ray cluster to run on (default RAY_ADDRESS, else a local Ray).
+        resume: continue the tune in `out_dir` (its trials are kept); without it an
+            existing tune there is an error.
+        command: the command line, recorded in best.yaml.
+
+    Returns:
+        The report as a dict (best config, its scores, the baseline's).
+    """
+    # optuna and ray (heavy: seconds to import) only where a tune runs
+    import optuna
+    import ray
+    from ray import tune
+    from ray.tune.search import ConcurrencyLimiter
+    from ray.tune.search.optuna import OptunaSearch
+
+    tuning.validate()
+    if workers < 1:
+        raise ValueError(f"workers must be at least 1; got {workers}")
+    out = check_writable(Path(out_dir).resolve(), folder=True)
+    flights_dir = out / "flights"
+    storage, name = out / "ray", "tune"
+    exists = (storage / name).is_dir()
+    if exists and not resume:
+        raise ValueError(f"a tune exists in {out}: resume it (--resume) or choose another folder")
+    if resume and not exists:
+        raise ValueError(f"no tune to resume in {out}")
+    # Fly every training flight once, before the trials share them.
+    for vehicle, seed in tuning.flights:
+        flight_reference(
+            FlightSpec(vehicle=vehicle, seed=seed), tuning.duration_s, cache_dir=flights_dir
+        )
+    address = ray_address(address)
+    started = not ray.is_initialized()
+    if started:
+        if address is None:
+            ray.init(
+                num_cpus=workers,
+                include_dashboard=False,
+                log_to_driver=False,
+                configure_logging=False,
+            )
+        else:
+            ray.init(address=address, log_to_driver=False, configure_logging=False)
+    try:
+        trainable = tune.with_resources(
+            tune.with_parameters(_trial, tuning=tuning, flights_dir=str(flights_dir)), {"cpu": 1}
+        )
+        if resume:
+            tuner = tune.Tuner.restore(str(storage / name), trainable, resume_errored=True)
+        else:
+            searcher = OptunaSearch(
+                metric="objective",
+                mode="min",
+                sampler=optuna.samplers.TPESampler(seed=tuning.seed),
+            )
+            tuner = tune.Tuner(
+                trainable,
+                param_space=search_space(tuning.mca),
+                tune_config=tune.TuneConfig(
+                    search_alg=ConcurrencyLimiter(searcher, max_concurrent=workers),
+                    num_samples=tuning.trials,
+                ),
+                run_config=tune.RunConfig(
+                    storage_path=str(storage), name=name, verbose=1 if progress else 0
+                ),
+            )
+        results = tuner.fit()
+    finally:
+        if started:
+            ray.shutdown()
+    frame = results.get_dataframe()
+    return write_tuning_report(tuning, frame, out, command)
+
+
+def write_tuning_report(tuning: TuningConfig, frame, out: Path, command: str = "") -> dict:
+    """trials.csv, best.yaml, report.md, convergence.png and importance.png from the
+    trials' table (a pandas DataFrame of Ray Tune's results)."""
+    from pydrake.common.yaml import yaml_dump  # yaml writer of the scenario files
+
+    parameter_columns = sorted(c for c in frame.columns if c.startswith("config/"))
+    keep = [
+        *parameter_columns,
+        "objective",
+        "pi_median",
+        "feasible",
+        "why",
+        "pi",
+        "pi_zero_motion",
+        "step_time_p99_s",
+    ]
+    table = frame[[c for c in keep if c in frame.columns]].copy()
+    if "trial_id" in frame.columns:
+        table.insert(0, "trial", frame["trial_id"])
+    table = table.reset_index(drop=True)
+    buffer = io.StringIO()
+    table.to_csv(buffer, index=False)
+    atomic_write_text(out / "trials.csv", buffer.getvalue())
+    if table.empty or not table["feasible"].any():
+        raise RuntimeError(f"no feasible trial in {len(table)}: see {out / 'trials.csv'}")
+    feasible = table[table["feasible"]].sort_values("objective")
+    best_row = feasible.iloc[0]
+    parameters = {c.removeprefix("config/"): float(best_row[c]) for c in parameter_columns}
+    best = config_from_parameters(tuning.mca, parameters)
+    baseline = baseline_config(tuning.mca)
+    baseline_scores = score_config(baseline, tuning, out / "flights")
+    best_pis = json.loads(best_row["pi"])
+    zero = json.loads(best_row["pi_zero_motion"])
+    date = datetime.date.today().isoformat()
+    flights = ", ".join(f"{v} {s}" for v, s in tuning.flights)
+    record = mca_config_record(best)
+    raw = {"mca": {"_tag": f"!{record.pop('type')}", **record}}
+    header = (
+        f"# Tuned MCA config: {command or 'mca_drake.studies.tuning.run_tuning'}\n"
+        f"# {date}; {len(table)} trials; flights ({tuning.duration_s:g} s): {flights}\n"
+        f"# median PI {best_row['pi_median']:.3f} (baseline "
+        f"{np.median(baseline_scores['pi']):.3f}, zero motion {np.median(zero):.3f})\n"
+        f'# Use: mca-drake run diagrams/closed_loop_dpc.yaml --set "$(cat best.yaml)"\n'
+    )
+    atomic_write_text(out / "best.yaml", header + yaml_dump(raw))
+    report = {
+        "mca": tuning.mca,
+        "date": date,
+        "command": command,
+        "trials": len(table),
+        "feasible_trials": int(table["feasible"].sum()),
+        "best_config": mca_config_record(best),
+        "best": {"pi_median": float(best_row["pi_median"]), "pi": best_pis},
+        "baseline": {
+            "config": mca_config_record(baseline),
+            "pi_median": float(np.median(baseline_scores["pi"])),
+            "pi": baseline_scores["pi"],
+            "feasible": baseline_scores["feasible"],
+        },
+        "zero_motion": {"pi_median": float(np.median(zero)), "pi": zero},
+        "flights": [list(f) for f in tuning.flights],
+        "duration_s": tuning.duration_s,
+    }
+    atomic_write_json(out / "report.json", report)
+    atomic_write_text(out / "report.md", _markdown(report, feasible, parameter_columns))
+    save_figure(_convergence_figure(table), out / "convergence.png")
+    save_figure(_importance_figure(feasible, parameter_columns), out / "importance.png")
+    return report
+
+
+def _markdown(report: dict, feasible, parameter_columns) -> str:
+    lines = [
+        f"# Tuning of {report['mca']} ({report['trials']} trials, {report['feasible_trials']} "
+        f"feasible; {report['date']})",
+        "",
+        f"Command: `{report['command']}`" if report["command"] else "",
+        "",
+        f"Best median PI {report['best']['pi_median']:.3f}; baseline "
+        f"{report['baseline']['pi_median']:.3f}; zero motion "
+        f"{report['zero_motion']['pi_median']:.3f}.",
+        "",
+        "| flight | best | baseline | zero motion |",
+        "|---|---|---|---|",
+    ]
+    for (vehicle, seed), best, base, zero in zip(
+        report["flights"],
+        report["best"]["pi"],
+        report["baseline"]["pi"],
+        report["zero_motion"]["pi"],
+        strict=True,
+    ):
+        lines.append(f"| {vehicle} {seed} | {best:.3f} | {base:.3f} | {zero:.3f} |")
+    names = [c.removeprefix("config/") for c in parameter_columns]
+    lines += [
+        "",
+        "Best trials:",
+        "",
+        "| objective | " + " | ".join(names) + " |",
+        "|---" * (len(names) + 1) + "|",
+    ]
+    for _, row in feasible.head(5).iterrows():
+        lines.append(
+            f"| {row['objective']:.3f} | "
+            + " | ".join(f"{row[c]:.4g}" for c in parameter_columns)
+            + " |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _convergence_figure(table):
+    import matplotlib.pyplot as plt  # matplotlib (heavy) only for the report
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    objective = table["objective"].to_numpy(dtype=float)
+    ax.plot(np.arange(1, objective.size + 1), objective, "o", ms=3, label="trial")
+    ax.plot(np.arange(1, objective.size + 1), np.minimum.accumulate(objective), label="best so far")
+    ax.set_xlabel("trial")
+    ax.set_ylabel("objective (median PI, + penalty if infeasible)")
+    ax.legend()
+    fig.tight_layout()
+    return fig
+
+
+def _importance_figure(feasible, parameter_columns):
+    """|Spearman rank correlation| of each parameter with the objective over the feasible
+    trials: a simple importance that needs no extra model."""
+    import matplotlib.pyplot as plt  # matplotlib (heavy) only for the report
+
+    names, values = [], []
+    for column in parameter_columns:
+        x = feasible[column].to_numpy(dtype=float)
+        y = feasible["objective"].to_numpy(dtype=float)
+        rho = spearmanr(x, y).statistic if x.size > 2 and np.ptp(x) > 0 else 0.0
+        names.append(column.removeprefix("config/"))
+        values.append(abs(float(np.nan_to_num(rho))))
+    order = np.argsort(values)
+    fig, ax = plt.subplots(figsize=(7, 0.35 * len(names) + 1.2))
+    ax.barh([names[i] for i in order], [values[i] for i in order])
+    ax.set_xlabel("|Spearman rho| with the objective (feasible trials)")
+    fig.tight_layout()
+    return fig

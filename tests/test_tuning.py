@@ -1,0 +1,91 @@
+"""MCA tuning on Ray Tune with Optuna: a tiny tune runs, resumes after a kill, and its
+best config loads into a scenario and runs."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from mca_drake.app.jobs import run_scenario
+from mca_drake.app.scenarios import load_scenario
+from mca_drake.cueing import NmpcConfig, WashoutConfig
+from mca_drake.studies.tuning import (
+    TuningConfig,
+    config_from_parameters,
+    run_tuning,
+    search_space,
+)
+
+REPO = Path(__file__).resolve().parents[1]
+TINY = dict(trials=3, duration_s=2.0, flights=(("light", 100),))
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        (dict(flights=(("light", 1000),)), "evaluation flights are never tuned on"),
+        (dict(flights=(("boeing", 100),)), "unknown vehicle 'boeing'"),
+        (dict(mca="dpc"), "cannot tune 'dpc'"),
+        (dict(trials=0), "trials must be at least 1"),
+        (dict(flights=()), "flights is empty"),
+    ],
+)
+def test_bad_tuning_settings_are_refused(change, match):
+    with pytest.raises(ValueError, match=match):
+        TuningConfig(**change).validate()
+
+
+@pytest.mark.parametrize("mca", ["nmpc-rti", "washout"])
+def test_every_point_of_the_space_is_a_valid_config(mca):
+    """Corners of the search space build configs that validate."""
+    space = search_space(mca)
+    for corner in ("lower", "upper"):
+        parameters = {name: getattr(domain, corner) for name, domain in space.items()}
+        config = config_from_parameters(mca, parameters)
+        config.validate()
+        assert isinstance(config, NmpcConfig if mca == "nmpc-rti" else WashoutConfig)
+
+
+def _trial_results(out: Path) -> list[Path]:
+    return [p for p in (out / "ray" / "tune").glob("*/result.json") if p.stat().st_size > 0]
+
+
+def test_a_killed_tune_resumes_and_its_best_config_runs(tmp_path):
+    out = tmp_path / "tune"
+    code = (
+        "from mca_drake.studies.tuning import TuningConfig, run_tuning\n"
+        f"run_tuning(TuningConfig(**{TINY!r}), {str(out)!r}, progress=False)\n"
+    )
+    job = subprocess.Popen([sys.executable, "-c", code], stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline and not _trial_results(out) and job.poll() is None:
+        time.sleep(0.2)
+    job.send_signal(signal.SIGKILL)
+    job.wait(timeout=30)
+    finished_before = len(_trial_results(out))
+    assert 1 <= finished_before < 3, "the kill came too late to test a resume"
+    with pytest.raises(ValueError, match="a tune exists"):
+        run_tuning(TuningConfig(**TINY), out, progress=False)
+    report = run_tuning(TuningConfig(**TINY), out, resume=True, progress=False)
+    assert report["trials"] == 3
+    table = (out / "trials.csv").read_text().splitlines()
+    assert len(table) == 1 + 3
+    for name in ("best.yaml", "report.md", "convergence.png", "importance.png"):
+        assert (out / name).stat().st_size > 100
+    # the best config is a scenario override that loads and runs
+    scenario = load_scenario(
+        REPO / "diagrams" / "closed_loop_dpc.yaml",
+        [
+            (out / "best.yaml").read_text(),
+            f"{{plant: analytical, duration_s: 0.5, output_dir: {tmp_path}/run}}",
+        ],
+    )
+    assert isinstance(scenario.mca, NmpcConfig)
+    assert scenario.mca.output_weights == report["best_config"]["output_weights"]
+    summary = run_scenario(scenario, progress=False)
+    assert summary["mca_config"]["washout_weight"] == report["best_config"]["washout_weight"]
