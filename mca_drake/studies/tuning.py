@@ -24,6 +24,8 @@ import datetime
 import io
 import json
 import math
+import time
+import uuid
 from pathlib import Path
 
 import numpy as np
@@ -179,18 +181,35 @@ def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
     }
 
 
-def _trial(parameters: dict, *, tuning: TuningConfig, flights_dir: str) -> None:
-    """A Ray Tune trial: score one config and report it."""
+def _trial(parameters: dict, *, tuning: TuningConfig, flights_dir: str, trials_dir: str) -> None:
+    """A Ray Tune trial: score one config, keep it as a JSON file, report its objective."""
     from ray import tune  # ray (heavy) only where a tune runs
 
     scores = score_config(config_from_parameters(tuning.mca, parameters), tuning, flights_dir)
-    tune.report(
-        {
-            **scores,
-            "pi": json.dumps(scores["pi"]),
-            "pi_zero_motion": json.dumps(scores["pi_zero_motion"]),
-        }
-    )
+    record = {
+        "parameters": {k: float(v) for k, v in parameters.items()},
+        **scores,
+        "finished_at": time.time(),
+    }
+    atomic_write_json(Path(trials_dir) / f"{uuid.uuid4().hex}.json", record)
+    tune.report({"objective": scores["objective"]})
+
+
+def load_trials(trials_dir: Path) -> list[dict]:
+    """The finished trials of a tune (JSON files, never pickles), oldest first; a file that
+    does not read (a trial killed while writing cannot leave one: writes are atomic) is an
+    error naming it."""
+    records = []
+    for path in sorted(Path(trials_dir).glob("*.json")):
+        try:
+            record = json.loads(path.read_text())
+            record["trial"] = path.stem
+            float(record["objective"])
+            dict(record["parameters"])
+        except (OSError, ValueError, KeyError, TypeError) as err:
+            raise ValueError(f"{path} is not a trial record: {err}") from err
+        records.append(record)
+    return sorted(records, key=lambda r: r.get("finished_at", 0.0))
 
 
 def run_tuning(
@@ -205,11 +224,16 @@ def run_tuning(
 ) -> dict:
     """Tunes `tuning.mca` and writes best.yaml, trials.csv, report.md and the plots.
 
+    Every finished trial is a JSON file in `out_dir/trials`. A resumed tune reads them,
+    hands them to the TPE searcher as evaluated points (nothing Ray pickled is ever
+    loaded) and runs only the trials still missing.
+
     Args:
         workers: trials run at once, on a local Ray with this many CPUs.
-        address: a Ray cluster to run on (default RAY_ADDRESS, else a local Ray).
-        resume: continue the tune in `out_dir` (its trials are kept); without it an
-            existing tune there is an error.
+        address: a Ray cluster to run on (default RAY_ADDRESS, else a local Ray); its
+            workers must see `out_dir` (a shared file system).
+        resume: continue the tune in `out_dir`, which must have the same settings (the
+            number of trials may grow); without it an existing tune there is an error.
         command: the command line, recorded in best.yaml.
 
     Returns:
@@ -226,85 +250,93 @@ def run_tuning(
     if workers < 1:
         raise ValueError(f"workers must be at least 1; got {workers}")
     out = check_writable(Path(out_dir).resolve(), folder=True)
-    flights_dir = out / "flights"
-    storage, name = out / "ray", "tune"
-    exists = (storage / name).is_dir()
-    if exists and not resume:
+    flights_dir, trials_dir, state = out / "flights", out / "trials", out / "tuning.json"
+    identity = {k: v for k, v in dataclasses.asdict(tuning).items() if k != "trials"}
+    identity = json.loads(json.dumps(identity))
+    if state.exists() and not resume:
         raise ValueError(f"a tune exists in {out}: resume it (--resume) or choose another folder")
-    if resume and not exists:
-        raise ValueError(f"no tune to resume in {out}")
-    # Fly every training flight once, before the trials share them.
-    for vehicle, seed in tuning.flights:
-        flight_reference(
-            FlightSpec(vehicle=vehicle, seed=seed), tuning.duration_s, cache_dir=flights_dir
-        )
-    address = ray_address(address)
-    started = not ray.is_initialized()
-    if started:
-        if address is None:
-            ray.init(
-                num_cpus=workers,
-                include_dashboard=False,
-                log_to_driver=False,
-                configure_logging=False,
+    if resume:
+        if not state.exists():
+            raise ValueError(f"no tune to resume in {out}")
+        saved = json.loads(state.read_text())
+        if saved != identity:
+            changed = sorted(k for k in identity if saved.get(k) != identity[k])
+            raise ValueError(f"the tune in {out} has other settings ({', '.join(changed)})")
+    atomic_write_json(state, identity)
+    done = load_trials(trials_dir)
+    remaining = tuning.trials - len(done)
+    if remaining > 0:
+        # Fly every training flight once, before the trials share them.
+        for vehicle, seed in tuning.flights:
+            flight_reference(
+                FlightSpec(vehicle=vehicle, seed=seed), tuning.duration_s, cache_dir=flights_dir
             )
-        else:
-            ray.init(address=address, log_to_driver=False, configure_logging=False)
-    try:
-        trainable = tune.with_resources(
-            tune.with_parameters(_trial, tuning=tuning, flights_dir=str(flights_dir)), {"cpu": 1}
-        )
-        if resume:
-            tuner = tune.Tuner.restore(str(storage / name), trainable, resume_errored=True)
-        else:
+        address = ray_address(address)
+        started = not ray.is_initialized()
+        if started:
+            if address is None:
+                ray.init(
+                    num_cpus=workers,
+                    include_dashboard=False,
+                    log_to_driver=False,
+                    configure_logging=False,
+                )
+            else:
+                ray.init(address=address, log_to_driver=False, configure_logging=False)
+        try:
             searcher = OptunaSearch(
                 metric="objective",
                 mode="min",
-                sampler=optuna.samplers.TPESampler(seed=tuning.seed),
+                sampler=optuna.samplers.TPESampler(seed=tuning.seed + len(done)),
+                points_to_evaluate=[d["parameters"] for d in done] or None,
+                evaluated_rewards=[d["objective"] for d in done] or None,
+            )
+            trainable = tune.with_parameters(
+                _trial, tuning=tuning, flights_dir=str(flights_dir), trials_dir=str(trials_dir)
             )
             tuner = tune.Tuner(
-                trainable,
+                tune.with_resources(trainable, {"cpu": 1}),
                 param_space=search_space(tuning.mca),
                 tune_config=tune.TuneConfig(
                     search_alg=ConcurrencyLimiter(searcher, max_concurrent=workers),
-                    num_samples=tuning.trials,
+                    num_samples=remaining,
                 ),
                 run_config=tune.RunConfig(
-                    storage_path=str(storage), name=name, verbose=1 if progress else 0
+                    storage_path=str(out / "ray"),
+                    name=f"run-{time.strftime('%Y%m%d-%H%M%S')}",
+                    verbose=1 if progress else 0,
                 ),
             )
-        results = tuner.fit()
-    finally:
-        if started:
-            ray.shutdown()
-    frame = results.get_dataframe()
-    return write_tuning_report(tuning, frame, out, command)
+            tuner.fit()
+        finally:
+            if started:
+                ray.shutdown()
+    return write_tuning_report(tuning, load_trials(trials_dir), out, command)
 
 
-def write_tuning_report(tuning: TuningConfig, frame, out: Path, command: str = "") -> dict:
+def write_tuning_report(
+    tuning: TuningConfig, records: list[dict], out: Path, command: str = ""
+) -> dict:
     """trials.csv, best.yaml, report.md, convergence.png and importance.png from the
-    trials' table (a pandas DataFrame of Ray Tune's results)."""
+    trial records (`load_trials`)."""
+    import pandas as pd  # pandas (heavy; comes with ray[tune]) only for the report
     from pydrake.common.yaml import yaml_dump  # yaml writer of the scenario files
 
-    parameter_columns = sorted(c for c in frame.columns if c.startswith("config/"))
-    keep = [
-        *parameter_columns,
-        "objective",
-        "pi_median",
-        "feasible",
-        "why",
-        "pi",
-        "pi_zero_motion",
-        "step_time_p99_s",
-    ]
-    table = frame[[c for c in keep if c in frame.columns]].copy()
-    if "trial_id" in frame.columns:
-        table.insert(0, "trial", frame["trial_id"])
-    table = table.reset_index(drop=True)
+    if not records:
+        raise RuntimeError(f"no finished trial in {out / 'trials'}")
+    rows = []
+    for r in records:
+        row = {"trial": r["trial"]}
+        row |= {f"config/{k}": v for k, v in r["parameters"].items()}
+        row |= {k: r[k] for k in ("objective", "pi_median", "feasible", "why", "step_time_p99_s")}
+        row |= {"pi": json.dumps(r["pi"]), "pi_zero_motion": json.dumps(r["pi_zero_motion"])}
+        rows.append(row)
+    table = pd.DataFrame(rows)
+    parameter_columns = sorted(c for c in table.columns if c.startswith("config/"))
     buffer = io.StringIO()
     table.to_csv(buffer, index=False)
     atomic_write_text(out / "trials.csv", buffer.getvalue())
-    if table.empty or not table["feasible"].any():
+    if not table["feasible"].any():
         raise RuntimeError(f"no feasible trial in {len(table)}: see {out / 'trials.csv'}")
     feasible = table[table["feasible"]].sort_values("objective")
     best_row = feasible.iloc[0]
