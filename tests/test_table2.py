@@ -131,3 +131,21 @@ def test_cli_table2(tmp_path, capsys):
     assert "NODE 2" in (tmp_path / "t2" / "table2.md").read_text()
     assert main(["table2", "--closed-loop-dataset", str(tmp_path / "missing.npz")]) == 2
     assert "make it with `mca-drake dataset closed-loop`" in capsys.readouterr().err
+
+
+def test_table2_candidates_train_as_ray_tasks(datasets, tmp_path):
+    """Two workers on a local Ray: every candidate is trained and scored by its own task,
+    and the learned ones land where the serial run would put them."""
+    config = Table2Config(
+        closed_loop_dataset=datasets["closed"],
+        open_loop_dataset=datasets["open"],
+        state_models=("nssm", "exact"),
+        output_models=("exact",),
+        train=TrainConfig(horizons=(8,), max_epochs=2, batch_size=64, device="cpu"),
+        timing_calls=2,
+        timing_horizons=(1,),
+    )
+    report = run_table2(config, tmp_path, progress=False, workers=2)
+    assert set(report["rows"]["state"]) == {"nssm", "exact"}
+    assert max(report["rows"]["output"]["exact"]["validation"].values()) < 1e-3
+    assert (tmp_path / "state_nssm_n8.pt").is_file()

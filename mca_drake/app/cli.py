@@ -335,7 +335,14 @@ def _cmd_table2(args: argparse.Namespace) -> int:
         wanted = set(args.only.split(","))
         config.state_models = tuple(n for n in config.state_models if f"state_{n}" in wanted)
         config.output_models = tuple(n for n in config.output_models if f"output_{n}" in wanted)
-    report = run_table2(config, out, resume=args.resume, progress=not args.quiet)
+    report = run_table2(
+        config,
+        out,
+        resume=args.resume,
+        progress=not args.quiet,
+        workers=args.workers if args.workers is not None else 1,
+        address=args.address,
+    )
     print((out / "table2.md").read_text())
     print(f"written to {out / 'table2.md'} and table2.json ({report['wall_s'] / 60:.1f} min)")
     return 0
@@ -621,6 +628,10 @@ def build_parser() -> argparse.ArgumentParser:
     table2.add_argument("--open-loop-dataset", help="default datasets/open_loop.npz")
     table2.add_argument("--out-dir", default="results/table2")
     table2.add_argument("--resume", action="store_true", help="continue a killed run")
+    table2.add_argument(
+        "--workers", type=int, help="candidates at once, on a local Ray (default 1: here)"
+    )
+    table2.add_argument("--address", help=ADDRESS_HELP)
     table2.add_argument("--device", help="auto (CUDA if present), cpu, cuda")
     table2.add_argument("--max-epochs", type=int, help="override epochs per curriculum step")
     table2.add_argument(

@@ -49,6 +49,7 @@ from mca_drake.learning.plant_candidates import (
 from mca_drake.learning.trainer import CurriculumTrainer, StageResult, TrainConfig
 from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, package_versions, split_of
 from mca_drake.studies.closed_loop_dataset import DEFAULT_DATASET
+from mca_drake.studies.parallel import ray_address, run_tasks
 
 # Table II of the paper: RMSE (validation, test) per n_p, iteration time (s) at n_p 1 and
 # 256, open-loop RMSE at 256. None: not reported.
@@ -181,78 +182,51 @@ def _candidate(kind: str, name: str, config: Table2Config):
 
 
 def run_table2(
-    config: Table2Config, out_dir: str | Path, *, resume: bool = False, progress: bool = True
+    config: Table2Config,
+    out_dir: str | Path,
+    *,
+    resume: bool = False,
+    progress: bool = True,
+    workers: int = 1,
+    address: str | None = None,
 ) -> dict:
     """Trains and scores every candidate; writes table2.md/json in `out_dir`; returns the
     JSON dictionary. With `resume`, finished candidates are read back and a killed one
-    continues from its checkpoint."""
+    continues from its checkpoint.
+
+    Args:
+        workers: candidates trained at once, on a local Ray with this many CPUs (each with
+            one torch thread; the inference times of the table then share the machine);
+            1 trains them here, one after the other.
+        address: a Ray cluster to train on (default RAY_ADDRESS, else a local Ray).
+    """
     out = check_writable(out_dir, folder=True)
     started = time.perf_counter()
     splits = _splits(config.closed_loop_dataset, config.split_seed)
     open_loop = SegmentDataset.load(config.open_loop_dataset)
-    horizons = config.train.horizons
-    device = config.train.resolved_device()
-    rows: dict[str, dict] = {"state": {}, "output": {}}
     jobs = [("state", n) for n in config.state_models] + [
         ("output", n) for n in config.output_models
     ]
+    parallel = workers > 1 or ray_address(address) is not None
+    todo = [
+        (config, kind, name, str(out), resume, progress and not parallel, parallel)
+        for kind, name in jobs
+        if not (resume and _result_path(out, kind, name).is_file())
+    ]
+    run_tasks(
+        _run_candidate,
+        todo,
+        workers=workers,
+        address=address,
+        total=len(jobs),
+        description="Table II candidates",
+        unit="candidate",
+        progress=progress and parallel,
+    )
+    rows: dict[str, dict] = {"state": {}, "output": {}}
     for kind, name in jobs:
-        tag = f"{kind}_{name}"
-        # Not f"{tag}.json": that name is the checkpoint's metadata beside f"{tag}.pt", and a
-        # killed candidate would be read back as finished.
-        result_path = out / f"{tag}_result.json"
-        if resume and result_path.is_file():
-            rows[kind][name] = json.loads(result_path.read_text())
-            continue
-        model, state_model = _candidate(kind, name, config)
-        if state_model is not None:
-            state_model = state_model.to(device)
-        objective = state_objective if kind == "state" else output_objective(state_model)
-        train_wall = 0.0
-        if model.learnable:
-            trainer = CurriculumTrainer(
-                model,
-                objective,
-                config.train,
-                out / f"{tag}.pt",
-                {"model": name, "kind": kind, "dataset": config.closed_loop_dataset},
-                stage_callbacks=[_stage_saver(out, tag)],
-            )
-            if progress:
-                print(f"training {kind} model {LABELS[name]}")
-            fit = trainer.fit(
-                splits["train"], splits["validation"], resume=resume, progress=progress
-            )
-            train_wall = fit.wall_s
-        model = model.to(device)
-
-        def score(data: SegmentDataset, n: int, model=model, state_model=state_model, kind=kind):
-            tensors = to_tensors(data, n, device=device)
-            if kind == "state":
-                return rmse(tensors, state_model=model)
-            return rmse(tensors, state_model=state_model, output_model=model)
-
-        row = {"validation": {}, "test": {}, "train_wall_s": train_wall}
-        for n in horizons:
-            if model.learnable:
-                state = torch.load(out / f"{tag}_n{n}.pt", map_location=device, weights_only=True)
-                load_state_into(model, state, f"{tag}_n{n}.pt")
-            model.eval()
-            row["validation"][n] = score(splits["validation"], n)
-            row["test"][n] = score(splits["test"], n)
-        model, state_model = model.cpu(), state_model.cpu() if state_model is not None else None
-        if kind == "state":
-            predict = lambda b, m=model: predict_states(m, b)  # noqa: E731
-        else:
-            predict = lambda b, m=model, s=state_model: predict_outputs(m, s, b)  # noqa: E731
-        row["time"] = _time_inference(
-            predict, splits["train"], config.timing_horizons, config.timing_calls, config.seed
-        )
-        model, state_model = model.to(device), state_model.to(device) if state_model else None
-        row["open_loop"] = score(open_loop, open_loop.horizon)
-        row = json.loads(json.dumps(row))  # int keys become strings, as when read back
-        atomic_write_json(result_path, row)
-        rows[kind][name] = row
+        rows[kind][name] = json.loads(_result_path(out, kind, name).read_text())
+    device = config.train.resolved_device()
     report = {
         "rows": rows,
         "paper": json.loads(json.dumps(PAPER)),
@@ -321,3 +295,76 @@ def table2_markdown(report: dict) -> str:
         f"{report['wall_s'] / 60:.1f} min.",
     ]
     return "\n".join(lines) + "\n"
+
+
+def _result_path(out: Path, kind: str, name: str) -> Path:
+    # Not f"{tag}.json": that name is the checkpoint's metadata beside f"{tag}.pt", and a
+    # killed candidate would be read back as finished.
+    return Path(out) / f"{kind}_{name}_result.json"
+
+
+def _run_candidate(
+    config: Table2Config,
+    kind: str,
+    name: str,
+    out_dir: str,
+    resume: bool,
+    progress: bool,
+    single_thread: bool,
+) -> None:
+    """Trains and scores one candidate; writes its result file (a task of `run_table2`)."""
+    if single_thread:  # tasks share the machine: one torch thread each
+        torch.set_num_threads(1)
+    out = Path(out_dir)
+    splits = _splits(config.closed_loop_dataset, config.split_seed)
+    open_loop = SegmentDataset.load(config.open_loop_dataset)
+    horizons = config.train.horizons
+    device = config.train.resolved_device()
+    tag = f"{kind}_{name}"
+    result_path = _result_path(out, kind, name)
+    model, state_model = _candidate(kind, name, config)
+    if state_model is not None:
+        state_model = state_model.to(device)
+    objective = state_objective if kind == "state" else output_objective(state_model)
+    train_wall = 0.0
+    if model.learnable:
+        trainer = CurriculumTrainer(
+            model,
+            objective,
+            config.train,
+            out / f"{tag}.pt",
+            {"model": name, "kind": kind, "dataset": config.closed_loop_dataset},
+            stage_callbacks=[_stage_saver(out, tag)],
+        )
+        if progress:
+            print(f"training {kind} model {LABELS[name]}")
+        fit = trainer.fit(splits["train"], splits["validation"], resume=resume, progress=progress)
+        train_wall = fit.wall_s
+    model = model.to(device)
+
+    def score(data: SegmentDataset, n: int, model=model, state_model=state_model, kind=kind):
+        tensors = to_tensors(data, n, device=device)
+        if kind == "state":
+            return rmse(tensors, state_model=model)
+        return rmse(tensors, state_model=state_model, output_model=model)
+
+    row = {"validation": {}, "test": {}, "train_wall_s": train_wall}
+    for n in horizons:
+        if model.learnable:
+            state = torch.load(out / f"{tag}_n{n}.pt", map_location=device, weights_only=True)
+            load_state_into(model, state, f"{tag}_n{n}.pt")
+        model.eval()
+        row["validation"][n] = score(splits["validation"], n)
+        row["test"][n] = score(splits["test"], n)
+    model, state_model = model.cpu(), state_model.cpu() if state_model is not None else None
+    if kind == "state":
+        predict = lambda b, m=model: predict_states(m, b)  # noqa: E731
+    else:
+        predict = lambda b, m=model, s=state_model: predict_outputs(m, s, b)  # noqa: E731
+    row["time"] = _time_inference(
+        predict, splits["train"], config.timing_horizons, config.timing_calls, config.seed
+    )
+    model, state_model = model.to(device), state_model.to(device) if state_model else None
+    row["open_loop"] = score(open_loop, open_loop.horizon)
+    row = json.loads(json.dumps(row))  # int keys become strings, as when read back
+    atomic_write_json(result_path, row)
