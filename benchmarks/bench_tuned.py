@@ -59,18 +59,20 @@ def _run(label: str, config, vehicle: str, seed: int, duration: float, out: str)
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--nmpc", required=True, help="best.yaml of the NMPC tune")
-    parser.add_argument("--washout", required=True, help="best.yaml of the washout tune")
+    parser.add_argument("--nmpc", help="best.yaml of the NMPC tune")
+    parser.add_argument("--washout", help="best.yaml of the washout tune")
     parser.add_argument("--flights", type=int, default=10)
     parser.add_argument("--duration", type=float, default=120.0)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--json", help="also write the figures here")
     args = parser.parse_args()
-    configs = {
-        "nmpc_tuned": tuned_config(args.nmpc),
-        "nmpc_paper": NmpcConfig.paper(),
-        "washout_tuned": tuned_config(args.washout),
-    }
+    configs = {}
+    if args.nmpc:
+        configs |= {"nmpc_tuned": tuned_config(args.nmpc), "nmpc_paper": NmpcConfig.paper()}
+    if args.washout:
+        configs["washout_tuned"] = tuned_config(args.washout)
+    if not configs:
+        parser.error("give --nmpc and/or --washout")
     flights = [
         (v, base + k) for v, base in (("light", 1000), ("jet", 2000)) for k in range(args.flights)
     ]
@@ -89,40 +91,56 @@ def main() -> None:
     figures = {}
     for vehicle in ("light", "jet"):
         seeds = [s for v, s in flights if v == vehicle]
-        tuned = np.array([runs[("nmpc_tuned", vehicle, s)]["pi"] for s in seeds])
-        paper = np.array([runs[("nmpc_paper", vehicle, s)]["pi"] for s in seeds])
-        washout = np.array([runs[("washout_tuned", vehicle, s)]["pi"] for s in seeds])
-        zero = np.array([runs[("washout_tuned", vehicle, s)]["pi_zero_motion"] for s in seeds])
-        p99 = [runs[("nmpc_tuned", vehicle, s)]["p99"] for s in seeds]
-        violations = sum(runs[(k, vehicle, s)]["violations"] for k in configs for s in seeds)
-        print(f"\n{vehicle}: flight, NMPC tuned, NMPC paper, washout tuned, zero motion")
+        f = figures[vehicle] = {"flights": len(seeds)}
+
+        def pis(label, key="pi", seeds=seeds, vehicle=vehicle):
+            return np.array([runs[(label, vehicle, s)][key] for s in seeds])
+
+        print(f"\n{vehicle}: flight, " + ", ".join(configs) + ", zero motion")
+        label0 = next(iter(configs))
+        columns = [pis(label) for label in configs] + [pis(label0, "pi_zero_motion")]
         for k, s in enumerate(seeds):
-            print(f"  {s}: {tuned[k]:7.3f} {paper[k]:7.3f} {washout[k]:7.3f} {zero[k]:7.3f}")
-        gain = float(np.median(paper) - np.median(tuned))
-        figures[vehicle] = {
-            "nmpc_tuned_median": float(np.median(tuned)),
-            "nmpc_paper_median": float(np.median(paper)),
-            "median_gain": gain,
-            "tuned_better_on": int(np.sum(tuned < paper)),
-            "washout_median": float(np.median(washout)),
-            "zero_motion_median": float(np.median(zero)),
-            "washout_beats_zero_on": int(np.sum(washout < zero)),
-            "nmpc_tuned_step_p99_ms": {
-                "median": float(np.median(p99) * 1e3),
-                "max": float(np.max(p99) * 1e3),
-            },
-            "violations": int(violations),
-            "flights": len(seeds),
-        }
-        f = figures[vehicle]
-        print(
-            f"  NMPC-rti median PI tuned {f['nmpc_tuned_median']:.3f} vs paper "
-            f"{f['nmpc_paper_median']:.3f}: gain {gain:+.3f}, tuned better on "
-            f"{f['tuned_better_on']} of {len(seeds)}; washout {f['washout_median']:.3f} vs zero "
-            f"motion {f['zero_motion_median']:.3f}, better on {f['washout_beats_zero_on']} of "
-            f"{len(seeds)}; tuned NMPC step p99 median {f['nmpc_tuned_step_p99_ms']['median']:.2f}"
-            f" ms (max {f['nmpc_tuned_step_p99_ms']['max']:.2f}); violations {violations}"
+            print(f"  {s}: " + " ".join(f"{c[k]:7.3f}" for c in columns))
+        zero = pis(label0, "pi_zero_motion")
+        f["zero_motion_median"] = float(np.median(zero))
+        f["violations"] = int(
+            sum(runs[(label, vehicle, s)]["violations"] for label in configs for s in seeds)
         )
+        if "nmpc_tuned" in configs:
+            tuned, paper = pis("nmpc_tuned"), pis("nmpc_paper")
+            p99 = pis("nmpc_tuned", "p99") * 1e3
+            f |= {
+                "nmpc_tuned_median": float(np.median(tuned)),
+                "nmpc_paper_median": float(np.median(paper)),
+                "median_gain": float(np.median(paper) - np.median(tuned)),
+                "tuned_better_on": int(np.sum(tuned < paper)),
+                "nmpc_tuned_step_p99_ms": {
+                    "median": float(np.median(p99)),
+                    "max": float(p99.max()),
+                },
+                "joint_range_used": {
+                    "tuned": float(np.median(pis("nmpc_tuned", "range"))),
+                    "paper": float(np.median(pis("nmpc_paper", "range"))),
+                },
+            }
+            print(
+                f"  NMPC-rti median PI tuned {f['nmpc_tuned_median']:.3f} vs paper "
+                f"{f['nmpc_paper_median']:.3f}: gain {f['median_gain']:+.3f}, tuned better on "
+                f"{f['tuned_better_on']} of {len(seeds)}; step p99 median {np.median(p99):.2f} ms"
+                f" (max {p99.max():.2f}); joint range used {f['joint_range_used']}"
+            )
+        if "washout_tuned" in configs:
+            washout = pis("washout_tuned")
+            f |= {
+                "washout_median": float(np.median(washout)),
+                "washout_beats_zero_on": int(np.sum(washout < zero)),
+            }
+            print(
+                f"  washout median PI {f['washout_median']:.3f} vs zero motion "
+                f"{f['zero_motion_median']:.3f}: better on {f['washout_beats_zero_on']} of "
+                f"{len(seeds)}"
+            )
+        print(f"  violations: {f['violations']}")
     if args.json:
         atomic_write_json(args.json, figures)
 

@@ -60,6 +60,26 @@ class WashoutConfig:
         default_factory=lambda: [0.0, 0.0, 0.5, 0.0, -0.5, 0.0]
     )
 
+    @classmethod
+    def classic(cls) -> "WashoutConfig":
+        """The textbook cut-offs scaled to the KR500 (translation 2.5 rad/s, washout 0.5,
+        tilt 5 rad/s at 3 deg/s up to 20 deg, rotation 1 rad/s, unit gains, pose gain 10):
+        the untuned baseline, whatever the defaults."""
+        return cls(
+            translation_frequency=2.5,
+            translation_damping=1.0,
+            translation_washout_frequency=0.5,
+            translation_gain=1.0,
+            tilt_frequency=5.0,
+            tilt_damping=1.0,
+            tilt_rate_limit=math.radians(3.0),
+            tilt_limit=math.radians(20.0),
+            rotation_frequency=1.0,
+            rotation_damping=1.0,
+            rotation_gain=1.0,
+            pose_feedback_gain=10.0,
+        )
+
     def validate(self) -> None:
         """Raises ValueError for a setting that cannot run, naming it."""
         check_config_numbers(self)

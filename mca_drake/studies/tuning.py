@@ -144,8 +144,8 @@ def config_from_parameters(mca: str, parameters: dict) -> NmpcConfig | WashoutCo
 
 def baseline_config(mca: str) -> NmpcConfig | WashoutConfig:
     """What a tuned config is compared with: the paper's NMPC weights, or the washout's
-    textbook defaults."""
-    return NmpcConfig.paper() if mca == "nmpc-rti" else WashoutConfig()
+    textbook cut-offs."""
+    return NmpcConfig.paper() if mca == "nmpc-rti" else WashoutConfig.classic()
 
 
 def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
