@@ -42,7 +42,7 @@ def test_summary_records_zero_motion_pi_and_the_config(reference):
     assert s["mca"] == "nmpc-rti"
     assert s["mca_config"]["type"] == "NmpcConfig"
     assert s["mca_config"]["washout_weight"] == 0.3
-    assert s["mca_config"]["output_weights"] == [1.0] * 6
+    assert s["mca_config"]["output_weights"] == NmpcConfig().output_weights
 
 
 def test_random_seed_reaches_the_imu_noise(reference):
