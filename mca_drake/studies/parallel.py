@@ -11,6 +11,7 @@ so no orphan goes on simulating and writing files.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable, Sequence
 
@@ -65,7 +66,10 @@ def run_tasks(
             _run_on_ray(function, tasks, workers, address, bar)
 
 
-def _run_on_ray(function: Callable, tasks: Sequence[tuple], workers: int, address, bar) -> None:
+@contextlib.contextmanager
+def ray_session(workers: int, address: str | None = None):
+    """Connects to Ray for the block: a cluster at `address`, or a local Ray with `workers`
+    CPUs (started here and shut down at the end); an already connected Ray is reused."""
     # ray (heavy: about a second to import) only for parallel runs
     import ray
 
@@ -81,6 +85,14 @@ def _run_on_ray(function: Callable, tasks: Sequence[tuple], workers: int, addres
         else:
             ray.init(address=address, log_to_driver=False, configure_logging=False)
     try:
+        yield ray
+    finally:
+        if started:
+            ray.shutdown()
+
+
+def _run_on_ray(function: Callable, tasks: Sequence[tuple], workers: int, address, bar) -> None:
+    with ray_session(workers, address) as ray:
         remote = ray.remote(num_cpus=1, max_retries=0)(_call)
         pending = [remote.remote(function, task) for task in tasks]
         while pending:
@@ -93,9 +105,6 @@ def _run_on_ray(function: Callable, tasks: Sequence[tuple], workers: int, addres
                 name = getattr(function, "__name__", "study")
                 raise RuntimeError(f"a {name} task failed: {err.cause}") from err
             bar.update(1)
-    finally:
-        if started:
-            ray.shutdown()
 
 
 def _call(function: Callable, task: tuple):

@@ -42,7 +42,7 @@ from mca_drake.plotting import save_figure
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.references.jsbsim import VEHICLES
 from mca_drake.simulation.closed_loop import run_closed_loop
-from mca_drake.studies.parallel import ray_address
+from mca_drake.studies.parallel import ray_address, ray_session
 
 # Added to an infeasible trial's median PI (the PI's range is about -6 to +10).
 INFEASIBLE_PENALTY = 10.0
@@ -241,7 +241,6 @@ def run_tuning(
     """
     # optuna and ray (heavy: seconds to import) only where a tune runs
     import optuna
-    import ray
     from ray import tune
     from ray.tune.search import ConcurrencyLimiter
     from ray.tune.search.optuna import OptunaSearch
@@ -271,19 +270,7 @@ def run_tuning(
             flight_reference(
                 FlightSpec(vehicle=vehicle, seed=seed), tuning.duration_s, cache_dir=flights_dir
             )
-        address = ray_address(address)
-        started = not ray.is_initialized()
-        if started:
-            if address is None:
-                ray.init(
-                    num_cpus=workers,
-                    include_dashboard=False,
-                    log_to_driver=False,
-                    configure_logging=False,
-                )
-            else:
-                ray.init(address=address, log_to_driver=False, configure_logging=False)
-        try:
+        with ray_session(workers, ray_address(address)):
             searcher = OptunaSearch(
                 metric="objective",
                 mode="min",
@@ -308,9 +295,6 @@ def run_tuning(
                 ),
             )
             tuner.fit()
-        finally:
-            if started:
-                ray.shutdown()
     return write_tuning_report(tuning, load_trials(trials_dir), out, command)
 
 
