@@ -19,6 +19,7 @@ from mca_drake.studies.tuning import (
     config_from_parameters,
     run_tuning,
     search_space,
+    starting_point,
 )
 
 REPO = Path(__file__).resolve().parents[1]
@@ -49,6 +50,14 @@ def test_every_point_of_the_space_is_a_valid_config(mca):
         config = config_from_parameters(mca, parameters)
         config.validate()
         assert isinstance(config, NmpcConfig if mca == "nmpc-rti" else WashoutConfig)
+
+
+@pytest.mark.parametrize("mca", ["nmpc-rti", "washout"])
+def test_a_new_tune_starts_at_the_shipped_defaults(mca):
+    """The first point of a new tune is the default config (inside the space, unchanged)."""
+    config = config_from_parameters(mca, starting_point(mca))
+    default = NmpcConfig(mode="rti") if mca == "nmpc-rti" else WashoutConfig()
+    assert config == default
 
 
 def _trial_results(out: Path) -> list[Path]:

@@ -142,6 +142,29 @@ def config_from_parameters(mca: str, parameters: dict) -> NmpcConfig | WashoutCo
     return WashoutConfig(**{k: float(v) for k, v in parameters.items()})
 
 
+def parameters_of(mca: str, config: NmpcConfig | WashoutConfig) -> dict[str, float]:
+    """The inverse of `config_from_parameters`: `config`'s values of the tuned fields."""
+    if mca == "nmpc-rti":
+        parameters = {
+            f"weight_{c}": float(w)
+            for c, w in zip(CHANNELS_WEIGHTED, config.output_weights, strict=True)
+        }
+        names = [k for k in search_space(mca) if not k.startswith("weight_")]
+        return parameters | {k: float(getattr(config, k)) for k in names}
+    return {k: float(getattr(config, k)) for k in search_space(mca)}
+
+
+def starting_point(mca: str) -> dict[str, float]:
+    """The first trial of a new tune: the shipped defaults, clipped into the search space, so
+    that a tune never ends worse than the defaults on its own objective."""
+    space = search_space(mca)
+    default = NmpcConfig(mode="rti") if mca == "nmpc-rti" else WashoutConfig()
+    return {
+        k: float(np.clip(v, space[k].lower, space[k].upper))
+        for k, v in parameters_of(mca, default).items()
+    }
+
+
 def baseline_config(mca: str) -> NmpcConfig | WashoutConfig:
     """What a tuned config is compared with: the paper's NMPC weights, or the washout's
     textbook cut-offs."""
@@ -275,7 +298,9 @@ def run_tuning(
                 metric="objective",
                 mode="min",
                 sampler=optuna.samplers.TPESampler(seed=tuning.seed + len(done)),
-                points_to_evaluate=[d["parameters"] for d in done] or None,
+                # A resume hands over every finished trial with its score; a new tune
+                # starts at the shipped defaults.
+                points_to_evaluate=[d["parameters"] for d in done] or [starting_point(tuning.mca)],
                 evaluated_rewards=[d["objective"] for d in done] or None,
             )
             trainable = tune.with_parameters(
