@@ -173,13 +173,13 @@ def test_bad_mca_configs_fail_naming_field_and_class(override, match):
 
 
 def test_typed_mca_config_from_set_changes_the_run(tmp_path):
-    """`--set` replaces the MCA with a typed config: a washout weight of 0.1 instead of the
-    default moves the PI, and the summary records the config that ran."""
+    """`--set` replaces the MCA with a typed config: the paper's washout weight (1.0, ten
+    times the tuned default) moves the PI, and the summary records the config that ran."""
     base = "{plant: analytical, duration_s: 4.0, output_dir: OUT}".replace("OUT", str(tmp_path))
     summaries = {}
     for label, mca in (
         ("default", "{mca: nmpc-rti}"),
-        ("tuned", "{mca: !NmpcConfig {mode: rti, washout_weight: 0.1}}"),
+        ("tuned", "{mca: !NmpcConfig {mode: rti, washout_weight: 1.0}}"),
     ):
         path = tmp_path / f"{label}.json"
         code = cli.main(
@@ -192,8 +192,8 @@ def test_typed_mca_config_from_set_changes_the_run(tmp_path):
         summaries[label] = json.loads(path.read_text())
     default, tuned = summaries["default"], summaries["tuned"]
     assert default["mca_config"]["type"] == tuned["mca_config"]["type"] == "NmpcConfig"
-    assert default["mca_config"]["washout_weight"] == NmpcConfig().washout_weight != 0.1
-    assert tuned["mca_config"]["washout_weight"] == 0.1
+    assert default["mca_config"]["washout_weight"] == NmpcConfig().washout_weight != 1.0
+    assert tuned["mca_config"]["washout_weight"] == 1.0
     assert tuned["mca_config"]["mode"] == "rti" and tuned["mca"] == "nmpc-rti"
     assert abs(tuned["pi"] - default["pi"]) > 1e-3
 

@@ -10,6 +10,12 @@ change a single floating-point operation on these paths, so the comparison is ex
 The fixture's multibody runs were compared the same way until issue 16 changed the station
 on purpose (a command limiter and the plant's own integration step for the desired
 trajectory); `test_kr500_station.py` and `test_station_limits.py` cover it now.
+
+Issue 18 changed how the NMPC solves its QPs, on purpose: a verified active-set solve
+replaces OSQP's approximate solution (rti) and a quasi-Newton term and a KKT stop shorten the
+Gauss-Newton iterations (converged). The NMPC runs are therefore compared to within
+`NMPC_TOLERANCE` (the largest difference measured at that change: 3e-7 rad/s^2 in the
+commands, 2e-8 in the PI), everything else still exactly.
 """
 
 from __future__ import annotations
@@ -27,6 +33,8 @@ from mca_drake.references.reference import reference_from_recording
 from mca_drake.simulation.closed_loop import run_closed_loop
 
 DATA = Path(__file__).parent / "data"
+# Absolute tolerance of the NMPC runs (rad/s^2, rad, rad/s, output units and PI).
+NMPC_TOLERANCE = 1e-6
 # The MCAs as the fixture ran them: the defaults of f31529d, named explicitly so that
 # tuned defaults do not change them.
 MCAS = {
@@ -74,9 +82,11 @@ def compare(plant: str, mca: str) -> None:
         duration_s=expected["duration_s"],
         progress=False,
     )
-    np.testing.assert_array_equal(result.commands, arrays[f"{key}_commands"])
-    np.testing.assert_array_equal(result.states, arrays[f"{key}_states"])
-    np.testing.assert_array_equal(result.outputs, arrays[f"{key}_outputs"])
-    assert result.summary["pi"] == expected["pi"]
+    atol = NMPC_TOLERANCE if mca.startswith("nmpc") else 0.0
+    for name in ("commands", "states", "outputs"):
+        np.testing.assert_allclose(
+            getattr(result, name), arrays[f"{key}_{name}"], rtol=0, atol=atol, err_msg=name
+        )
+    assert abs(result.summary["pi"] - expected["pi"]) <= atol
     assert result.summary["violations"] == expected["violations"]
     assert result.summary["solver_failures"] == expected["solver_failures"]

@@ -37,8 +37,10 @@ from pydrake.solvers import (
     SolutionResult,
     SolverOptions,
 )
+from threadpoolctl import ThreadpoolController
 
 from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.cueing.active_set import active_rows, cholesky, solve_on_active_set
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
@@ -46,6 +48,9 @@ from mca_drake.safety import viable_acceleration_bounds
 
 NU = NUM_JOINTS
 QP_SOLVERS = ("auto", "clarabel", "osqp")
+# A row of a full solver's solution within this of a bound is guessed active (the KKT solve
+# that follows verifies the guess; OSQP's polished solutions are exact, Clarabel's to 1e-10).
+ACTIVE_ROW_TOLERANCE = 1e-6
 MODES = ("rti", "converged")
 
 
@@ -107,6 +112,10 @@ class NmpcConfig:
     # of u in an iteration falls below step_tolerance (rad/s^2).
     max_iterations: int = 50
     step_tolerance: float = 1e-6
+    # converged mode: stop at a KKT point of the nonlinear program, once the stationarity
+    # residual |grad f(U) + C^T lambda|_inf (cost units per rad/s^2) is below this, with U
+    # feasible and complementary to lambda >= 0 (both exact, from a verified QP solution).
+    kkt_tolerance: float = 1e-8
 
     @classmethod
     def paper(cls, mode: str = "rti") -> "NmpcConfig":
@@ -133,8 +142,16 @@ class NmpcConfig:
             raise ValueError("osqp_max_iterations and stoppability_tangents must be >= 0")
         if self.horizon_steps < 1 or self.max_iterations < 1:
             raise ValueError("horizon_steps and max_iterations must be at least 1")
-        if min(self.osqp_tolerance, self.clarabel_tolerance, self.step_tolerance) <= 0:
-            raise ValueError("osqp_tolerance, clarabel_tolerance and step_tolerance must be > 0")
+        tolerances = (
+            self.osqp_tolerance,
+            self.clarabel_tolerance,
+            self.step_tolerance,
+            self.kkt_tolerance,
+        )
+        if min(tolerances) <= 0:
+            raise ValueError(
+                "osqp_tolerance, clarabel_tolerance, step_tolerance and kkt_tolerance must be > 0"
+            )
         if not 1 <= self.nodes <= self.horizon_steps:
             raise ValueError(f"nodes must be in [1, horizon_steps]; got {self.nodes}")
         if len(self.output_weights) != 6 or min(self.output_weights) < 0:
@@ -178,6 +195,14 @@ class SolveResult:
         success: whether the QPs succeeded (else U is a fallback).
         solve_time_s: wall-clock time of the solve.
         message: why a solve failed.
+        active: the last QP's active set, shape (`num_rows`,) in {-1, 0, +1}: the next
+            solve's `active_guess`.
+        kkt_residual: converged mode: the KKT (stationarity) residual of the NLP at U when
+            it stopped on it, else the last one measured (NaN: none).
+        hot_starts: QPs solved on a guessed active set (the rest went to Drake's solver).
+        stop: why it stopped: "rti" (one QP), "kkt" (KKT residual below kkt_tolerance),
+            "step" (step below step_tolerance), "no_descent" (the line search found none),
+            "iterations" (max_iterations reached) or "failed" (a QP failed).
     """
 
     U: np.ndarray
@@ -186,6 +211,10 @@ class SolveResult:
     success: bool
     solve_time_s: float
     message: str = ""
+    active: np.ndarray | None = None
+    kkt_residual: float = float("nan")
+    hot_starts: int = 0
+    stop: str = ""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -208,6 +237,20 @@ def _planning_limits(robot: KR500, margin: float) -> PlanningLimits:
         (1 - margin) * robot.qd_max,
         (1 - margin) * robot.qdd_max,
     )
+
+
+@dataclasses.dataclass(frozen=True)
+class _GaussNewtonModel:
+    """The Gauss-Newton model of the cost at a plan U: H (6N, 6N) and the exact gradient g
+    (6N,); jac: the output Jacobians at the nodes; J (6N, 6N): d y / d U condensed;
+    residual (6N,): y - r; cost: the true cost at U."""
+
+    H: np.ndarray
+    g: np.ndarray
+    jac: object
+    J: np.ndarray
+    residual: np.ndarray
+    cost: float
 
 
 class MotionCueingOcp:
@@ -262,6 +305,10 @@ class MotionCueingOcp:
                     lower.append(np.full(6, -np.inf))
                     upper.append((r.q_max if side > 0 else -r.q_min) + offset)
         self.A = np.vstack(rows)
+        # Every row of the QP in U: the node constraints A, then the box on U itself.
+        self._C = np.vstack([self.A, np.eye(NU * N)])
+        self.num_rows = self._C.shape[0]
+        self._blas = ThreadpoolController()
         self._A_q0, self._A_qd0 = np.vstack(self._row_q0), np.vstack(self._row_qd0)
         self._lower0, self._upper0 = np.concatenate(lower), np.concatenate(upper)
 
@@ -399,10 +446,13 @@ class MotionCueingOcp:
 
     def cost(self, x0: np.ndarray, U: np.ndarray, refs: np.ndarray) -> float:
         """The true nonlinear cost of plan U (N, 6) for references refs (N, 6)."""
-        cfg = self.config
         q, qd = self.states(x0, U)
-        y = plant_output(q[:-1], qd[:-1], U, self.robot)
-        e = (y - refs) ** 2 @ np.asarray(cfg.output_weights, float)
+        return self._cost_of(q, qd, U, plant_output(q[:-1], qd[:-1], U, self.robot) - refs)
+
+    def _cost_of(self, q, qd, U, residual) -> float:
+        """The cost from node states q, qd (N + 1, 6), U (N, 6) and y - r (N, 6)."""
+        cfg = self.config
+        e = residual**2 @ self._output_weights
         stage = e + cfg.input_weight * (U**2).sum(1) + cfg.washout_weight * (q[:-1] ** 2).sum(1)
         terminal = cfg.terminal_position_weight * (q[-1] ** 2).sum() + (
             cfg.terminal_velocity_weight * (qd[-1] ** 2).sum()
@@ -441,6 +491,11 @@ class MotionCueingOcp:
 
     def gauss_newton_terms(self, x0, U, refs) -> tuple[np.ndarray, np.ndarray]:
         """Hessian H (6N, 6N) and gradient g (6N,) of the Gauss-Newton model at U."""
+        model = self._gauss_newton(x0, U, refs)
+        return model.H, model.g
+
+    def _gauss_newton(self, x0, U, refs) -> "_GaussNewtonModel":
+        """The Gauss-Newton model at U, with the Jacobians and residuals it used."""
         cfg, N = self.config, self.N
         q, qd = self.states(x0, U)
         jac = plant_output_jacobians(q[:-1], qd[:-1], U, self.robot)
@@ -451,6 +506,7 @@ class MotionCueingOcp:
         J[np.arange(N), :, np.arange(N), :] += jac.dy_dqdd
         J = J.reshape(6 * N, 6 * N)
         residual = (jac.y - refs).reshape(-1)
+        cost = self._cost_of(q, qd, U, residual.reshape(N, 6))
         WJ = self._W_rows[:, None] * J
         H = 2 * J.T @ WJ + self._H_const
         # gradient of the true cost at U (exact: Gauss-Newton changes only the Hessian)
@@ -464,15 +520,14 @@ class MotionCueingOcp:
             + 2 * cfg.terminal_position_weight * self._Gq[6 * N :].T @ q[-1]
             + 2 * cfg.terminal_velocity_weight * self._Gqd[6 * N :].T @ qd[-1]
         )
-        return H, g
+        return _GaussNewtonModel(H, g, jac, J, residual, cost)
 
     # ----------------------------------------------------------------- solving
-    def _update_qp(self, x0: np.ndarray, U: np.ndarray, refs: np.ndarray) -> np.ndarray:
-        """Linearises y around plan U from x0 and loads the QP; returns the node states
-        (N + 1, 12) of U."""
+    def _update_qp(self, x0: np.ndarray, U: np.ndarray, refs: np.ndarray, jac) -> np.ndarray:
+        """Loads the QP of y linearised around plan U from x0 (`jac`: the output Jacobians
+        at U's nodes); returns the node states (N + 1, 12) of U."""
         N = self.N
         q, qd = self.states(x0, U)
-        jac = plant_output_jacobians(q[:-1], qd[:-1], U, self.robot)
         W = self._output_weights
         x_bar = np.concatenate([q, qd], axis=1)
         c = jac.y - refs  # residual at the linearisation point
@@ -513,13 +568,32 @@ class MotionCueingOcp:
             return None, "non-finite QP solution"
         return U_new.reshape(self.N, NU), ""
 
-    def solve(self, x0, refs, U_guess=None, mode: str | None = None) -> SolveResult:
+    def solve(
+        self,
+        x0,
+        refs,
+        U_guess=None,
+        mode: str | None = None,
+        active_guess: np.ndarray | None = None,
+    ) -> SolveResult:
         """Solves from state x0 (12) for references refs (N, 6) (or (6,), held constant).
+
+        Each Gauss-Newton QP is first solved on a guessed active set (`active_set`: one
+        KKT solve, used only when verified optimal); when the guess cannot be corrected, the
+        QP is solved in full by Drake's MathematicalProgram (OSQP or Clarabel).
 
         Args:
             U_guess: warm start (N, 6); default: zeros.
             mode: override of config.mode ("rti": one QP; "converged": to tolerance).
+            active_guess: the active set to try first, shape (`num_rows`,) in {-1, 0, +1}
+                (e.g. the previous step's `SolveResult.active`); default: none active.
         """
+        # One BLAS thread: these matrices are small (6N = 120), and OpenBLAS's worker threads
+        # spin; on a loaded machine they made the step's p99 four times longer.
+        with self._blas.limit(limits=1, user_api="blas"):
+            return self._solve(x0, refs, U_guess, mode, active_guess)
+
+    def _solve(self, x0, refs, U_guess, mode, active_guess) -> SolveResult:
         start = time.perf_counter()
         cfg = self.config
         mode = mode or cfg.mode
@@ -531,14 +605,43 @@ class MotionCueingOcp:
         lo, hi = self.input_bounds(x0)
         self._first_input_box.set_bounds(lo[:NU], hi[:NU])
         U = np.clip(U.reshape(-1), lo, hi).reshape(self.N, NU)
-        # The rti mode needs no cost (it takes the full Gauss-Newton step); skip the work.
-        cost = self.cost(x0, U, refs) if mode == "converged" else float("nan")
-        iterations, message = 0, ""
+        lb, ub = self.constraint_bounds(x0)
+        row_lo, row_hi = np.concatenate([lb, lo]), np.concatenate([ub, hi])
+        active = np.zeros(self.num_rows, dtype=np.int8)
+        if active_guess is not None and np.shape(active_guess) == (self.num_rows,):
+            active = np.clip(np.rint(active_guess), -1, 1).astype(np.int8)
+        model = self._gauss_newton(x0, U, refs)
+        cost = model.cost
+        iterations, hot_starts, message, kkt = 0, 0, "", float("nan")
+        stop = "rti" if mode == "rti" else "iterations"
+        multipliers = None  # of the last full step's verified QP solution
+        curvature, previous = None, None  # converged: the quasi-Newton residual curvature
         for _ in range(1 if mode == "rti" else cfg.max_iterations):
-            x_bar = self._update_qp(x0, U, refs)
-            U_qp, message = self._solve_qp(U, x_bar)
+            H, g = model.H, model.g
+            factor = None
+            if previous is not None:
+                curvature = self._residual_curvature(curvature, previous, model)
+                if curvature is not None:
+                    factor = cholesky(H + curvature)
+                    if factor is not None:  # else not convex: plain Gauss-Newton this time
+                        H = H + curvature
+            if factor is None:
+                factor = cholesky(H)
+            if multipliers is not None:
+                # U is the last QP's solution: feasible, its active rows exactly at their
+                # bounds and its multipliers >= 0, so the stationarity residual of the
+                # Lagrangian with the true gradient is U's KKT residual for the NLP.
+                kkt = float(np.max(np.abs(g + self._C.T @ (active * multipliers))))
+                if kkt <= cfg.kkt_tolerance:
+                    stop = "kkt"
+                    break
+            CU = self._C @ U.reshape(-1)
+            step, solution, hot, message = self._qp_step(
+                H, factor, g, row_lo - CU, row_hi - CU, active, (x0, U, refs, model.jac)
+            )
             iterations += 1
-            if U_qp is None:
+            hot_starts += hot
+            if step is None:
                 return SolveResult(
                     U,
                     cost,
@@ -546,26 +649,93 @@ class MotionCueingOcp:
                     False,
                     time.perf_counter() - start,
                     message=f"QP failed: {message}",
+                    active=active,
+                    hot_starts=hot_starts,
+                    stop="failed",
                 )
+            multipliers = None
+            if solution is not None:
+                active = solution.active
             if mode == "rti":
-                U = U_qp
+                U = U + step
                 break
             # Backtracking on the true cost; the segment stays feasible (linear constraints).
             # A rise within the QP's accuracy (about 1e-9 relative) is accepted, so that the
             # iteration can finish converging in U instead of stalling on round-off.
-            step, alpha = U_qp - U, 1.0
+            # The full step's model is the next iteration's (its Jacobians are needed there).
             allowance = 1e-9 * max(1.0, abs(cost))
-            while True:
+            alpha, next_model = 1.0, self._gauss_newton(x0, U + step, refs)
+            trial_cost = next_model.cost
+            while trial_cost > cost + allowance and alpha >= 1e-6:
+                alpha, next_model = 0.5 * alpha, None
                 trial_cost = self.cost(x0, U + alpha * step, refs)
-                if trial_cost <= cost + allowance or alpha < 1e-6:
-                    break
-                alpha *= 0.5
             if trial_cost > cost + allowance:
-                break  # no descent along the Gauss-Newton direction: converged
-            U, cost = U + alpha * step, trial_cost
-            if np.max(np.abs(alpha * step)) < cfg.step_tolerance:
+                stop = "no_descent"  # none along the Gauss-Newton direction: converged
                 break
-        return SolveResult(U, cost, iterations, True, time.perf_counter() - start, message)
+            previous = (model, alpha * step.reshape(-1))
+            U, cost = U + alpha * step, trial_cost
+            model = next_model if next_model is not None else self._gauss_newton(x0, U, refs)
+            if alpha == 1.0 and solution is not None:
+                multipliers = solution.multipliers
+            if np.max(np.abs(alpha * step)) < cfg.step_tolerance:
+                stop = "step"
+                break
+        return SolveResult(
+            U,
+            cost,
+            iterations,
+            True,
+            time.perf_counter() - start,
+            message,
+            active=active,
+            kkt_residual=kkt,
+            hot_starts=hot_starts,
+            stop=stop,
+        )
+
+    def _residual_curvature(self, S, previous, model):
+        """The structured secant update (Dennis, Gay and Welsch's, of NL2SOL) of S, the
+        approximation of the term Gauss-Newton leaves out of the Hessian, 2 sum r_a W_a
+        d^2 y_a / dU^2, after the step s from the model `previous` to `model`. Gauss-Newton
+        converges only linearly when that term matters (large residuals in a nearly flat
+        direction of the cost); this learns it along the steps taken. None: no update."""
+        old, s = previous
+        y_sharp = 2 * (model.J - old.J).T @ (self._W_rows * model.residual)
+        y = model.g - old.g
+        ys = float(y @ s)
+        if not ys > 1e-16 * max(1.0, float(s @ s)):
+            return S  # no positive curvature along s: keep what was learnt
+        if S is None:
+            S = np.zeros((s.size, s.size))
+        else:
+            sSs = float(s @ S @ s)
+            if sSs != 0.0:
+                S = S * min(1.0, abs(float(s @ y_sharp)) / abs(sSs))  # NL2SOL's sizing
+        r = y_sharp - S @ s
+        return S + (np.outer(r, y) + np.outer(y, r)) / ys - float(r @ s) * np.outer(y, y) / ys**2
+
+    def _qp_step(self, H, factor, g, d_lo, d_hi, active, linearisation):
+        """The Gauss-Newton step d (N, 6) of the QP min 1/2 d'Hd + g'd, d_lo <= C d <= d_hi
+        (`factor`: H's Cholesky factor, None if H is not positive definite): (d, verified
+        `ActiveSetSolution` or None, whether the hot start solved it, message). d is None
+        when the QP could not be solved."""
+        if factor is not None:
+            solution = solve_on_active_set(H, g, self._C, d_lo, d_hi, active, cholesky_of_H=factor)
+            if solution is not None:
+                return solution.d.reshape(self.N, NU), solution, True, ""
+        x0, U, refs, jac = linearisation
+        x_bar = self._update_qp(x0, U, refs, jac)
+        U_qp, message = self._solve_qp(U, x_bar)
+        if U_qp is None:
+            return None, None, False, message
+        d = (U_qp - U).reshape(-1)
+        if factor is not None:
+            # the solver's active set, made exact (and given multipliers) by one KKT solve
+            guess = active_rows(self._C, d, d_lo, d_hi, ACTIVE_ROW_TOLERANCE)
+            solution = solve_on_active_set(H, g, self._C, d_lo, d_hi, guess, cholesky_of_H=factor)
+            if solution is not None:
+                return solution.d.reshape(self.N, NU), solution, False, ""
+        return d.reshape(self.N, NU), None, False, ""
 
     # ----------------------------------------------------------------- warm start and fallback
     def shift(self, U: np.ndarray, steps: int = 1) -> np.ndarray:

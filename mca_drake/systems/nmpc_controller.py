@@ -28,10 +28,11 @@ class NmpcController(LeafSystem):
         - statistics
 
     Every `config.time_step` an unrestricted update reads `state` x = [q, qd] (12) and the
-    reference (6), solves the OCP warm-started from the shifted previous plan (kept in the
-    context), and stores the first input u_0 (rad/s^2, 6), which `joint_acceleration`
-    outputs. The update runs before the plant's discrete update at the same instant, so the
-    command computed from x_n is applied at t_n (no extra delay). Over the horizon the
+    reference (6), solves the OCP warm-started from the shifted previous plan and hot-started
+    from the previous active set (both kept in the context), and stores the first input u_0
+    (rad/s^2, 6), which `joint_acceleration` outputs. The update runs before the plant's
+    discrete update at the same instant, so the command computed from x_n is applied at t_n
+    (no extra delay). Over the horizon the
     reference is held constant (causal, the default) or, when `reference_preview` is
     connected, read from the preview at each grid node (clamped to the preview's end).
     A failed solve falls back to the shifted previous plan. Whatever the plan, the command
@@ -70,6 +71,9 @@ class NmpcController(LeafSystem):
             )
         self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
         self._plan_index = self.DeclareDiscreteState(self._ocp.N * NUM_JOINTS)
+        # The last QP's active set (-1, 0, +1 per row): the next step's hot start. State, not
+        # a cache, so that a run's result never depends on what the system solved before.
+        self._active_index = self.DeclareDiscreteState(self._ocp.num_rows)
         self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
         self.DeclarePeriodicUnrestrictedUpdateEvent(self._config.time_step, 0.0, self._update)
         self._command_port = self.DeclareStateOutputPort("joint_acceleration", self._command_index)
@@ -108,7 +112,8 @@ class NmpcController(LeafSystem):
             self._statistics_index
         ).value()
         warm = self._ocp.shift(plan)
-        result = self._ocp.solve(x, refs, U_guess=warm)
+        active = context.get_discrete_state(self._active_index).value()
+        result = self._ocp.solve(x, refs, U_guess=warm, active_guess=active)
         plan = result.U
         if not result.success:
             failures += 1
@@ -121,6 +126,8 @@ class NmpcController(LeafSystem):
         discrete = state.get_mutable_discrete_state()
         discrete.set_value(self._command_index, command)
         discrete.set_value(self._plan_index, plan.reshape(-1))
+        if result.active is not None:
+            discrete.set_value(self._active_index, result.active.astype(float))
         step_time = time.perf_counter() - start
         discrete.set_value(
             self._statistics_index,
