@@ -16,41 +16,14 @@ import argparse
 import os
 import platform
 import statistics
-import time
 
 import numpy as np
+from common import calibration_s
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
 from mca_drake.simulation.closed_loop import run_closed_loop
-
-
-def calibration_s() -> dict[str, float]:
-    """Wall time of a fixed numpy workload (200 products of 200 x 200 matrices) and a fixed
-    pure-Python loop (2e6 additions), the best of three each, s."""
-    rng = np.random.default_rng(0)
-    a = rng.standard_normal((200, 200))
-
-    def numpy_work():
-        b = a
-        for _ in range(200):
-            b = np.tanh(a @ b)
-
-    def python_work():
-        total = 0
-        for i in range(2_000_000):
-            total += i
-
-    out = {}
-    for name, work in (("numpy_s", numpy_work), ("python_s", python_work)):
-        times = []
-        for _ in range(3):
-            start = time.perf_counter()
-            work()
-            times.append(time.perf_counter() - start)
-        out[name] = min(times)
-    return out
 
 
 def measure(reference, seconds: float) -> dict[str, float]:

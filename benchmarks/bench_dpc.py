@@ -15,6 +15,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from common import print_calibration
 
 from mca_drake.cueing import DpcConfig
 from mca_drake.references.jsbsim import fly
@@ -47,6 +48,7 @@ def main() -> None:
     parser.add_argument("--converged-seconds", type=float, default=20.0)
     parser.add_argument("--seed", type=int, default=1000)
     args = parser.parse_args()
+    print_calibration()
     reference = reference_from_recording(fly("light", max(args.seconds, 30.0), args.seed))
     with tempfile.TemporaryDirectory() as folder:
         policy, kind = _policy_path(args.policy, folder)

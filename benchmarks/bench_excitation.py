@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from common import describe
+from common import describe, print_calibration
 
 from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
 
@@ -17,6 +17,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--runs", type=int, default=3)
     args = parser.parse_args()
+    print_calibration()
     samples, dataset = [], None
     for seed in range(args.runs):
         start = time.perf_counter()

@@ -12,6 +12,8 @@ import argparse
 import statistics
 import time
 
+from common import print_calibration
+
 from mca_drake.references.jsbsim import VEHICLES, fly
 
 
@@ -20,6 +22,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=3, help="flights per vehicle")
     parser.add_argument("--duration", type=float, default=300.0, help="flight length, s")
     args = parser.parse_args()
+    print_calibration()
     fly("light", 1.0, seed=0)  # warm-up: imports, first model load
     for vehicle in VEHICLES:
         rates = []

@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import describe, time_calls
+from common import describe, print_calibration, time_calls
 
 from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.robot import load_kr500
@@ -19,6 +19,7 @@ def main() -> None:
     parser.add_argument("--nodes", type=int, default=64)
     parser.add_argument("--repeats", type=int, default=300)
     args = parser.parse_args()
+    print_calibration()
     robot = load_kr500()
     rng = np.random.default_rng(0)
     n = args.nodes

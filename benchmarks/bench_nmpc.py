@@ -1,77 +1,197 @@
-"""NMPC on a light-aircraft flight: per-step solve time and PI of both modes, and closed-loop
-dataset throughput with 1 and 2 worker processes.
+"""NMPC step times and PI, both modes, at the shipped (tuned) weights and the paper's.
 
-    python benchmarks/bench_nmpc.py [--minutes 5] [--converged-seconds 300] [--seed 1000]
+    python benchmarks/bench_nmpc.py [--duration 300] [--converged-duration 300]
+        [--vehicle light] [--seed 1000] [--adversarial-duration 5]
+        [--baseline DIR --baseline-converged-duration 30] [--json out.json]
+
+On one evaluation flight (analytical plant, closed loop), per weight set and mode: step
+median, p99 and max (ms) and the PI; then the PI gap rti - converged over the converged
+window. Then converged NMPC (shipped weights) on the adversarial references (3 g steps,
+3 rad/s spins, a 1 g chirp): step median and max. From the converged mean step time it
+extrapolates the default-size evaluation suite's converged cost (20 flights x 300 s).
+
+`--baseline DIR` runs the same flight measurements with the mca_drake of another checkout
+(e.g. `git worktree add /tmp/base <commit>`) in a subprocess, one after the other in this
+run, so that before and after are timed under the same conditions; converged mode there is
+slow, hence its own, shorter window. The machine's calibration is printed first.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import subprocess
+import sys
 import tempfile
-import time
+from pathlib import Path
 
-from mca_drake.references.jsbsim import fly
-from mca_drake.references.reference import reference_from_recording
+import numpy as np
+from common import print_calibration
+
+from mca_drake.atomic_io import atomic_write_json
+from mca_drake.cueing import NmpcConfig
+from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
-from mca_drake.studies.closed_loop_dataset import (
-    ClosedLoopDatasetConfig,
-    generate_closed_loop_dataset,
-)
+
+# Runs of the default-size evaluation suite that use converged NMPC: cases A and B,
+# 10 flights each, 300 s at 100 Hz.
+SUITE_CONVERGED_STEPS = 2 * 10 * 300 * 100
+
+
+def measure_flight(vehicle: str, seed: int, duration_s: float, converged_s: float) -> dict:
+    """Both modes at both weight sets on one flight: {label: figures}. Uses only what every
+    checkout since the typed configs has (for --baseline)."""
+    reference = flight_reference(FlightSpec(vehicle=vehicle, seed=seed), duration_s)
+    out = {}
+    for weights in ("shipped", "paper"):
+        for mode, seconds in (("rti", duration_s), ("converged", converged_s)):
+            config = NmpcConfig(mode=mode) if weights == "shipped" else NmpcConfig.paper(mode)
+            result = run_closed_loop(
+                mca=config, reference=reference, duration_s=seconds, progress=False
+            )
+            out[f"{weights}/{mode}"] = _figures(result, seconds)
+            print(f"  {weights:8s} {mode:9s} {_line(out[f'{weights}/{mode}'])}", flush=True)
+        if converged_s < duration_s:  # rti over the converged window, for the PI gap
+            config = NmpcConfig(mode="rti") if weights == "shipped" else NmpcConfig.paper("rti")
+            result = run_closed_loop(
+                mca=config, reference=reference, duration_s=converged_s, progress=False
+            )
+            out[f"{weights}/rti_window"] = _figures(result, converged_s)
+    return out
+
+
+def _figures(result, seconds: float) -> dict:
+    steps = np.asarray(result.step_times_s, dtype=float)
+    s = result.summary
+    return {
+        "seconds": seconds,
+        "median_ms": float(np.median(steps) * 1e3),
+        "p99_ms": float(np.percentile(steps, 99) * 1e3),
+        "max_ms": float(steps.max() * 1e3),
+        "mean_ms": float(steps.mean() * 1e3),
+        "pi": float(s["pi"]),
+        "violations": int(sum(s["violations"].values())),
+        "failures": int(s["solver_failures"]),
+    }
+
+
+def _line(f: dict) -> str:
+    return (
+        f"{f['seconds']:5.0f} s: step median {f['median_ms']:6.2f} ms, p99 {f['p99_ms']:6.2f}, "
+        f"max {f['max_ms']:7.2f}; PI {f['pi']:+.4f}; "
+        f"violations {f['violations']}, failures {f['failures']}"
+    )
+
+
+def measure_adversarial(duration_s: float) -> dict:
+    """Converged NMPC (shipped weights) on every adversarial reference."""
+    from mca_drake.references.adversarial import ADVERSARIAL_KINDS, adversarial_reference
+
+    out = {}
+    for kind in ADVERSARIAL_KINDS:
+        result = run_closed_loop(
+            mca=NmpcConfig(mode="converged"),
+            reference=adversarial_reference(kind, duration_s),
+            duration_s=duration_s,
+            progress=False,
+        )
+        out[kind] = _figures(result, duration_s)
+        print(f"  {kind:8s} {_line(out[kind])}", flush=True)
+    return out
+
+
+def run_baseline(directory: str, args) -> dict:
+    """measure_flight with the mca_drake of `directory`, in a subprocess."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "baseline.json"
+        env = dict(os.environ, PYTHONPATH=str(Path(directory).resolve()))
+        command = [
+            sys.executable,
+            __file__,
+            "--measure-flight-only",
+            str(out),
+            *("--vehicle", args.vehicle, "--seed", str(args.seed)),
+            *("--duration", str(args.duration)),
+            *("--converged-duration", str(args.baseline_converged_duration)),
+        ]
+        subprocess.run(command, env=env, check=True)
+        return json.loads(out.read_text())
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--minutes", type=float, default=5.0)
-    parser.add_argument(
-        "--converged-seconds",
-        type=float,
-        default=300.0,
-        help="converged mode is slow: evaluate it on this many seconds",
-    )
+    parser.add_argument("--vehicle", default="light")
     parser.add_argument("--seed", type=int, default=1000)
-    parser.add_argument(
-        "--dataset-seconds",
-        type=float,
-        default=60.0,
-        help="flight length for the dataset throughput runs (0: skip)",
-    )
+    parser.add_argument("--duration", type=float, default=300.0, help="rti flight, s")
+    parser.add_argument("--converged-duration", type=float, default=300.0)
+    parser.add_argument("--adversarial-duration", type=float, default=5.0, help="0: skip")
+    parser.add_argument("--baseline", help="a checkout to compare with (its mca_drake)")
+    parser.add_argument("--baseline-converged-duration", type=float, default=30.0)
+    parser.add_argument("--json", help="write every figure here")
+    parser.add_argument("--measure-flight-only", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    reference = reference_from_recording(fly("light", args.minutes * 60, args.seed))
-    window = min(args.converged_seconds, args.minutes * 60)
-    results = {}
-    for mca, duration in (("nmpc-rti", args.minutes * 60), ("nmpc-converged", window)):
-        r = run_closed_loop(mca=mca, reference=reference, duration_s=duration, progress=False)
-        results[mca] = r
-        s = r.summary
-        t = {k: f"{v * 1e3:.2f} ms" for k, v in s["step_time_s"].items()}
-        print(
-            f"{mca:15s} {duration:5.0f} s: PI {s['pi']:.4f} (zero motion "
-            f"{s['pi_zero_motion']:.4f}), step {t}, violations "
-            f"{s['violations']}, failures {s['solver_failures']}, "
-            f"interventions {s['safety_interventions']}, {s['realtime_factor']:.2f}x real time"
-        )
-    # PI of rti over the converged window, for a like-for-like comparison
-    rti_window = run_closed_loop(
-        mca="nmpc-rti", reference=reference, duration_s=window, progress=False
+    if args.measure_flight_only:  # the --baseline subprocess
+        import mca_drake
+
+        print(f"baseline: {Path(mca_drake.__file__).parent}", flush=True)
+        figures = measure_flight(args.vehicle, args.seed, args.duration, args.converged_duration)
+        Path(args.measure_flight_only).write_text(json.dumps(figures))
+        return
+    report = {"calibration": print_calibration()}
+    print(f"{args.vehicle} flight, seed {args.seed}, analytical plant:", flush=True)
+    report["flight"] = measure_flight(
+        args.vehicle, args.seed, args.duration, args.converged_duration
     )
-    gap = rti_window.summary["pi"] - results["nmpc-converged"].summary["pi"]
+    for weights in ("shipped", "paper"):
+        flight = report["flight"]
+        rti = flight.get(f"{weights}/rti_window", flight[f"{weights}/rti"])
+        gap = rti["pi"] - flight[f"{weights}/converged"]["pi"]
+        print(f"PI gap rti - converged, {weights} weights: {gap:+.4f}")
+    converged = report["flight"]["shipped/converged"]
+    core_hours = converged["mean_ms"] * 1e-3 * SUITE_CONVERGED_STEPS / 3600
+    report["suite_converged_core_hours"] = core_hours
     print(
-        f"PI over the first {window:.0f} s: rti {rti_window.summary['pi']:.4f}, converged "
-        f"{results['nmpc-converged'].summary['pi']:.4f}, gap {gap:+.4f}"
+        f"default-size suite, converged NMPC: {core_hours:.2f} core-hours "
+        f"(mean step {converged['mean_ms']:.2f} ms x {SUITE_CONVERGED_STEPS} steps)"
     )
-    if args.dataset_seconds > 0:
-        for workers in (1, 2):
-            config = ClosedLoopDatasetConfig(
-                flight_seeds=(7, 8), flight_duration_s=args.dataset_seconds
+    if args.adversarial_duration > 0:
+        print(f"adversarial references, converged, {args.adversarial_duration:g} s each:")
+        report["adversarial"] = measure_adversarial(args.adversarial_duration)
+        medians = [f["median_ms"] for f in report["adversarial"].values()]
+        worst = max(f["max_ms"] for f in report["adversarial"].values())
+        print(f"  adversarial: median of medians {np.median(medians):.2f} ms, max {worst:.2f}")
+    if args.baseline:
+        print(f"baseline {args.baseline}:", flush=True)
+        report["baseline"] = run_baseline(args.baseline, args)
+        # the converged PI over the baseline's (shorter) window, with this checkout
+        window = args.baseline_converged_duration
+        reference = flight_reference(FlightSpec(vehicle=args.vehicle, seed=args.seed), window)
+        same_window = {}
+        for weights in ("shipped", "paper"):
+            config = (
+                NmpcConfig(mode="converged")
+                if weights == "shipped"
+                else NmpcConfig.paper("converged")
             )
-            with tempfile.TemporaryDirectory() as out:
-                start = time.perf_counter()
-                generate_closed_loop_dataset(config, out, workers=workers, progress=False)
-                wall = time.perf_counter() - start
+            result = run_closed_loop(
+                mca=config, reference=reference, duration_s=window, progress=False
+            )
+            same_window[f"{weights}/converged"] = _figures(result, window)
+        report["converged_on_baseline_window"] = same_window
+        for label, before in report["baseline"].items():
+            if label.endswith("rti_window"):
+                continue
+            after = same_window.get(label, report["flight"][label])
             print(
-                f"dataset, {workers} worker(s): {2 * args.dataset_seconds / wall:.2f} "
-                f"simulated s per wall s (2 flights x {args.dataset_seconds:.0f} s)"
+                f"  {label:20s} ({before['seconds']:.0f} s) step median "
+                f"{before['median_ms']:.2f} -> {after['median_ms']:.2f} ms, p99 "
+                f"{before['p99_ms']:.2f} -> {after['p99_ms']:.2f}, max {before['max_ms']:.2f} "
+                f"-> {after['max_ms']:.2f}; PI {before['pi']:+.4f} -> {after['pi']:+.4f} "
+                f"({after['pi'] - before['pi']:+.4f})"
             )
+    if args.json:
+        atomic_write_json(args.json, report)
 
 
 if __name__ == "__main__":

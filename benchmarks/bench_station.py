@@ -17,6 +17,7 @@ import os
 import platform
 
 import numpy as np
+from common import print_calibration
 
 from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
@@ -31,6 +32,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--json", help="also write the figures to this JSON file")
     args = parser.parse_args()
+    print_calibration()
     duration = 60.0 * args.minutes
     reference = reference_from_recording(
         fly("light", duration, args.seed), name=f"light {args.seed}"

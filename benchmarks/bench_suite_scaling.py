@@ -6,7 +6,7 @@ with N workers (a local Ray), efficiency = speed-up / workers.
 The suite: cases A and B with `--flights` flights each, DPC, washout and NMPC-rti, on the
 analytical plant. The flights are flown once beforehand and copied into every run's
 folder, so that both runs time the same closed loops. Prints the calibration of this
-machine (`bench_closed_loop.calibration_s`) beside the figures.
+machine (`common.calibration_s`) beside the figures.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench_closed_loop import calibration_s
+from common import calibration_s
 
 from mca_drake.studies.evaluation import EvaluationCase, EvaluationConfig, run_evaluation
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 
 import torch
-from common import describe, time_calls
+from common import describe, print_calibration, time_calls
 
 from mca_drake.torch_plant import TorchPlant
 
@@ -20,6 +20,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=20)
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     args = parser.parse_args()
+    print_calibration()
     print(f"torch {torch.__version__}, rollout batch {args.batch} x {args.steps} steps")
     for dtype in (torch.float32, torch.float64):
         for threads in args.threads:

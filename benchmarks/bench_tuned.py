@@ -8,7 +8,7 @@ tuned washout against zero motion, each on the first `--flights` evaluation flig
 light aircraft (seeds 1000 on) and of the jet (2000 on), `--duration` s each, on the
 analytical plant. Prints per flight and per vehicle the PIs, the median PI gain and on how
 many flights the tuned config is better, the step-time p99 of the tuned NMPC, and the
-machine's calibration (`bench_closed_loop.calibration_s`). Runs are tasks of
+machine's calibration (`common.calibration_s`). Runs are tasks of
 `mca_drake.studies.parallel.run_tasks` (a local Ray with `--workers` CPUs).
 """
 
@@ -20,7 +20,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from bench_closed_loop import calibration_s
+from common import calibration_s
 
 from mca_drake.app.scenarios import load_scenario
 from mca_drake.atomic_io import atomic_write_json

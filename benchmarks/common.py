@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import os
+import platform
 import statistics
 import time
 from collections.abc import Callable
+
+import numpy as np
 
 
 def time_calls(fn: Callable[[], object], *, repeats: int, warmup: int = 3) -> list[float]:
@@ -29,3 +33,43 @@ def describe(samples: list[float], unit: str = "ms") -> str:
         f"median {statistics.median(samples) * scale:.3f} {unit} "
         f"(p10 {p10 * scale:.3f}, p90 {p90 * scale:.3f}, n {len(samples)})"
     )
+
+
+def calibration_s() -> dict[str, float]:
+    """Wall time of a fixed numpy workload (200 products of 200 x 200 matrices) and a fixed
+    pure-Python loop (2e6 additions), the best of three each, s."""
+    rng = np.random.default_rng(0)
+    a = rng.standard_normal((200, 200))
+
+    def numpy_work():
+        b = a
+        for _ in range(200):
+            b = np.tanh(a @ b)
+
+    def python_work():
+        total = 0
+        for i in range(2_000_000):
+            total += i
+
+    out = {}
+    for name, work in (("numpy_s", numpy_work), ("python_s", python_work)):
+        times = []
+        for _ in range(3):
+            start = time.perf_counter()
+            work()
+            times.append(time.perf_counter() - start)
+        out[name] = min(times)
+    return out
+
+
+def print_calibration() -> dict[str, float]:
+    """Prints (and returns) `calibration_s` with the machine's core count and CPU, so that
+    figures from different machines (or loads) can be compared: every benchmark starts so."""
+    figures = calibration_s()
+    print(
+        f"calibration: numpy {figures['numpy_s'] * 1e3:.1f} ms, pure Python "
+        f"{figures['python_s'] * 1e3:.1f} ms; {os.cpu_count()} cores, "
+        f"{platform.processor() or platform.machine()}",
+        flush=True,
+    )
+    return figures

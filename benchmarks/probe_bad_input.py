@@ -25,6 +25,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from common import print_calibration
 from test_station_limits import KINDS, adversarial_reference
 
 from mca_drake.app import cli
@@ -230,6 +231,7 @@ def main() -> None:
     parser.add_argument("--json", help="also write the table to this JSON file")
     parser.add_argument("--skip-station", action="store_true")
     args = parser.parse_args()
+    print_calibration()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)

@@ -16,35 +16,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mca_drake.conventions import GRAVITY
 from mca_drake.metrics import joint_usage
-from mca_drake.references.recording import Recording
-from mca_drake.references.reference import Reference, reference_from_recording
+from mca_drake.references.adversarial import ADVERSARIAL_KINDS, adversarial_reference
 from mca_drake.safety import ViabilityClamp, substep_position_coefficient
 from mca_drake.simulation.closed_loop import run_closed_loop
 
 DURATION_S = 5.0
-ONSET_S = 1.0
-KINDS = ("step_fx", "step_fy", "step_fz", "spin_x", "spin_y", "spin_z", "chirp")
-
-
-def adversarial_reference(kind: str, duration_s: float = DURATION_S) -> Reference:
-    """A vehicle recording that no robot can render: a 3 g step of specific force along
-    one head axis, a 3 rad/s spin about one, or a 1 g surge chirp (0.1 to 5 Hz)."""
-    t = np.arange(0.0, duration_s + 1e-9, 0.01)
-    omega = np.zeros((t.size, 3))
-    f = np.tile([0.0, 0.0, GRAVITY], (t.size, 1))
-    on = t >= ONSET_S
-    if kind.startswith("step_f"):
-        f[on, "xyz".index(kind[-1])] += 3 * GRAVITY
-    elif kind.startswith("spin_"):
-        omega[on, "xyz".index(kind[-1])] = 3.0
-    elif kind == "chirp":
-        rate = (5.0 - 0.1) / duration_s
-        f[:, 0] += GRAVITY * np.sin(2 * np.pi * (0.1 * t + 0.5 * rate * t * t))
-    else:
-        raise ValueError(f"unknown adversarial reference {kind!r}")
-    return reference_from_recording(Recording(t, omega, f), name=kind)
+KINDS = ADVERSARIAL_KINDS
 
 
 def _assert_no_violation(result, robot) -> None:

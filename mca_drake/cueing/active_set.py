@@ -67,7 +67,7 @@ def solve_on_active_set(
     hi: np.ndarray,
     active: np.ndarray,
     *,
-    max_corrections: int = 8,
+    max_corrections: int = 25,
     cholesky_of_H: tuple | None = None,
 ) -> ActiveSetSolution | None:
     """Solves the QP from a guessed active set; None when the guess cannot be corrected in
@@ -97,7 +97,17 @@ def solve_on_active_set(
             Y = scipy.linalg.cho_solve(factor, rows.T)  # H^-1 rows^T, (n, k)
             schur = cholesky(rows @ Y)
             if schur is None:
-                return None
+                # Dependent active rows (at the robot's limits the box on u_0 and the node
+                # row it was derived from are active together): keep an independent subset;
+                # the rows left out hold as equalities too when the set is consistent, and
+                # the feasibility check below sees to it.
+                keep = _independent_rows(rows)
+                active[index[~keep]] = 0
+                index, side, rows, rhs = index[keep], side[keep], rows[keep], rhs[keep]
+                Y = Y[:, keep]
+                schur = cholesky(rows @ Y)
+                if schur is None:
+                    return None
             mu = scipy.linalg.cho_solve(schur, -rows @ Hinv_g - rhs)
             d = -Hinv_g - Y @ mu
         else:
@@ -132,6 +142,16 @@ def solve_on_active_set(
             worst = int(np.argmax(excess))
             active[worst] = 1 if value[worst] > hi[worst] else -1
     return None
+
+
+def _independent_rows(rows: np.ndarray) -> np.ndarray:
+    """A mask of linearly independent rows (QR with column pivoting of rows^T)."""
+    _, R, pivots = scipy.linalg.qr(rows.T, mode="economic", pivoting=True)
+    diagonal = np.abs(np.diag(R))
+    rank = int(np.sum(diagonal > 1e-9 * diagonal[0])) if diagonal.size else 0
+    keep = np.zeros(rows.shape[0], dtype=bool)
+    keep[pivots[:rank]] = True
+    return keep
 
 
 # A Cholesky factor whose smallest pivot is below this fraction of the largest is treated as

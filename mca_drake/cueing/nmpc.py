@@ -93,8 +93,9 @@ class NmpcConfig:
     # Two tangents are enough: u_0 is held to the exact viability interval anyway, the
     # tangents only keep the later plan realistic, and each costs 12 rows per node.
     stoppability_tangents: int = 2
-    # QP solver: "clarabel" (interior point, accurate), "osqp" (ADMM with solution polishing,
-    # fast) or "auto" (osqp for rti, clarabel for converged).
+    # Drake's QP solver where the hot-started active set does not settle: "clarabel"
+    # (interior point, accurate), "osqp" (ADMM with solution polishing, fast) or "auto"
+    # (osqp for rti, clarabel for converged).
     qp_solver: str = "auto"
     # OSQP's absolute and relative tolerance (polishing then recovers the active set); rti
     # takes a single approximate Gauss-Newton step, so 1e-3 loses nothing measurable there.
@@ -113,8 +114,9 @@ class NmpcConfig:
     max_iterations: int = 50
     step_tolerance: float = 1e-6
     # converged mode: stop at a KKT point of the nonlinear program, once the stationarity
-    # residual |grad f(U) + C^T lambda|_inf (cost units per rad/s^2) is below this, with U
-    # feasible and complementary to lambda >= 0 (both exact, from a verified QP solution).
+    # residual |grad f(U) + C^T lambda|_inf (cost units per rad/s^2) is below this times
+    # max(1, cost), with U feasible and complementary to lambda >= 0 (both exact, from a
+    # verified QP solution).
     kkt_tolerance: float = 1e-8
 
     @classmethod
@@ -407,25 +409,34 @@ class MotionCueingOcp:
             [cfg.terminal_position_weight] * 6 + [cfg.terminal_velocity_weight] * 6
         )
         prog.AddQuadraticCost(terminal, np.zeros(12), self.X_var[-1], is_convex=True)
-        solver = cfg.qp_solver
-        if solver == "auto":
-            solver = "osqp" if cfg.mode == "rti" else "clarabel"
-        self.qp_solver_name = solver
-        self._solver = ClarabelSolver() if solver == "clarabel" else OsqpSolver()
-        self._options = SolverOptions()
-        sid = self._solver.solver_id()
-        if solver == "clarabel":
-            for name in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
-                self._options.SetOption(sid, name, cfg.clarabel_tolerance)
-        if solver == "osqp":
-            for name, value in (
+        # Drake's solver when the hot start does not settle; its answer is made exact (and
+        # given multipliers) by a KKT solve on its active set when that verifies. "auto":
+        # OSQP in rti mode, Clarabel in converged mode. (OSQP first and Clarabel after it in
+        # converged mode made the worst steps on a 3 g step twice as slow: where the hot
+        # start fails, OSQP's answer rarely verifies either.)
+        auto = "osqp" if cfg.mode == "rti" else "clarabel"
+        self.qp_solver_name = auto if cfg.qp_solver == "auto" else cfg.qp_solver
+        self._solver, self._options = self._make_solver(self.qp_solver_name)
+
+    def _make_solver(self, name: str):
+        """(solver, options) of one of Drake's QP solvers, with this config's settings."""
+        cfg = self.config
+        solver = ClarabelSolver() if name == "clarabel" else OsqpSolver()
+        options = SolverOptions()
+        sid = solver.solver_id()
+        if name == "clarabel":
+            for option in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
+                options.SetOption(sid, option, cfg.clarabel_tolerance)
+        else:
+            for option, value in (
                 ("eps_abs", cfg.osqp_tolerance),
                 ("eps_rel", cfg.osqp_tolerance),
                 ("max_iter", cfg.osqp_max_iterations or 20000),
                 ("polishing", 1),
                 ("verbose", 0),
             ):
-                self._options.SetOption(sid, name, value)
+                options.SetOption(sid, option, value)
+        return solver, options
 
     def _tangents(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """(slope, offset) per tangent of the stopping parabola q = q_max - v^2 / (2 a) at
@@ -618,26 +629,31 @@ class MotionCueingOcp:
         curvature, previous = None, None  # converged: the quasi-Newton residual curvature
         for _ in range(1 if mode == "rti" else cfg.max_iterations):
             H, g = model.H, model.g
-            factor = None
+            gauss_newton = (H, cholesky(H))
+            factor = gauss_newton[1]
             if previous is not None:
                 curvature = self._residual_curvature(curvature, previous, model)
                 if curvature is not None:
-                    factor = cholesky(H + curvature)
-                    if factor is not None:  # else not convex: plain Gauss-Newton this time
-                        H = H + curvature
-            if factor is None:
-                factor = cholesky(H)
+                    with_curvature = cholesky(H + curvature)
+                    if with_curvature is not None:  # else not convex: plain Gauss-Newton
+                        H, factor = H + curvature, with_curvature
             if multipliers is not None:
                 # U is the last QP's solution: feasible, its active rows exactly at their
                 # bounds and its multipliers >= 0, so the stationarity residual of the
                 # Lagrangian with the true gradient is U's KKT residual for the NLP.
                 kkt = float(np.max(np.abs(g + self._C.T @ (active * multipliers))))
-                if kkt <= cfg.kkt_tolerance:
+                if kkt <= cfg.kkt_tolerance * max(1.0, abs(cost)):
                     stop = "kkt"
                     break
             CU = self._C @ U.reshape(-1)
             step, solution, hot, message = self._qp_step(
-                H, factor, g, row_lo - CU, row_hi - CU, active, (x0, U, refs, model.jac)
+                (H, factor),
+                gauss_newton,
+                g,
+                row_lo - CU,
+                row_hi - CU,
+                active,
+                (x0, U, refs, model.jac),
             )
             iterations += 1
             hot_starts += hot
@@ -661,15 +677,21 @@ class MotionCueingOcp:
                 break
             # Backtracking on the true cost; the segment stays feasible (linear constraints).
             # A rise within the QP's accuracy (about 1e-9 relative) is accepted, so that the
-            # iteration can finish converging in U instead of stalling on round-off.
+            # iteration can finish converging in U instead of stalling on round-off. A start
+            # that breaks a constraint (the shifted plan from a new state) takes the full
+            # step, which lands on the feasible set, whatever it costs: a cost line search
+            # from outside that set can stall there (on a 3 g step it did, 50 iterations).
             # The full step's model is the next iteration's (its Jacobians are needed there).
             allowance = 1e-9 * max(1.0, abs(cost))
             alpha, next_model = 1.0, self._gauss_newton(x0, U + step, refs)
             trial_cost = next_model.cost
-            while trial_cost > cost + allowance and alpha >= 1e-6:
+            restoring = bool(np.any(CU < row_lo - 1e-9) or np.any(CU > row_hi + 1e-9))
+            while trial_cost > cost + allowance and not restoring:
                 alpha, next_model = 0.5 * alpha, None
+                if alpha < 1e-6:
+                    break
                 trial_cost = self.cost(x0, U + alpha * step, refs)
-            if trial_cost > cost + allowance:
+            if alpha < 1e-6:
                 stop = "no_descent"  # none along the Gauss-Newton direction: converged
                 break
             previous = (model, alpha * step.reshape(-1))
@@ -714,15 +736,21 @@ class MotionCueingOcp:
         r = y_sharp - S @ s
         return S + (np.outer(r, y) + np.outer(y, r)) / ys - float(r @ s) * np.outer(y, y) / ys**2
 
-    def _qp_step(self, H, factor, g, d_lo, d_hi, active, linearisation):
-        """The Gauss-Newton step d (N, 6) of the QP min 1/2 d'Hd + g'd, d_lo <= C d <= d_hi
-        (`factor`: H's Cholesky factor, None if H is not positive definite): (d, verified
-        `ActiveSetSolution` or None, whether the hot start solved it, message). d is None
-        when the QP could not be solved."""
+    def _qp_step(self, model, gauss_newton, g, d_lo, d_hi, active, linearisation):
+        """The step d (N, 6) of the QP min 1/2 d'Hd + g'd, d_lo <= C d <= d_hi: (d, verified
+        `ActiveSetSolution` or None, whether the hot start solved it, message); d is None
+        when the QP could not be solved.
+
+        `model` is (H, its Cholesky factor or None), H with the learnt residual curvature
+        where there is one; `gauss_newton` the same for the plain Gauss-Newton H. The hot
+        start tries `model`; Drake's solver (and the KKT solve that makes its active set
+        exact) takes the Gauss-Newton H, which is what its sparse program holds."""
+        H, factor = model
         if factor is not None:
             solution = solve_on_active_set(H, g, self._C, d_lo, d_hi, active, cholesky_of_H=factor)
             if solution is not None:
                 return solution.d.reshape(self.N, NU), solution, True, ""
+        H, factor = gauss_newton
         x0, U, refs, jac = linearisation
         x_bar = self._update_qp(x0, U, refs, jac)
         U_qp, message = self._solve_qp(U, x_bar)
