@@ -69,6 +69,7 @@ def solve_on_active_set(
     *,
     max_corrections: int = 25,
     cholesky_of_H: tuple | None = None,
+    groups: np.ndarray | None = None,
 ) -> ActiveSetSolution | None:
     """Solves the QP from a guessed active set; None when the guess cannot be corrected in
     `max_corrections` rounds (or the active rows are linearly dependent).
@@ -77,6 +78,8 @@ def solve_on_active_set(
         H: (n, n) symmetric positive definite. g: (n,). C: (m, n). lo, hi: (m,), may be
             infinite. active: (m,) in {-1, 0, +1}, the guess.
         cholesky_of_H: `scipy.linalg.cho_factor(H)` when the caller has it already.
+        groups: `parallel_groups(C)` when the caller has it: of rows that are multiples of
+            one another at most one is made active (two would make the KKT system singular).
     """
     factor = cholesky_of_H if cholesky_of_H is not None else cholesky(H)
     if factor is None:
@@ -88,13 +91,22 @@ def solve_on_active_set(
     active[(active > 0) & ~np.isfinite(hi)] = 0
     active[(active < 0) & ~np.isfinite(lo)] = 0
     seen, one_at_a_time = set(), False
+    # columns of H^-1 C^T, computed once per row as rows become active
+    Hinv_Ct = np.empty((C.shape[1], C.shape[0]))
+    known = np.zeros(C.shape[0], dtype=bool)
     for corrections in range(max_corrections + 1):
+        if groups is not None:
+            active = _one_per_group(active, groups)
         index = np.flatnonzero(active)
         side = active[index].astype(float)
         if index.size:
             rows = C[index]
             rhs = np.where(side > 0, hi[index], lo[index])
-            Y = scipy.linalg.cho_solve(factor, rows.T)  # H^-1 rows^T, (n, k)
+            missing = index[~known[index]]
+            if missing.size:
+                Hinv_Ct[:, missing] = scipy.linalg.cho_solve(factor, C[missing].T)
+                known[missing] = True
+            Y = Hinv_Ct[:, index]  # H^-1 rows^T, (n, k)
             schur = cholesky(rows @ Y)
             if schur is None:
                 # Dependent active rows (at the robot's limits the box on u_0 and the node
@@ -142,6 +154,33 @@ def solve_on_active_set(
             worst = int(np.argmax(excess))
             active[worst] = 1 if value[worst] > hi[worst] else -1
     return None
+
+
+def parallel_groups(C: np.ndarray) -> np.ndarray:
+    """A group number per row of C (m,): rows that are multiples of one another share one;
+    -1 for a row parallel to no other."""
+    norms = np.linalg.norm(C, axis=1, keepdims=True)
+    unit = C / np.where(norms > 0, norms, 1.0)
+    # make the sign unique: first non-zero entry positive
+    first = np.argmax(np.abs(unit) > 1e-12, axis=1)
+    unit *= np.sign(unit[np.arange(len(unit)), first])[:, None]
+    _, group, counts = np.unique(unit.round(12), axis=0, return_inverse=True, return_counts=True)
+    group = group.reshape(-1)
+    return np.where(counts[group] > 1, group, -1)
+
+
+def _one_per_group(active: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """`active` with at most one active row per group of parallel rows (the first)."""
+    index = np.flatnonzero((active != 0) & (groups >= 0))
+    if index.size < 2:
+        return active
+    _, first = np.unique(groups[index], return_index=True)
+    if first.size == index.size:
+        return active
+    active = active.copy()
+    drop = np.setdiff1d(index, index[first])
+    active[drop] = 0
+    return active
 
 
 def _independent_rows(rows: np.ndarray) -> np.ndarray:

@@ -40,7 +40,12 @@ from pydrake.solvers import (
 from threadpoolctl import ThreadpoolController
 
 from mca_drake.conventions import CONTROL_PERIOD_S
-from mca_drake.cueing.active_set import active_rows, cholesky, solve_on_active_set
+from mca_drake.cueing.active_set import (
+    active_rows,
+    cholesky,
+    parallel_groups,
+    solve_on_active_set,
+)
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
@@ -310,6 +315,8 @@ class MotionCueingOcp:
         # Every row of the QP in U: the node constraints A, then the box on U itself.
         self._C = np.vstack([self.A, np.eye(NU * N)])
         self.num_rows = self._C.shape[0]
+        # node 1's rows are multiples of u_0's box rows (the exact viability interval)
+        self._parallel = parallel_groups(self._C)
         self._blas = ThreadpoolController()
         self._A_q0, self._A_qd0 = np.vstack(self._row_q0), np.vstack(self._row_qd0)
         self._lower0, self._upper0 = np.concatenate(lower), np.concatenate(upper)
@@ -747,7 +754,9 @@ class MotionCueingOcp:
         exact) takes the Gauss-Newton H, which is what its sparse program holds."""
         H, factor = model
         if factor is not None:
-            solution = solve_on_active_set(H, g, self._C, d_lo, d_hi, active, cholesky_of_H=factor)
+            solution = solve_on_active_set(
+                H, g, self._C, d_lo, d_hi, active, cholesky_of_H=factor, groups=self._parallel
+            )
             if solution is not None:
                 return solution.d.reshape(self.N, NU), solution, True, ""
         H, factor = gauss_newton
@@ -760,7 +769,9 @@ class MotionCueingOcp:
         if factor is not None:
             # the solver's active set, made exact (and given multipliers) by one KKT solve
             guess = active_rows(self._C, d, d_lo, d_hi, ACTIVE_ROW_TOLERANCE)
-            solution = solve_on_active_set(H, g, self._C, d_lo, d_hi, guess, cholesky_of_H=factor)
+            solution = solve_on_active_set(
+                H, g, self._C, d_lo, d_hi, guess, cholesky_of_H=factor, groups=self._parallel
+            )
             if solution is not None:
                 return solution.d.reshape(self.N, NU), solution, False, ""
         return d.reshape(self.N, NU), None, False, ""
