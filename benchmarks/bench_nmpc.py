@@ -6,9 +6,10 @@
 
 On one evaluation flight (analytical plant, closed loop), per weight set and mode: step
 median, p99 and max (ms) and the PI; then the PI gap rti - converged over the converged
-window. Then converged NMPC (shipped weights) on the adversarial references (3 g steps,
-3 rad/s spins, a 1 g chirp): step median and max. From the converged mean step time it
-extrapolates the default-size evaluation suite's converged cost (20 flights x 300 s).
+window. First, a profile of both modes (where a step's time goes). Then converged NMPC
+(shipped weights) on the adversarial references (3 g steps, 3 rad/s spins, a 1 g chirp):
+step median and max. From the converged mean step time it extrapolates the default-size
+evaluation suite's converged cost (20 flights x 300 s).
 
 `--baseline DIR` runs the same flight measurements with the mca_drake of another checkout
 (e.g. `git worktree add /tmp/base <commit>`) in a subprocess, one after the other in this
@@ -101,6 +102,51 @@ def measure_adversarial(duration_s: float) -> dict:
     return out
 
 
+# Where an NMPC step's time goes: (label, functions whose cumulative time it is).
+PROFILE_PARTS = (
+    ("output Jacobians (kinematics)", ("plant_output_jacobians",)),
+    ("Gauss-Newton model (H, g)", ("_gauss_newton",)),
+    ("hot-started active-set QP", ("solve_on_active_set",)),
+    ("Drake QP set-up (stage costs)", ("_update_qp",)),
+    ("Drake QP solve", ("_solve_qp",)),
+    ("line search (true cost)", ("cost",)),
+    ("quasi-Newton update", ("_residual_curvature",)),
+    ("whole solve", ("_solve",)),
+)
+
+
+def profile_modes(vehicle: str, seed: int, seconds: float) -> dict:
+    """cProfile of both modes (shipped weights) on `seconds` of the flight: the share of
+    the solve's time in each part of PROFILE_PARTS (parts nest: the model holds the
+    Jacobians)."""
+    import cProfile
+    import pstats
+
+    reference = flight_reference(FlightSpec(vehicle=vehicle, seed=seed), seconds)
+    out = {}
+    for mode in ("rti", "converged"):
+        profiler = cProfile.Profile()
+        profiler.enable()
+        run_closed_loop(
+            mca=NmpcConfig(mode=mode), reference=reference, duration_s=seconds, progress=False
+        )
+        profiler.disable()
+        stats = pstats.Stats(profiler).stats  # {(file, line, name): (cc, nc, tt, ct, callers)}
+        cumulative = {}
+        for (file, _, name), (_, _, _, ct, _) in stats.items():
+            if "mca_drake" in file:
+                cumulative[name] = cumulative.get(name, 0.0) + ct
+        steps = round(seconds / 0.01)
+        out[mode] = {
+            label: sum(cumulative.get(n, 0.0) for n in names) / steps * 1e3
+            for label, names in PROFILE_PARTS
+        }
+        print(f"  {mode} (ms per step, under the profiler):", flush=True)
+        for label, ms in out[mode].items():
+            print(f"    {label:32s} {ms:7.3f}")
+    return out
+
+
 def run_baseline(directory: str, args) -> dict:
     """measure_flight with the mca_drake of `directory`, in a subprocess."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -128,6 +174,7 @@ def main() -> None:
     parser.add_argument("--adversarial-duration", type=float, default=5.0, help="0: skip")
     parser.add_argument("--baseline", help="a checkout to compare with (its mca_drake)")
     parser.add_argument("--baseline-converged-duration", type=float, default=30.0)
+    parser.add_argument("--profile", type=float, default=20.0, help="profiled seconds, 0: none")
     parser.add_argument("--json", help="write every figure here")
     parser.add_argument("--measure-flight-only", help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -139,6 +186,9 @@ def main() -> None:
         Path(args.measure_flight_only).write_text(json.dumps(figures))
         return
     report = {"calibration": print_calibration()}
+    if args.profile > 0:
+        print(f"profile, {args.profile:g} s of the flight:", flush=True)
+        report["profile"] = profile_modes(args.vehicle, args.seed, args.profile)
     print(f"{args.vehicle} flight, seed {args.seed}, analytical plant:", flush=True)
     report["flight"] = measure_flight(
         args.vehicle, args.seed, args.duration, args.converged_duration

@@ -23,6 +23,16 @@ The cost is nonlinear through y; each Gauss-Newton QP linearises y with the exac
 of `mca_drake.kinematics`. Because the constraints are exact and linear, every QP iterate is
 feasible, and a backtracking line search on the true cost makes the `converged` mode a
 descent method that stops at a KKT point of the nonlinear program.
+
+Solving. Each QP is first solved on a guessed active set (the previous step's or
+iteration's; `mca_drake.cueing.active_set`): one dense KKT solve, used only when it is
+verified optimal (feasible, multipliers >= 0), so it is exact to round-off. Only when the
+guess cannot be corrected does Drake's MathematicalProgram solve the QP (OSQP in rti mode,
+Clarabel in converged mode), and a KKT solve on that answer's active set makes it exact.
+Converged mode adds to the Gauss-Newton Hessian a quasi-Newton estimate of the term it
+leaves out (NL2SOL's structured secant update: with large residuals Gauss-Newton alone
+converges slowly), and stops once the KKT residual is below `kkt_tolerance` (relative to
+the cost), the step below `step_tolerance`, or no descent is left.
 """
 
 import dataclasses
