@@ -67,7 +67,7 @@ def solve_on_active_set(
     hi: np.ndarray,
     active: np.ndarray,
     *,
-    max_corrections: int = 25,
+    max_corrections: int = 20,
     cholesky_of_H: tuple | None = None,
     groups: np.ndarray | None = None,
 ) -> ActiveSetSolution | None:

@@ -108,6 +108,10 @@ class NmpcConfig:
     # Two tangents are enough: u_0 is held to the exact viability interval anyway, the
     # tangents only keep the later plan realistic, and each costs 12 rows per node.
     stoppability_tangents: int = 2
+    # Corrections of a guessed active set before Drake's solver takes the QP: each costs one
+    # KKT solve (about 0.1-0.3 ms), so this bounds a step's worst case. On a 60 s jet flight
+    # 99 % of the hot starts settled within 18 corrections (median 0, 90 % within 1).
+    active_set_corrections: int = 20
     # Drake's QP solver where the hot-started active set does not settle: "clarabel"
     # (interior point, accurate), "osqp" (ADMM with solution polishing, fast) or "auto"
     # (osqp for rti, clarabel for converged).
@@ -156,8 +160,10 @@ class NmpcConfig:
         if self.qp_solver not in QP_SOLVERS:
             valid = ", ".join(QP_SOLVERS)
             raise ValueError(f"unknown QP solver '{self.qp_solver}'; valid: {valid}")
-        if self.osqp_max_iterations < 0 or self.stoppability_tangents < 0:
+        if min(self.osqp_max_iterations, self.stoppability_tangents) < 0:
             raise ValueError("osqp_max_iterations and stoppability_tangents must be >= 0")
+        if self.active_set_corrections < 0:
+            raise ValueError("active_set_corrections must be >= 0")
         if self.horizon_steps < 1 or self.max_iterations < 1:
             raise ValueError("horizon_steps and max_iterations must be at least 1")
         tolerances = (
@@ -766,7 +772,15 @@ class MotionCueingOcp:
         H, factor = model
         if factor is not None:
             solution = solve_on_active_set(
-                H, g, self._C, d_lo, d_hi, active, cholesky_of_H=factor, groups=self._parallel
+                H,
+                g,
+                self._C,
+                d_lo,
+                d_hi,
+                active,
+                cholesky_of_H=factor,
+                groups=self._parallel,
+                max_corrections=self.config.active_set_corrections,
             )
             if solution is not None:
                 return solution.d.reshape(self.N, NU), solution, True, ""
@@ -781,7 +795,15 @@ class MotionCueingOcp:
             # the solver's active set, made exact (and given multipliers) by one KKT solve
             guess = active_rows(self._C, d, d_lo, d_hi, ACTIVE_ROW_TOLERANCE)
             solution = solve_on_active_set(
-                H, g, self._C, d_lo, d_hi, guess, cholesky_of_H=factor, groups=self._parallel
+                H,
+                g,
+                self._C,
+                d_lo,
+                d_hi,
+                guess,
+                cholesky_of_H=factor,
+                groups=self._parallel,
+                max_corrections=self.config.active_set_corrections,
             )
             if solution is not None:
                 return solution.d.reshape(self.N, NU), solution, False, ""

@@ -1,0 +1,42 @@
+"""Real-time operation: telemetry protocols (and, later, the receiver, supervisor and drivers).
+
+Decoders turn one UDP datagram into a head-frame `TelemetrySample` (angular velocity, rad/s,
+and specific force, m/s^2, in the recording conventions), or raise `BadPacket`:
+
+    telemetry  TelemetrySample, BadPacket, the Decoder base, LeverArm (CG or pilot point to head)
+    fgnetfdm   FlightGear's native FDM packet, version 24, as JSBSim sends it
+    xplane     X-Plane 11/12 UDP DATA rows (load factors, body rates)
+    csv_udp    the documented CSV-over-UDP line format, encoder and decoder
+"""
+
+from __future__ import annotations
+
+from mca_drake.live.csv_udp import CsvDecoder, encode_csv_sample
+from mca_drake.live.fgnetfdm import FgNetFdmDecoder, jsbsim_output_directive, unpack_fgnetfdm
+from mca_drake.live.telemetry import (
+    BadPacket,
+    Decoder,
+    HeadPointTransfer,
+    LeverArm,
+    TelemetrySample,
+    specific_force_at,
+)
+from mca_drake.live.xplane import XPLANE_LAYOUTS, XPlaneDecoder, XPlaneLayout, xplane_layout
+
+__all__ = [
+    "XPLANE_LAYOUTS",
+    "BadPacket",
+    "CsvDecoder",
+    "Decoder",
+    "FgNetFdmDecoder",
+    "HeadPointTransfer",
+    "LeverArm",
+    "TelemetrySample",
+    "XPlaneDecoder",
+    "XPlaneLayout",
+    "encode_csv_sample",
+    "jsbsim_output_directive",
+    "specific_force_at",
+    "unpack_fgnetfdm",
+    "xplane_layout",
+]
