@@ -239,6 +239,8 @@ class Decoder(abc.ABC):
         Raises:
             BadPacket: wrong size, version or magic, garbage, missing data, non-finite or
                 implausible values; the message names the protocol and the cause.
+            ValueError: `received_s` is not a finite number (a caller's error, not the
+                packet's).
         """
         if not isinstance(packet, bytes | bytearray | memoryview):
             raise BadPacket(f"{self.protocol} packet must be bytes; got {type(packet).__name__}")
