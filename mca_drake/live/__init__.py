@@ -1,4 +1,4 @@
-"""Real-time operation: telemetry protocols (and, later, the receiver, supervisor and drivers).
+"""Real-time operation: telemetry protocols and the receiver (later: supervisor and drivers).
 
 Decoders turn one UDP datagram into a head-frame `TelemetrySample` (angular velocity, rad/s,
 and specific force, m/s^2, in the recording conventions), or raise `BadPacket`:
@@ -7,6 +7,8 @@ and specific force, m/s^2, in the recording conventions), or raise `BadPacket`:
     fgnetfdm   FlightGear's native FDM packet, version 24, as JSBSim sends it
     xplane     X-Plane 11/12 UDP DATA rows (load factors, body rates)
     csv_udp    the documented CSV-over-UDP line format, encoder and decoder
+    receiver   TelemetryReceiver, the Drake system that polls a UDP socket every control
+               period (imported from its module: it loads pydrake, the decoders do not)
 """
 
 from __future__ import annotations

@@ -82,6 +82,31 @@ class Reference:
         return Reference(self.y[:n], self.time_step, self.name)
 
 
+def scaled_reference(
+    omega: np.ndarray, f: np.ndarray, scaling: ReferenceScaling
+) -> np.ndarray:
+    """y_ref of head-frame samples (module docstring): omega (..., 3) rad/s and f (..., 3)
+    m/s^2 to y_ref (..., 6), scaled, gravity-compensated and limited as `scaling` says. One
+    formula for recordings and live telemetry."""
+    omega, f = np.asarray(omega, dtype=float), np.asarray(f, dtype=float)
+    y = np.concatenate(
+        [
+            scaling.angular_scale * omega,
+            scaling.force_scale * f[..., :2],
+            scaling.force_scale * (f[..., 2:] - GRAVITY),
+        ],
+        axis=-1,
+    )
+    if scaling.limits:
+        limits = np.asarray(scaling.limits)
+        y = (
+            np.clip(y, -limits, limits)
+            if scaling.limit_mode == "clip"
+            else limits * np.tanh(y / limits)
+        )
+    return y
+
+
 def reference_from_recording(
     recording: Recording, scaling: ReferenceScaling | None = None, name: str = ""
 ) -> Reference:
@@ -96,20 +121,7 @@ def reference_from_recording(
     resolution = 4 * float(np.spacing(np.max(np.abs(recording.t))))
     if not np.allclose(steps, steps[0], rtol=1e-6, atol=max(1e-9, resolution)):
         raise ValueError("recording is not uniformly sampled; call recording.resampled() first")
-    y = np.column_stack(
-        [
-            scaling.angular_scale * recording.omega,
-            scaling.force_scale * recording.f[:, :2],
-            scaling.force_scale * (recording.f[:, 2] - GRAVITY),
-        ]
-    )
-    if scaling.limits:
-        limits = np.asarray(scaling.limits)
-        y = (
-            np.clip(y, -limits, limits)
-            if scaling.limit_mode == "clip"
-            else limits * np.tanh(y / limits)
-        )
+    y = scaled_reference(recording.omega, recording.f, scaling)
     label = name or ", ".join(f"{k}={v}" for k, v in recording.metadata.items() if k != "format")
     # The mean step, to the nanosecond: single steps of epoch time stamps carry their
     # 2.4e-7 s resolution, and no control period needs finer than 1 ns.

@@ -1,0 +1,197 @@
+"""TelemetryReceiver: live vehicle motion from a UDP socket, as a Drake system.
+
+Every control period, shortly before the MCAs update (`ReceiverConfig.poll_lead_s`), the
+receiver drains its non-blocking socket: each datagram is decoded (`mca_drake.live`
+decoders, which also move it to the head point) and the newest sample is held (zero-order hold: the
+latest sample resampled to the control period). Bad datagrams, samples older than the one
+held (out of order) and gaps in the sender's sequence (dropped) are counted, never raised;
+so are control periods that brought nothing new (stale periods). The held sample leaves as
+the reference through the same scaling as recordings (`scaled_reference`).
+
+Polling before the control instant matters: Drake applies simultaneous updates to the state
+they all saw before, so a poll at the control instant itself would reach the MCA one period
+late.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import socket
+import time
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+
+from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.input_checks import check_config_numbers
+from mca_drake.live.telemetry import BadPacket, Decoder
+from mca_drake.references.reference import ReferenceScaling, scaled_reference
+
+# The `telemetry` output port, in this order.
+TELEMETRY_FIELDS = (
+    "age_s",  # wall-clock time since the held sample arrived, s (inf: none yet)
+    "fresh",  # 1 while age_s <= stale_after_s, else 0
+    "packets",  # datagrams received
+    "bad",  # datagrams that did not decode (BadPacket)
+    "out_of_order",  # samples older than the one held, ignored
+    "dropped",  # samples missing from the sender's sequence (protocols with a counter)
+    "stale_periods",  # control periods that brought no new sample
+    "arrival_s",  # time.perf_counter() when the held sample arrived (NaN: none yet)
+)
+# Discrete state: the held sample and the counters.
+_OMEGA, _F = slice(0, 3), slice(3, 6)
+_T_S, _ARRIVAL, _SEQUENCE, _PACKETS, _BAD, _OUT_OF_ORDER, _DROPPED, _STALE = range(6, 14)
+_STATE_SIZE = 14
+
+
+@dataclasses.dataclass
+class ReceiverConfig:
+    """Where to listen and how to judge the stream."""
+
+    # Address to bind (loopback by default; "0.0.0.0" listens on every interface).
+    host: str = "127.0.0.1"
+    # UDP port (0: any free port, see `TelemetryReceiver.address`).
+    port: int = 5500
+    # No new sample for this long (s) and the telemetry counts as stale.
+    stale_after_s: float = 0.1
+    # The poll runs this long (s) before each control instant (see the module docstring).
+    poll_lead_s: float = 0.001
+    # At most this many datagrams are read per poll (bounds a poll's time under a flood).
+    max_datagrams_per_poll: int = 256
+    # Control period, s.
+    time_step: float = CONTROL_PERIOD_S
+
+    def validate(self) -> None:
+        """Raises ValueError for a setting that cannot run, naming it."""
+        check_config_numbers(self)
+        if not 0 <= self.port <= 65535:
+            raise ValueError(f"ReceiverConfig.port must be in [0, 65535]; got {self.port}")
+        if not self.time_step > 0 or not self.stale_after_s > 0:
+            raise ValueError("ReceiverConfig.time_step and stale_after_s must be positive")
+        if not 0 < self.poll_lead_s < self.time_step:
+            raise ValueError(
+                f"ReceiverConfig.poll_lead_s must be in (0, time_step); got {self.poll_lead_s}"
+            )
+        if self.max_datagrams_per_poll < 1:
+            raise ValueError("ReceiverConfig.max_datagrams_per_poll must be at least 1")
+
+
+class TelemetryReceiver(LeafSystem):
+    """Live telemetry as a reference (see the module docstring).
+
+    .. pydrake_system::
+
+        name: TelemetryReceiver
+        output_ports:
+        - reference
+        - telemetry
+
+    `reference` (6): y_ref of the held sample (zero, the neutral pose, until the first one).
+    `telemetry` (len(TELEMETRY_FIELDS)): the stream's health and counters.
+
+    Args:
+        decoder: the protocol's decoder (it also moves samples to the head: its `LeverArm`).
+        config: address, staleness and timing.
+        scaling: how samples become y_ref (default s_w = s_f = 0.5, as for recordings).
+
+    Raises:
+        ValueError: a bad setting. OSError: the address cannot be bound (in use, say).
+    """
+
+    def __init__(
+        self,
+        decoder: Decoder,
+        config: ReceiverConfig | None = None,
+        scaling: ReferenceScaling | None = None,
+    ):
+        super().__init__()
+        self._config = config or ReceiverConfig()
+        self._config.validate()
+        self._scaling = scaling or ReferenceScaling()
+        self._scaling.validate()
+        self._decoder = decoder
+        self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._socket.setblocking(False)
+        self._socket.bind((self._config.host, self._config.port))
+        initial = np.zeros(_STATE_SIZE)
+        initial[_F] = (0.0, 0.0, 9.81)  # level flight until a sample arrives: y_ref = 0
+        initial[[_T_S, _ARRIVAL, _SEQUENCE]] = np.nan
+        self._state_index = self.DeclareDiscreteState(initial)
+        period = self._config.time_step
+        self.DeclarePeriodicUnrestrictedUpdateEvent(
+            period, period - self._config.poll_lead_s, self._poll
+        )
+        self.DeclareVectorOutputPort("reference", 6, self._calc_reference, {self.xd_ticket()})
+        # age depends on the wall clock: recomputed whenever time advances
+        self.DeclareVectorOutputPort(
+            "telemetry",
+            len(TELEMETRY_FIELDS),
+            self._calc_telemetry,
+            {self.xd_ticket(), self.time_ticket()},
+        )
+
+    @property
+    def address(self) -> tuple[str, int]:
+        """(host, port) the socket is bound to (the real port when config.port is 0)."""
+        return self._socket.getsockname()
+
+    def close(self) -> None:
+        """Closes the socket (a closed receiver counts every later period as stale)."""
+        self._socket.close()
+
+    def counters(self, context: Context) -> dict[str, float]:
+        """The `telemetry` output in `context`, by name."""
+        values = self.get_output_port(1).Eval(context)
+        return dict(zip(TELEMETRY_FIELDS, (float(v) for v in values), strict=True))
+
+    def _poll(self, context: Context, state: State) -> None:
+        x = np.array(context.get_discrete_state(self._state_index).value())
+        new_sample = False
+        for _ in range(self._config.max_datagrams_per_poll):
+            try:
+                packet = self._socket.recv(65536)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:  # closed socket
+                break
+            arrival = time.perf_counter()
+            x[_PACKETS] += 1
+            try:
+                sample = self._decoder.decode(packet, arrival)
+            except BadPacket:
+                x[_BAD] += 1
+                continue
+            if np.isfinite(x[_T_S]) and sample.t_s < x[_T_S]:
+                x[_OUT_OF_ORDER] += 1
+                continue
+            if sample.sequence is not None and np.isfinite(x[_SEQUENCE]):
+                x[_DROPPED] += max(0, sample.sequence - int(x[_SEQUENCE]) - 1)
+            x[_OMEGA], x[_F] = sample.omega, sample.f
+            x[_T_S], x[_ARRIVAL] = sample.t_s, arrival
+            x[_SEQUENCE] = np.nan if sample.sequence is None else sample.sequence
+            new_sample = True
+        if not new_sample:
+            x[_STALE] += 1
+        state.get_mutable_discrete_state().set_value(self._state_index, x)
+
+    def _calc_reference(self, context: Context, output: BasicVector) -> None:
+        x = context.get_discrete_state(self._state_index).value()
+        output.SetFromVector(scaled_reference(x[_OMEGA], x[_F], self._scaling))
+
+    def _calc_telemetry(self, context: Context, output: BasicVector) -> None:
+        x = context.get_discrete_state(self._state_index).value()
+        arrival = x[_ARRIVAL]
+        age = time.perf_counter() - arrival if np.isfinite(arrival) else np.inf
+        fresh = float(age <= self._config.stale_after_s)
+        output.SetFromVector(
+            [
+                age,
+                fresh,
+                x[_PACKETS],
+                x[_BAD],
+                x[_OUT_OF_ORDER],
+                x[_DROPPED],
+                x[_STALE],
+                arrival,
+            ]
+        )
