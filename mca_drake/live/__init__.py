@@ -1,4 +1,4 @@
-"""Real-time operation: telemetry protocols and the receiver (later: supervisor and drivers).
+"""Real-time operation: telemetry protocols, receiver and supervisor (later: robot drivers).
 
 Decoders turn one UDP datagram into a head-frame `TelemetrySample` (angular velocity, rad/s,
 and specific force, m/s^2, in the recording conventions), or raise `BadPacket`:
@@ -9,6 +9,8 @@ and specific force, m/s^2, in the recording conventions), or raise `BadPacket`:
     csv_udp    the documented CSV-over-UDP line format, encoder and decoder
     receiver   TelemetryReceiver, the Drake system that polls a UDP socket every control
                period (imported from its module: it loads pydrake, the decoders do not)
+    supervisor Supervisor: health state machine (ok, degraded, fault) and the blended,
+               limit-respecting wash-out to home (also imported from its module)
 """
 
 from __future__ import annotations

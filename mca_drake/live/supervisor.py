@@ -1,0 +1,213 @@
+"""Supervisor: the health of a live loop, and a safe wash-out to home when it fails.
+
+Between the MCA and the robot. Every control period it judges the loop:
+
+- fault: telemetry not fresh (no sample for `stale_after_s`), a reference that is not finite
+  or beyond `max_reference`, an MCA command that is not finite, or `overruns_to_fault`
+  MCA steps in a row over `step_budget_s`;
+- degraded: one MCA step over budget, or telemetry older than half `stale_after_s`;
+- ok otherwise. A fault clears only after `recovery_s` without any fault condition.
+
+The command it passes on blends the MCA's command u_mca and a wash-out command u_home with a
+weight w that moves toward 0 in a fault and toward 1 otherwise, over `blend_s`, so that
+neither leaving nor rejoining the MCA jumps in acceleration:
+
+    u = clamp(w u_mca + (1 - w) u_home),   u_home = sat(-omega^2 q - 2 omega qd)
+
+(critically damped return to the home pose q = 0, at most `home_acceleration_fraction` of
+each joint's acceleration limit). A non-finite MCA command sets w = 0 at once. Whatever the
+blend, the command passes the exact viability clamp of `mca_drake.safety`, so the robot stays
+inside its limits. Every transition is counted and logged (`Supervisor.transitions`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+
+from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.input_checks import check_config_numbers
+from mca_drake.live.receiver import TELEMETRY_FIELDS
+from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.safety import ViabilityClamp
+
+HEALTH_STATES = ("ok", "degraded", "fault")
+# The `health` output port, in this order.
+HEALTH_FIELDS = ("state", "transitions", "ok_s", "degraded_s", "fault_s", "weight")
+_STATE, _TRANSITIONS, _OK_S, _DEGRADED_S, _FAULT_S, _WEIGHT, _CLEAR_S, _OVERRUNS = range(8)
+_AGE, _FRESH = TELEMETRY_FIELDS.index("age_s"), TELEMETRY_FIELDS.index("fresh")
+
+
+@dataclasses.dataclass
+class SupervisorConfig:
+    """When the loop is unhealthy, and how the robot goes home."""
+
+    # No new telemetry sample for this long (s): fault.
+    stale_after_s: float = 0.1
+    # An MCA step longer than this (s) is an overrun (degraded); this many in a row: fault.
+    step_budget_s: float = 0.008
+    overruns_to_fault: int = 3
+    # A fault clears after this long (s) without a fault condition.
+    recovery_s: float = 0.5
+    # Time (s) over which the command moves between the MCA and the wash-out.
+    blend_s: float = 0.3
+    # Natural frequency (Hz) of the critically damped return home, and the fraction of each
+    # joint's acceleration limit it may use.
+    home_frequency_hz: float = 0.3
+    home_acceleration_fraction: float = 0.5
+    # Largest sane |y_ref| per channel (rad/s, m/s^2): beyond is a fault (a unit error).
+    max_reference: tuple[float, ...] = (5.0, 5.0, 5.0, 50.0, 50.0, 50.0)
+    # Control period, s.
+    time_step: float = CONTROL_PERIOD_S
+
+    def validate(self) -> None:
+        """Raises ValueError for a setting that cannot run, naming it."""
+        check_config_numbers(self)
+        positive = (
+            "stale_after_s",
+            "step_budget_s",
+            "recovery_s",
+            "blend_s",
+            "time_step",
+            "home_frequency_hz",
+        )
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise ValueError(f"SupervisorConfig.{name} must be positive")
+        if self.overruns_to_fault < 1:
+            raise ValueError("SupervisorConfig.overruns_to_fault must be at least 1")
+        if not 0 < self.home_acceleration_fraction <= 1:
+            raise ValueError("SupervisorConfig.home_acceleration_fraction must be in (0, 1]")
+        if len(self.max_reference) != 6 or min(self.max_reference) <= 0:
+            raise ValueError("SupervisorConfig.max_reference must be six positive values")
+
+
+class Supervisor(LeafSystem):
+    """Health state machine and safe command (see the module docstring).
+
+    .. pydrake_system::
+
+        name: Supervisor
+        input_ports:
+        - state
+        - mca_command
+        - reference
+        - telemetry
+        - mca_statistics
+        output_ports:
+        - joint_acceleration
+        - health
+
+    Inputs: the robot's `state` [q, qd] (12), the MCA's `mca_command` (6, rad/s^2), the
+    `reference` the MCA cues (6), the receiver's `telemetry` (TELEMETRY_FIELDS) and the MCA's
+    `mca_statistics` (MCA_STATISTICS: its step time first). `joint_acceleration` (6) is the
+    supervised command (direct feedthrough of the command and the state); `health`
+    (HEALTH_FIELDS) holds the state (0 ok, 1 degraded, 2 fault), the transitions, the time
+    spent in each state (s) and the blend weight.
+
+    Args:
+        config: thresholds and the wash-out.
+        robot: the limits the command is clamped to.
+    """
+
+    def __init__(self, config: SupervisorConfig | None = None, robot: KR500 | None = None):
+        super().__init__()
+        self._config = config or SupervisorConfig()
+        self._config.validate()
+        self._robot = robot if robot is not None else load_kr500()
+        h = self._config.time_step
+        self._clamp = ViabilityClamp.for_robot(self._robot, h)
+        omega = 2 * math.pi * self._config.home_frequency_hz
+        self._kp, self._kd = omega * omega, 2 * omega
+        self._home_limit = self._config.home_acceleration_fraction * self._robot.qdd_max
+        self._transitions: list[tuple[float, str, str, str]] = []
+        self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
+        self._command_port = self.DeclareVectorInputPort("mca_command", NUM_JOINTS)
+        self._reference_port = self.DeclareVectorInputPort("reference", 6)
+        self._telemetry_port = self.DeclareVectorInputPort("telemetry", len(TELEMETRY_FIELDS))
+        self._statistics_port = self.DeclareVectorInputPort("mca_statistics", 4)
+        initial = np.zeros(8)
+        initial[_WEIGHT] = 1.0
+        self._index = self.DeclareDiscreteState(initial)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(h, 0.0, self._judge)
+        self.DeclareVectorOutputPort(
+            "joint_acceleration",
+            NUM_JOINTS,
+            self._calc_command,
+            {self.xd_ticket(), self._state_port.ticket(), self._command_port.ticket()},
+        )
+        self.DeclareStateOutputPort("health", self._index)
+
+    @property
+    def transitions(self) -> list[tuple[float, str, str, str]]:
+        """Every transition so far: (time s, from state, to state, why)."""
+        return list(self._transitions)
+
+    def health(self, context: Context) -> dict[str, float]:
+        """The `health` output in `context`, by name."""
+        values = context.get_discrete_state(self._index).value()[: len(HEALTH_FIELDS)]
+        return dict(zip(HEALTH_FIELDS, (float(v) for v in values), strict=True))
+
+    def home_command(self, x: np.ndarray) -> np.ndarray:
+        """The wash-out's acceleration toward q = 0 at state x (12), rad/s^2 (6)."""
+        q, qd = x[:NUM_JOINTS], x[NUM_JOINTS:]
+        u = -self._kp * q - self._kd * qd
+        return np.clip(u, -self._home_limit, self._home_limit)
+
+    def _fault_reason(self, context: Context, overruns: int) -> str:
+        telemetry = self._telemetry_port.Eval(context)
+        if telemetry[_FRESH] < 0.5 or not telemetry[_AGE] <= self._config.stale_after_s:
+            return "telemetry stale"
+        reference = self._reference_port.Eval(context)
+        if not np.all(np.isfinite(reference)):
+            return "reference not finite"
+        if np.any(np.abs(reference) > np.asarray(self._config.max_reference)):
+            return "reference beyond max_reference"
+        if not np.all(np.isfinite(self._command_port.Eval(context))):
+            return "MCA command not finite"
+        if overruns >= self._config.overruns_to_fault:
+            return f"{overruns} MCA steps over budget"
+        return ""
+
+    def _judge(self, context: Context, state: State) -> None:
+        cfg, h = self._config, self._config.time_step
+        s = np.array(context.get_discrete_state(self._index).value())
+        step_time = float(self._statistics_port.Eval(context)[0])
+        overrun = step_time > cfg.step_budget_s
+        s[_OVERRUNS] = s[_OVERRUNS] + 1 if overrun else 0
+        why = self._fault_reason(context, int(s[_OVERRUNS]))
+        current = int(s[_STATE])
+        if why:
+            new, s[_CLEAR_S] = 2, 0.0
+        elif current == 2 and s[_CLEAR_S] + h < cfg.recovery_s - 1e-9:
+            new, s[_CLEAR_S] = 2, s[_CLEAR_S] + h  # fault holds until it has been clear long
+        else:
+            age = float(self._telemetry_port.Eval(context)[_AGE])
+            new = 1 if overrun or age > 0.5 * cfg.stale_after_s else 0
+            why = "MCA step over budget" if overrun else ("telemetry late" if new else "clear")
+        if new != current:
+            s[_TRANSITIONS] += 1
+            self._transitions.append(
+                (context.get_time(), HEALTH_STATES[current], HEALTH_STATES[new], why)
+            )
+        s[_STATE] = new
+        s[[_OK_S, _DEGRADED_S, _FAULT_S][new]] += h
+        target = 0.0 if new == 2 else 1.0
+        s[_WEIGHT] = float(
+            np.clip(target, s[_WEIGHT] - h / cfg.blend_s, s[_WEIGHT] + h / cfg.blend_s)
+        )
+        state.get_mutable_discrete_state().set_value(self._index, s)
+
+    def _calc_command(self, context: Context, output: BasicVector) -> None:
+        x = self._state_port.Eval(context)
+        u_mca = self._command_port.Eval(context)
+        w = float(context.get_discrete_state(self._index).value()[_WEIGHT])
+        home = self.home_command(x)
+        if not np.all(np.isfinite(u_mca)):
+            w = 0.0  # nothing to blend with
+            u_mca = home
+        u, _ = self._clamp(x, w * u_mca + (1.0 - w) * home)
+        output.SetFromVector(u)
