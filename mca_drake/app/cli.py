@@ -23,7 +23,7 @@ from mca_drake.app.scenarios import (
     EvaluationScenario,
     load_scenario,
 )
-from mca_drake.atomic_io import check_writable
+from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.conventions import CHANNELS
 from mca_drake.cueing import MCA_NAMES, DpcConfig, mca_config_from_name, mca_name
 from mca_drake.plotting import plot_recording, save_figure
@@ -304,6 +304,40 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     print((out / "report.md").read_text())
     print(f"best config: {out / 'best.yaml'}; all trials: {out / 'trials.csv'}")
     return 0 if report else 1
+
+
+def _cmd_live(args: argparse.Namespace) -> int:
+    # the live layer (sockets, the live diagram) only for this command
+    from mca_drake.live.loop import make_decoder, run_live
+    from mca_drake.live.receiver import ReceiverConfig
+
+    if args.json:
+        check_writable(args.json)
+    decoder = make_decoder(args.protocol, xplane_version=args.xplane_version)
+    receiver = ReceiverConfig(host=args.host, port=args.port)
+
+    def listening(address):
+        print(f"listening on udp://{address[0]}:{address[1]}", flush=True)
+
+    summary = run_live(
+        decoder,
+        mca_config_from_name(args.mca),
+        args.duration,
+        receiver=receiver,
+        realtime_rate=args.realtime_rate,
+        on_listening=listening,
+    )
+    live = summary["live"]
+    latency = {k: f"{v * 1e3:.3f} ms" for k, v in live["latency_s"].items()}
+    print(
+        f"{live['packets']} packets ({live['bad']} bad, {live['dropped']} dropped, "
+        f"{live['out_of_order']} out of order), {live['stale_events']} stale events; "
+        f"latency {latency}; health {live['health']}; PI {summary['pi']:.3f} "
+        f"(zero motion {summary['pi_zero_motion']:.3f}); violations {summary['violations']}"
+    )
+    if args.json:
+        atomic_write_json(args.json, summary)
+    return 0
 
 
 def _cmd_table2(args: argparse.Namespace) -> int:
@@ -619,6 +653,20 @@ def build_parser() -> argparse.ArgumentParser:
     tune.add_argument("--seed", type=int, help="seed of the TPE sampler")
     tune.add_argument("--quiet", action="store_true")
     tune.set_defaults(func=_cmd_tune)
+
+    live = sub.add_parser(
+        "live",
+        help="cue a running flight simulator's UDP telemetry in real time (analytical plant)",
+    )
+    live.add_argument("--protocol", required=True, help="fgnetfdm, xplane or csv")
+    live.add_argument("--xplane-version", type=int, help="11 or 12 (protocol xplane)")
+    live.add_argument("--host", default="127.0.0.1", help="address to listen on")
+    live.add_argument("--port", type=int, default=5500, help="UDP port (0: any free one)")
+    live.add_argument("--duration", type=float, required=True, help="s of live cueing")
+    live.add_argument("--mca", default="dpc", help=", ".join(MCA_NAMES))
+    live.add_argument("--realtime-rate", type=float, default=1.0, help="1: real time")
+    live.add_argument("--json", help="result summary with its live block")
+    live.set_defaults(func=_cmd_live)
 
     table2 = sub.add_parser(
         "table2", help="train and score every plant-model candidate (the paper's Table II)"

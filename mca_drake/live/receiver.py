@@ -113,6 +113,7 @@ class TelemetryReceiver(LeafSystem):
         self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._socket.setblocking(False)
         self._socket.bind((self._config.host, self._config.port))
+        self._address = self._socket.getsockname()
         initial = np.zeros(_STATE_SIZE)
         initial[_F] = (0.0, 0.0, 9.81)  # level flight until a sample arrives: y_ref = 0
         initial[[_T_S, _ARRIVAL, _SEQUENCE]] = np.nan
@@ -133,7 +134,7 @@ class TelemetryReceiver(LeafSystem):
     @property
     def address(self) -> tuple[str, int]:
         """(host, port) the socket is bound to (the real port when config.port is 0)."""
-        return self._socket.getsockname()
+        return self._address
 
     def close(self) -> None:
         """Closes the socket (a closed receiver counts every later period as stale)."""

@@ -2,9 +2,9 @@
 
 Between the MCA and the robot. Every control period it judges the loop:
 
-- fault: telemetry not fresh (no sample for `stale_after_s`), a reference that is not finite
-  or beyond `max_reference`, an MCA command that is not finite, or `overruns_to_fault`
-  MCA steps in a row over `step_budget_s`;
+- fault: no telemetry yet, telemetry not fresh (no sample for `stale_after_s`), a reference
+  that is not finite or beyond `max_reference`, an MCA command that is not finite, or
+  `overruns_to_fault` MCA steps in a row over `step_budget_s`;
 - degraded: one MCA step over budget, or telemetry older than half `stale_after_s`;
 - ok otherwise. A fault clears only after `recovery_s` without any fault condition.
 
@@ -14,10 +14,11 @@ neither leaving nor rejoining the MCA jumps in acceleration:
 
     u = clamp(w u_mca + (1 - w) u_home),   u_home = sat(-omega^2 q - 2 omega qd)
 
-(critically damped return to the home pose q = 0, at most `home_acceleration_fraction` of
-each joint's acceleration limit). A non-finite MCA command sets w = 0 at once. Whatever the
-blend, the command passes the exact viability clamp of `mca_drake.safety`, so the robot stays
-inside its limits. Every transition is counted and logged (`Supervisor.transitions`).
+(critically damped return to the home pose, q = 0 or the MCA's own, at most
+`home_acceleration_fraction` of each joint's acceleration limit). A non-finite MCA command
+sets w = 0 at once. Whatever the blend, the command passes the exact viability clamp of
+`mca_drake.safety`, so the robot stays inside its limits. Every transition is counted and
+logged (`Supervisor.transitions`).
 """
 
 from __future__ import annotations
@@ -111,9 +112,16 @@ class Supervisor(LeafSystem):
     Args:
         config: thresholds and the wash-out.
         robot: the limits the command is clamped to.
+        home_position: the pose the wash-out returns to, rad (6,); default q = 0 (the MCA's
+            own home where it has one: the classical washout's is not zero).
     """
 
-    def __init__(self, config: SupervisorConfig | None = None, robot: KR500 | None = None):
+    def __init__(
+        self,
+        config: SupervisorConfig | None = None,
+        robot: KR500 | None = None,
+        home_position: np.ndarray | None = None,
+    ):
         super().__init__()
         self._config = config or SupervisorConfig()
         self._config.validate()
@@ -123,6 +131,9 @@ class Supervisor(LeafSystem):
         omega = 2 * math.pi * self._config.home_frequency_hz
         self._kp, self._kd = omega * omega, 2 * omega
         self._home_limit = self._config.home_acceleration_fraction * self._robot.qdd_max
+        self._home = np.zeros(NUM_JOINTS) if home_position is None else np.array(home_position)
+        if self._home.shape != (NUM_JOINTS,) or not np.all(np.isfinite(self._home)):
+            raise ValueError(f"home_position must be 6 finite angles (rad); got {home_position}")
         self._transitions: list[tuple[float, str, str, str]] = []
         self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
         self._command_port = self.DeclareVectorInputPort("mca_command", NUM_JOINTS)
@@ -139,7 +150,9 @@ class Supervisor(LeafSystem):
             self._calc_command,
             {self.xd_ticket(), self._state_port.ticket(), self._command_port.ticket()},
         )
-        self.DeclareStateOutputPort("health", self._index)
+        self.DeclareVectorOutputPort(
+            "health", len(HEALTH_FIELDS), self._calc_health, {self.xd_ticket()}
+        )
 
     @property
     def transitions(self) -> list[tuple[float, str, str, str]]:
@@ -152,13 +165,15 @@ class Supervisor(LeafSystem):
         return dict(zip(HEALTH_FIELDS, (float(v) for v in values), strict=True))
 
     def home_command(self, x: np.ndarray) -> np.ndarray:
-        """The wash-out's acceleration toward q = 0 at state x (12), rad/s^2 (6)."""
-        q, qd = x[:NUM_JOINTS], x[NUM_JOINTS:]
+        """The wash-out's acceleration toward the home pose at state x (12), rad/s^2 (6)."""
+        q, qd = x[:NUM_JOINTS] - self._home, x[NUM_JOINTS:]
         u = -self._kp * q - self._kd * qd
         return np.clip(u, -self._home_limit, self._home_limit)
 
     def _fault_reason(self, context: Context, overruns: int) -> str:
         telemetry = self._telemetry_port.Eval(context)
+        if not np.isfinite(telemetry[_AGE]):
+            return "no telemetry yet"  # the robot waits at home for the first sample
         if telemetry[_FRESH] < 0.5 or not telemetry[_AGE] <= self._config.stale_after_s:
             return "telemetry stale"
         reference = self._reference_port.Eval(context)
@@ -200,6 +215,9 @@ class Supervisor(LeafSystem):
             np.clip(target, s[_WEIGHT] - h / cfg.blend_s, s[_WEIGHT] + h / cfg.blend_s)
         )
         state.get_mutable_discrete_state().set_value(self._index, s)
+
+    def _calc_health(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(context.get_discrete_state(self._index).value()[: len(HEALTH_FIELDS)])
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
         x = self._state_port.Eval(context)

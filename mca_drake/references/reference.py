@@ -82,9 +82,7 @@ class Reference:
         return Reference(self.y[:n], self.time_step, self.name)
 
 
-def scaled_reference(
-    omega: np.ndarray, f: np.ndarray, scaling: ReferenceScaling
-) -> np.ndarray:
+def scaled_reference(omega: np.ndarray, f: np.ndarray, scaling: ReferenceScaling) -> np.ndarray:
     """y_ref of head-frame samples (module docstring): omega (..., 3) rad/s and f (..., 3)
     m/s^2 to y_ref (..., 6), scaled, gravity-compensated and limited as `scaling` says. One
     formula for recordings and live telemetry."""

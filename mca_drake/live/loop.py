@@ -1,0 +1,244 @@
+"""The live closed loop: telemetry -> receiver -> MCA -> supervisor -> robot, in real time.
+
+`MakeLiveClosedLoop` wires the diagram on the analytical plant; `run_live` runs it at a
+real-time rate (1 by default) for a bounded time and returns the result summary with its
+`live` block (../shared/ARCHITECTURE.md, "Result summary"): packets, bad, dropped and stale
+counts, the latency from a sample's arrival to the first command computed from it, and the
+time in each health state; the PI is scored against the reference that was received.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, EventStatus, LeafSystem
+from pydrake.systems.primitives import LogVectorOutput
+
+from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.cueing import McaConfig, as_mca_config
+from mca_drake.kinematics import plant_output
+from mca_drake.live.csv_udp import CsvDecoder
+from mca_drake.live.fgnetfdm import FgNetFdmDecoder
+from mca_drake.live.receiver import TELEMETRY_FIELDS, ReceiverConfig, TelemetryReceiver
+from mca_drake.live.supervisor import HEALTH_FIELDS, Supervisor, SupervisorConfig
+from mca_drake.live.telemetry import Decoder
+from mca_drake.live.xplane import XPlaneDecoder
+from mca_drake.references.reference import ReferenceScaling
+from mca_drake.robot import KR500, load_kr500
+from mca_drake.simulation.builders import AddMca
+from mca_drake.simulation.closed_loop import closed_loop_summary, step_time_summary
+from mca_drake.systems import MotionCueingPlant
+
+_ARRIVAL = TELEMETRY_FIELDS.index("arrival_s")
+PROTOCOLS = ("fgnetfdm", "xplane", "csv")
+
+
+def make_decoder(
+    protocol: str, *, xplane_version: int | None = None, fgnetfdm_time_resolution_s=None
+) -> Decoder:
+    """The decoder of `protocol` (PROTOCOLS). X-Plane needs its version (11 or 12: they
+    differ in the body-rate row); FGNetFDM reads the sender's time only when JSBSim's
+    directive sets a resolution (else arrival times)."""
+    if protocol == "fgnetfdm":
+        return FgNetFdmDecoder(time_resolution_s=fgnetfdm_time_resolution_s)
+    if protocol == "xplane":
+        if xplane_version is None:
+            raise ValueError("protocol xplane needs its version (11 or 12): --xplane-version")
+        return XPlaneDecoder(version=xplane_version)
+    if protocol == "csv":
+        return CsvDecoder()
+    raise ValueError(f"unknown protocol '{protocol}'; valid: {', '.join(PROTOCOLS)}")
+
+
+class LatencyProbe(LeafSystem):
+    """Measures, at every control instant after the updates, the wall time from the arrival
+    of the newest telemetry sample to the command computed from it (once per sample).
+
+    Input `telemetry` (TELEMETRY_FIELDS) and `command` (6, only to order the probe after
+    the command is computed). `latencies_s` holds the measurements.
+    """
+
+    def __init__(self, time_step: float = CONTROL_PERIOD_S):
+        super().__init__()
+        self._telemetry = self.DeclareVectorInputPort("telemetry", len(TELEMETRY_FIELDS))
+        self._command = self.DeclareVectorInputPort("command", 6)
+        self.DeclarePeriodicPublishEvent(time_step, 0.0, self._probe)
+        self.latencies_s: list[float] = []
+        self._last_arrival = float("nan")
+
+    def _probe(self, context: Context) -> EventStatus:
+        self._command.Eval(context)  # the command the robot gets now
+        now = time.perf_counter()
+        arrival = float(self._telemetry.Eval(context)[_ARRIVAL])
+        if np.isfinite(arrival) and arrival != self._last_arrival:
+            self.latencies_s.append(now - arrival)
+            self._last_arrival = arrival
+        return EventStatus.Succeeded()
+
+
+def MakeLiveClosedLoop(
+    decoder: Decoder,
+    mca: McaConfig | str,
+    *,
+    receiver: ReceiverConfig | None = None,
+    supervisor: SupervisorConfig | None = None,
+    scaling: ReferenceScaling | None = None,
+    robot: KR500 | None = None,
+) -> tuple[Diagram, dict]:
+    """TelemetryReceiver -> MCA -> Supervisor -> MotionCueingPlant, with logs and a
+    LatencyProbe (analytical plant; the control period is `receiver.time_step`).
+
+    Returns:
+        (diagram, handles): the systems `receiver`, `mca`, `supervisor`, `plant`, `probe`
+        and the logs `reference_log`, `state_log`, `command_log`, `statistics_log`,
+        `health_log`, `telemetry_log`.
+    """
+    robot = robot if robot is not None else load_kr500()
+    receiver_config = receiver or ReceiverConfig()
+    h = receiver_config.time_step
+    builder = DiagramBuilder()
+    source = builder.AddNamedSystem(
+        "receiver", TelemetryReceiver(decoder, receiver_config, scaling)
+    )
+    controller = AddMca(builder, mca, robot, h)
+    home = getattr(controller, "home_position", np.zeros(6))
+    guard = builder.AddNamedSystem(
+        "supervisor", Supervisor(supervisor or SupervisorConfig(time_step=h), robot, home)
+    )
+    plant = builder.AddNamedSystem(
+        "plant",
+        MotionCueingPlant(robot=robot, time_step=h, initial_state=np.r_[home, np.zeros(6)]),
+    )
+    probe = builder.AddNamedSystem("probe", LatencyProbe(h))
+    reference = source.GetOutputPort("reference")
+    state = plant.GetOutputPort("state")
+    builder.Connect(reference, controller.GetInputPort("reference"))
+    builder.Connect(state, controller.GetInputPort("state"))
+    if controller.HasInputPort("inertial_output"):
+        builder.Connect(
+            plant.GetOutputPort("inertial_output"), controller.GetInputPort("inertial_output")
+        )
+    builder.Connect(state, guard.GetInputPort("state"))
+    builder.Connect(
+        controller.GetOutputPort("joint_acceleration"), guard.GetInputPort("mca_command")
+    )
+    builder.Connect(reference, guard.GetInputPort("reference"))
+    builder.Connect(source.GetOutputPort("telemetry"), guard.GetInputPort("telemetry"))
+    builder.Connect(controller.GetOutputPort("statistics"), guard.GetInputPort("mca_statistics"))
+    command = guard.GetOutputPort("joint_acceleration")
+    builder.Connect(command, plant.GetInputPort("joint_acceleration"))
+    builder.Connect(source.GetOutputPort("telemetry"), probe.GetInputPort("telemetry"))
+    builder.Connect(command, probe.GetInputPort("command"))
+    handles = dict(receiver=source, mca=controller, supervisor=guard, plant=plant, probe=probe)
+    for name, port in {
+        "reference_log": reference,
+        "state_log": state,
+        "command_log": command,
+        "statistics_log": controller.GetOutputPort("statistics"),
+        "health_log": guard.GetOutputPort("health"),
+        "telemetry_log": source.GetOutputPort("telemetry"),
+    }.items():
+        handles[name] = LogVectorOutput(port, builder, h)
+        handles[name].set_name(name)
+    diagram = builder.Build()
+    diagram.set_name("live_closed_loop")
+    return diagram, handles
+
+
+def run_live(
+    decoder: Decoder,
+    mca: McaConfig | str,
+    duration_s: float,
+    *,
+    receiver: ReceiverConfig | None = None,
+    supervisor: SupervisorConfig | None = None,
+    scaling: ReferenceScaling | None = None,
+    realtime_rate: float = 1.0,
+    on_listening: Callable[[tuple[str, int]], None] | None = None,
+    robot: KR500 | None = None,
+) -> dict:
+    """Runs the live loop for `duration_s` (s of simulated time, at `realtime_rate`) and
+    returns its summary with the `live` block.
+
+    Args:
+        on_listening: called with the bound (host, port) once the socket is open, before the
+            loop starts (the CLI prints `listening on udp://HOST:PORT`; tests start senders).
+        realtime_rate: Drake's target real-time rate (1: live; 0: as fast as possible).
+    """
+    if not 0 < duration_s <= 24 * 3600:
+        raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
+    robot = robot if robot is not None else load_kr500()
+    config = as_mca_config(mca)
+    diagram, handles = MakeLiveClosedLoop(
+        decoder, config, receiver=receiver, supervisor=supervisor, scaling=scaling, robot=robot
+    )
+    source = handles["receiver"]
+    try:
+        simulator = Simulator(diagram)
+        simulator.set_target_realtime_rate(realtime_rate)
+        simulator.Initialize()
+        if on_listening is not None:
+            on_listening(source.address)
+        start = time.perf_counter()
+        simulator.AdvanceTo(duration_s)
+        wall_s = time.perf_counter() - start
+    finally:
+        source.close()
+    context = simulator.get_context()
+
+    def log(name):
+        return handles[name].FindLog(context).data().T
+
+    h = (receiver or ReceiverConfig()).time_step
+    commands = log("command_log")[1:]
+    n = commands.shape[0]
+    states = log("state_log")[:n]
+    reference = log("reference_log")[:n]
+    outputs = plant_output(states[:, :6], states[:, 6:], commands, robot)
+    summary, _ = closed_loop_summary(
+        config=config,
+        plant="analytical",
+        reference_name=f"live {decoder.protocol} udp://{source.address[0]}:{source.address[1]}",
+        duration_s=n * h,
+        reference=reference,
+        outputs=outputs,
+        states=states,
+        accelerations=commands,
+        statistics=log("statistics_log"),
+        wall_s=wall_s,
+        robot=robot,
+    )
+    telemetry = dict(zip(TELEMETRY_FIELDS, log("telemetry_log")[-1], strict=True))
+    health = dict(zip(HEALTH_FIELDS, log("health_log")[-1], strict=True))
+    latencies = np.asarray(handles["probe"].latencies_s)
+    summary["plant"] = "analytical"
+    summary["live"] = {
+        "protocol": decoder.protocol,
+        "address": f"udp://{source.address[0]}:{source.address[1]}",
+        "packets": int(telemetry["packets"]),
+        "bad": int(telemetry["bad"]),
+        "out_of_order": int(telemetry["out_of_order"]),
+        "dropped": int(telemetry["dropped"]),
+        "stale_periods": int(telemetry["stale_periods"]),
+        "stale_events": sum(
+            1
+            for _, _, to, why in handles["supervisor"].transitions
+            if why == "telemetry stale" and to == "fault"
+        ),
+        "latency_s": step_time_summary(latencies),
+        "health": {
+            "ok_s": float(health["ok_s"]),
+            "degraded_s": float(health["degraded_s"]),
+            "fault_s": float(health["fault_s"]),
+        },
+        "transitions": [
+            {"t_s": t, "from": a, "to": b, "why": why}
+            for t, a, b, why in handles["supervisor"].transitions
+        ],
+        "realtime_rate": realtime_rate,
+        "control_period_s": h,
+    }
+    return summary
