@@ -94,3 +94,25 @@ def test_an_unknown_protocol_is_one_clear_error():
         make_decoder("mavlink")
     with pytest.raises(ValueError, match="xplane-version"):
         make_decoder("xplane")
+
+
+def test_a_live_run_on_the_kr500_station_holds_the_limits():
+    threads = []
+
+    def start_sender(address):
+        thread = threading.Thread(target=stream, args=(address, 2.2), daemon=True)
+        thread.start()
+        threads.append(thread)
+
+    summary = run_live(
+        CsvDecoder(),
+        "dpc",
+        2.0,
+        receiver=ReceiverConfig(port=0),
+        on_listening=start_sender,
+        plant="multibody",
+    )
+    threads[0].join(timeout=5)
+    assert summary["plant"] == "multibody"
+    assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    assert summary["live"]["packets"] > 100 and np.isfinite(summary["pi"])

@@ -315,6 +315,9 @@ def _cmd_live(args: argparse.Namespace) -> int:
         check_writable(args.json)
     decoder = make_decoder(args.protocol, xplane_version=args.xplane_version)
     receiver = ReceiverConfig(host=args.host, port=args.port)
+    if args.meshcat and args.plant != "multibody":
+        raise ValueError("--meshcat draws the KR500 station: add --plant multibody")
+    meshcat = start_meshcat() if args.meshcat else None
 
     def listening(address):
         print(f"listening on udp://{address[0]}:{address[1]}", flush=True)
@@ -326,6 +329,8 @@ def _cmd_live(args: argparse.Namespace) -> int:
         receiver=receiver,
         realtime_rate=args.realtime_rate,
         on_listening=listening,
+        plant=args.plant,
+        meshcat=meshcat,
     )
     live = summary["live"]
     latency = {k: f"{v * 1e3:.3f} ms" for k, v in live["latency_s"].items()}
@@ -337,6 +342,7 @@ def _cmd_live(args: argparse.Namespace) -> int:
     )
     if args.json:
         atomic_write_json(args.json, summary)
+    _hold_meshcat(meshcat)
     return 0
 
 
@@ -656,7 +662,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     live = sub.add_parser(
         "live",
-        help="cue a running flight simulator's UDP telemetry in real time (analytical plant)",
+        help="cue a running flight simulator's UDP telemetry in real time",
     )
     live.add_argument("--protocol", required=True, help="fgnetfdm, xplane or csv")
     live.add_argument("--xplane-version", type=int, help="11 or 12 (protocol xplane)")
@@ -665,6 +671,10 @@ def build_parser() -> argparse.ArgumentParser:
     live.add_argument("--duration", type=float, required=True, help="s of live cueing")
     live.add_argument("--mca", default="dpc", help=", ".join(MCA_NAMES))
     live.add_argument("--realtime-rate", type=float, default=1.0, help="1: real time")
+    live.add_argument(
+        "--plant", default="analytical", help="analytical or multibody (the KR500 station)"
+    )
+    live.add_argument("--meshcat", action="store_true", help="draw the station in Meshcat")
     live.add_argument("--json", help="result summary with its live block")
     live.set_defaults(func=_cmd_live)
 

@@ -1,6 +1,7 @@
 """The live closed loop: telemetry -> receiver -> MCA -> supervisor -> robot, in real time.
 
-`MakeLiveClosedLoop` wires the diagram on the analytical plant; `run_live` runs it at a
+`MakeLiveClosedLoop` wires the diagram on the analytical plant or the KR500 station;
+`run_live` runs it at a
 real-time rate (1 by default) for a bounded time and returns the result summary with its
 `live` block (../shared/ARCHITECTURE.md, "Result summary"): packets, bad, dropped and stale
 counts, the latency from a sample's arrival to the first command computed from it, and the
@@ -28,9 +29,10 @@ from mca_drake.live.telemetry import Decoder
 from mca_drake.live.xplane import XPlaneDecoder
 from mca_drake.references.reference import ReferenceScaling
 from mca_drake.robot import KR500, load_kr500
-from mca_drake.simulation.builders import AddMca
-from mca_drake.simulation.closed_loop import closed_loop_summary, step_time_summary
+from mca_drake.simulation.builders import AddMca, AddMeshcatDrawing, default_visualization
+from mca_drake.simulation.closed_loop import PLANTS, closed_loop_summary, step_time_summary
 from mca_drake.systems import MotionCueingPlant
+from mca_drake.systems.kr500_station import AddKR500Station, StationConfig
 
 _ARRIVAL = TELEMETRY_FIELDS.index("arrival_s")
 PROTOCOLS = ("fgnetfdm", "xplane", "csv")
@@ -83,19 +85,30 @@ def MakeLiveClosedLoop(
     decoder: Decoder,
     mca: McaConfig | str,
     *,
+    plant: str = "analytical",
     receiver: ReceiverConfig | None = None,
     supervisor: SupervisorConfig | None = None,
     scaling: ReferenceScaling | None = None,
     robot: KR500 | None = None,
+    station: StationConfig | None = None,
+    meshcat=None,
 ) -> tuple[Diagram, dict]:
-    """TelemetryReceiver -> MCA -> Supervisor -> MotionCueingPlant, with logs and a
-    LatencyProbe (analytical plant; the control period is `receiver.time_step`).
+    """TelemetryReceiver -> MCA -> Supervisor -> robot, with logs and a LatencyProbe; the
+    robot is the analytical plant or the KR500 station (multibody, optionally drawn in
+    `meshcat`). The control period is `receiver.time_step`.
 
     Returns:
-        (diagram, handles): the systems `receiver`, `mca`, `supervisor`, `plant`, `probe`
-        and the logs `reference_log`, `state_log`, `command_log`, `statistics_log`,
-        `health_log`, `telemetry_log`.
+        (diagram, handles): the systems `receiver`, `mca`, `supervisor`, `probe`, and
+        `plant` (analytical) or `station` (StationHandles: call its SetInitialState), and
+        the logs `reference_log`, `state_log` (the state the MCA reads), `command_log`,
+        `statistics_log`, `health_log`, `telemetry_log` and, on the station,
+        `true_state_log` and `measured_output_log` (the head IMU without its delay: what
+        the occupant felt).
     """
+    if plant not in PLANTS:
+        raise ValueError(f"unknown plant '{plant}'; valid: {', '.join(PLANTS)}")
+    if meshcat is not None and plant != "multibody":
+        raise ValueError("meshcat needs plant 'multibody'")
     robot = robot if robot is not None else load_kr500()
     receiver_config = receiver or ReceiverConfig()
     h = receiver_config.time_step
@@ -108,19 +121,39 @@ def MakeLiveClosedLoop(
     guard = builder.AddNamedSystem(
         "supervisor", Supervisor(supervisor or SupervisorConfig(time_step=h), robot, home)
     )
-    plant = builder.AddNamedSystem(
-        "plant",
-        MotionCueingPlant(robot=robot, time_step=h, initial_state=np.r_[home, np.zeros(6)]),
-    )
+    handles = dict(receiver=source, mca=controller, supervisor=guard)
+    initial_state = np.r_[home, np.zeros(6)]
+    logged = {}
+    if plant == "analytical":
+        robot_system = builder.AddNamedSystem(
+            "plant", MotionCueingPlant(robot=robot, time_step=h, initial_state=initial_state)
+        )
+        handles["plant"] = robot_system
+        state = robot_system.GetOutputPort("state")
+        inertial_output = robot_system.GetOutputPort("inertial_output")
+        joint_acceleration = robot_system.GetInputPort("joint_acceleration")
+    else:
+        station_handles = AddKR500Station(
+            builder,
+            robot,
+            station or StationConfig(),
+            initial_state,
+            with_geometry=meshcat is not None,
+            control_period=h,
+        )
+        handles["station"] = station_handles
+        state = station_handles.measured_state
+        inertial_output = station_handles.measured_output
+        joint_acceleration = station_handles.joint_acceleration
+        logged["measured_output_log"] = station_handles.true_output
+        logged["true_state_log"] = station_handles.true_state
     probe = builder.AddNamedSystem("probe", LatencyProbe(h))
+    handles["probe"] = probe
     reference = source.GetOutputPort("reference")
-    state = plant.GetOutputPort("state")
     builder.Connect(reference, controller.GetInputPort("reference"))
     builder.Connect(state, controller.GetInputPort("state"))
     if controller.HasInputPort("inertial_output"):
-        builder.Connect(
-            plant.GetOutputPort("inertial_output"), controller.GetInputPort("inertial_output")
-        )
+        builder.Connect(inertial_output, controller.GetInputPort("inertial_output"))
     builder.Connect(state, guard.GetInputPort("state"))
     builder.Connect(
         controller.GetOutputPort("joint_acceleration"), guard.GetInputPort("mca_command")
@@ -129,22 +162,26 @@ def MakeLiveClosedLoop(
     builder.Connect(source.GetOutputPort("telemetry"), guard.GetInputPort("telemetry"))
     builder.Connect(controller.GetOutputPort("statistics"), guard.GetInputPort("mca_statistics"))
     command = guard.GetOutputPort("joint_acceleration")
-    builder.Connect(command, plant.GetInputPort("joint_acceleration"))
+    builder.Connect(command, joint_acceleration)
     builder.Connect(source.GetOutputPort("telemetry"), probe.GetInputPort("telemetry"))
     builder.Connect(command, probe.GetInputPort("command"))
-    handles = dict(receiver=source, mca=controller, supervisor=guard, plant=plant, probe=probe)
-    for name, port in {
+    logged |= {
         "reference_log": reference,
         "state_log": state,
         "command_log": command,
         "statistics_log": controller.GetOutputPort("statistics"),
         "health_log": guard.GetOutputPort("health"),
         "telemetry_log": source.GetOutputPort("telemetry"),
-    }.items():
+    }
+    for name, port in logged.items():
         handles[name] = LogVectorOutput(port, builder, h)
         handles[name].set_name(name)
+    if meshcat is not None:
+        handles["traces"] = AddMeshcatDrawing(
+            builder, meshcat, default_visualization(), station_handles, reference, h
+        )
     diagram = builder.Build()
-    diagram.set_name("live_closed_loop")
+    diagram.set_name(f"live_{plant}_closed_loop")
     return diagram, handles
 
 
@@ -159,6 +196,9 @@ def run_live(
     realtime_rate: float = 1.0,
     on_listening: Callable[[tuple[str, int]], None] | None = None,
     robot: KR500 | None = None,
+    plant: str = "analytical",
+    station: StationConfig | None = None,
+    meshcat=None,
 ) -> dict:
     """Runs the live loop for `duration_s` (s of simulated time, at `realtime_rate`) and
     returns its summary with the `live` block.
@@ -167,18 +207,30 @@ def run_live(
         on_listening: called with the bound (host, port) once the socket is open, before the
             loop starts (the CLI prints `listening on udp://HOST:PORT`; tests start senders).
         realtime_rate: Drake's target real-time rate (1: live; 0: as fast as possible).
+        plant: "analytical" or "multibody" (the KR500 station; `station` its settings,
+            `meshcat` a pydrake Meshcat to draw it in).
     """
     if not 0 < duration_s <= 24 * 3600:
         raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
     robot = robot if robot is not None else load_kr500()
     config = as_mca_config(mca)
     diagram, handles = MakeLiveClosedLoop(
-        decoder, config, receiver=receiver, supervisor=supervisor, scaling=scaling, robot=robot
+        decoder,
+        config,
+        plant=plant,
+        receiver=receiver,
+        supervisor=supervisor,
+        scaling=scaling,
+        robot=robot,
+        station=station,
+        meshcat=meshcat,
     )
     source = handles["receiver"]
     try:
         simulator = Simulator(diagram)
         simulator.set_target_realtime_rate(realtime_rate)
+        if plant == "multibody":
+            handles["station"].SetInitialState(simulator.get_mutable_context())
         simulator.Initialize()
         if on_listening is not None:
             on_listening(source.address)
@@ -195,18 +247,28 @@ def run_live(
     h = (receiver or ReceiverConfig()).time_step
     commands = log("command_log")[1:]
     n = commands.shape[0]
-    states = log("state_log")[:n]
     reference = log("reference_log")[:n]
-    outputs = plant_output(states[:, :6], states[:, 6:], commands, robot)
+    if plant == "analytical":
+        states = log("state_log")[:n]
+        accelerations = commands
+        outputs = plant_output(states[:, :6], states[:, 6:], commands, robot)
+    else:  # what the occupant felt (the IMU without its delay), as run_closed_loop scores it
+        n = n - 1
+        commands, reference = commands[:n], reference[:n]
+        measured = log("true_state_log")
+        states = measured[:n]
+        accelerations = (measured[1 : n + 1, 6:] - measured[:n, 6:]) / h
+        measured_y = log("measured_output_log")
+        outputs = np.concatenate([measured_y[:n, :3], measured_y[1 : n + 1, 3:]], axis=1)
     summary, _ = closed_loop_summary(
         config=config,
-        plant="analytical",
+        plant=plant,
         reference_name=f"live {decoder.protocol} udp://{source.address[0]}:{source.address[1]}",
         duration_s=n * h,
         reference=reference,
         outputs=outputs,
         states=states,
-        accelerations=commands,
+        accelerations=accelerations,
         statistics=log("statistics_log"),
         wall_s=wall_s,
         robot=robot,
@@ -214,7 +276,6 @@ def run_live(
     telemetry = dict(zip(TELEMETRY_FIELDS, log("telemetry_log")[-1], strict=True))
     health = dict(zip(HEALTH_FIELDS, log("health_log")[-1], strict=True))
     latencies = np.asarray(handles["probe"].latencies_s)
-    summary["plant"] = "analytical"
     summary["live"] = {
         "protocol": decoder.protocol,
         "address": f"udp://{source.address[0]}:{source.address[1]}",

@@ -242,8 +242,13 @@ def MakeMultibodyClosedLoop(
     }
     handles |= _add_logs(builder, ports, controller, time_step)
     if meshcat is not None:
-        handles["traces"] = _add_meshcat(
-            builder, meshcat, visualization, station_handles, source, time_step
+        handles["traces"] = AddMeshcatDrawing(
+            builder,
+            meshcat,
+            visualization,
+            station_handles,
+            source.GetOutputPort("reference"),
+            time_step,
         )
     diagram = builder.Build()
     diagram.set_name("multibody_closed_loop")
@@ -256,9 +261,9 @@ def default_visualization() -> VisualizationConfig:
     return VisualizationConfig(publish_period=1 / 30, publish_proximity=False)
 
 
-def _add_meshcat(builder, meshcat, visualization, station_handles, source, time_step):
-    """Meshcat drawing of the station and the live target/measured strip charts; returns
-    the MeshcatOutputTraces system.
+def AddMeshcatDrawing(builder, meshcat, visualization, station_handles, reference_port, time_step):
+    """Meshcat drawing of the station and the live target/measured strip charts (the target
+    from `reference_port`); returns the MeshcatOutputTraces system.
 
     The drawing follows Drake's VisualizationConfig: the illustration and proximity layers
     with their colours, publish period and alpha sliders, as ApplyVisualizationConfig
@@ -289,6 +294,6 @@ def _add_meshcat(builder, meshcat, visualization, station_handles, source, time_
     traces = builder.AddNamedSystem(
         "output_traces", MeshcatOutputTraces(meshcat, sample_period=time_step)
     )
-    builder.Connect(source.GetOutputPort("reference"), traces.GetInputPort("reference"))
+    builder.Connect(reference_port, traces.GetInputPort("reference"))
     builder.Connect(station_handles.true_output, traces.GetInputPort("measured_output"))
     return traces
