@@ -313,25 +313,48 @@ def _cmd_live(args: argparse.Namespace) -> int:
 
     if args.json:
         check_writable(args.json)
-    decoder = make_decoder(args.protocol, xplane_version=args.xplane_version)
+    sender = []
+    if args.demo:
+        # a JSBSim process flies the light aircraft and streams FGNetFDM packets to us; the
+        # station in Meshcat unless told otherwise
+        from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S, start_demo_sender
+
+        args.protocol, args.port = "fgnetfdm", 0
+        args.plant = args.plant or "multibody"
+        args.meshcat = args.meshcat or args.plant == "multibody"
+        args.duration = args.duration or 60.0
+        decoder = make_decoder("fgnetfdm", fgnetfdm_time_resolution_s=DEMO_TIME_RESOLUTION_S)
+    elif args.protocol is None or args.duration is None:
+        raise ValueError("live needs --protocol and --duration (or --demo)")
+    else:
+        decoder = make_decoder(args.protocol, xplane_version=args.xplane_version)
+    plant = args.plant or "analytical"
     receiver = ReceiverConfig(host=args.host, port=args.port)
-    if args.meshcat and args.plant != "multibody":
+    if args.meshcat and plant != "multibody":
         raise ValueError("--meshcat draws the KR500 station: add --plant multibody")
     meshcat = start_meshcat() if args.meshcat else None
 
     def listening(address):
         print(f"listening on udp://{address[0]}:{address[1]}", flush=True)
+        if args.demo:
+            # a little longer than the loop, so that the stream does not stop before it
+            sender.append(start_demo_sender(address[1], args.duration + 2.0))
 
-    summary = run_live(
-        decoder,
-        mca_config_from_name(args.mca),
-        args.duration,
-        receiver=receiver,
-        realtime_rate=args.realtime_rate,
-        on_listening=listening,
-        plant=args.plant,
-        meshcat=meshcat,
-    )
+    try:
+        summary = run_live(
+            decoder,
+            mca_config_from_name(args.mca),
+            args.duration,
+            receiver=receiver,
+            realtime_rate=args.realtime_rate,
+            on_listening=listening,
+            plant=plant,
+            meshcat=meshcat,
+        )
+    finally:
+        for process in sender:
+            process.terminate()
+            process.wait(timeout=10)
     live = summary["live"]
     latency = {k: f"{v * 1e3:.3f} ms" for k, v in live["latency_s"].items()}
     print(
@@ -664,18 +687,24 @@ def build_parser() -> argparse.ArgumentParser:
         "live",
         help="cue a running flight simulator's UDP telemetry in real time",
     )
-    live.add_argument("--protocol", required=True, help="fgnetfdm, xplane or csv")
+    live.add_argument("--protocol", help="fgnetfdm, xplane or csv")
     live.add_argument("--xplane-version", type=int, help="11 or 12 (protocol xplane)")
     live.add_argument("--host", default="127.0.0.1", help="address to listen on")
     live.add_argument("--port", type=int, default=5500, help="UDP port (0: any free one)")
-    live.add_argument("--duration", type=float, required=True, help="s of live cueing")
+    live.add_argument("--duration", type=float, help="s of live cueing (demo: 60)")
     live.add_argument("--mca", default="dpc", help=", ".join(MCA_NAMES))
     live.add_argument("--realtime-rate", type=float, default=1.0, help="1: real time")
     live.add_argument(
-        "--plant", default="analytical", help="analytical or multibody (the KR500 station)"
+        "--plant", help="analytical (default) or multibody (the KR500 station; demo default)"
     )
     live.add_argument("--meshcat", action="store_true", help="draw the station in Meshcat")
     live.add_argument("--json", help="result summary with its live block")
+    live.add_argument(
+        "--demo",
+        action="store_true",
+        help="JSBSim flies the light aircraft and streams FlightGear packets to this loop, "
+        "cued on the KR500 station in Meshcat",
+    )
     live.set_defaults(func=_cmd_live)
 
     table2 = sub.add_parser(

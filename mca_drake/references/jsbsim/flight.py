@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import jsbsim
 import numpy as np
@@ -102,8 +103,17 @@ def fly_with_log(
     *,
     config: FlightConfig | None = None,
     progress: bool = False,
+    output_directive: str | None = None,
+    on_sample: Callable[[float], None] | None = None,
 ) -> tuple[Recording, FlightLog]:
-    """`fly`, plus the vehicle's attitude, height, airspeed and phases on the same grid."""
+    """`fly`, plus the vehicle's attitude, height, airspeed and phases on the same grid.
+
+    Args:
+        output_directive: path of a JSBSim output directive to add (e.g. FlightGear packets
+            over UDP, `mca_drake.live.fgnetfdm.jsbsim_output_directive`); None: no output.
+        on_sample: called with the simulated time (s) after every step (a live streamer
+            paces the flight to the wall clock with it).
+    """
     check_vehicle(vehicle)
     if not (math.isfinite(duration_s) and duration_s >= STEP_S):
         raise ValueError(f"duration_s must be a finite number >= {STEP_S}; got {duration_s}")
@@ -113,7 +123,16 @@ def fly_with_log(
     previous = jsbsim.get_logger()
     jsbsim.set_logger(logger)  # JSBSim's console chatter goes to our buffer instead
     try:
-        return _record(vehicle, float(duration_s), int(seed), config, logger, progress)
+        return _record(
+            vehicle,
+            float(duration_s),
+            int(seed),
+            config,
+            logger,
+            progress,
+            output_directive=output_directive,
+            on_sample=on_sample,
+        )
     finally:
         jsbsim.set_logger(previous)
 
@@ -125,6 +144,8 @@ def _record(
     config: FlightConfig,
     logger: QuietLogger,
     progress: bool,
+    output_directive: str | None = None,
+    on_sample: Callable[[float], None] | None = None,
 ) -> tuple[Recording, FlightLog]:
     """Builds the flight, steps it to `duration_s` with the checks, and packages it."""
     air = AIRFRAMES[vehicle]
@@ -135,7 +156,14 @@ def _record(
         from_ground = bool(config.from_ground)
     # The generator's draws come in a fixed order, so a seed always gives the same flight:
     # the turbulence generator's seed first, then the heading, then the plan's, as it flies.
-    model = Model(vehicle, seed, air, logger, turbulence_seed=int(rng.integers(1, 2**31 - 1)))
+    model = Model(
+        vehicle,
+        seed,
+        air,
+        logger,
+        turbulence_seed=int(rng.integers(1, 2**31 - 1)),
+        output_directive=output_directive,
+    )
     heading = config.initial_heading_rad
     if heading is None:
         heading = float(rng.uniform(0.0, 2.0 * math.pi))
@@ -161,7 +189,7 @@ def _record(
     if progress:
         bar = tqdm(total=round(duration_s), unit="sim s", desc=f"{vehicle} flight")
     try:
-        imu, log = _run(model, loops, pilot, n_samples, bar)
+        imu, log = _run(model, loops, pilot, n_samples, bar, on_sample)
     finally:
         if bar is not None:
             bar.close()
@@ -169,7 +197,12 @@ def _record(
 
 
 def _run(
-    model: Model, loops: Loops, pilot: Pilot, n_samples: int, bar: tqdm | None
+    model: Model,
+    loops: Loops,
+    pilot: Pilot,
+    n_samples: int,
+    bar: tqdm | None,
+    on_sample: Callable[[float], None] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Steps pilot, loops and model to `n_samples` samples, checking the state as it goes.
 
@@ -207,6 +240,8 @@ def _run(
         log[k] = (s.phi, s.theta, s.psi, s.h, s.v, s.wow)
         if bar is not None and k % 100 == 0:
             bar.update(1)
+        if on_sample is not None:
+            on_sample(model.t)
     return np.array(imu), np.array(log, dtype=float)
 
 

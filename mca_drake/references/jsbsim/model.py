@@ -183,6 +183,7 @@ class Model:
         air: Airframe,
         logger: QuietLogger,
         turbulence_seed: int,
+        output_directive: str | None = None,
     ) -> None:
         self.vehicle = vehicle
         self.seed = seed
@@ -201,6 +202,12 @@ class Model:
         while fdm.set_output_filename(n, os.devnull):
             n += 1
         fdm.disable_output()
+        if output_directive is not None:
+            # An extra output (e.g. FlightGear packets over UDP for a live demo); enabling it
+            # re-enables the declared ones too, but those write to the null device.
+            if not fdm.set_output_directive(str(output_directive)):
+                raise RuntimeError(f"JSBSim could not load output directive {output_directive}")
+            fdm.enable_output()
         fdm.set_dt(STEP_S)
         fdm["simulation/randomseed"] = turbulence_seed
         self.fdm = fdm
