@@ -40,25 +40,48 @@ from mca_drake.simulation.closed_loop import run_closed_loop
 SUITE_CONVERGED_STEPS = 2 * 10 * 300 * 100
 
 
-def measure_flight(vehicle: str, seed: int, duration_s: float, converged_s: float) -> dict:
-    """Both modes at both weight sets on one flight: {label: figures}. Uses only what every
-    checkout since the typed configs has (for --baseline)."""
+# The fields of NmpcConfig that tuning sets ("shipped" weights are this checkout's defaults).
+WEIGHT_FIELDS = (
+    "output_weights",
+    "input_weight",
+    "washout_weight",
+    "terminal_position_weight",
+    "terminal_velocity_weight",
+)
+
+
+def shipped_weights() -> dict:
+    """This checkout's default (tuned) NMPC weights."""
+    default = NmpcConfig()
+    return {name: getattr(default, name) for name in WEIGHT_FIELDS}
+
+
+def measure_flight(
+    vehicle: str, seed: int, duration_s: float, converged_s: float, weights: dict
+) -> dict:
+    """Both modes at both weight sets ("shipped": `weights`; "paper") on one flight:
+    {label: figures}. Uses only what every checkout since the typed configs has, so that
+    --baseline times an older checkout at the same weights."""
     reference = flight_reference(FlightSpec(vehicle=vehicle, seed=seed), duration_s)
     out = {}
-    for weights in ("shipped", "paper"):
+    for label in ("shipped", "paper"):
         for mode, seconds in (("rti", duration_s), ("converged", converged_s)):
-            config = NmpcConfig(mode=mode) if weights == "shipped" else NmpcConfig.paper(mode)
+            config = (
+                NmpcConfig(mode=mode, **weights) if label == "shipped" else NmpcConfig.paper(mode)
+            )
             result = run_closed_loop(
                 mca=config, reference=reference, duration_s=seconds, progress=False
             )
-            out[f"{weights}/{mode}"] = _figures(result, seconds)
-            print(f"  {weights:8s} {mode:9s} {_line(out[f'{weights}/{mode}'])}", flush=True)
+            out[f"{label}/{mode}"] = _figures(result, seconds)
+            print(f"  {label:8s} {mode:9s} {_line(out[f'{label}/{mode}'])}", flush=True)
         if converged_s < duration_s:  # rti over the converged window, for the PI gap
-            config = NmpcConfig(mode="rti") if weights == "shipped" else NmpcConfig.paper("rti")
+            config = (
+                NmpcConfig(mode="rti", **weights) if label == "shipped" else NmpcConfig.paper("rti")
+            )
             result = run_closed_loop(
                 mca=config, reference=reference, duration_s=converged_s, progress=False
             )
-            out[f"{weights}/rti_window"] = _figures(result, converged_s)
+            out[f"{label}/rti_window"] = _figures(result, converged_s)
     return out
 
 
@@ -160,6 +183,7 @@ def run_baseline(directory: str, args) -> dict:
             *("--vehicle", args.vehicle, "--seed", str(args.seed)),
             *("--duration", str(args.duration)),
             *("--converged-duration", str(args.baseline_converged_duration)),
+            *("--weights", json.dumps(shipped_weights())),
         ]
         subprocess.run(command, env=env, check=True)
         return json.loads(out.read_text())
@@ -177,12 +201,19 @@ def main() -> None:
     parser.add_argument("--profile", type=float, default=20.0, help="profiled seconds, 0: none")
     parser.add_argument("--json", help="write every figure here")
     parser.add_argument("--measure-flight-only", help=argparse.SUPPRESS)
+    parser.add_argument("--weights", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.measure_flight_only:  # the --baseline subprocess
         import mca_drake
 
         print(f"baseline: {Path(mca_drake.__file__).parent}", flush=True)
-        figures = measure_flight(args.vehicle, args.seed, args.duration, args.converged_duration)
+        figures = measure_flight(
+            args.vehicle,
+            args.seed,
+            args.duration,
+            args.converged_duration,
+            json.loads(args.weights),
+        )
         Path(args.measure_flight_only).write_text(json.dumps(figures))
         return
     report = {"calibration": print_calibration()}
@@ -190,8 +221,9 @@ def main() -> None:
         print(f"profile, {args.profile:g} s of the flight:", flush=True)
         report["profile"] = profile_modes(args.vehicle, args.seed, args.profile)
     print(f"{args.vehicle} flight, seed {args.seed}, analytical plant:", flush=True)
+    report["shipped_weights"] = shipped_weights()
     report["flight"] = measure_flight(
-        args.vehicle, args.seed, args.duration, args.converged_duration
+        args.vehicle, args.seed, args.duration, args.converged_duration, shipped_weights()
     )
     for weights in ("shipped", "paper"):
         flight = report["flight"]
@@ -220,7 +252,7 @@ def main() -> None:
         same_window = {}
         for weights in ("shipped", "paper"):
             config = (
-                NmpcConfig(mode="converged")
+                NmpcConfig(mode="converged")  # the shipped weights are the defaults here
                 if weights == "shipped"
                 else NmpcConfig.paper("converged")
             )

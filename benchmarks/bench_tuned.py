@@ -24,7 +24,7 @@ from common import calibration_s
 
 from mca_drake.app.scenarios import load_scenario
 from mca_drake.atomic_io import atomic_write_json
-from mca_drake.cueing import NmpcConfig
+from mca_drake.cueing import NmpcConfig, mca_config_from_name
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.parallel import run_tasks
@@ -33,7 +33,10 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def tuned_config(path: str):
-    """The MCA of a best.yaml (a scenario override) of `mca-drake tune`."""
+    """The MCA of a best.yaml (a scenario override) of `mca-drake tune`; "nmpc-rti" or
+    "washout": the shipped defaults (the tuned ones)."""
+    if path in ("nmpc-rti", "washout"):
+        return mca_config_from_name(path)
     text = Path(path).read_text()
     return load_scenario(REPO / "diagrams" / "closed_loop_dpc.yaml", text).mca
 
@@ -59,8 +62,8 @@ def _run(label: str, config, vehicle: str, seed: int, duration: float, out: str)
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--nmpc", help="best.yaml of the NMPC tune")
-    parser.add_argument("--washout", help="best.yaml of the washout tune")
+    parser.add_argument("--nmpc", help="best.yaml of the NMPC tune, or nmpc-rti (the defaults)")
+    parser.add_argument("--washout", help="best.yaml of the washout tune, or washout")
     parser.add_argument("--flights", type=int, default=10)
     parser.add_argument("--duration", type=float, default=120.0)
     parser.add_argument("--workers", type=int, default=2)
