@@ -33,22 +33,30 @@ def stream(address, duration_s, rate_hz=100.0, gap=(1.0, 1.6), nan_at=2.0):
     sender.close()
 
 
-def test_a_live_run_survives_a_stop_and_bad_packets():
+def live_with_sender(sender, sender_seconds, mca, seconds, **options):
+    """`run_live` on a free loopback port with `sender(address, sender_seconds)` streaming
+    from a thread started once the socket listens; the summary."""
     threads = []
 
     def start_sender(address):
-        thread = threading.Thread(target=stream, args=(address, 3.2), daemon=True)
+        thread = threading.Thread(target=sender, args=(address, sender_seconds), daemon=True)
         thread.start()
         threads.append(thread)
 
     summary = run_live(
         CsvDecoder(),
-        "washout",
-        3.0,
+        mca,
+        seconds,
         receiver=ReceiverConfig(port=0),
         on_listening=start_sender,
+        **options,
     )
     threads[0].join(timeout=5)
+    return summary
+
+
+def test_a_live_run_survives_a_stop_and_bad_packets():
+    summary = live_with_sender(stream, 3.2, "washout", 3.0)
     live = summary["live"]
     assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     assert live["packets"] > 200 and live["bad"] >= 2
@@ -97,22 +105,7 @@ def test_an_unknown_protocol_is_one_clear_error():
 
 
 def test_a_live_run_on_the_kr500_station_holds_the_limits():
-    threads = []
-
-    def start_sender(address):
-        thread = threading.Thread(target=stream, args=(address, 2.2), daemon=True)
-        thread.start()
-        threads.append(thread)
-
-    summary = run_live(
-        CsvDecoder(),
-        "dpc",
-        2.0,
-        receiver=ReceiverConfig(port=0),
-        on_listening=start_sender,
-        plant="multibody",
-    )
-    threads[0].join(timeout=5)
+    summary = live_with_sender(stream, 2.2, "dpc", 2.0, plant="multibody")
     assert summary["plant"] == "multibody"
     assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     assert summary["live"]["packets"] > 100 and np.isfinite(summary["pi"])
@@ -168,17 +161,7 @@ def impaired_stream(address, duration_s, seed=0):
 
 
 def test_loss_jitter_reordering_nan_and_a_stop_never_break_a_limit():
-    threads = []
-
-    def start_sender(address):
-        thread = threading.Thread(target=impaired_stream, args=(address, 3.7), daemon=True)
-        thread.start()
-        threads.append(thread)
-
-    summary = run_live(
-        CsvDecoder(), "nmpc-rti", 3.5, receiver=ReceiverConfig(port=0), on_listening=start_sender
-    )
-    threads[0].join(timeout=5)
+    summary = live_with_sender(impaired_stream, 3.7, "nmpc-rti", 3.5)
     live = summary["live"]
     assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     assert live["bad"] >= 5 and live["out_of_order"] >= 3

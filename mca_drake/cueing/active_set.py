@@ -23,6 +23,7 @@ import dataclasses
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack
 
 # A row counts as violated beyond this (absolute, in the units of C d; the NMPC keeps a
 # reserve of 1e-3 of every limit, so this never turns into a limit violation).
@@ -107,13 +108,14 @@ def solve_on_active_set(
                 Hinv_Ct[:, missing] = scipy.linalg.cho_solve(factor, C[missing].T)
                 known[missing] = True
             Y = Hinv_Ct[:, index]  # H^-1 rows^T, (n, k)
-            schur = cholesky(rows @ Y)
+            S = rows @ Y
+            schur = cholesky(S)
             if schur is None:
-                # Dependent active rows (at the robot's limits the box on u_0 and the node
-                # row it was derived from are active together): keep an independent subset;
-                # the rows left out hold as equalities too when the set is consistent, and
-                # the feasibility check below sees to it.
-                keep = _independent_rows(rows)
+                # Dependent active rows (at the robot's limits several node rows bind the
+                # same combination of inputs): keep an independent subset; the rows left out
+                # hold as equalities too when the set is consistent, and the feasibility
+                # check below sees to it.
+                keep = _independent_rows(S)
                 active[index[~keep]] = 0
                 index, side, rows, rhs = index[keep], side[keep], rows[keep], rhs[keep]
                 Y = Y[:, keep]
@@ -183,13 +185,19 @@ def _one_per_group(active: np.ndarray, groups: np.ndarray) -> np.ndarray:
     return active
 
 
-def _independent_rows(rows: np.ndarray) -> np.ndarray:
-    """A mask of linearly independent rows (QR with column pivoting of rows^T)."""
-    _, R, pivots = scipy.linalg.qr(rows.T, mode="economic", pivoting=True)
-    diagonal = np.abs(np.diag(R))
-    rank = int(np.sum(diagonal > 1e-9 * diagonal[0])) if diagonal.size else 0
-    keep = np.zeros(rows.shape[0], dtype=bool)
-    keep[pivots[:rank]] = True
+def _independent_rows(S: np.ndarray) -> np.ndarray:
+    """A mask of linearly independent active rows, from their Schur complement
+    S = rows H^-1 rows^T (k, k; H positive definite, so S is singular exactly where the rows
+    are dependent): LAPACK's pivoted Cholesky (dpstrf) picks them, in O(k^3) on the small S
+    rather than a QR of the rows themselves (ten times slower, at every correction)."""
+    keep = np.zeros(S.shape[0], dtype=bool)
+    if S.size == 0:
+        return keep
+    scale = float(np.max(np.diag(S)))
+    _, pivots, rank, info = scipy.linalg.lapack.dpstrf(S, tol=PIVOT_RATIO * scale)
+    if info < 0:
+        return keep
+    keep[pivots[:rank] - 1] = True  # LAPACK's pivots count from 1
     return keep
 
 

@@ -110,9 +110,11 @@ class NmpcConfig:
     # tangents only keep the later plan realistic, and each costs 12 rows per node.
     stoppability_tangents: int = 2
     # Corrections of a guessed active set before Drake's solver takes the QP: each costs one
-    # KKT solve (about 0.1-0.3 ms), so this bounds a step's worst case. On a 60 s jet flight
-    # 99 % of the hot starts settled within 18 corrections (median 0, 90 % within 1).
-    active_set_corrections: int = 20
+    # KKT solve (0.1 to 1 ms, more with more active rows), so this bounds a step's worst
+    # case. None: 4 in rti mode (at the tuned weights, 20 made the p99 step of a 300 s
+    # light flight 50 ms, 4 made it 14 ms) and 20 in converged mode (a correction costs
+    # less than a Clarabel solve; on a 60 s jet flight 99 % of hot starts settled within 18).
+    active_set_corrections: int | None = None
     # Drake's QP solver where the hot-started active set does not settle: "clarabel"
     # (interior point, accurate), "osqp" (ADMM with solution polishing, fast) or "auto"
     # (osqp for rti, clarabel for converged).
@@ -163,8 +165,8 @@ class NmpcConfig:
             raise ValueError(f"unknown QP solver '{self.qp_solver}'; valid: {valid}")
         if min(self.osqp_max_iterations, self.stoppability_tangents) < 0:
             raise ValueError("osqp_max_iterations and stoppability_tangents must be >= 0")
-        if self.active_set_corrections < 0:
-            raise ValueError("active_set_corrections must be >= 0")
+        if self.active_set_corrections is not None and self.active_set_corrections < 0:
+            raise ValueError("active_set_corrections must be >= 0 (or None: by mode)")
         if self.horizon_steps < 1 or self.max_iterations < 1:
             raise ValueError("horizon_steps and max_iterations must be at least 1")
         tolerances = (
@@ -336,6 +338,9 @@ class MotionCueingOcp:
         # node 1's rows are multiples of u_0's box rows (the exact viability interval)
         self._parallel = parallel_groups(self._C)
         self._blas = ThreadpoolController()
+        self._corrections = cfg.active_set_corrections
+        if self._corrections is None:
+            self._corrections = 4 if cfg.mode == "rti" else 20
         self._A_q0, self._A_qd0 = np.vstack(self._row_q0), np.vstack(self._row_qd0)
         self._lower0, self._upper0 = np.concatenate(lower), np.concatenate(upper)
 
@@ -772,17 +777,7 @@ class MotionCueingOcp:
         exact) takes the Gauss-Newton H, which is what its sparse program holds."""
         H, factor = model
         if factor is not None:
-            solution = solve_on_active_set(
-                H,
-                g,
-                self._C,
-                d_lo,
-                d_hi,
-                active,
-                cholesky_of_H=factor,
-                groups=self._parallel,
-                max_corrections=self.config.active_set_corrections,
-            )
+            solution = self._on_active_set(H, factor, g, d_lo, d_hi, active)
             if solution is not None:
                 return solution.d.reshape(self.N, NU), solution, True, ""
         H, factor = gauss_newton
@@ -793,22 +788,29 @@ class MotionCueingOcp:
             return None, None, False, message
         d = (U_qp - U).reshape(-1)
         if factor is not None:
-            # the solver's active set, made exact (and given multipliers) by one KKT solve
+            # the solver's active set, made exact (and given multipliers) by one KKT solve;
+            # a couple of corrections at most: the solver's active set is nearly right, and
+            # where it is not, its own answer serves (rti) or the next iteration goes on
             guess = active_rows(self._C, d, d_lo, d_hi, ACTIVE_ROW_TOLERANCE)
-            solution = solve_on_active_set(
-                H,
-                g,
-                self._C,
-                d_lo,
-                d_hi,
-                guess,
-                cholesky_of_H=factor,
-                groups=self._parallel,
-                max_corrections=self.config.active_set_corrections,
-            )
+            solution = self._on_active_set(H, factor, g, d_lo, d_hi, guess, corrections=2)
             if solution is not None:
                 return solution.d.reshape(self.N, NU), solution, False, ""
         return d.reshape(self.N, NU), None, False, ""
+
+    def _on_active_set(self, H, factor, g, d_lo, d_hi, guess, corrections=None):
+        """`solve_on_active_set` of this OCP's rows from `guess` (None: not settled) with
+        `corrections` (default config.active_set_corrections)."""
+        return solve_on_active_set(
+            H,
+            g,
+            self._C,
+            d_lo,
+            d_hi,
+            guess,
+            cholesky_of_H=factor,
+            groups=self._parallel,
+            max_corrections=self._corrections if corrections is None else corrections,
+        )
 
     # ----------------------------------------------------------------- warm start and fallback
     def shift(self, U: np.ndarray, steps: int = 1) -> np.ndarray:

@@ -30,7 +30,12 @@ from mca_drake.live.xplane import XPlaneDecoder
 from mca_drake.references.reference import ReferenceScaling
 from mca_drake.robot import KR500, load_kr500
 from mca_drake.simulation.builders import AddMca, AddMeshcatDrawing, default_visualization
-from mca_drake.simulation.closed_loop import PLANTS, closed_loop_summary, step_time_summary
+from mca_drake.simulation.closed_loop import (
+    PLANTS,
+    closed_loop_summary,
+    station_signals,
+    step_time_summary,
+)
 from mca_drake.systems import MotionCueingPlant
 from mca_drake.systems.kr500_station import AddKR500Station, StationConfig
 
@@ -69,11 +74,14 @@ class LatencyProbe(LeafSystem):
         self._command = self.DeclareVectorInputPort("command", 6)
         self.DeclarePeriodicPublishEvent(time_step, 0.0, self._probe)
         self.latencies_s: list[float] = []
+        # wall time of every control instant (after its updates): the loop's jitter
+        self.instants_s: list[float] = []
         self._last_arrival = float("nan")
 
     def _probe(self, context: Context) -> EventStatus:
         self._command.Eval(context)  # the command the robot gets now
         now = time.perf_counter()
+        self.instants_s.append(now)
         arrival = float(self._telemetry.Eval(context)[_ARRIVAL])
         if np.isfinite(arrival) and arrival != self._last_arrival:
             self.latencies_s.append(now - arrival)
@@ -234,9 +242,10 @@ def run_live(
         simulator.Initialize()
         if on_listening is not None:
             on_listening(source.address)
-        start = time.perf_counter()
+        start, cpu_start = time.perf_counter(), time.process_time()
         simulator.AdvanceTo(duration_s)
         wall_s = time.perf_counter() - start
+        cpu_s = time.process_time() - cpu_start
     finally:
         source.close()
     context = simulator.get_context()
@@ -255,11 +264,9 @@ def run_live(
     else:  # what the occupant felt (the IMU without its delay), as run_closed_loop scores it
         n = n - 1
         commands, reference = commands[:n], reference[:n]
-        measured = log("true_state_log")
-        states = measured[:n]
-        accelerations = (measured[1 : n + 1, 6:] - measured[:n, 6:]) / h
-        measured_y = log("measured_output_log")
-        outputs = np.concatenate([measured_y[:n, :3], measured_y[1 : n + 1, 3:]], axis=1)
+        states, accelerations, outputs = station_signals(
+            log("true_state_log"), log("measured_output_log"), n, h
+        )
     summary, _ = closed_loop_summary(
         config=config,
         plant=plant,
@@ -301,5 +308,13 @@ def run_live(
         ],
         "realtime_rate": realtime_rate,
         "control_period_s": h,
+        # |period - h| of the loop's control instants on the wall clock
+        "loop_jitter_s": step_time_summary(
+            np.abs(np.diff(handles["probe"].instants_s) - h / max(realtime_rate, 1e-9))
+            if realtime_rate > 0
+            else np.zeros(0)
+        ),
+        # this process's CPU time over wall time (1.0: one core busy)
+        "cpu_load": cpu_s / max(wall_s, 1e-9),
     }
     return summary

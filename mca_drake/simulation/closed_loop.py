@@ -237,11 +237,9 @@ def run_closed_loop(
         accelerations = commands
         outputs = plant_output(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], commands, robot)
     else:
-        measured_y = log("measured_output_log")
-        outputs = np.concatenate([measured_y[:n, :3], measured_y[1 : n + 1, 3:]], axis=1)
-        measured = log("measured_state_log")
-        accelerations = (measured[1 : n + 1, NUM_JOINTS:] - measured[:n, NUM_JOINTS:]) / h
-        states = measured[:n]
+        states, accelerations, outputs = station_signals(
+            log("measured_state_log"), log("measured_output_log"), n, h
+        )
         desired = log("desired_state_log")[:n]
     ref = log("reference_log")[:n]
     summary, step_times = closed_loop_summary(
@@ -290,6 +288,19 @@ def run_closed_loop(
 
         write_closed_loop_plots(result, plot_dir, robot)
     return result
+
+
+def station_signals(
+    measured_state: np.ndarray, measured_output: np.ndarray, n: int, h: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(states x_n (n, 12), joint accelerations over each period (n, 6), outputs y_n (n, 6))
+    of the KR500 station from its logs at the control period (at least n + 1 rows each):
+    the MultibodyPlant's state and the head IMU without its delay, what the occupant felt.
+    The IMU's accelerometer rows reflect the period before their sample, so y_n takes the
+    angular rates of row n and the specific force of row n + 1."""
+    outputs = np.concatenate([measured_output[:n, :3], measured_output[1 : n + 1, 3:]], axis=1)
+    accelerations = (measured_state[1 : n + 1, NUM_JOINTS:] - measured_state[:n, NUM_JOINTS:]) / h
+    return measured_state[:n], accelerations, outputs
 
 
 def _check_alignment(states: np.ndarray, commands: np.ndarray, h: float) -> None:

@@ -1,0 +1,84 @@
+"""Live loop figures on JSBSim's own telemetry (issue 20): latency, jitter and CPU load.
+
+    python benchmarks/bench_live.py [--duration 600] [--mcas dpc,nmpc-rti]
+        [--plant analytical] [--json out.json]
+
+For each MCA, `mca-drake live --demo`'s set-up without Meshcat: a JSBSim process flies the
+light aircraft (a training seed) in real time and streams its FGNetFDM packets over
+loopback at 100 Hz; the loop cues them at real-time rate 1 for `--duration` s. Prints the
+latency from a sample's arrival to the command computed from it (median, p99, max), the
+loop's jitter (|period - 10 ms| of its control instants on the wall clock), the loop
+process's CPU load and the sender's, and the stream's counters. The machine's calibration
+first.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+
+from common import print_calibration
+
+from mca_drake.atomic_io import atomic_write_json
+from mca_drake.cueing import mca_config_from_name
+from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S, start_demo_sender
+from mca_drake.live.loop import make_decoder, run_live
+from mca_drake.live.receiver import ReceiverConfig
+
+
+def children_cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--duration", type=float, default=600.0, help="s per MCA")
+    parser.add_argument("--mcas", default="dpc,nmpc-rti")
+    parser.add_argument("--plant", default="analytical")
+    parser.add_argument("--json", help="write the figures here")
+    args = parser.parse_args()
+    report = {"calibration": print_calibration(), "runs": {}}
+    for name in args.mcas.split(","):
+        senders = []
+
+        def start(address, senders=senders):
+            senders.append(start_demo_sender(address[1], args.duration + 3.0))
+
+        cpu0 = children_cpu_s()
+        summary = run_live(
+            make_decoder("fgnetfdm", fgnetfdm_time_resolution_s=DEMO_TIME_RESOLUTION_S),
+            mca_config_from_name(name),
+            args.duration,
+            receiver=ReceiverConfig(port=0),
+            on_listening=start,
+            plant=args.plant,
+        )
+        for process in senders:
+            process.terminate()
+            process.wait(timeout=10)
+        live = summary["live"]
+        live["sender_cpu_load"] = (children_cpu_s() - cpu0) / max(summary["wall_time_s"], 1e-9)
+        report["runs"][name] = {
+            "live": live,
+            "pi": summary["pi"],
+            "pi_zero_motion": summary["pi_zero_motion"],
+            "violations": summary["violations"],
+            "step_time_s": summary["step_time_s"],
+        }
+        ms = {k: f"{v * 1e3:.3f}" for k, v in live["latency_s"].items()}
+        jitter = {k: f"{v * 1e3:.3f}" for k, v in live["loop_jitter_s"].items()}
+        print(
+            f"{name}: {args.duration:g} s, latency ms {ms}, loop jitter ms {jitter}, CPU load "
+            f"{live['cpu_load']:.2f} (sender {live['sender_cpu_load']:.2f}); packets "
+            f"{live['packets']}, bad {live['bad']}, dropped {live['dropped']}, stale events "
+            f"{live['stale_events']}, health {live['health']}; PI {summary['pi']:.3f} (zero "
+            f"motion {summary['pi_zero_motion']:.3f}); violations {summary['violations']}",
+            flush=True,
+        )
+    if args.json:
+        atomic_write_json(args.json, report)
+
+
+if __name__ == "__main__":
+    main()
