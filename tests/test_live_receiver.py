@@ -122,3 +122,20 @@ def test_a_port_in_use_is_an_error():
     with pytest.raises(OSError):
         TelemetryReceiver(CsvDecoder(), ReceiverConfig(port=first.address[1]))
     first.close()
+
+
+def test_a_datagrams_age_counts_its_wait_in_the_socket():
+    """The kernel's receive time stamps the sample: one sent 30 ms before the poll reads it
+    is at least 30 ms old then, not 0."""
+    import time
+
+    simulator, receiver, sender = rig()
+    sender.sendto(encode_csv_sample(0.0, [0, 0, 0], [0, 0, 9.81]), receiver.address)
+    simulator.AdvanceTo(0.01)  # the socket's time stamps are on from the first datagram on
+    sender.sendto(encode_csv_sample(0.01, [0, 0, 0], [0, 0, 9.81]), receiver.address)
+    time.sleep(0.03)
+    simulator.AdvanceTo(0.02)
+    _, counters = outputs(simulator, receiver)
+    assert counters["packets"] == 2
+    assert 0.03 <= counters["age_s"] < 1.0
+    receiver.close()

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import socket
+import struct
 import time
 
 import numpy as np
@@ -27,16 +28,20 @@ from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.telemetry import BadPacket, Decoder
 from mca_drake.references.reference import ReferenceScaling, scaled_reference
 
+# Linux's SO_TIMESTAMPNS (and SCM_TIMESTAMPNS): the kernel's receive time of a datagram, as a
+# struct timespec of CLOCK_REALTIME (Python's socket module does not name it).
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
+
 # The `telemetry` output port, in this order.
 TELEMETRY_FIELDS = (
-    "age_s",  # wall-clock time since the held sample arrived, s (inf: none yet)
+    "age_s",  # wall-clock time since the held sample reached the socket, s (inf: none yet)
     "fresh",  # 1 while age_s <= stale_after_s, else 0
     "packets",  # datagrams received
     "bad",  # datagrams that did not decode (BadPacket)
     "out_of_order",  # samples older than the one held, ignored
     "dropped",  # samples missing from the sender's sequence (protocols with a counter)
     "stale_periods",  # control periods that brought no new sample
-    "arrival_s",  # time.perf_counter() when the held sample arrived (NaN: none yet)
+    "arrival_s",  # time.perf_counter() when the held sample reached the socket (NaN: none)
 )
 # Discrete state: the held sample and the counters.
 _OMEGA, _F = slice(0, 3), slice(3, 6)
@@ -114,6 +119,14 @@ class TelemetryReceiver(LeafSystem):
         self._socket.setblocking(False)
         self._socket.bind((self._config.host, self._config.port))
         self._address = self._socket.getsockname()
+        # The kernel's receive time of every datagram (Linux), so that the time a datagram
+        # waited in the socket for the next poll counts in its age and latency; elsewhere
+        # the time it is read stands in.
+        try:
+            self._socket.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+            self._kernel_stamps = True
+        except OSError:
+            self._kernel_stamps = False
         initial = np.zeros(_STATE_SIZE)
         initial[_F] = (0.0, 0.0, 9.81)  # level flight until a sample arrives: y_ref = 0
         initial[[_T_S, _ARRIVAL, _SEQUENCE]] = np.nan
@@ -150,12 +163,12 @@ class TelemetryReceiver(LeafSystem):
         new_sample = False
         for _ in range(self._config.max_datagrams_per_poll):
             try:
-                packet = self._socket.recv(65536)
+                packet, ancillary, _, _ = self._socket.recvmsg(65536, 64)
             except (BlockingIOError, InterruptedError):
                 break
             except OSError:  # closed socket
                 break
-            arrival = time.perf_counter()
+            arrival = self._arrival(ancillary)
             x[_PACKETS] += 1
             try:
                 sample = self._decoder.decode(packet, arrival)
@@ -174,6 +187,18 @@ class TelemetryReceiver(LeafSystem):
         if not new_sample:
             x[_STALE] += 1
         state.get_mutable_discrete_state().set_value(self._state_index, x)
+
+    def _arrival(self, ancillary) -> float:
+        """When the datagram reached the socket, on the time.perf_counter() clock: the
+        kernel's stamp where there is one, else now."""
+        now = time.perf_counter()
+        for level, kind, data in ancillary:
+            if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(data) >= 16:
+                seconds, nanoseconds = struct.unpack("qq", data[:16])
+                waited = time.time() - (seconds + 1e-9 * nanoseconds)
+                if 0.0 <= waited < 1.0:  # a sane stamp (the clock may step)
+                    return now - waited
+        return now
 
     def _calc_reference(self, context: Context, output: BasicVector) -> None:
         x = context.get_discrete_state(self._state_index).value()
