@@ -659,14 +659,16 @@ class MotionCueingOcp:
         curvature, previous = None, None  # converged: the quasi-Newton residual curvature
         for _ in range(1 if mode == "rti" else cfg.max_iterations):
             H, g = model.H, model.g
-            gauss_newton = (H, cholesky(H))
-            factor = gauss_newton[1]
+            factor = None
             if previous is not None:
                 curvature = self._residual_curvature(curvature, previous, model)
                 if curvature is not None:
-                    with_curvature = cholesky(H + curvature)
-                    if with_curvature is not None:  # else not convex: plain Gauss-Newton
-                        H, factor = H + curvature, with_curvature
+                    # with the learnt curvature where that is convex, else plain Gauss-Newton
+                    factor = cholesky(H + curvature)
+                    if factor is not None:
+                        H = H + curvature
+            if factor is None:
+                factor = cholesky(H)
             if multipliers is not None:
                 # U is the last QP's solution: feasible, its active rows exactly at their
                 # bounds and its multipliers >= 0, so the stationarity residual of the
@@ -678,7 +680,7 @@ class MotionCueingOcp:
             CU = self._C @ U.reshape(-1)
             step, solution, hot, message = self._qp_step(
                 (H, factor),
-                gauss_newton,
+                model.H,
                 g,
                 row_lo - CU,
                 row_hi - CU,
@@ -772,15 +774,17 @@ class MotionCueingOcp:
         when the QP could not be solved.
 
         `model` is (H, its Cholesky factor or None), H with the learnt residual curvature
-        where there is one; `gauss_newton` the same for the plain Gauss-Newton H. The hot
-        start tries `model`; Drake's solver (and the KKT solve that makes its active set
-        exact) takes the Gauss-Newton H, which is what its sparse program holds."""
+        where there is one; `gauss_newton` is the plain Gauss-Newton H. The hot start tries
+        `model`; Drake's solver (and the KKT solve that makes its active set exact) takes the
+        Gauss-Newton H, which is what its sparse program holds (factored here only when it
+        differs from the model's: this path is the exception)."""
         H, factor = model
         if factor is not None:
             solution = self._on_active_set(H, factor, g, d_lo, d_hi, active)
             if solution is not None:
                 return solution.d.reshape(self.N, NU), solution, True, ""
-        H, factor = gauss_newton
+        if gauss_newton is not H:
+            H, factor = gauss_newton, cholesky(gauss_newton)
         x0, U, refs, jac = linearisation
         x_bar = self._update_qp(x0, U, refs, jac)
         U_qp, message = self._solve_qp(U, x_bar)
