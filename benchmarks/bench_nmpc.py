@@ -129,7 +129,8 @@ def measure_adversarial(duration_s: float) -> dict:
 PROFILE_PARTS = (
     ("output Jacobians (kinematics)", ("plant_output_jacobians",)),
     ("Gauss-Newton model (H, g)", ("_gauss_newton",)),
-    ("hot-started active-set QP", ("solve_on_active_set",)),
+    ("QP on the guessed active set", ("_on_active_set",)),
+    ("dual active-set QP (from the guess)", ("solve_dual_active_set",)),
     ("Drake QP set-up (stage costs)", ("_update_qp",)),
     ("Drake QP solve", ("_solve_qp",)),
     ("line search (true cost)", ("cost",)),

@@ -167,15 +167,17 @@ def test_solver_failures_fall_back_and_stay_in_limits(monkeypatch, robot):
     from mca_drake.cueing import nmpc
 
     calls = {"n": 0}
-    original = nmpc.MotionCueingOcp._solve_qp
+    original = nmpc.MotionCueingOcp._qp_step
 
-    def flaky(self, U, x_bar):
+    def flaky(self, *args):
+        # every way of solving the QP (the guess, the dual active-set method, Drake's
+        # solver) fails for two seconds while the reference pushes
         calls["n"] += 1
-        if 100 <= calls["n"] < 300:  # fail for two seconds while the reference pushes
-            return None, "injected failure"
-        return original(self, U, x_bar)
+        if 100 <= calls["n"] < 300:
+            return None, None, False, "injected failure"
+        return original(self, *args)
 
-    monkeypatch.setattr(nmpc.MotionCueingOcp, "_solve_qp", flaky)
+    monkeypatch.setattr(nmpc.MotionCueingOcp, "_qp_step", flaky)
     result = run_closed_loop(
         mca="nmpc-rti", reference=extreme_reference(), duration_s=4.0, progress=False
     )
@@ -183,6 +185,29 @@ def test_solver_failures_fall_back_and_stay_in_limits(monkeypatch, robot):
     assert result.summary["safety_interventions"] > 0  # the clamp caught the stale plans
     assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     assert np.all(np.isfinite(result.commands))
+
+
+def test_drakes_solver_takes_the_qps_the_dual_method_cannot_solve(monkeypatch):
+    """With the dual active-set method failing (as round-off could make it), every QP whose
+    guess is wrong goes to Drake's solver, and the loop still cues within the limits."""
+    from mca_drake.cueing import nmpc
+
+    calls = {"drake": 0}
+    original = nmpc.MotionCueingOcp._solve_qp
+
+    def counted(self, U, x_bar):
+        calls["drake"] += 1
+        return original(self, U, x_bar)
+
+    monkeypatch.setattr(nmpc, "solve_dual_active_set", lambda *args, **kwargs: None)
+    monkeypatch.setattr(nmpc.MotionCueingOcp, "_solve_qp", counted)
+    result = run_closed_loop(
+        mca="nmpc-rti", reference=extreme_reference(), duration_s=2.0, progress=False
+    )
+    assert calls["drake"] > 0
+    assert result.summary["solver_failures"] == 0
+    assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    assert np.max(np.abs(result.states[:, 6:])) > 0.1
 
 
 def test_braking_plan_stops_inside_limits(robot):

@@ -26,9 +26,12 @@ descent method that stops at a KKT point of the nonlinear program.
 
 Solving. Each QP is first solved on a guessed active set (the previous step's or
 iteration's; `mca_drake.cueing.active_set`): one dense KKT solve, used only when it is
-verified optimal (feasible, multipliers >= 0), so it is exact to round-off. Only when the
-guess cannot be corrected does Drake's MathematicalProgram solve the QP (OSQP in rti mode,
-Clarabel in converged mode), and a KKT solve on that answer's active set makes it exact.
+verified optimal (feasible, multipliers >= 0), so it is exact to round-off. Where the guess
+is wrong, Goldfarb and Idnani's dual active-set method (`mca_drake.cueing.dual_active_set`)
+solves the QP exactly from the guess's dual-feasible part, in steps that each change one
+row; the next solve's guess is therefore always an exact active set. Only if that fails
+(round-off) does Drake's MathematicalProgram solve the QP (OSQP in rti mode, Clarabel in
+converged mode), and a KKT solve on that answer's active set makes it exact.
 Converged mode adds to the Gauss-Newton Hessian a quasi-Newton estimate of the term it
 leaves out (NL2SOL's structured secant update: with large residuals Gauss-Newton alone
 converges slowly), and stops once the KKT residual is below `kkt_tolerance` (relative to
@@ -56,6 +59,7 @@ from mca_drake.cueing.active_set import (
     parallel_groups,
     solve_on_active_set,
 )
+from mca_drake.cueing.dual_active_set import solve_dual_active_set
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
@@ -109,11 +113,13 @@ class NmpcConfig:
     # Two tangents are enough: u_0 is held to the exact viability interval anyway, the
     # tangents only keep the later plan realistic, and each costs 12 rows per node.
     stoppability_tangents: int = 2
-    # Corrections of a guessed active set before Drake's solver takes the QP: each costs one
-    # KKT solve (0.1 to 1 ms, more with more active rows), so this bounds a step's worst
-    # case. None: 4 in rti mode (at the tuned weights, 20 made the p99 step of a 300 s
-    # light flight 50 ms, 4 made it 14 ms) and 20 in converged mode (a correction costs
-    # less than a Clarabel solve; on a 60 s jet flight 99 % of hot starts settled within 18).
+    # Corrections of a guessed active set (every offending row changed at once) before the
+    # dual active-set method (`mca_drake.cueing.dual_active_set`) takes the QP from the
+    # guess's dual-feasible part. None: 0 in both modes. Each correction is one KKT solve
+    # (0.1 to 1 ms with many active rows) that often fails where many rows change, while the
+    # dual method always ends, exactly: on a 300 s light flight at the tuned weights, rti's
+    # QP p99 was 2.1 ms with 0 corrections, 2.9 with 1; on the 3 g heave step, converged's
+    # worst step was 144 ms with 0, 290 with 20.
     active_set_corrections: int | None = None
     # Drake's QP solver where the hot-started active set does not settle: "clarabel"
     # (interior point, accurate), "osqp" (ADMM with solution polishing, fast) or "auto"
@@ -226,7 +232,8 @@ class SolveResult:
             solve's `active_guess`.
         kkt_residual: converged mode: the KKT (stationarity) residual of the NLP at U when
             it stopped on it, else the last one measured (NaN: none).
-        hot_starts: QPs solved on a guessed active set (the rest went to Drake's solver).
+        hot_starts: QPs solved from a guessed active set, on it or by the dual active-set
+            method (the rest went to Drake's solver).
         stop: why it stopped: "rti" (one QP), "kkt" (KKT residual below kkt_tolerance),
             "step" (step below step_tolerance), "no_descent" (the line search found none),
             "iterations" (max_iterations reached) or "failed" (a QP failed).
@@ -337,10 +344,11 @@ class MotionCueingOcp:
         self.num_rows = self._C.shape[0]
         # node 1's rows are multiples of u_0's box rows (the exact viability interval)
         self._parallel = parallel_groups(self._C)
+        self._row_norms = np.linalg.norm(self._C, axis=1)
         self._blas = ThreadpoolController()
         self._corrections = cfg.active_set_corrections
         if self._corrections is None:
-            self._corrections = 4 if cfg.mode == "rti" else 20
+            self._corrections = 0
         self._A_q0, self._A_qd0 = np.vstack(self._row_q0), np.vstack(self._row_qd0)
         self._lower0, self._upper0 = np.concatenate(lower), np.concatenate(upper)
 
@@ -774,13 +782,25 @@ class MotionCueingOcp:
         when the QP could not be solved.
 
         `model` is (H, its Cholesky factor or None), H with the learnt residual curvature
-        where there is one; `gauss_newton` is the plain Gauss-Newton H. The hot start tries
-        `model`; Drake's solver (and the KKT solve that makes its active set exact) takes the
-        Gauss-Newton H, which is what its sparse program holds (factored here only when it
-        differs from the model's: this path is the exception)."""
+        where there is one; `gauss_newton` is the plain Gauss-Newton H. The hot start (the
+        guess, then the dual active-set method from it) tries `model`; Drake's solver (and
+        the KKT solve that makes its active set exact) takes the Gauss-Newton H, which is
+        what its sparse program holds (factored here only when it differs from the model's:
+        this path is the exception)."""
         H, factor = model
         if factor is not None:
             solution = self._on_active_set(H, factor, g, d_lo, d_hi, active)
+            if solution is None:
+                solution = solve_dual_active_set(
+                    H,
+                    g,
+                    self._C,
+                    d_lo,
+                    d_hi,
+                    active,
+                    cholesky_of_H=factor,
+                    row_norms=self._row_norms,
+                )
             if solution is not None:
                 return solution.d.reshape(self.N, NU), solution, True, ""
         if gauss_newton is not H:
