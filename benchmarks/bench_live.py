@@ -1,12 +1,14 @@
 """Live loop figures on JSBSim's own telemetry (issue 20): latency, jitter and CPU load.
 
     python benchmarks/bench_live.py [--duration 600] [--mcas dpc,nmpc-rti]
-        [--plant analytical] [--json out.json]
+        [--plant analytical] [--phase-lock on|off|both] [--json out.json]
 
 For each MCA, `mca-drake live --demo`'s set-up without Meshcat: a JSBSim process flies the
 light aircraft (a training seed) in real time and streams its FGNetFDM packets over
-loopback at 100 Hz; the loop cues them at real-time rate 1 for `--duration` s. Prints the
+loopback at 100 Hz; the loop cues them at real-time rate 1 for `--duration` s, with the
+phase lock (`mca_drake.live.phase_lock`) on, off or both one after the other. Prints the
 latency from a sample's arrival to the command computed from it (median, p99, max), the
+part of it the sample waited in the socket for its poll, the
 loop's jitter (|period - 10 ms| of its control instants on the wall clock), the loop
 process's CPU load and the sender's, and the stream's counters. The machine's calibration
 first.
@@ -23,6 +25,7 @@ from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import mca_config_from_name
 from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S, start_demo_sender
 from mca_drake.live.loop import make_decoder, run_live
+from mca_drake.live.phase_lock import PhaseLockConfig
 from mca_drake.live.receiver import ReceiverConfig
 
 
@@ -36,10 +39,12 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=600.0, help="s per MCA")
     parser.add_argument("--mcas", default="dpc,nmpc-rti")
     parser.add_argument("--plant", default="analytical")
+    parser.add_argument("--phase-lock", choices=("on", "off", "both"), default="on")
     parser.add_argument("--json", help="write the figures here")
     args = parser.parse_args()
+    locks = {"on": (True,), "off": (False,), "both": (False, True)}[args.phase_lock]
     report = {"calibration": print_calibration(), "runs": {}}
-    for name in args.mcas.split(","):
+    for name, lock in ((n, lock) for n in args.mcas.split(",") for lock in locks):
         senders = []
 
         def start(address, senders=senders):
@@ -53,13 +58,15 @@ def main() -> None:
             receiver=ReceiverConfig(port=0),
             on_listening=start,
             plant=args.plant,
+            phase_lock=PhaseLockConfig(enabled=lock),
         )
         for process in senders:
             process.terminate()
             process.wait(timeout=10)
         live = summary["live"]
         live["sender_cpu_load"] = (children_cpu_s() - cpu0) / max(summary["wall_time_s"], 1e-9)
-        report["runs"][name] = {
+        label = f"{name}, phase lock {'on' if lock else 'off'}"
+        report["runs"][label] = {
             "live": live,
             "pi": summary["pi"],
             "pi_zero_motion": summary["pi_zero_motion"],
@@ -67,9 +74,11 @@ def main() -> None:
             "step_time_s": summary["step_time_s"],
         }
         ms = {k: f"{v * 1e3:.3f}" for k, v in live["latency_s"].items()}
+        wait = {k: f"{v * 1e3:.3f}" for k, v in live["wait_s"].items()}
         jitter = {k: f"{v * 1e3:.3f}" for k, v in live["loop_jitter_s"].items()}
         print(
-            f"{name}: {args.duration:g} s, latency ms {ms}, loop jitter ms {jitter}, CPU load "
+            f"{label}: {args.duration:g} s, latency ms {ms} (waiting for the poll {wait}; "
+            f"{len(live['phase_shifts_s'])} phase shifts), loop jitter ms {jitter}, CPU load "
             f"{live['cpu_load']:.2f} (sender {live['sender_cpu_load']:.2f}); packets "
             f"{live['packets']}, bad {live['bad']}, dropped {live['dropped']}, stale events "
             f"{live['stale_events']}, health {live['health']}; PI {summary['pi']:.3f} (zero "

@@ -169,3 +169,44 @@ def test_loss_jitter_reordering_nan_and_a_stop_never_break_a_limit():
     assert 1 <= live["stale_events"] <= 2
     assert [t["to"] for t in live["transitions"]][-1] != "fault"  # recovered
     assert summary["solver_failures"] == 0
+
+
+def periodic_sender(address, start_wall, duration_s, period_s=0.01):
+    """Sends a sample every `period_s` from `start_wall` (time.perf_counter() of the
+    parent's clock: both read CLOCK_MONOTONIC) for `duration_s`; bounded."""
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    k = 0
+    while k * period_s < duration_s:
+        target = start_wall + k * period_s
+        while (left := target - time.perf_counter()) > 0:
+            time.sleep(left - 5e-4 if left > 1e-3 else 0)
+        sender.sendto(encode_csv_sample(k * period_s, [0.0, 0.05, 0.0], [0.3, 0, 9.81]), address)
+        k += 1
+    sender.close()
+
+
+def test_the_phase_lock_brings_the_polls_just_after_a_periodic_senders_packets():
+    """A 100 Hz sender at a phase of its own (its process starts a few ms after the socket
+    opens): whatever that phase, the lock moves the control instants so that samples wait
+    little for their poll (uniformly 0 to 10 ms without it; the lock's aim is 0.5 ms)."""
+    import multiprocessing
+
+    processes = []
+
+    def start(address):
+        # the loop's grid starts now; its polls come at multiples of 10 ms (less 20 us)
+        first = time.perf_counter() + 0.0065
+        process = multiprocessing.get_context("fork").Process(
+            target=periodic_sender, args=(address, first, 6.3), daemon=True
+        )
+        process.start()
+        processes.append(process)
+
+    summary = run_live(
+        CsvDecoder(), "dpc", 6.0, receiver=ReceiverConfig(port=0), on_listening=start
+    )
+    processes[0].join(timeout=5)
+    live = summary["live"]
+    assert live["packets"] >= 550, live
+    assert live["wait_s"]["median"] < 0.0015, live
+    assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}

@@ -357,10 +357,12 @@ def _cmd_live(args: argparse.Namespace) -> int:
             process.wait(timeout=10)
     live = summary["live"]
     latency = {k: f"{v * 1e3:.3f} ms" for k, v in live["latency_s"].items()}
+    wait = {k: f"{v * 1e3:.3f} ms" for k, v in live["wait_s"].items()}
     print(
         f"{live['packets']} packets ({live['bad']} bad, {live['dropped']} dropped, "
         f"{live['out_of_order']} out of order), {live['stale_events']} stale events; "
-        f"latency {latency}; health {live['health']}; PI {summary['pi']:.3f} "
+        f"latency {latency} (of which waiting for the poll {wait}); "
+        f"health {live['health']}; PI {summary['pi']:.3f} "
         f"(zero motion {summary['pi_zero_motion']:.3f}); violations {summary['violations']}"
     )
     if args.json:

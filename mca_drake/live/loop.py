@@ -23,6 +23,8 @@ from mca_drake.cueing import McaConfig, as_mca_config
 from mca_drake.kinematics import plant_output
 from mca_drake.live.csv_udp import CsvDecoder
 from mca_drake.live.fgnetfdm import FgNetFdmDecoder
+from mca_drake.live.pacing import RealTimePacer
+from mca_drake.live.phase_lock import PhaseLockConfig, phase_correction
 from mca_drake.live.receiver import TELEMETRY_FIELDS, ReceiverConfig, TelemetryReceiver
 from mca_drake.live.supervisor import HEALTH_FIELDS, Supervisor, SupervisorConfig
 from mca_drake.live.telemetry import Decoder
@@ -40,6 +42,7 @@ from mca_drake.systems import MotionCueingPlant
 from mca_drake.systems.kr500_station import AddKR500Station, StationConfig
 
 _ARRIVAL = TELEMETRY_FIELDS.index("arrival_s")
+_POLL = TELEMETRY_FIELDS.index("poll_s")
 PROTOCOLS = ("fgnetfdm", "xplane", "csv")
 
 
@@ -60,20 +63,30 @@ def make_decoder(
     raise ValueError(f"unknown protocol '{protocol}'; valid: {', '.join(PROTOCOLS)}")
 
 
-class LatencyProbe(LeafSystem):
-    """Measures, at every control instant after the updates, the wall time from the arrival
-    of the newest telemetry sample to the command computed from it (once per sample).
+# The probe publishes this long (s) after each control instant: Drake handles a publish at
+# time t at the end of the step that reaches t, before that instant's updates, so a probe at
+# the instant itself would read the command computed one period earlier, from the previous
+# sample.
+PROBE_DELAY_S = 1e-5
 
-    Input `telemetry` (TELEMETRY_FIELDS) and `command` (6, only to order the probe after
-    the command is computed). `latencies_s` holds the measurements.
+
+class LatencyProbe(LeafSystem):
+    """Measures, just after every control instant's updates (`PROBE_DELAY_S`), the wall time
+    from the arrival of the newest telemetry sample to the command computed from it (once
+    per sample), and how long that sample waited in the socket for its poll.
+
+    Input `telemetry` (TELEMETRY_FIELDS) and `command` (6: the command the robot gets now).
+    `latencies_s` holds the latencies, `waits_s` the waits (poll - arrival) and
+    `instants_s` the wall time of every control instant.
     """
 
     def __init__(self, time_step: float = CONTROL_PERIOD_S):
         super().__init__()
         self._telemetry = self.DeclareVectorInputPort("telemetry", len(TELEMETRY_FIELDS))
         self._command = self.DeclareVectorInputPort("command", 6)
-        self.DeclarePeriodicPublishEvent(time_step, 0.0, self._probe)
+        self.DeclarePeriodicPublishEvent(time_step, PROBE_DELAY_S, self._probe)
         self.latencies_s: list[float] = []
+        self.waits_s: list[float] = []
         # wall time of every control instant (after its updates): the loop's jitter
         self.instants_s: list[float] = []
         self._last_arrival = float("nan")
@@ -82,9 +95,11 @@ class LatencyProbe(LeafSystem):
         self._command.Eval(context)  # the command the robot gets now
         now = time.perf_counter()
         self.instants_s.append(now)
-        arrival = float(self._telemetry.Eval(context)[_ARRIVAL])
+        telemetry = self._telemetry.Eval(context)
+        arrival = float(telemetry[_ARRIVAL])
         if np.isfinite(arrival) and arrival != self._last_arrival:
             self.latencies_s.append(now - arrival)
+            self.waits_s.append(float(telemetry[_POLL]) - arrival)
             self._last_arrival = arrival
         return EventStatus.Succeeded()
 
@@ -207,6 +222,7 @@ def run_live(
     plant: str = "analytical",
     station: StationConfig | None = None,
     meshcat=None,
+    phase_lock: PhaseLockConfig | None = None,
 ) -> dict:
     """Runs the live loop for `duration_s` (s of simulated time, at `realtime_rate`) and
     returns its summary with the `live` block.
@@ -217,11 +233,15 @@ def run_live(
         realtime_rate: Drake's target real-time rate (1: live; 0: as fast as possible).
         plant: "analytical" or "multibody" (the KR500 station; `station` its settings,
             `meshcat` a pydrake Meshcat to draw it in).
+        phase_lock: how the loop follows a periodic sender's phase (`live.phase_lock`;
+            default on), so that samples wait little for their poll; at real-time rates only.
     """
     if not 0 < duration_s <= 24 * 3600:
         raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
     robot = robot if robot is not None else load_kr500()
     config = as_mca_config(mca)
+    lock = phase_lock or PhaseLockConfig()
+    lock.validate()
     diagram, handles = MakeLiveClosedLoop(
         decoder,
         config,
@@ -236,14 +256,28 @@ def run_live(
     source = handles["receiver"]
     try:
         simulator = Simulator(diagram)
-        simulator.set_target_realtime_rate(realtime_rate)
+        # the loop paces itself (`live.pacing`): the poll on time, the MCA right after it
+        pacer = None
+        if realtime_rate > 0:
+            rc = receiver or ReceiverConfig()
+            pacer = RealTimePacer(
+                rc.time_step,
+                rc.poll_lead_s,
+                realtime_rate,
+                max_slew_per_period_s=lock.max_slew_s * rc.time_step / lock.window_s,
+            )
+            simulator.set_monitor(pacer)
         if plant == "multibody":
             handles["station"].SetInitialState(simulator.get_mutable_context())
         simulator.Initialize()
         if on_listening is not None:
             on_listening(source.address)
         start, cpu_start = time.perf_counter(), time.process_time()
-        simulator.AdvanceTo(duration_s)
+        if pacer is not None:
+            pacer.start()
+        shifts = _advance_phase_locked(
+            simulator, handles["probe"], duration_s, pacer, lock, _control_period(receiver)
+        )
         wall_s = time.perf_counter() - start
         cpu_s = time.process_time() - cpu_start
     finally:
@@ -253,7 +287,7 @@ def run_live(
     def log(name):
         return handles[name].FindLog(context).data().T
 
-    h = (receiver or ReceiverConfig()).time_step
+    h = _control_period(receiver)
     commands = log("command_log")[1:]
     n = commands.shape[0]
     reference = log("reference_log")[:n]
@@ -297,6 +331,12 @@ def run_live(
             if why == "telemetry stale" and to == "fault"
         ),
         "latency_s": step_time_summary(latencies),
+        # how long samples waited in the socket for their poll (part of the latency)
+        "wait_s": step_time_summary(np.asarray(handles["probe"].waits_s)),
+        # the phase lock's shifts of the control instants, s (> 0: earlier)
+        "phase_shifts_s": shifts,
+        # polls that came after their instant (the loop had overrun)
+        "late_polls": 0 if pacer is None else pacer.late_polls,
         "health": {
             "ok_s": float(health["ok_s"]),
             "degraded_s": float(health["degraded_s"]),
@@ -318,3 +358,29 @@ def run_live(
         "cpu_load": cpu_s / max(wall_s, 1e-9),
     }
     return summary
+
+
+def _control_period(receiver: ReceiverConfig | None) -> float:
+    """The live loop's control period, s."""
+    return (receiver or ReceiverConfig()).time_step
+
+
+def _advance_phase_locked(simulator, probe, duration_s, pacer, lock, period_s):
+    """Advances to `duration_s` in windows of `lock.window_s`; after a window measured at a
+    steady phase, the phase lock's correction (`phase_correction` of its waits) becomes the
+    pacer's new target phase, which it slews to within the next window (measured only after
+    that). No pacer (as fast as possible) or no lock: one AdvanceTo. Returns the shifts."""
+    if pacer is None or not lock.enabled:
+        simulator.AdvanceTo(duration_s)
+        return []
+    shifts, measured_from, shift = [], 0, 0.0
+    while simulator.get_context().get_time() < duration_s - 1e-9:
+        t = simulator.get_context().get_time()
+        # a window right after a shift only measures (its waits show the new phase)
+        shift = 0.0 if shift else phase_correction(probe.waits_s[measured_from:], period_s, lock)
+        measured_from = len(probe.waits_s)
+        if shift:
+            shifts.append(shift)
+            pacer.target_phase_s += shift
+        simulator.AdvanceTo(min(duration_s, t + lock.window_s))
+    return shifts

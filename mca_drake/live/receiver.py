@@ -10,7 +10,8 @@ the reference through the same scaling as recordings (`scaled_reference`).
 
 Polling before the control instant matters: Drake applies simultaneous updates to the state
 they all saw before, so a poll at the control instant itself would reach the MCA one period
-late.
+late. The lead is tiny (20 us) because at real-time rate the simulator waits out the lead
+between the poll and the MCA's update: every microsecond of it is latency.
 """
 
 from __future__ import annotations
@@ -42,11 +43,12 @@ TELEMETRY_FIELDS = (
     "dropped",  # samples missing from the sender's sequence (protocols with a counter)
     "stale_periods",  # control periods that brought no new sample
     "arrival_s",  # time.perf_counter() when the held sample reached the socket (NaN: none)
+    "poll_s",  # time.perf_counter() of the poll that took the held sample (NaN: none)
 )
 # Discrete state: the held sample and the counters.
 _OMEGA, _F = slice(0, 3), slice(3, 6)
-_T_S, _ARRIVAL, _SEQUENCE, _PACKETS, _BAD, _OUT_OF_ORDER, _DROPPED, _STALE = range(6, 14)
-_STATE_SIZE = 14
+_T_S, _ARRIVAL, _SEQUENCE, _PACKETS, _BAD, _OUT_OF_ORDER, _DROPPED, _STALE, _POLL = range(6, 15)
+_STATE_SIZE = 15
 
 
 @dataclasses.dataclass
@@ -59,8 +61,9 @@ class ReceiverConfig:
     port: int = 5500
     # No new sample for this long (s) and the telemetry counts as stale.
     stale_after_s: float = 0.1
-    # The poll runs this long (s) before each control instant (see the module docstring).
-    poll_lead_s: float = 0.001
+    # The poll runs this long (s) before each control instant (see the module docstring):
+    # at real-time rate the loop waits this long between the poll and the MCA's update.
+    poll_lead_s: float = 2e-5
     # At most this many datagrams are read per poll (bounds a poll's time under a flood).
     max_datagrams_per_poll: int = 256
     # Control period, s.
@@ -129,7 +132,7 @@ class TelemetryReceiver(LeafSystem):
             self._kernel_stamps = False
         initial = np.zeros(_STATE_SIZE)
         initial[_F] = (0.0, 0.0, 9.81)  # level flight until a sample arrives: y_ref = 0
-        initial[[_T_S, _ARRIVAL, _SEQUENCE]] = np.nan
+        initial[[_T_S, _ARRIVAL, _SEQUENCE, _POLL]] = np.nan
         self._state_index = self.DeclareDiscreteState(initial)
         period = self._config.time_step
         self.DeclarePeriodicUnrestrictedUpdateEvent(
@@ -160,6 +163,7 @@ class TelemetryReceiver(LeafSystem):
 
     def _poll(self, context: Context, state: State) -> None:
         x = np.array(context.get_discrete_state(self._state_index).value())
+        polled = time.perf_counter()
         new_sample = False
         for _ in range(self._config.max_datagrams_per_poll):
             try:
@@ -181,7 +185,7 @@ class TelemetryReceiver(LeafSystem):
             if sample.sequence is not None and np.isfinite(x[_SEQUENCE]):
                 x[_DROPPED] += max(0, sample.sequence - int(x[_SEQUENCE]) - 1)
             x[_OMEGA], x[_F] = sample.omega, sample.f
-            x[_T_S], x[_ARRIVAL] = sample.t_s, arrival
+            x[_T_S], x[_ARRIVAL], x[_POLL] = sample.t_s, arrival, polled
             x[_SEQUENCE] = np.nan if sample.sequence is None else sample.sequence
             new_sample = True
         if not new_sample:
@@ -219,5 +223,6 @@ class TelemetryReceiver(LeafSystem):
                 x[_DROPPED],
                 x[_STALE],
                 arrival,
+                x[_POLL],
             ]
         )

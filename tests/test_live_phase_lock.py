@@ -1,0 +1,63 @@
+"""The phase lock's correction on synthetic waits with a known answer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mca_drake.live.phase_lock import PhaseLockConfig, phase_correction
+
+H = 0.01
+
+
+def waits(centre_s, spread_s, n=200, seed=0):
+    """Waits (poll - arrival) of a periodic sender whose samples arrive with a uniform
+    jitter of `spread_s` behind a fixed phase, wrapped onto one period as a receiver sees
+    them (a sample arriving after its poll waits for the next one)."""
+    rng = np.random.default_rng(seed)
+    return np.mod(centre_s - rng.uniform(0, spread_s, n), H)
+
+
+def test_the_polls_move_earlier_by_the_wait_beyond_the_margin():
+    config = PhaseLockConfig(margin_s=3e-4, quantile=0.02, max_slew_s=0.005)
+    # waits 3.0 to 3.2 ms: the shortest (2 % quantile) is about 3.004 ms, so the polls can
+    # come 3.004 - 0.3 = 2.704 ms earlier
+    shift = phase_correction(waits(3.2e-3, 2e-4), H, config)
+    assert shift == pytest.approx(3.2e-3 - 2e-4 * 0.98 - 3e-4, abs=2e-5)
+
+
+def test_a_large_shift_is_slewed_the_shorter_way_over_several_windows():
+    config = PhaseLockConfig(max_slew_s=0.002)
+    # waits of 4 ms: 3.7 ms earlier (not 6.3 ms later), at most 2 ms per window
+    assert phase_correction(waits(4.1e-3, 1e-4), H, config) == pytest.approx(0.002)
+    # waits of 8 ms: 2.3 ms later is the shorter way round than 7.7 ms earlier
+    assert phase_correction(waits(8.1e-3, 1e-4), H, config) == pytest.approx(-0.002)
+
+
+def test_samples_missing_their_poll_move_the_polls_later():
+    """Arrivals just after the poll wait almost a whole period: on the circle that is a
+    negative wait, and the polls must come later, not earlier by 9 ms."""
+    config = PhaseLockConfig(margin_s=3e-4, quantile=0.02)
+    w = waits(1e-4, 4e-4)  # some arrive up to 0.3 ms after their poll
+    assert np.any(w > 0.009)
+    shift = phase_correction(w, H, config)
+    # the latest usual arrival is 1e-4 - 0.98 * 4e-4 = -0.292 ms: 0.592 ms later
+    assert shift == pytest.approx(1e-4 - 4e-4 * 0.98 - 3e-4, abs=2e-5)
+    assert shift < 0
+
+
+def test_no_correction_without_a_steady_phase_or_samples():
+    config = PhaseLockConfig()
+    rng = np.random.default_rng(1)
+    assert phase_correction(rng.uniform(0, H, 300), H, config) == 0.0  # any phase
+    assert phase_correction(waits(5e-3, 1e-4, n=5), H, config) == 0.0  # too few
+    assert phase_correction(waits(6e-4, 1e-4), H, config) == 0.0  # within the deadband
+    off = PhaseLockConfig(enabled=False)
+    assert phase_correction(waits(5e-3, 1e-4), H, off) == 0.0
+
+
+def test_bad_settings_are_named():
+    with pytest.raises(ValueError, match="quantile"):
+        PhaseLockConfig(quantile=0.7).validate()
+    with pytest.raises(ValueError, match="max_slew_s"):
+        PhaseLockConfig(window_s=0.01, max_slew_s=0.005).validate()
