@@ -110,11 +110,11 @@ def test_dependent_active_rows_are_reduced_to_an_independent_set():
     assert_kkt(H, g, C, lo, hi_tight, tight)
 
 
-def test_the_nmpc_step_equals_drakes_qp_solution(robot):
-    """On the real OCP, from a state that pushes joints to their limits, the hot-started
-    Gauss-Newton step equals the step Drake's Clarabel finds for the same QP."""
-    config = NmpcConfig(horizon_steps=40, nodes=6, qp_solver="clarabel")
-    ocp = MotionCueingOcp(config, robot)
+def nmpc_qp_at_the_limits(robot, **config):
+    """The real OCP's first Gauss-Newton QP from a state that pushes joints to their limits,
+    with Drake's Clarabel solution of it as the oracle: (ocp, model, row_lo, row_hi, the
+    oracle's step (6N,))."""
+    ocp = MotionCueingOcp(NmpcConfig(qp_solver="clarabel", **config), robot)
     x0 = np.r_[0.9 * robot.q_max * np.array([1, 0.5, -0.5, 1, 0.5, -1]), 0.5 * robot.qd_max]
     refs = np.broadcast_to(6 * np.array([0.15, -0.1, 0.2, 1.2, -0.8, 0.6]), (ocp.N, 6))
     lo, hi = ocp.input_bounds(x0)
@@ -123,15 +123,21 @@ def test_the_nmpc_step_equals_drakes_qp_solution(robot):
     model = ocp._gauss_newton(x0, U, refs)
     lb, ub = ocp.constraint_bounds(x0)
     row_lo, row_hi = np.r_[lb, lo], np.r_[ub, hi]
-    # Drake's solution of the full QP: the oracle
     x_bar = ocp._update_qp(x0, U, refs, model.jac)
     U_drake, message = ocp._solve_qp(U, x_bar)
     assert U_drake is not None, message
-    guess = active_rows(ocp._C, (U_drake - U).reshape(-1), row_lo, row_hi, 1e-6)
+    return ocp, model, row_lo, row_hi, (U_drake - U).reshape(-1)
+
+
+def test_the_nmpc_step_equals_drakes_qp_solution(robot):
+    """On the real OCP, from a state that pushes joints to their limits, the hot-started
+    Gauss-Newton step equals the step Drake's Clarabel finds for the same QP."""
+    ocp, model, row_lo, row_hi, oracle = nmpc_qp_at_the_limits(robot, horizon_steps=40, nodes=6)
+    guess = active_rows(ocp._C, oracle, row_lo, row_hi, 1e-6)
     assert np.count_nonzero(guess) > 0
     solution = solve_on_active_set(model.H, model.g, ocp._C, row_lo, row_hi, guess)
     assert solution is not None
-    np.testing.assert_allclose(solution.d.reshape(ocp.N, 6), U_drake - U, atol=1e-6)
+    np.testing.assert_allclose(solution.d, oracle, atol=1e-6)
 
 
 def test_converged_mode_stops_on_its_kkt_tolerance(robot):

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_active_set import assert_kkt, clarabel, random_qp
+from test_active_set import assert_kkt, clarabel, nmpc_qp_at_the_limits, random_qp
 
 from mca_drake.cueing.active_set import active_rows
 from mca_drake.cueing.dual_active_set import solve_dual_active_set
-from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
 
 
 @pytest.mark.parametrize("seed", range(10))
@@ -69,20 +68,9 @@ def test_the_nmpc_qp_at_its_limits_equals_drakes_solution(robot):
     """The real OCP's Gauss-Newton QP from a state that pushes joints to their limits, at
     weights that put many inputs on their bounds: from nothing, from a stale guess and from
     a shuffled one, the step equals the one Drake's Clarabel finds."""
-    config = NmpcConfig(horizon_steps=64, nodes=10, input_weight=1e-3, qp_solver="clarabel")
-    ocp = MotionCueingOcp(config, robot)
-    x0 = np.r_[0.9 * robot.q_max * np.array([1, 0.5, -0.5, 1, 0.5, -1]), 0.5 * robot.qd_max]
-    refs = np.broadcast_to(6 * np.array([0.15, -0.1, 0.2, 1.2, -0.8, 0.6]), (ocp.N, 6))
-    lo, hi = ocp.input_bounds(x0)
-    ocp._first_input_box.set_bounds(lo[:6], hi[:6])
-    U = np.zeros((ocp.N, 6))
-    model = ocp._gauss_newton(x0, U, refs)
-    lb, ub = ocp.constraint_bounds(x0)
-    row_lo, row_hi = np.r_[lb, lo], np.r_[ub, hi]
-    x_bar = ocp._update_qp(x0, U, refs, model.jac)
-    U_drake, message = ocp._solve_qp(U, x_bar)
-    assert U_drake is not None, message
-    oracle = (U_drake - U).reshape(-1)
+    ocp, model, row_lo, row_hi, oracle = nmpc_qp_at_the_limits(
+        robot, horizon_steps=64, nodes=10, input_weight=1e-3
+    )
     right = active_rows(ocp._C, oracle, row_lo, row_hi, 1e-6)
     assert np.count_nonzero(right) >= 10  # many rows bind
     rng = np.random.default_rng(0)
