@@ -51,6 +51,24 @@ def test_infeasible_constraints_are_refused():
     assert solve_dual_active_set(H, g, C, lo, hi) is None
 
 
+def test_non_finite_input_is_refused_not_iterated():
+    rng = np.random.default_rng(3)
+    H, g, C, lo, hi = random_qp(rng)
+    g[2] = np.nan
+    assert solve_dual_active_set(H, g, C, lo, hi) is None
+    g[2], hi[4] = 0.0, np.nan
+    assert solve_dual_active_set(H, g, C, lo, hi) is None
+
+
+def test_the_step_cap_bounds_the_work():
+    """Capped below the steps a cold start needs: refused (the NMPC then asks Drake)."""
+    rng = np.random.default_rng(0)
+    H, g, C, lo, hi = random_qp(rng, n=15, m=45)
+    steps = solve_dual_active_set(H, g, C, lo, hi).corrections
+    assert steps >= 2
+    assert solve_dual_active_set(H, g, C, lo, hi, max_steps=steps - 1) is None
+
+
 def test_parallel_rows_are_handled_by_dropping_the_weaker():
     """The box on u_0 and the node-1 row that is its multiple (x <= 1 and 2 x <= 1): the
     tighter one ends active, as in the closed-form optimum (0.5, 5)."""
