@@ -86,29 +86,29 @@ class NmpcConfig:
     # Number of intervals of the non-uniform grid over the horizon.
     nodes: int = 20
     # The weights below are tuned (the paper's are `NmpcConfig.paper()`):
-    #   mca-drake tune --mca nmpc-rti --trials 40 --duration 120 --workers 2
-    #       --vehicles light,jet --seeds 100,101,102
-    # on 2026-11-23 (TPE seed 0, stopped after 23 trials, the report written with --resume
-    # --trials 23; the best: median PI -1.243 against the paper's -0.623 on those six
-    # 120 s training flights). The input weight sits at the search space's lower bound.
+    #   mca-drake tune --mca nmpc-rti --trials 30 --duration 120 --workers 2 --budget-ms 10
+    #       --vehicles light,jet --seeds 100,101,102 --seed 1
+    # on 2026-11-23 with the exact QPs of the dual active-set method and the input weight
+    # searched down to 1e-3 (stopped after 21 trials; the best: median PI -1.328 against the
+    # paper's -0.623 on those six 120 s training flights; benchmarks/results/tune_nmpc_exact).
     # Weights of the six output channels (w_x, w_y, w_z, f_x, f_y, a_z) in ||y - r||^2.
     output_weights: list[float] = dataclasses.field(
         default_factory=lambda: [
-            0.794287268879584,
-            1.0787920396784505,
-            1.0845903647228352,
-            3.4796355020426835,
-            2.401086342396346,
-            1.0998721960721414,
+            0.23173544607468133,
+            0.6709608754217997,
+            0.521429236877256,
+            3.949405918230869,
+            3.1016267956375376,
+            0.9726023378291542,
         ]
     )
     # Weight of ||u||^2 (rad/s^2)^-2.
-    input_weight: float = 0.010483914549034277
+    input_weight: float = 0.006844263281132409
     # Washout weight on ||q||^2.
-    washout_weight: float = 0.23666922330783421
+    washout_weight: float = 0.038649559435772904
     # Terminal weights on ||q_N||^2 and ||qd_N||^2.
-    terminal_position_weight: float = 0.2590871688599884
-    terminal_velocity_weight: float = 0.9521280824608009
+    terminal_position_weight: float = 0.1338249073407122
+    terminal_velocity_weight: float = 0.8102101185225884
     # Tangents per side and joint approximating the stoppability parabola at the later nodes.
     # Two tangents are enough: u_0 is held to the exact viability interval anyway, the
     # tangents only keep the later plan realistic, and each costs 12 rows per node.
