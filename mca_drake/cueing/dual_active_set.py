@@ -40,6 +40,7 @@ from mca_drake.cueing.active_set import (
     DUAL_TOLERANCE,
     PRIMAL_TOLERANCE,
     ActiveSetSolution,
+    _one_per_group,
     cholesky,
     solve_on_active_set,
 )
@@ -65,6 +66,7 @@ def solve_dual_active_set(
     *,
     cholesky_of_H: tuple | None = None,
     row_norms: np.ndarray | None = None,
+    groups: np.ndarray | None = None,
     max_steps: int | None = None,
 ) -> ActiveSetSolution | None:
     """Solves the QP from the dual-feasible part of a guessed active set.
@@ -77,6 +79,8 @@ def solve_dual_active_set(
         cholesky_of_H: `scipy.linalg.cho_factor(H)` when the caller has it already.
         row_norms: the Euclidean norms of C's rows (m,), when the caller has them: the most
             violated row is chosen by its distance, not by its raw residual.
+        groups: `active_set.parallel_groups(C)` when the caller has it: of parallel rows in
+            the guess only the first is kept (two would make the start singular).
         max_steps: a cap on the steps, which bounds the time; reaching it returns None
             (default 10 n: from a wrong guess the NMPC's QPs took at most 56 steps for
             n = 120; a cold start at the robot's limits took 316 for n = 60).
@@ -96,10 +100,8 @@ def solve_dual_active_set(
         row_norms = np.linalg.norm(C, axis=1)
     row_norms = np.where(row_norms > 0, row_norms, 1.0)
     max_steps = 10 * n if max_steps is None else max_steps
-    H_inv = _inverse(factor)
-    if H_inv is None:
-        return None
-    H_inv_g = H_inv @ g
+    H_inv = None  # formed at the first step: a right guess needs none
+    H_inv_g = scipy.linalg.cho_solve(factor, g, check_finite=False)
     # The active set, in arrays of capacity n (independent rows are at most n): row index,
     # signed row (side * C_i, so every active row reads N_i d = b_i with lambda_i >= 0),
     # H^-1 N_i^T, the multipliers, and S^-1.
@@ -108,7 +110,9 @@ def solve_dual_active_set(
     H_inv_rows = np.empty((n, n))
     lam = np.empty(n)
     S_inv = np.empty((n, n))
-    k, d = _hot_start(H_inv, H_inv_g, C, lo, hi, guess, index, signed_rows, H_inv_rows, lam, S_inv)
+    if guess is not None and groups is not None:
+        guess = _one_per_group(np.asarray(guess), groups)
+    k, d = _hot_start(factor, H_inv_g, C, lo, hi, guess, index, signed_rows, H_inv_rows, lam, S_inv)
     steps = 0
     while True:
         value = C @ d
@@ -119,6 +123,10 @@ def solve_dual_active_set(
         side = 1.0 if value[p] > hi[p] else -1.0
         n_p = side * C[p]
         b_p = hi[p] if side > 0 else -lo[p]
+        if H_inv is None:
+            H_inv = _inverse(factor)
+            if H_inv is None:
+                return None
         h = H_inv @ n_p
         n_h = float(n_p @ h)
         lam_p = 0.0
@@ -160,7 +168,8 @@ def solve_dual_active_set(
             index[k], signed_rows[k], H_inv_rows[:, k], lam[k] = p, n_p, h, lam_p
             k += 1
             break
-    return _verified(H, g, C, lo, hi, d, index[:k], signed_rows[:k], lam[:k], steps, factor)
+    solution = (d, value, index[:k], signed_rows[:k], lam[:k])
+    return _verified(H, g, C, lo, hi, solution, steps, factor)
 
 
 def _inverse(factor) -> np.ndarray | None:
@@ -174,10 +183,10 @@ def _inverse(factor) -> np.ndarray | None:
     return triangle + triangle.T - np.diag(np.diag(triangle))
 
 
-def _hot_start(H_inv, H_inv_g, C, lo, hi, guess, index, signed_rows, H_inv_rows, lam, S_inv):
+def _hot_start(factor, H_inv_g, C, lo, hi, guess, index, signed_rows, H_inv_rows, lam, S_inv):
     """Loads the dual-feasible part of `guess` into the arrays: (k, d), d the minimiser on
     those k rows held as equalities, with their multipliers >= 0."""
-    n = H_inv.shape[0]
+    n = H_inv_g.shape[0]
     if guess is None:
         return 0, -H_inv_g
     guess = np.asarray(guess)
@@ -188,20 +197,20 @@ def _hot_start(H_inv, H_inv_g, C, lo, hi, guess, index, signed_rows, H_inv_rows,
             break
         side = np.sign(guess[rows]).astype(float)
         N = C[rows] * side[:, None]
-        Y = H_inv @ N.T
+        Y = scipy.linalg.cho_solve(factor, N.T, check_finite=False)
         S = N @ Y
-        factor = cholesky(S)
-        if factor is None:
+        schur = cholesky(S)
+        if schur is None:
             break  # dependent rows in the guess: start from nothing instead
         b = np.where(side > 0, hi[rows], -lo[rows])
-        mu = scipy.linalg.cho_solve(factor, -N @ H_inv_g - b, check_finite=False)
+        mu = scipy.linalg.cho_solve(schur, -N @ H_inv_g - b, check_finite=False)
         wrong = mu < 0
         if wrong.any():
             rows = rows[~wrong]
             continue
         k = rows.size
         index[:k], signed_rows[:k], H_inv_rows[:, :k], lam[:k] = rows, N, Y, mu
-        S_inv[:k, :k] = scipy.linalg.cho_solve(factor, np.eye(k), check_finite=False)
+        S_inv[:k, :k] = scipy.linalg.cho_solve(schur, np.eye(k), check_finite=False)
         return k, -H_inv_g - Y @ mu
     return 0, -H_inv_g
 
@@ -220,9 +229,11 @@ def _drop(j, k, index, signed_rows, H_inv_rows, lam, S_inv) -> int:
     return k - 1
 
 
-def _verified(H, g, C, lo, hi, d, index, signed_rows, lam, steps, factor):
-    """The solution if it satisfies the KKT conditions to round-off; else one KKT solve on
-    its active set (the updates of S^-1 drift over many steps) makes it exact, or None."""
+def _verified(H, g, C, lo, hi, solution, steps, factor):
+    """The solution (d, C d, active rows, their signed rows, multipliers) if it satisfies
+    the KKT conditions to round-off; else one KKT solve on its active set (the updates of
+    S^-1 drift over many steps) makes it exact, or None."""
+    d, value, index, signed_rows, lam = solution
     m = C.shape[0]
     active = np.zeros(m, dtype=np.int8)
     # the side of each active row: its signed row is +C_i (upper bound) or -C_i (lower)
@@ -231,7 +242,6 @@ def _verified(H, g, C, lo, hi, d, index, signed_rows, lam, steps, factor):
     if np.all(np.isfinite(d)) and np.all(np.isfinite(lam)):
         Hd = H @ d
         scale = max(1.0, float(np.max(np.abs(g))), float(np.max(np.abs(Hd))))
-        value = C @ d
         at_bound = np.where(side > 0, hi[index], lo[index])
         if (
             float(np.max(np.abs(Hd + g + signed_rows.T @ lam))) <= STATIONARITY_TOLERANCE * scale

@@ -789,7 +789,11 @@ class MotionCueingOcp:
         this path is the exception)."""
         H, factor = model
         if factor is not None:
-            solution = self._on_active_set(H, factor, g, d_lo, d_hi, active)
+            # the dual method from the guess is itself one KKT solve where the guess is right;
+            # corrections (config.active_set_corrections > 0) are a heuristic tried first
+            solution = None
+            if self._corrections > 0:
+                solution = self._on_active_set(H, factor, g, d_lo, d_hi, active)
             if solution is None:
                 solution = solve_dual_active_set(
                     H,
@@ -800,6 +804,7 @@ class MotionCueingOcp:
                     active,
                     cholesky_of_H=factor,
                     row_norms=self._row_norms,
+                    groups=self._parallel,
                 )
             if solution is not None:
                 return solution.d.reshape(self.N, NU), solution, True, ""

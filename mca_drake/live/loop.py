@@ -242,6 +242,8 @@ def run_live(
     config = as_mca_config(mca)
     lock = phase_lock or PhaseLockConfig()
     lock.validate()
+    rc = receiver or ReceiverConfig()
+    h = rc.time_step
     diagram, handles = MakeLiveClosedLoop(
         decoder,
         config,
@@ -259,12 +261,11 @@ def run_live(
         # the loop paces itself (`live.pacing`): the poll on time, the MCA right after it
         pacer = None
         if realtime_rate > 0:
-            rc = receiver or ReceiverConfig()
             pacer = RealTimePacer(
-                rc.time_step,
+                h,
                 rc.poll_lead_s,
                 realtime_rate,
-                max_slew_per_period_s=lock.max_slew_s * rc.time_step / lock.window_s,
+                max_slew_per_period_s=lock.max_slew_s * h / lock.window_s,
             )
             simulator.set_monitor(pacer)
         if plant == "multibody":
@@ -275,9 +276,7 @@ def run_live(
         start, cpu_start = time.perf_counter(), time.process_time()
         if pacer is not None:
             pacer.start()
-        shifts = _advance_phase_locked(
-            simulator, handles["probe"], duration_s, pacer, lock, _control_period(receiver)
-        )
+        shifts = _advance_phase_locked(simulator, handles["probe"], duration_s, pacer, lock, h)
         wall_s = time.perf_counter() - start
         cpu_s = time.process_time() - cpu_start
     finally:
@@ -287,7 +286,6 @@ def run_live(
     def log(name):
         return handles[name].FindLog(context).data().T
 
-    h = _control_period(receiver)
     commands = log("command_log")[1:]
     n = commands.shape[0]
     reference = log("reference_log")[:n]
@@ -358,11 +356,6 @@ def run_live(
         "cpu_load": cpu_s / max(wall_s, 1e-9),
     }
     return summary
-
-
-def _control_period(receiver: ReceiverConfig | None) -> float:
-    """The live loop's control period, s."""
-    return (receiver or ReceiverConfig()).time_step
 
 
 def _advance_phase_locked(simulator, probe, duration_s, pacer, lock, period_s):
