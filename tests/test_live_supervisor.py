@@ -117,3 +117,8 @@ def test_an_insane_reference_is_a_fault():
 def test_bad_settings_are_refused(change):
     with pytest.raises(ValueError, match="SupervisorConfig"):
         SupervisorConfig(**change).validate()
+
+
+def test_a_judgement_offset_outside_the_period_is_refused():
+    with pytest.raises(ValueError, match="judge_offset_s"):
+        Supervisor(SupervisorConfig(), judge_offset_s=SupervisorConfig().time_step)

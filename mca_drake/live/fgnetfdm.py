@@ -37,6 +37,7 @@ whole seconds, so decode it with `time_resolution_s=None` (arrival times).
 from __future__ import annotations
 
 import math
+import operator
 import struct
 
 import numpy as np
@@ -143,6 +144,31 @@ def unpack_fgnetfdm(packet: bytes) -> dict[str, float | int | tuple]:
         BadPacket: too short for the version word, a version other than 24 (with a hint for
             a byte-swapped or version-25 sender), or not 408 bytes.
     """
+    values = _unpack_checked(packet)
+    fields: dict[str, float | int | tuple] = {}
+    at = 0
+    for name, _, count in FGNETFDM_LAYOUT:
+        fields[name] = values[at] if count == 1 else tuple(values[at : at + count])
+        at += count
+    return fields
+
+
+def _index_of_scalars() -> dict[str, int]:
+    index, at = {}, 0
+    for name, _, count in FGNETFDM_LAYOUT:
+        if count == 1:
+            index[name] = at
+        at += count
+    return index
+
+
+# What the decoder reads, as positions in the unpacked tuple: picked in one C call, without
+# the dict of all 100 values (the live loop decodes between a packet and its command).
+_PICK_USED = operator.itemgetter(*(_index_of_scalars()[name] for name in (*_USED, "cur_time")))
+
+
+def _unpack_checked(packet: bytes) -> tuple:
+    """The packet's values in layout order (see unpack_fgnetfdm for what it raises)."""
     if len(packet) < 4:
         raise BadPacket(
             f"fgnetfdm packet of {len(packet)} bytes is too short for its version word "
@@ -164,13 +190,7 @@ def unpack_fgnetfdm(packet: bytes) -> dict[str, float | int | tuple]:
             f"fgnetfdm packet of {len(packet)} bytes; version {FGNETFDM_VERSION} packets are "
             f"{FGNETFDM_SIZE} bytes (truncated or padded datagram)"
         )
-    values = _STRUCT.unpack(packet)
-    fields: dict[str, float | int | tuple] = {}
-    at = 0
-    for name, _, count in FGNETFDM_LAYOUT:
-        fields[name] = values[at] if count == 1 else tuple(values[at : at + count])
-        at += count
-    return fields
+    return _STRUCT.unpack(packet)
 
 
 def body_rates_from_euler_rates(
@@ -249,23 +269,25 @@ class FgNetFdmDecoder(Decoder):
         super().__init__(lever_arm=lever_arm)
 
     def _decode_at_source(self, packet: bytes, received_s: float) -> TelemetrySample:
-        fields = unpack_fgnetfdm(packet)
-        bad = [name for name in _USED if not math.isfinite(fields[name])]
-        if bad:
-            listed = ", ".join(f"{name} = {fields[name]}" for name in bad)
+        *used, cur_time = _PICK_USED(_unpack_checked(packet))
+        if not all(map(math.isfinite, used)):
+            listed = ", ".join(
+                f"{name} = {value}"
+                for name, value in zip(_USED, used, strict=True)
+                if not math.isfinite(value)
+            )
             raise BadPacket(f"fgnetfdm packet has non-finite values: {listed}")
-        p, q, r = body_rates_from_euler_rates(
-            fields["phi"], fields["theta"], fields["phidot"], fields["thetadot"], fields["psidot"]
-        )
+        phi, theta, phidot, thetadot, psidot, a_x, a_y, a_z = used
+        p, q, r = body_rates_from_euler_rates(phi, theta, phidot, thetadot, psidot)
         omega = np.array([p, -q, -r])
-        f = M_PER_FT * np.array([fields["A_X_pilot"], -fields["A_Y_pilot"], -fields["A_Z_pilot"]])
+        f = np.array([M_PER_FT * a_x, -M_PER_FT * a_y, -M_PER_FT * a_z])
         if self.time_resolution_s is None:
             return TelemetrySample(received_s, omega, f, time_source="arrival")
-        if fields["cur_time"] == JSBSIM_PLACEHOLDER_TIME:
+        if cur_time == JSBSIM_PLACEHOLDER_TIME:
             raise BadPacket(
                 f"fgnetfdm packet has JSBSim's placeholder time {JSBSIM_PLACEHOLDER_TIME}: "
                 'add <time type="simulation" resolution="..."/> to the output directive, or '
                 "decode with time_resolution_s=None (arrival times)"
             )
-        t_s = fields["cur_time"] * self.time_resolution_s
+        t_s = cur_time * self.time_resolution_s
         return TelemetrySample(t_s, omega, f, time_source="sender")

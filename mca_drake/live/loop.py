@@ -10,13 +10,13 @@ time in each health state; the PI is scored against the reference that was recei
 
 from __future__ import annotations
 
+import gc
 import time
 from collections.abc import Callable
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, EventStatus, LeafSystem
-from pydrake.systems.primitives import LogVectorOutput
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import McaConfig, as_mca_config
@@ -26,7 +26,8 @@ from mca_drake.live.fgnetfdm import FgNetFdmDecoder
 from mca_drake.live.pacing import RealTimePacer
 from mca_drake.live.phase_lock import PhaseLockConfig, phase_correction
 from mca_drake.live.receiver import TELEMETRY_FIELDS, ReceiverConfig, TelemetryReceiver
-from mca_drake.live.supervisor import HEALTH_FIELDS, Supervisor, SupervisorConfig
+from mca_drake.live.recorder import BEFORE_POLL_S, LiveRecorder
+from mca_drake.live.supervisor import Supervisor, SupervisorConfig
 from mca_drake.live.telemetry import Decoder
 from mca_drake.live.xplane import XPlaneDecoder
 from mca_drake.references.reference import ReferenceScaling
@@ -34,6 +35,7 @@ from mca_drake.robot import KR500, load_kr500
 from mca_drake.simulation.builders import AddMca, AddMeshcatDrawing, default_visualization
 from mca_drake.simulation.closed_loop import (
     PLANTS,
+    check_alignment,
     closed_loop_summary,
     station_signals,
     step_time_summary,
@@ -68,6 +70,14 @@ def make_decoder(
 # the instant itself would read the command computed one period earlier, from the previous
 # sample.
 PROBE_DELAY_S = 1e-5
+# The analytical plant steps this long (s) after each control instant: after the probe and
+# the recorder (`live.recorder.AFTER_COMMAND_S`), so that its step and the clamp it would
+# re-evaluate are not between a sample and its command, and it integrates the very command
+# that was recorded.
+PLANT_DELAY_S = 2e-5
+# The supervisor judges the loop this long (s) after each control instant: after the plant's
+# step (its new blend weight would change the command the plant integrates).
+JUDGE_DELAY_S = 2.5e-5
 
 
 class LatencyProbe(LeafSystem):
@@ -77,7 +87,8 @@ class LatencyProbe(LeafSystem):
 
     Input `telemetry` (TELEMETRY_FIELDS) and `command` (6: the command the robot gets now).
     `latencies_s` holds the latencies, `waits_s` the waits (poll - arrival) and
-    `instants_s` the wall time of every control instant.
+    `instants_s` the wall time of every control instant; `arrivals_s` and
+    `sample_instants` the arrival and control instant index of every new sample.
     """
 
     def __init__(self, time_step: float = CONTROL_PERIOD_S):
@@ -85,8 +96,12 @@ class LatencyProbe(LeafSystem):
         self._telemetry = self.DeclareVectorInputPort("telemetry", len(TELEMETRY_FIELDS))
         self._command = self.DeclareVectorInputPort("command", 6)
         self.DeclarePeriodicPublishEvent(time_step, PROBE_DELAY_S, self._probe)
+        self._time_step = time_step
         self.latencies_s: list[float] = []
         self.waits_s: list[float] = []
+        # per new sample: its arrival (time.perf_counter()) and its control instant's index
+        self.arrivals_s: list[float] = []
+        self.sample_instants: list[int] = []
         # wall time of every control instant (after its updates): the loop's jitter
         self.instants_s: list[float] = []
         self._last_arrival = float("nan")
@@ -100,6 +115,8 @@ class LatencyProbe(LeafSystem):
         if np.isfinite(arrival) and arrival != self._last_arrival:
             self.latencies_s.append(now - arrival)
             self.waits_s.append(float(telemetry[_POLL]) - arrival)
+            self.arrivals_s.append(arrival)
+            self.sample_instants.append(round(context.get_time() / self._time_step))
             self._last_arrival = arrival
         return EventStatus.Succeeded()
 
@@ -121,12 +138,12 @@ def MakeLiveClosedLoop(
     `meshcat`). The control period is `receiver.time_step`.
 
     Returns:
-        (diagram, handles): the systems `receiver`, `mca`, `supervisor`, `probe`, and
-        `plant` (analytical) or `station` (StationHandles: call its SetInitialState), and
-        the logs `reference_log`, `state_log` (the state the MCA reads), `command_log`,
-        `statistics_log`, `health_log`, `telemetry_log` and, on the station,
-        `true_state_log` and `measured_output_log` (the head IMU without its delay: what
-        the occupant felt).
+        (diagram, handles): the systems `receiver`, `mca`, `supervisor`, `probe`,
+        `recorder` (`live.recorder.LiveRecorder`) and `plant` (analytical) or `station`
+        (StationHandles: call its SetInitialState). The recorder holds, before each poll,
+        `state` (the state the MCA reads), `statistics`, `health` and, on the station,
+        `true_state` and `measured_output` (the head IMU without its delay: what the occupant
+        felt); after each command, `reference` and `command` (what the robot got).
     """
     if plant not in PLANTS:
         raise ValueError(f"unknown plant '{plant}'; valid: {', '.join(PLANTS)}")
@@ -142,24 +159,39 @@ def MakeLiveClosedLoop(
     controller = AddMca(builder, mca, robot, h)
     home = getattr(controller, "home_position", np.zeros(6))
     guard = builder.AddNamedSystem(
-        "supervisor", Supervisor(supervisor or SupervisorConfig(time_step=h), robot, home)
+        "supervisor",
+        Supervisor(
+            supervisor or SupervisorConfig(time_step=h), robot, home, judge_offset_s=JUDGE_DELAY_S
+        ),
     )
     handles = dict(receiver=source, mca=controller, supervisor=guard)
     initial_state = np.r_[home, np.zeros(6)]
-    logged = {}
+    before_poll = {}
     if plant == "analytical":
+        # the plant steps after the command has gone out (PLANT_DELAY_S), with that command
         robot_system = builder.AddNamedSystem(
-            "plant", MotionCueingPlant(robot=robot, time_step=h, initial_state=initial_state)
+            "plant",
+            MotionCueingPlant(
+                robot=robot, time_step=h, initial_state=initial_state, update_offset_s=PLANT_DELAY_S
+            ),
         )
         handles["plant"] = robot_system
         state = robot_system.GetOutputPort("state")
         inertial_output = robot_system.GetOutputPort("inertial_output")
         joint_acceleration = robot_system.GetInputPort("joint_acceleration")
     else:
+        station = station or StationConfig()
+        if receiver_config.poll_lead_s + BEFORE_POLL_S >= station.plant_time_step:
+            # the recorder reads the station just before the poll, as it is at t_k
+            raise ValueError(
+                f"ReceiverConfig.poll_lead_s ({receiver_config.poll_lead_s} s) must be shorter "
+                f"than the station's plant_time_step ({station.plant_time_step} s) less "
+                f"{BEFORE_POLL_S} s"
+            )
         station_handles = AddKR500Station(
             builder,
             robot,
-            station or StationConfig(),
+            station,
             initial_state,
             with_geometry=meshcat is not None,
             control_period=h,
@@ -168,8 +200,8 @@ def MakeLiveClosedLoop(
         state = station_handles.measured_state
         inertial_output = station_handles.measured_output
         joint_acceleration = station_handles.joint_acceleration
-        logged["measured_output_log"] = station_handles.true_output
-        logged["true_state_log"] = station_handles.true_state
+        before_poll["measured_output"] = station_handles.true_output
+        before_poll["true_state"] = station_handles.true_state
     probe = builder.AddNamedSystem("probe", LatencyProbe(h))
     handles["probe"] = probe
     reference = source.GetOutputPort("reference")
@@ -188,17 +220,27 @@ def MakeLiveClosedLoop(
     builder.Connect(command, joint_acceleration)
     builder.Connect(source.GetOutputPort("telemetry"), probe.GetInputPort("telemetry"))
     builder.Connect(command, probe.GetInputPort("command"))
-    logged |= {
-        "reference_log": reference,
-        "state_log": state,
-        "command_log": command,
-        "statistics_log": controller.GetOutputPort("statistics"),
-        "health_log": guard.GetOutputPort("health"),
-        "telemetry_log": source.GetOutputPort("telemetry"),
+    # recorded off the path from a sample to its command (`live.recorder`)
+    before_poll |= {
+        "state": state,
+        # the output the MCA reads: computed here, before the poll, it is cached for the MCA
+        "inertial_output": inertial_output,
+        "statistics": controller.GetOutputPort("statistics"),
+        "health": guard.GetOutputPort("health"),
     }
-    for name, port in logged.items():
-        handles[name] = LogVectorOutput(port, builder, h)
-        handles[name].set_name(name)
+    after_command = {"reference": reference, "command": command}
+    recorder = builder.AddNamedSystem(
+        "recorder",
+        LiveRecorder(
+            {name: port.size() for name, port in before_poll.items()},
+            {name: port.size() for name, port in after_command.items()},
+            h,
+            receiver_config.poll_lead_s,
+        ),
+    )
+    for name, port in (before_poll | after_command).items():
+        builder.Connect(port, recorder.GetInputPort(name))
+    handles["recorder"] = recorder
     if meshcat is not None:
         handles["traces"] = AddMeshcatDrawing(
             builder, meshcat, default_visualization(), station_handles, reference, h
@@ -266,6 +308,8 @@ def run_live(
                 rc.poll_lead_s,
                 realtime_rate,
                 max_slew_per_period_s=lock.max_slew_s * h / lock.window_s,
+                wake_socket=source if lock.enabled else None,
+                wake_window_s=lock.wake_window_s if lock.enabled else 0.0,
             )
             simulator.set_monitor(pacer)
         if plant == "multibody":
@@ -273,6 +317,11 @@ def run_live(
         simulator.Initialize()
         if on_listening is not None:
             on_listening(source.address)
+        # Everything built so far (torch, Drake, the diagram) leaves the garbage collector's
+        # view: a full collection of it took about 0.1 s, a stall in the loop whenever one
+        # came due; the loop's own garbage is still collected.
+        gc.collect()
+        gc.freeze()
         start, cpu_start = time.perf_counter(), time.process_time()
         if pacer is not None:
             pacer.start()
@@ -280,24 +329,23 @@ def run_live(
         wall_s = time.perf_counter() - start
         cpu_s = time.process_time() - cpu_start
     finally:
+        gc.unfreeze()
         source.close()
     context = simulator.get_context()
 
-    def log(name):
-        return handles[name].FindLog(context).data().T
-
-    commands = log("command_log")[1:]
+    rows = handles["recorder"].rows
+    commands, reference = rows("command"), rows("reference")  # period k: rows 0..N-1
     n = commands.shape[0]
-    reference = log("reference_log")[:n]
     if plant == "analytical":
-        states = log("state_log")[:n]
+        states = rows("state")  # x_k before each poll: rows 0..N
+        # the plant integrated exactly the recorded commands (it steps after the recorder)
+        check_alignment(states[: n + 1], commands, h)
+        states = states[:n]
         accelerations = commands
         outputs = plant_output(states[:, :6], states[:, 6:], commands, robot)
     else:  # what the occupant felt (the IMU without its delay), as run_closed_loop scores it
-        n = n - 1
-        commands, reference = commands[:n], reference[:n]
         states, accelerations, outputs = station_signals(
-            log("true_state_log"), log("measured_output_log"), n, h
+            rows("true_state"), rows("measured_output"), n, h
         )
     summary, _ = closed_loop_summary(
         config=config,
@@ -308,12 +356,13 @@ def run_live(
         outputs=outputs,
         states=states,
         accelerations=accelerations,
-        statistics=log("statistics_log"),
+        statistics=rows("statistics"),
         wall_s=wall_s,
         robot=robot,
     )
-    telemetry = dict(zip(TELEMETRY_FIELDS, log("telemetry_log")[-1], strict=True))
-    health = dict(zip(HEALTH_FIELDS, log("health_log")[-1], strict=True))
+    telemetry = source.counters(source.GetMyContextFromRoot(context))
+    guard = handles["supervisor"]
+    health = guard.health(guard.GetMyContextFromRoot(context))
     latencies = np.asarray(handles["probe"].latencies_s)
     summary["live"] = {
         "protocol": decoder.protocol,
@@ -335,6 +384,8 @@ def run_live(
         "phase_shifts_s": shifts,
         # polls that came after their instant (the loop had overrun)
         "late_polls": 0 if pacer is None else pacer.late_polls,
+        # polls a datagram brought forward (phase lock's wake window)
+        "early_polls": 0 if pacer is None else pacer.early_polls,
         "health": {
             "ok_s": float(health["ok_s"]),
             "degraded_s": float(health["degraded_s"]),
@@ -360,9 +411,10 @@ def run_live(
 
 def _advance_phase_locked(simulator, probe, duration_s, pacer, lock, period_s):
     """Advances to `duration_s` in windows of `lock.window_s`; after a window measured at a
-    steady phase, the phase lock's correction (`phase_correction` of its waits) becomes the
-    pacer's new target phase, which it slews to within the next window (measured only after
-    that). No pacer (as fast as possible) or no lock: one AdvanceTo. Returns the shifts."""
+    steady phase, the phase lock's correction (`phase_correction` of the samples' waits for
+    the time their poll was due) becomes the pacer's new target phase, which it slews to
+    within the next window (measured only after that). No pacer (as fast as possible) or no
+    lock: one AdvanceTo. Returns the shifts."""
     if pacer is None or not lock.enabled:
         simulator.AdvanceTo(duration_s)
         return []
@@ -370,10 +422,29 @@ def _advance_phase_locked(simulator, probe, duration_s, pacer, lock, period_s):
     while simulator.get_context().get_time() < duration_s - 1e-9:
         t = simulator.get_context().get_time()
         # a window right after a shift only measures (its waits show the new phase)
-        shift = 0.0 if shift else phase_correction(probe.waits_s[measured_from:], period_s, lock)
-        measured_from = len(probe.waits_s)
+        shift = (
+            0.0
+            if shift
+            else phase_correction(_waits_for_due(probe, pacer, measured_from), period_s, lock)
+        )
+        measured_from = len(probe.arrivals_s)
         if shift:
             shifts.append(shift)
             pacer.target_phase_s += shift
         simulator.AdvanceTo(min(duration_s, t + lock.window_s))
     return shifts
+
+
+def _waits_for_due(probe: LatencyProbe, pacer: RealTimePacer, first: int) -> np.ndarray:
+    """(time the poll was due - arrival) of the probe's samples from index `first`, s: the
+    phase the lock follows, which a poll brought forward by the sample itself would hide."""
+    due = dict(pacer.dues)
+    return np.array(
+        [
+            due[k] - arrival
+            for k, arrival in zip(
+                probe.sample_instants[first:], probe.arrivals_s[first:], strict=True
+            )
+            if k in due
+        ]
+    )

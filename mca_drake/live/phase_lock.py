@@ -4,11 +4,16 @@ A flight simulator that streams at the loop's rate (JSBSim and FlightGear at 100
 at a phase of its own. A sample then waits in the socket from its arrival until the next
 poll, up to a whole control period, and that wait, not the MCA, dominated the latency from
 arrival to command (3.4 ms median on real-time JSBSim telemetry, where the MCA took
-0.1 ms). The lock measures the waits (poll time - arrival time) over a window of the run
+0.1 ms). The lock measures the waits (time the poll was due - arrival time) over a window of the run
 and moves the loop's control instants so that the poll comes `margin_s` after the latest
 usual arrival (the `quantile` of the waits): the pacer (`mca_drake.live.pacing`) slews its
 phase there within the next window (at most `max_slew_s` per window), so the loop's time
 never jumps and a period changes by at most max_slew_s / window_s of itself (1 % by default).
+
+With the pacer's wake window (`wake_window_s`), a sample that arrives in the window before
+its poll instant brings the poll forward and waits only for the wake-up; the lock then
+measures each sample against the time its poll was due, not the time it ran, and keeps the
+samples in the window (the latest usual one `margin_s` before the instant).
 
 Waits are read on the circle of one period: a sample that arrived just after its poll waits
 almost a whole period, which is the same phase as a negative wait. A stream without a
@@ -33,7 +38,11 @@ class PhaseLockConfig:
     enabled: bool = True
     # The poll comes this long (s) after the latest usual arrival: room for the sender's
     # jitter, so that its samples rarely miss their poll.
-    margin_s: float = 5e-4
+    margin_s: float = 1e-3
+    # From this long (s) before each poll instant, a datagram brings the poll forward
+    # (`mca_drake.live.pacing`): the samples the lock places in this window wait for their
+    # poll only as long as the wake-up takes (0: polls only at their instants).
+    wake_window_s: float = 4e-3
     # The latest usual arrival: this quantile of the waits (the shortest ones).
     quantile: float = 0.01
     # The loop's time (s) over which the waits are measured and a correction is run.
@@ -50,6 +59,8 @@ class PhaseLockConfig:
         check_config_numbers(self)
         if not self.window_s > 0 or self.margin_s < 0 or self.deadband_s < 0:
             raise ValueError("PhaseLockConfig: window_s must be > 0, margin_s, deadband_s >= 0")
+        if self.wake_window_s < 0:
+            raise ValueError("PhaseLockConfig.wake_window_s must be >= 0")
         if not 0 <= self.max_slew_s < 0.5 * self.window_s:
             raise ValueError("PhaseLockConfig.max_slew_s must be in [0, window_s / 2)")
         if not 0 < self.quantile < 0.5:
@@ -63,7 +74,9 @@ def phase_correction(waits_s: np.ndarray, period_s: float, config: PhaseLockConf
     later, not 7.7 ms earlier).
 
     Args:
-        waits_s: poll time - arrival time of the samples of one window, s.
+        waits_s: the time each sample's poll was due (its control instant's poll on the
+            loop's grid, whether or not the sample brought it forward) - its arrival time,
+            for the samples of one window, s.
         period_s: the control period, s.
     """
     waits = np.asarray(waits_s, dtype=float)

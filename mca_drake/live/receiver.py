@@ -152,6 +152,11 @@ class TelemetryReceiver(LeafSystem):
         """(host, port) the socket is bound to (the real port when config.port is 0)."""
         return self._address
 
+    def fileno(self) -> int:
+        """The socket's file descriptor (-1 once closed), for `select`: the live loop's pacer
+        watches it to poll as soon as a datagram arrives (`mca_drake.live.pacing`)."""
+        return self._socket.fileno()
+
     def close(self) -> None:
         """Closes the socket (a closed receiver counts every later period as stale)."""
         self._socket.close()

@@ -114,6 +114,10 @@ class Supervisor(LeafSystem):
         robot: the limits the command is clamped to.
         home_position: the pose the wash-out returns to, rad (6,); default q = 0 (the MCA's
             own home where it has one: the classical washout's is not zero).
+        judge_offset_s: the judgement runs at t_k + this, s (in [0, time_step)). The live
+            loop runs it after the command has gone out and the robot has stepped, so that
+            it is not between a sample and its command; it then judges the MCA step just
+            taken, and its new blend weight acts from the next command on.
     """
 
     def __init__(
@@ -121,6 +125,7 @@ class Supervisor(LeafSystem):
         config: SupervisorConfig | None = None,
         robot: KR500 | None = None,
         home_position: np.ndarray | None = None,
+        judge_offset_s: float = 0.0,
     ):
         super().__init__()
         self._config = config or SupervisorConfig()
@@ -143,7 +148,9 @@ class Supervisor(LeafSystem):
         initial = np.zeros(8)
         initial[_WEIGHT] = 1.0
         self._index = self.DeclareDiscreteState(initial)
-        self.DeclarePeriodicUnrestrictedUpdateEvent(h, 0.0, self._judge)
+        if not 0 <= judge_offset_s < h:
+            raise ValueError(f"judge_offset_s must be in [0, time_step); got {judge_offset_s}")
+        self.DeclarePeriodicUnrestrictedUpdateEvent(h, judge_offset_s, self._judge)
         self.DeclareVectorOutputPort(
             "joint_acceleration",
             NUM_JOINTS,
@@ -223,9 +230,10 @@ class Supervisor(LeafSystem):
         x = self._state_port.Eval(context)
         u_mca = self._command_port.Eval(context)
         w = float(context.get_discrete_state(self._index).value()[_WEIGHT])
-        home = self.home_command(x)
-        if not np.all(np.isfinite(u_mca)):
+        if not np.isfinite(u_mca).all():
             w = 0.0  # nothing to blend with
-            u_mca = home
-        u, _ = self._clamp(x, w * u_mca + (1.0 - w) * home)
+        # (the wash-out's command only where it has weight: this runs between a live sample
+        # and its command)
+        u = u_mca if w == 1.0 else (1.0 - w) * self.home_command(x) + (w * u_mca if w else 0.0)
+        u, _ = self._clamp(x, u)
         output.SetFromVector(u)

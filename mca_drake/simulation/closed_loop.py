@@ -233,7 +233,7 @@ def run_closed_loop(
     desired = None
     if plant == "analytical":
         states = log("state_log")[:n]
-        _check_alignment(states, commands, h)
+        check_alignment(states, commands, h)
         accelerations = commands
         outputs = plant_output(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], commands, robot)
     else:
@@ -303,9 +303,11 @@ def station_signals(
     return measured_state[:n], accelerations, outputs
 
 
-def _check_alignment(states: np.ndarray, commands: np.ndarray, h: float) -> None:
-    """Raises RuntimeError unless x_(n+1) = step(x_n, u_n) (the logs are aligned)."""
-    q, qd, u = states[:-1, :NUM_JOINTS], states[:-1, NUM_JOINTS:], commands[:-1]
+def check_alignment(states: np.ndarray, commands: np.ndarray, h: float) -> None:
+    """Raises RuntimeError unless x_(n+1) = step(x_n, u_n) on the analytical plant (the logs
+    are aligned). states: (m, 12); commands: (m - 1 or more, 6), u_n in row n."""
+    q, qd = states[:-1, :NUM_JOINTS], states[:-1, NUM_JOINTS:]
+    u = commands[: states.shape[0] - 1]
     step = np.concatenate([q + h * qd + 0.5 * h * h * u, qd + h * u], axis=1)
     if not np.allclose(step, states[1:], rtol=0, atol=_CONSISTENCY_TOL):
         raise RuntimeError("closed-loop logs are not aligned: x_(n+1) != step(x_n, u_n)")

@@ -37,6 +37,10 @@ class MotionCueingPlant(LeafSystem):
         robot: the KR500 description (default models/kr500.urdf).
         time_step: control period h, s (default 0.01).
         initial_state: default [q, qd], shape (12,); default zeros (the neutral pose, at rest).
+        update_offset_s: the updates come at t_n + this (s, in [0, time_step)); the live
+            loop delays them past the moment its command is sent, so that the plant's work
+            is not between a sample and its command (the state still changes once per
+            period; an MCA at t_(n+1) reads the same x_(n+1)).
     """
 
     def __init__(
@@ -44,10 +48,13 @@ class MotionCueingPlant(LeafSystem):
         robot: KR500 | None = None,
         time_step: float = CONTROL_PERIOD_S,
         initial_state: np.ndarray | None = None,
+        update_offset_s: float = 0.0,
     ):
         super().__init__()
         if not time_step > 0:
             raise ValueError(f"time_step must be positive; got {time_step}")
+        if not 0 <= update_offset_s < time_step:
+            raise ValueError(f"update_offset_s must be in [0, time_step); got {update_offset_s}")
         self._robot = robot if robot is not None else load_kr500()
         self._time_step = float(time_step)
         x0 = np.zeros(2 * NUM_JOINTS) if initial_state is None else initial_state
@@ -60,11 +67,16 @@ class MotionCueingPlant(LeafSystem):
         )
         self._state_index = self.DeclareDiscreteState(x0)
         self.DeclarePeriodicDiscreteUpdateEvent(
-            period_sec=self._time_step, offset_sec=0.0, update=self._update
+            period_sec=self._time_step, offset_sec=update_offset_s, update=self._update
         )
         self._state_port = self.DeclareStateOutputPort("state", self._state_index)
+        # y depends on x and u only (not on time): a value computed before an instant's
+        # events stays cached through them (the live loop reads it before its poll)
         self._inertial_output_port = self.DeclareVectorOutputPort(
-            "inertial_output", NUM_JOINTS, self._calc_inertial_output
+            "inertial_output",
+            NUM_JOINTS,
+            self._calc_inertial_output,
+            {self.xd_ticket(), self.all_input_ports_ticket()},
         )
         self._head_pose_port = self.DeclareAbstractOutputPort(
             "head_pose",

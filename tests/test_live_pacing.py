@@ -1,0 +1,100 @@
+"""The live loop's pacer on a loopback socket: polls on time, brought forward by a datagram
+that arrives in the wake window, never by one that was already waiting."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+
+import pytest
+
+from mca_drake.live.pacing import RealTimePacer
+
+H, LEAD, WINDOW = 0.01, 2e-5, 4e-3
+
+
+class Clock:
+    """The part of a Drake context the pacer reads."""
+
+    def __init__(self, t: float):
+        self.t = t
+
+    def get_time(self) -> float:
+        return self.t
+
+
+@pytest.fixture
+def sockets():
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    receiver.bind(("127.0.0.1", 0))
+    receiver.setblocking(False)
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    yield receiver, sender
+    receiver.close()
+    sender.close()
+
+
+def pace_instant(pacer: RealTimePacer, k: int) -> float:
+    """Runs the pacer at poll instant k; the wall time it let the poll go."""
+    pacer(Clock(k * H - LEAD))
+    return time.perf_counter()
+
+
+def test_without_a_datagram_the_poll_comes_at_its_instant(sockets):
+    receiver, _ = sockets
+    pacer = RealTimePacer(H, LEAD, wake_socket=receiver, wake_window_s=WINDOW)
+    pacer.start()
+    released = pace_instant(pacer, 3)
+    k, due = pacer.dues[-1]
+    assert k == 3
+    assert 0 <= released - due < 1e-3
+    assert pacer.early_polls == 0 and pacer.late_polls == 0
+
+
+def test_a_datagram_in_the_window_brings_the_poll_forward(sockets):
+    receiver, sender = sockets
+    pacer = RealTimePacer(H, LEAD, wake_socket=receiver, wake_window_s=WINDOW)
+    pacer.start()
+    due = pacer._wall_at_zero + 5 * H - LEAD
+    sent = []
+
+    def send_2ms_early():
+        while time.perf_counter() < due - 2e-3:
+            time.sleep(1e-4)
+        sent.append(time.perf_counter())
+        sender.sendto(b"x", receiver.getsockname())
+
+    thread = threading.Thread(target=send_2ms_early)
+    thread.start()
+    released = pace_instant(pacer, 5)
+    thread.join()
+    assert pacer.early_polls == 1
+    assert sent[0] <= released < due - 1e-3  # right after the datagram, well before due
+
+
+def test_a_datagram_waiting_when_the_window_opens_does_not(sockets):
+    """It arrived before the window: the poll keeps its instant (and takes it then), so the
+    loop cannot settle one sample behind, polling at every window's opening."""
+    receiver, sender = sockets
+    pacer = RealTimePacer(H, LEAD, wake_socket=receiver, wake_window_s=WINDOW)
+    pacer.start()
+    sender.sendto(b"x", receiver.getsockname())
+    time.sleep(1e-3)
+    released = pace_instant(pacer, 4)
+    assert pacer.early_polls == 0
+    assert released >= pacer.dues[-1][1]
+
+
+def test_a_closed_socket_only_keeps_the_time(sockets):
+    receiver, _ = sockets
+    pacer = RealTimePacer(H, LEAD, wake_socket=receiver, wake_window_s=WINDOW)
+    pacer.start()
+    receiver.close()
+    released = pace_instant(pacer, 2)
+    assert released >= pacer.dues[-1][1] and pacer.early_polls == 0
+
+
+def test_a_window_longer_than_the_period_is_refused(sockets):
+    with pytest.raises(ValueError, match="wake_window_s"):
+        RealTimePacer(H, LEAD, wake_socket=sockets[0], wake_window_s=H)
