@@ -78,7 +78,8 @@ def main() -> None:
         jitter = {k: f"{v * 1e3:.3f}" for k, v in live["loop_jitter_s"].items()}
         print(
             f"{label}: {args.duration:g} s, latency ms {ms} (waiting for the poll {wait}; "
-            f"{len(live['phase_shifts_s'])} phase shifts), loop jitter ms {jitter}, CPU load "
+            f"{len(live['phase_shifts_s'])} phase shifts, {live['early_polls']} polls brought "
+            f"forward by their sample), loop jitter ms {jitter}, CPU load "
             f"{live['cpu_load']:.2f} (sender {live['sender_cpu_load']:.2f}); packets "
             f"{live['packets']}, bad {live['bad']}, dropped {live['dropped']}, stale events "
             f"{live['stale_events']}, health {live['health']}; PI {summary['pi']:.3f} (zero "
