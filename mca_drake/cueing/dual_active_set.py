@@ -185,33 +185,40 @@ def _inverse(factor) -> np.ndarray | None:
 
 def _hot_start(factor, H_inv_g, C, lo, hi, guess, index, signed_rows, H_inv_rows, lam, S_inv):
     """Loads the dual-feasible part of `guess` into the arrays: (k, d), d the minimiser on
-    those k rows held as equalities, with their multipliers >= 0."""
+    those k rows held as equalities, with their multipliers >= 0. H^-1 N^T and N H^-1 N^T
+    are formed once for the whole guess; dropping rows only takes their sub-blocks."""
     n = H_inv_g.shape[0]
     if guess is None:
         return 0, -H_inv_g
     guess = np.asarray(guess)
     rows = np.flatnonzero(guess)
     rows = rows[np.where(guess[rows] > 0, np.isfinite(hi[rows]), np.isfinite(lo[rows]))]
+    if rows.size == 0 or rows.size > n:
+        return 0, -H_inv_g
+    side = np.sign(guess[rows]).astype(float)
+    N = C[rows] * side[:, None]
+    Y = scipy.linalg.cho_solve(factor, N.T, check_finite=False)
+    S = N @ Y
+    rhs = -N @ H_inv_g - np.where(side > 0, hi[rows], -lo[rows])
+    keep = np.arange(rows.size)
     for _ in range(START_ROUNDS):
-        if rows.size == 0 or rows.size > n:
+        if keep.size == 0:
             break
-        side = np.sign(guess[rows]).astype(float)
-        N = C[rows] * side[:, None]
-        Y = scipy.linalg.cho_solve(factor, N.T, check_finite=False)
-        S = N @ Y
-        schur = cholesky(S)
+        schur = cholesky(S[np.ix_(keep, keep)])
         if schur is None:
             break  # dependent rows in the guess: start from nothing instead
-        b = np.where(side > 0, hi[rows], -lo[rows])
-        mu = scipy.linalg.cho_solve(schur, -N @ H_inv_g - b, check_finite=False)
+        mu = scipy.linalg.cho_solve(schur, rhs[keep], check_finite=False)
         wrong = mu < 0
         if wrong.any():
-            rows = rows[~wrong]
+            keep = keep[~wrong]
             continue
-        k = rows.size
-        index[:k], signed_rows[:k], H_inv_rows[:, :k], lam[:k] = rows, N, Y, mu
-        S_inv[:k, :k] = scipy.linalg.cho_solve(schur, np.eye(k), check_finite=False)
-        return k, -H_inv_g - Y @ mu
+        S_inv_k = _inverse(schur)
+        if S_inv_k is None:
+            break
+        k = keep.size
+        index[:k], signed_rows[:k], H_inv_rows[:, :k], lam[:k] = rows[keep], N[keep], Y[:, keep], mu
+        S_inv[:k, :k] = S_inv_k
+        return k, -H_inv_g - Y[:, keep] @ mu
     return 0, -H_inv_g
 
 

@@ -674,20 +674,19 @@ class MotionCueingOcp:
         damping = 0.0
         for _ in range(1 if mode == "rti" else cfg.max_iterations):
             H, g = model.H, model.g
-            factor = None
             if previous is not None:
                 curvature = self._residual_curvature(curvature, previous, model)
-                if curvature is not None:
-                    # with the learnt curvature where that is convex, else plain Gauss-Newton
-                    factor = cholesky(H + curvature)
-                    if factor is not None:
-                        H = H + curvature
-            if factor is None:
-                factor = cholesky(H)
-            if damping > 0.0 and factor is not None:
-                # Marquardt: the model overshot, so shorter steps, scaled per variable
-                H = H + damping * np.diag(np.diag(H))
-                factor = cholesky(H)
+            # with the learnt curvature where that is convex, else plain Gauss-Newton; after
+            # a rejected step with Marquardt's damping (the model overshot: shorter steps,
+            # scaled per variable)
+            factor = None
+            for M in (H + curvature, H) if curvature is not None else (H,):
+                if damping > 0.0:
+                    M = M + damping * np.diag(np.diag(M))
+                factor = cholesky(M)
+                if factor is not None:
+                    H = M
+                    break
             if multipliers is not None:
                 # U is the last QP's solution: feasible, its active rows exactly at their
                 # bounds and its multipliers >= 0, so the stationarity residual of the
