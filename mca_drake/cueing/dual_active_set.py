@@ -112,7 +112,7 @@ def solve_dual_active_set(
     S_inv = np.empty((n, n))
     if guess is not None and groups is not None:
         guess = _one_per_group(np.asarray(guess), groups)
-    k, d = _hot_start(factor, H_inv_g, C, lo, hi, guess, index, signed_rows, H_inv_rows, lam, S_inv)
+    k, d, schur = _hot_start(factor, H_inv_g, C, lo, hi, guess, index, signed_rows, lam)
     steps = 0
     while True:
         value = C @ d
@@ -127,6 +127,12 @@ def solve_dual_active_set(
             H_inv = _inverse(factor)
             if H_inv is None:
                 return None
+            if k:  # the start's H^-1 N^T and S^-1: only steps need them (a right guess none)
+                H_inv_rows[:, :k] = H_inv @ signed_rows[:k].T
+                S_inv_k = _inverse(schur)
+                if S_inv_k is None:
+                    return None
+                S_inv[:k, :k] = S_inv_k
         h = H_inv @ n_p
         n_h = float(n_p @ h)
         lam_p = 0.0
@@ -183,22 +189,30 @@ def _inverse(factor) -> np.ndarray | None:
     return triangle + triangle.T - np.diag(np.diag(triangle))
 
 
-def _hot_start(factor, H_inv_g, C, lo, hi, guess, index, signed_rows, H_inv_rows, lam, S_inv):
-    """Loads the dual-feasible part of `guess` into the arrays: (k, d), d the minimiser on
-    those k rows held as equalities, with their multipliers >= 0. H^-1 N^T and N H^-1 N^T
-    are formed once for the whole guess; dropping rows only takes their sub-blocks."""
+def _hot_start(factor, H_inv_g, C, lo, hi, guess, index, signed_rows, lam):
+    """Loads the dual-feasible part of `guess` into the arrays: (k, d, Cholesky factor of
+    S = N H^-1 N^T or None), d the minimiser on those k rows held as equalities, with their
+    multipliers >= 0. With H = R^T R (R the triangle of `factor`), S = W^T W for
+    W = R^-T N^T, formed once for the whole guess: dropping rows only takes sub-blocks.
+    H^-1 N^T and S^-1, which only the steps after a wrong guess need, are left to them."""
     n = H_inv_g.shape[0]
+    start = 0, -H_inv_g, None
     if guess is None:
-        return 0, -H_inv_g
+        return start
     guess = np.asarray(guess)
     rows = np.flatnonzero(guess)
     rows = rows[np.where(guess[rows] > 0, np.isfinite(hi[rows]), np.isfinite(lo[rows]))]
     if rows.size == 0 or rows.size > n:
-        return 0, -H_inv_g
+        return start
     side = np.sign(guess[rows]).astype(float)
     N = C[rows] * side[:, None]
-    Y = scipy.linalg.cho_solve(factor, N.T, check_finite=False)
-    S = N @ Y
+    triangle, lower = factor
+    # R^-T N^T: with an upper factor (H = U^T U) a transposed solve, with a lower one
+    # (H = L L^T) a plain one
+    W = scipy.linalg.solve_triangular(
+        triangle, N.T, trans="N" if lower else "T", lower=lower, check_finite=False
+    )
+    S = W.T @ W
     rhs = -N @ H_inv_g - np.where(side > 0, hi[rows], -lo[rows])
     keep = np.arange(rows.size)
     for _ in range(START_ROUNDS):
@@ -212,14 +226,14 @@ def _hot_start(factor, H_inv_g, C, lo, hi, guess, index, signed_rows, H_inv_rows
         if wrong.any():
             keep = keep[~wrong]
             continue
-        S_inv_k = _inverse(schur)
-        if S_inv_k is None:
-            break
         k = keep.size
-        index[:k], signed_rows[:k], H_inv_rows[:, :k], lam[:k] = rows[keep], N[keep], Y[:, keep], mu
-        S_inv[:k, :k] = S_inv_k
-        return k, -H_inv_g - Y[:, keep] @ mu
-    return 0, -H_inv_g
+        index[:k], signed_rows[:k], lam[:k] = rows[keep], N[keep], mu
+        # d = -H^-1 g - H^-1 N^T mu = -H^-1 g - R^-1 (W mu)
+        back = scipy.linalg.solve_triangular(
+            triangle, W[:, keep] @ mu, trans="T" if lower else "N", lower=lower, check_finite=False
+        )
+        return k, -H_inv_g - back, schur
+    return start
 
 
 def _drop(j, k, index, signed_rows, H_inv_rows, lam, S_inv) -> int:
