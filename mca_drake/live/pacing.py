@@ -6,7 +6,7 @@ update comes `poll_lead_s` after the poll, in a step of its own, and a sleep tha
 overshoots (by about 1 ms on the development machine's virtual machine), so every sample
 waited that long between the poll and the command computed from it. The pacer instead runs
 as the simulator's monitor (called after every step) and waits only before the poll
-instants, sleeping until shortly before and spinning the last `spin_s`: the poll comes on
+instants, sleeping until shortly before and spinning the last `SPIN_S`: the poll comes on
 time to a few microseconds, and the MCA, the supervisor and the robot follow at once.
 
 A poll may also come early, when the sender's packet does: from `wake_window_s` before a poll
