@@ -38,8 +38,11 @@ def _joint_array(name: str, value) -> np.ndarray:
 
 def dh_transforms(q: np.ndarray, robot: KR500 | None = None) -> np.ndarray:
     """The six DH link transforms A_i(q_i) = X_(i-1),i, shape (..., 6, 4, 4)."""
-    robot = _robot(robot)
-    q = _joint_array("q", q)
+    return _transforms(_joint_array("q", q), _robot(robot))
+
+
+def _transforms(q: np.ndarray, robot: KR500) -> np.ndarray:
+    """dh_transforms of an already checked q."""
     dh = robot.dh
     theta = q + dh.offset
     c, s = np.cos(theta), np.sin(theta)
@@ -54,7 +57,12 @@ def dh_transforms(q: np.ndarray, robot: KR500 | None = None) -> np.ndarray:
 
 def dh_frames(q: np.ndarray, robot: KR500 | None = None) -> np.ndarray:
     """World poses of DH frames 0..6, X_W0 = I, shape (..., 7, 4, 4)."""
-    A = dh_transforms(q, robot)
+    return _frames(_joint_array("q", q), _robot(robot))
+
+
+def _frames(q: np.ndarray, robot: KR500) -> np.ndarray:
+    """dh_frames of an already checked q (the NMPC's hot path checks it once)."""
+    A = _transforms(q, robot)
     frames = np.empty((*A.shape[:-3], NUM_JOINTS + 1, 4, 4))
     frames[..., 0, :, :] = np.eye(4)
     for i in range(NUM_JOINTS):  # a chain product: inherently sequential, 6 batched matmuls
@@ -153,7 +161,7 @@ def _twists(q, qd, qdd, robot: KR500 | None) -> _Twists:
     robot = _robot(robot)
     q, qd, qdd = _joint_array("q", q), _joint_array("qd", qd), _joint_array("qdd", qdd)
     same_shapes(q=q, qd=qd, qdd=qdd)
-    frames = dh_frames(q, robot)
+    frames = _frames(q, robot)
     X_WH = frames[..., -1, :, :] @ robot.X_6H
     R, r = X_WH[..., :3, :3], X_WH[..., :3, 3]
     Z = frames[..., :-1, :3, 2]  # (..., 6, 3): axis of joint i = z of DH frame i-1
