@@ -135,7 +135,8 @@ PROFILE_PARTS = (
     ("Drake QP set-up (stage costs)", ("_update_qp",)),
     ("Drake QP solve", ("_solve_qp",)),
     ("line search (true cost)", ("cost",)),
-    ("quasi-Newton update", ("_residual_curvature",)),
+    ("output Hessians (start, update)", ("_starting_hessians", "psb_update")),
+    ("curvature model (assembly, convexity)", ("_convex_model",)),
     ("whole solve", ("_solve",)),
 )
 

@@ -32,11 +32,14 @@ solves the QP exactly from the guess's dual-feasible part, in steps that each ch
 row; the next solve's guess is therefore always an exact active set. Only if that fails
 (round-off) does Drake's MathematicalProgram solve the QP (OSQP in rti mode, Clarabel in
 converged mode), and a KKT solve on that answer's active set makes it exact.
-Converged mode adds to the Gauss-Newton Hessian a quasi-Newton estimate of the term it
-leaves out (NL2SOL's structured secant update: with large residuals Gauss-Newton alone
-converges slowly) and, after a full step the line search rejected, Marquardt's damping
-(`NmpcConfig.marquardt_damping`); it stops once the KKT residual is below `kkt_tolerance`
-(relative to the cost), the step below `step_tolerance`, or no descent is left.
+Converged mode adds to the Gauss-Newton Hessian the term it leaves out, the residual-weighted
+second derivatives of the output, from estimates of the output Hessians at every node that are
+learnt along the iterations and carried from one control step to the next
+(`mca_drake.cueing.output_curvature`; with large residuals Gauss-Newton alone converges
+slowly). Where that model is not convex it is convexified (`_convex_model`) and, after a full
+step the line search rejected, damped (Marquardt, `NmpcConfig.marquardt_damping`). It stops
+once the KKT residual is below `kkt_tolerance` (relative to the cost), the step below
+`step_tolerance`, or no descent is left.
 """
 
 import dataclasses
@@ -61,6 +64,13 @@ from mca_drake.cueing.active_set import (
     solve_on_active_set,
 )
 from mca_drake.cueing.dual_active_set import solve_dual_active_set
+from mca_drake.cueing.output_curvature import (
+    NodeCondensing,
+    finite_difference_hessians,
+    node_jacobians,
+    psb_update,
+    residual_curvature,
+)
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
@@ -243,6 +253,9 @@ class SolveResult:
         stop: why it stopped: "rti" (one QP), "kkt" (KKT residual below kkt_tolerance),
             "step" (step below step_tolerance), "no_descent" (the line search found none),
             "iterations" (max_iterations reached) or "failed" (a QP failed).
+        output_hessians: converged mode: the estimates of d^2 y_a / dv_k^2 at U's nodes,
+            shape (N, 6, 18, 18) (`output_curvature`): after `shift_output_hessians`, the
+            next solve's `output_hessians`; None in rti mode.
     """
 
     U: np.ndarray
@@ -255,6 +268,7 @@ class SolveResult:
     kkt_residual: float = float("nan")
     hot_starts: int = 0
     stop: str = ""
+    output_hessians: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -283,7 +297,9 @@ def _planning_limits(robot: KR500, margin: float) -> PlanningLimits:
 class _GaussNewtonModel:
     """The Gauss-Newton model of the cost at a plan U: H (6N, 6N) and the exact gradient g
     (6N,); jac: the output Jacobians at the nodes; J (6N, 6N): d y / d U condensed;
-    residual (6N,): y - r; cost: the true cost at U."""
+    residual (6N,): y - r; cost: the true cost at U; node_jacobian (N, 6, 18): dy/dv_k;
+    weighted_residual (N, 6): c_ka = 2 w_k W_a (y - r)_ka, the weights of the output
+    Hessians in the cost's Hessian."""
 
     H: np.ndarray
     g: np.ndarray
@@ -291,6 +307,8 @@ class _GaussNewtonModel:
     J: np.ndarray
     residual: np.ndarray
     cost: float
+    node_jacobian: np.ndarray
+    weighted_residual: np.ndarray
 
 
 class MotionCueingOcp:
@@ -371,6 +389,7 @@ class MotionCueingOcp:
         self._W_rows = np.tile(self._output_weights, N) * w6
 
         self._u_max = np.tile(r.qdd_max, N)
+        self._condensing = NodeCondensing(Sq, Sqd)
         # Gauss-Newton stage Hessian terms beside J^T W J, on v = [q, qd, u]: washout, input.
         self._stage_regularisation = np.diag(
             np.r_[np.full(6, cfg.washout_weight), np.zeros(6), np.full(6, cfg.input_weight)]
@@ -575,7 +594,10 @@ class MotionCueingOcp:
             + 2 * cfg.terminal_position_weight * self._Gq[6 * N :].T @ q[-1]
             + 2 * cfg.terminal_velocity_weight * self._Gqd[6 * N :].T @ qd[-1]
         )
-        return _GaussNewtonModel(H, g, jac, J, residual, cost)
+        weighted = (
+            2 * self.weights[:, None] * self._output_weights[None, :] * residual.reshape(N, 6)
+        )
+        return _GaussNewtonModel(H, g, jac, J, residual, cost, node_jacobians(jac), weighted)
 
     # ----------------------------------------------------------------- solving
     def _update_qp(self, x0: np.ndarray, U: np.ndarray, refs: np.ndarray, jac) -> np.ndarray:
@@ -630,6 +652,7 @@ class MotionCueingOcp:
         U_guess=None,
         mode: str | None = None,
         active_guess: np.ndarray | None = None,
+        output_hessians: np.ndarray | None = None,
     ) -> SolveResult:
         """Solves from state x0 (12) for references refs (N, 6) (or (6,), held constant).
 
@@ -642,13 +665,17 @@ class MotionCueingOcp:
             mode: override of config.mode ("rti": one QP; "converged": to tolerance).
             active_guess: the active set to try first, shape (`num_rows`,) in {-1, 0, +1}
                 (e.g. the previous step's `SolveResult.active`); default: none active.
+            output_hessians: converged mode: estimates of the output Hessians at the warm
+                start's nodes, shape (N, 6, 18, 18) (the previous step's
+                `SolveResult.output_hessians` after `shift_output_hessians`); default, or
+                when they do not fit or are not finite: finite differences at the warm start.
         """
         # One BLAS thread: these matrices are small (6N = 120), and OpenBLAS's worker threads
         # spin; on a loaded machine they made the step's p99 four times longer.
         with self._blas.limit(limits=1, user_api="blas"):
-            return self._solve(x0, refs, U_guess, mode, active_guess)
+            return self._solve(x0, refs, U_guess, mode, active_guess, output_hessians)
 
-    def _solve(self, x0, refs, U_guess, mode, active_guess) -> SolveResult:
+    def _solve(self, x0, refs, U_guess, mode, active_guess, output_hessians) -> SolveResult:
         start = time.perf_counter()
         cfg = self.config
         mode = mode or cfg.mode
@@ -670,23 +697,13 @@ class MotionCueingOcp:
         iterations, hot_starts, message, kkt = 0, 0, "", float("nan")
         stop = "rti" if mode == "rti" else "iterations"
         multipliers = None  # of the last full step's verified QP solution
-        curvature, previous = None, None  # converged: the quasi-Newton residual curvature
+        # converged: the output Hessians that complete Gauss-Newton's model (output_curvature)
+        hessians = None
+        if mode == "converged":
+            hessians = self._starting_hessians(x0, U, model, output_hessians)
         damping = 0.0
         for _ in range(1 if mode == "rti" else cfg.max_iterations):
-            H, g = model.H, model.g
-            if previous is not None:
-                curvature = self._residual_curvature(curvature, previous, model)
-            # with the learnt curvature where that is convex, else plain Gauss-Newton; after
-            # a rejected step with Marquardt's damping (the model overshot: shorter steps,
-            # scaled per variable)
-            factor = None
-            for M in (H + curvature, H) if curvature is not None else (H,):
-                if damping > 0.0:
-                    M = M + damping * np.diag(np.diag(M))
-                factor = cholesky(M)
-                if factor is not None:
-                    H = M
-                    break
+            g = model.g
             if multipliers is not None:
                 # U is the last QP's solution: feasible, its active rows exactly at their
                 # bounds and its multipliers >= 0, so the stationarity residual of the
@@ -695,6 +712,7 @@ class MotionCueingOcp:
                 if kkt <= cfg.kkt_tolerance * max(1.0, abs(cost)):
                     stop = "kkt"
                     break
+            H, factor = self._convex_model(model, hessians, active, damping)
             CU = self._C @ U.reshape(-1)
             step, solution, hot, message = self._qp_step(
                 (H, factor),
@@ -746,9 +764,14 @@ class MotionCueingOcp:
                 break
             if cfg.marquardt_damping:
                 damping = _next_damping(damping, accepted_full_step=alpha == 1.0)
-            previous = (model, alpha * step.reshape(-1))
             U, cost = U + alpha * step, trial_cost
+            old = model
             model = next_model if next_model is not None else self._gauss_newton(x0, U, refs)
+            hessians = psb_update(
+                hessians,
+                self._condensing.node_steps(alpha * step),
+                model.node_jacobian - old.node_jacobian,
+            )
             if alpha == 1.0 and solution is not None:
                 multipliers = solution.multipliers
             if np.max(np.abs(alpha * step)) < cfg.step_tolerance:
@@ -765,28 +788,44 @@ class MotionCueingOcp:
             kkt_residual=kkt,
             hot_starts=hot_starts,
             stop=stop,
+            output_hessians=hessians,
         )
 
-    def _residual_curvature(self, S, previous, model):
-        """The structured secant update (Dennis, Gay and Welsch's, of NL2SOL) of S, the
-        approximation of the term Gauss-Newton leaves out of the Hessian, 2 sum r_a W_a
-        d^2 y_a / dU^2, after the step s from the model `previous` to `model`. Gauss-Newton
-        converges only linearly when that term matters (large residuals in a nearly flat
-        direction of the cost); this learns it along the steps taken. None: no update."""
-        old, s = previous
-        y_sharp = 2 * (model.J - old.J).T @ (self._W_rows * model.residual)
-        y = model.g - old.g
-        ys = float(y @ s)
-        if not ys > 1e-16 * max(1.0, float(s @ s)):
-            return S  # no positive curvature along s: keep what was learnt
-        if S is None:
-            S = np.zeros((s.size, s.size))
-        else:
-            sSs = float(s @ S @ s)
-            if sSs != 0.0:
-                S = S * min(1.0, abs(float(s @ y_sharp)) / abs(sSs))  # NL2SOL's sizing
-        r = y_sharp - S @ s
-        return S + (np.outer(r, y) + np.outer(y, r)) / ys - float(r @ s) * np.outer(y, y) / ys**2
+    def _starting_hessians(self, x0, U, model, guess) -> np.ndarray:
+        """The output Hessians to start from: `guess` where it fits, else finite differences
+        at U's nodes (shape (N, 6, 18, 18))."""
+        shape = (self.N, 6, 3 * NU, 3 * NU)
+        if guess is not None and np.shape(guess) == shape and np.all(np.isfinite(guess)):
+            return np.array(guess, dtype=float)
+        q, qd = self.states(x0, U)
+        return finite_difference_hessians(q[:-1], qd[:-1], U, self.robot, model.node_jacobian)
+
+    def _convex_model(self, model, hessians, active, damping):
+        """The QP's Hessian and its Cholesky factor: (H, factor), factor None where even
+        Gauss-Newton's H is not positive definite (Drake's solver then takes the QP).
+
+        With output Hessians (converged mode) the first positive definite of
+          1. H + S, the Newton model (S: `output_curvature`, the residual curvature);
+          2. H + S + rho N_A^T N_A (N_A: the rows of the guessed active set), rho in
+             CONVEXIFY_RHO: a Newton model may be indefinite where the active rows hold the
+             step anyway (at a local minimum only its reduction to their null space must be
+             positive); on the right active set the QP's solution is Newton's;
+          3. H + theta S, theta in SHRINK_THETA: less of the curvature where it is negative
+             in free directions;
+          4. H, Gauss-Newton's.
+        After a full step the line search rejected, each with Marquardt's damping (the model
+        overshot: shorter steps, scaled per variable)."""
+        candidates = [model.H]
+        if hessians is not None:
+            S = self._condensing.assemble(residual_curvature(hessians, model.weighted_residual))
+            candidates = _convex_candidates(model.H, S, self._C[active != 0])
+        for M in candidates:
+            if damping > 0.0:
+                M = M + damping * np.diag(np.diag(M))
+            factor = cholesky(M)
+            if factor is not None:
+                return M, factor
+        return model.H, None
 
     def _qp_step(self, model, gauss_newton, g, d_lo, d_hi, active, linearisation):
         """The step d (N, 6) of the QP min 1/2 d'Hd + g'd, d_lo <= C d <= d_hi: (d, verified
@@ -857,8 +896,17 @@ class MotionCueingOcp:
     def shift(self, U: np.ndarray, steps: int = 1) -> np.ndarray:
         """The plan U moved `steps` control periods ahead: u_new(interval k) = u(t_k + steps dt),
         the last value held past the horizon."""
+        return U[self._shifted_intervals(steps)]
+
+    def shift_output_hessians(self, hessians: np.ndarray, steps: int = 1) -> np.ndarray:
+        """Output Hessians (N, 6, 18, 18) of a plan, moved with it (`shift`): node k takes
+        those of the interval that holds t_k + steps dt."""
+        return hessians[self._shifted_intervals(steps)]
+
+    def _shifted_intervals(self, steps: int) -> np.ndarray:
+        """The interval of the old grid that holds each node time t_k + steps dt, shape (N,)."""
         idx = np.searchsorted(self.node_steps[1:], self.node_steps[:-1] + steps, side="right")
-        return U[np.minimum(idx, self.N - 1)]
+        return np.minimum(idx, self.N - 1)
 
     def braking_plan(self, x0: np.ndarray) -> np.ndarray:
         """The safest plan when no solve succeeds: brake every joint to rest as fast as the
@@ -869,6 +917,26 @@ class MotionCueingOcp:
             U[k] = np.clip(-qd / T, -self.robot.qdd_max, self.robot.qdd_max)
             qd = qd + T * U[k]
         return U
+
+
+# `_convex_model`'s multiples of N_A^T N_A (the guessed active rows' normals; H's entries are
+# of order 1e-2 to 1) and fractions of the residual curvature, in the order tried.
+CONVEXIFY_RHO = (1.0, 1e2, 1e4)
+SHRINK_THETA = (0.5, 0.25, 0.125)
+
+
+def _convex_candidates(H: np.ndarray, S: np.ndarray, active_normals: np.ndarray):
+    """The models `MotionCueingOcp._convex_model` tries, in order, formed as needed: H + S,
+    H + S + rho P (CONVEXIFY_RHO; P = N_A^T N_A), H + theta S (SHRINK_THETA), H."""
+    newton = H + S
+    yield newton
+    if active_normals.shape[0]:
+        P = active_normals.T @ active_normals
+        for rho in CONVEXIFY_RHO:
+            yield newton + rho * P
+    for theta in SHRINK_THETA:
+        yield H + theta * S
+    yield H
 
 
 # Marquardt's damping mu of the converged iterations: it starts at DAMPING_START after a

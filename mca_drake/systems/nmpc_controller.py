@@ -74,6 +74,12 @@ class NmpcController(LeafSystem):
         # The last QP's active set (-1, 0, +1 per row): the next step's hot start. State, not
         # a cache, so that a run's result never depends on what the system solved before.
         self._active_index = self.DeclareDiscreteState(self._ocp.num_rows)
+        # converged mode: the output Hessians at the plan's nodes (`output_curvature`), the
+        # next step's start; all zeros (the initial state) means none: finite differences.
+        self._hessians_index = None
+        if self._config.mode == "converged":
+            self._hessians_shape = (self._ocp.N, 6, 3 * NUM_JOINTS, 3 * NUM_JOINTS)
+            self._hessians_index = self.DeclareDiscreteState(int(np.prod(self._hessians_shape)))
         self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
         self.DeclarePeriodicUnrestrictedUpdateEvent(self._config.time_step, 0.0, self._update)
         self._command_port = self.DeclareStateOutputPort("joint_acceleration", self._command_index)
@@ -113,7 +119,14 @@ class NmpcController(LeafSystem):
         ).value()
         warm = self._ocp.shift(plan)
         active = context.get_discrete_state(self._active_index).value()
-        result = self._ocp.solve(x, refs, U_guess=warm, active_guess=active)
+        hessians = None
+        if self._hessians_index is not None:
+            stored = context.get_discrete_state(self._hessians_index).value()
+            if np.any(stored):
+                hessians = self._ocp.shift_output_hessians(stored.reshape(self._hessians_shape))
+        result = self._ocp.solve(
+            x, refs, U_guess=warm, active_guess=active, output_hessians=hessians
+        )
         plan = result.U
         if not result.success:
             failures += 1
@@ -128,6 +141,8 @@ class NmpcController(LeafSystem):
         discrete.set_value(self._plan_index, plan.reshape(-1))
         if result.active is not None:
             discrete.set_value(self._active_index, result.active.astype(float))
+        if self._hessians_index is not None and result.output_hessians is not None:
+            discrete.set_value(self._hessians_index, result.output_hessians.reshape(-1))
         step_time = time.perf_counter() - start
         discrete.set_value(
             self._statistics_index,
