@@ -16,8 +16,13 @@ from mca_drake.conventions import CHANNELS
 from mca_drake.input_checks import as_float_array, same_shapes
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 
-# Relative spread below which a channel counts as constant for the correlation.
-_CONSTANT_RTOL = 1e-12
+# A channel whose peak-to-peak spread is below this (relative to max(1, its largest value),
+# in its SI units: rad/s, m/s^2) counts as still for the correlation, and a still target is
+# rendered exactly when the achieved signal stays within it. 1e-6 is five orders of magnitude
+# below the vestibular thresholds (about 0.01 rad/s and 0.05 m/s^2) and above a numerical
+# solver's round-off: a converged NMPC that kept a still channel within 1e-8 of zero used to
+# score CC 0 instead of 1 there (+1 on the PI per channel) for noise no occupant could feel.
+STILL_TOLERANCE = 1e-6
 
 
 def _signals(target, achieved) -> tuple[np.ndarray, np.ndarray]:
@@ -37,7 +42,7 @@ def rmse(target, achieved) -> np.ndarray:
 
 def _is_constant(x: np.ndarray) -> np.ndarray:
     scale = np.maximum(np.max(np.abs(x), axis=0), 1.0)
-    return np.ptp(x, axis=0) <= _CONSTANT_RTOL * scale
+    return np.ptp(x, axis=0) <= STILL_TOLERANCE * scale
 
 
 def pearson_cc(target, achieved) -> np.ndarray:
@@ -45,7 +50,8 @@ def pearson_cc(target, achieved) -> np.ndarray:
 
     Defined for constant channels too (where Pearson's formula divides by zero):
     1 when both signals are constant and equal (a perfectly rendered still channel),
-    0 when at least one is constant otherwise (no co-variation to measure).
+    0 when at least one is constant otherwise (no co-variation to measure); constant and
+    equal within STILL_TOLERANCE.
     """
     target, achieved = _signals(target, achieved)
     t = target - target.mean(axis=0)
@@ -55,7 +61,8 @@ def pearson_cc(target, achieved) -> np.ndarray:
     cc = np.divide(
         np.sum(t * a, axis=0), denominator, out=np.zeros(target.shape[1]), where=~constant
     )
-    equal = constant & np.all(np.isclose(target, achieved, rtol=1e-12, atol=1e-12), axis=0)
+    close = np.isclose(target, achieved, rtol=STILL_TOLERANCE, atol=STILL_TOLERANCE)
+    equal = constant & np.all(close, axis=0)
     cc[equal] = 1.0
     return np.clip(cc, -1.0, 1.0)
 

@@ -26,6 +26,18 @@ def test_identical_signals_with_a_still_channel_give_minus_six():
     assert metrics.performance_index(y, y) == pytest.approx(-6.0, abs=1e-12)
 
 
+def test_a_still_channel_rendered_within_round_off_counts_as_rendered():
+    """A solver's 1e-8 rad/s of noise on a still channel is still (CC 1); a 1e-3 wobble,
+    which is motion, is not (CC 0: nothing to correlate with a still target)."""
+    target = six(np.sin(T))
+    target[:, 0] = 0.0
+    noisy = target.copy()
+    noisy[:, 0] = 1e-8 * np.sin(7 * T)
+    assert metrics.pearson_cc(target, noisy)[0] == 1.0
+    noisy[:, 0] = 1e-3 * np.sin(7 * T)
+    assert metrics.pearson_cc(target, noisy)[0] == 0.0
+
+
 def test_constant_offset_has_rmse_offset_and_cc_one():
     y = six(np.sin(T))
     score = metrics.tracking_score(y, y + 0.5)

@@ -71,7 +71,7 @@ def test_finite_difference_hessians_match_second_differences_of_the_output(robot
         assert np.abs(oracle * (1 - STRUCTURE)).max() <= 1e-6 * scale
 
 
-def test_assembly_equals_the_dense_sum_over_nodes():
+def test_assembly_and_gradient_equal_the_dense_sums_over_nodes():
     ocp = MotionCueingOcp(NmpcConfig(mode="converged", nodes=5, horizon_steps=12))
     N = ocp.N
     condensing = NodeCondensing(ocp.Sq, ocp.Sqd)
@@ -86,6 +86,14 @@ def test_assembly_equals_the_dense_sum_over_nodes():
         G[12:, 6 * k : 6 * k + 6] = np.eye(6)
         dense += G.T @ B[k] @ G
     assert np.allclose(condensing.assemble(B), dense, atol=1e-12)
+    node_gradients = rng.standard_normal((N, 18))
+    G = np.zeros((N, 18, 6 * N))
+    for k in range(N):
+        G[k, :6] = np.kron(ocp.Sq[k], np.eye(6))
+        G[k, 6:12] = np.kron(ocp.Sqd[k], np.eye(6))
+        G[k, 12:, 6 * k : 6 * k + 6] = np.eye(6)
+    expected_gradient = np.einsum("kia,ki->a", G, node_gradients)
+    assert np.allclose(condensing.gradient(node_gradients), expected_gradient, atol=1e-12)
     step = rng.standard_normal((N, 6))
     q, qd = ocp.states(np.zeros(12), step)
     expected = np.concatenate([q[:N], qd[:N], step], axis=1)

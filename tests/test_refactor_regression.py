@@ -17,6 +17,10 @@ Gauss-Newton iterations (converged). The NMPC runs are therefore compared to wit
 `NMPC_TOLERANCE` (the largest difference measured at that change: 3e-7 rad/s^2 in the
 commands, 2e-8 in the PI), everything else still exactly.
 
+Issue 18 later replaced the quasi-Newton term by Newton models from learnt output Hessians
+(`mca_drake.cueing.output_curvature`): the same KKT points to the same tolerance, here
+within 7e-7 rad/s^2 of the fixture's commands and 4e-8 of its PI.
+
 Issue 18 also replaced the kinematics' method (twists and closed-form Jacobians instead of
 forward-mode jets, `mca_drake.kinematics`): the same outputs in another order of floating-
 point operations, so the outputs and the PI are compared to round-off (`OUTPUT_TOLERANCE`),

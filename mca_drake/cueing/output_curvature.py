@@ -133,6 +133,11 @@ class NodeCondensing:
         s = np.reshape(step, (self.N, NUM_JOINTS))
         return np.einsum("kbj,jx->kbx", self.coefficients, s).reshape(self.N, NODE_DIM)
 
+    def gradient(self, node_gradients: np.ndarray) -> np.ndarray:
+        """sum_k G_k^T n_k for node gradients n (N, 18): shape (6N,)."""
+        n = node_gradients.reshape(self.N, 3, NUM_JOINTS)
+        return np.einsum("kbj,kbx->jx", self.coefficients, n).reshape(-1)
+
     def assemble(self, B: np.ndarray) -> np.ndarray:
         """sum_k G_k^T B_k G_k for node matrices B (N, 18, 18): shape (6N, 6N)."""
         n, nu, c = self.N, NUM_JOINTS, self.coefficients
