@@ -7,6 +7,7 @@ from __future__ import annotations
 import socket
 import threading
 import time
+from functools import partial
 
 import numpy as np
 
@@ -135,9 +136,10 @@ def test_the_demo_cues_jsbsims_own_packets():
     assert live["health"]["ok_s"] > 1.0
 
 
-def impaired_stream(address, duration_s, seed=0):
+def impaired_stream(address, duration_s, seed=0, sent=None):
     """100 Hz telemetry through a bad network: 10 % lost, 0-8 ms jitter, one pair in ten
-    swapped, a burst of NaN datagrams at 1.0 s and a 0.5 s stop at 2.0 s (bounded)."""
+    swapped, a burst of NaN datagrams at 1.0 s and a 0.5 s stop at 2.0 s (bounded). `sent`
+    (a list) gets the wall time of every usable datagram sent."""
     rng = np.random.default_rng(seed)
     sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     start, k, held = time.perf_counter(), 0, None
@@ -156,17 +158,24 @@ def impaired_stream(address, duration_s, seed=0):
                 if held is not None:
                     sender.sendto(held, address)
                     held = None
+                if sent is not None and not packet.startswith(b"nan"):
+                    sent.append(time.perf_counter())
         time.sleep(max(0.0, start + k / 100 + rng.uniform(0, 0.008) - time.perf_counter()))
     sender.close()
 
 
 def test_loss_jitter_reordering_nan_and_a_stop_never_break_a_limit():
-    summary = live_with_sender(impaired_stream, 3.7, "nmpc-rti", 3.5)
+    sent = []
+    summary = live_with_sender(partial(impaired_stream, sent=sent), 3.7, "nmpc-rti", 3.5)
     live = summary["live"]
     assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     assert live["bad"] >= 5 and live["out_of_order"] >= 3
-    # the stop, and possibly the NaN burst (0.1 s without a usable sample)
-    assert 1 <= live["stale_events"] <= 2
+    # Telemetry goes stale only where no usable sample came for about stale_after_s (0.1 s):
+    # the stop, possibly the NaN burst, and any silence of a sender the machine held up
+    # (what it really sent is the oracle), or a stall of the loop itself.
+    silences = int(np.sum(np.diff(sent) > 0.08))
+    assert silences >= 1  # the stop
+    assert 1 <= live["stale_events"] <= silences + live["stalls"]
     assert [t["to"] for t in live["transitions"]][-1] != "fault"  # recovered
     assert summary["solver_failures"] == 0
 

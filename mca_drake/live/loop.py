@@ -78,6 +78,9 @@ PLANT_DELAY_S = 2e-5
 # The supervisor judges the loop this long (s) after each control instant: after the plant's
 # step (its new blend weight would change the command the plant integrates).
 JUDGE_DELAY_S = 2.5e-5
+# A control interval over this many periods on the wall clock counts as a stall in the
+# summary: the loop (or the machine) held up for half the supervisor's default stale time.
+STALL_PERIODS = 5
 
 
 class LatencyProbe(LeafSystem):
@@ -384,6 +387,9 @@ def run_live(
         "phase_shifts_s": shifts,
         # polls that came after their instant (the loop had overrun)
         "late_polls": 0 if pacer is None else pacer.late_polls,
+        # control intervals over STALL_PERIODS periods on the wall clock: the process was
+        # held up (by the OS or a slow step) long enough for telemetry to look stale
+        "stalls": _stalls(handles["probe"].instants_s, h, realtime_rate),
         # polls a datagram brought forward (phase lock's wake window)
         "early_polls": 0 if pacer is None else pacer.early_polls,
         "health": {
@@ -407,6 +413,14 @@ def run_live(
         "cpu_load": cpu_s / max(wall_s, 1e-9),
     }
     return summary
+
+
+def _stalls(instants_s: list[float], period_s: float, realtime_rate: float) -> int:
+    """How many wall intervals between consecutive control instants exceed STALL_PERIODS
+    control periods (of wall time at `realtime_rate`); 0 when not paced."""
+    if realtime_rate <= 0 or len(instants_s) < 2:
+        return 0
+    return int(np.sum(np.diff(instants_s) > STALL_PERIODS * period_s / realtime_rate))
 
 
 def _advance_phase_locked(simulator, probe, duration_s, pacer, lock, period_s):
