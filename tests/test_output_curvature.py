@@ -144,3 +144,31 @@ def test_converged_solve_carries_its_hessians_and_refuses_ones_that_do_not_fit(r
     fallback = ocp.solve(x0, refs, output_hessians=bad)  # finite differences instead
     assert fallback.success and np.all(np.isfinite(fallback.output_hessians))
     assert ocp.solve(x0, refs, mode="rti").output_hessians is None
+
+
+def test_a_curvature_model_that_overpromises_is_measured_afresh(robot, monkeypatch):
+    """Carried Hessians of the wrong sign make the Newton model promise more than a full
+    step gains: the solve re-measures them (finite differences at the new point, counted
+    here) and still ends at the KKT point the good estimates reach. (Where the check pays,
+    on 3 g steps with drifted estimates, is measured in benchmarks/bench_nmpc.py.)"""
+    from mca_drake.cueing import nmpc
+
+    ocp = MotionCueingOcp(NmpcConfig(mode="converged", nodes=6, horizon_steps=24), robot)
+    x0, refs = np.zeros(12), np.array([0.0, 0.0, 0.0, 14.715, 0.0, 0.0])
+    good = ocp.solve(x0, refs)
+    measured = []
+
+    def counted(*args):
+        measured.append(1)
+        return finite_difference_hessians(*args)
+
+    monkeypatch.setattr(nmpc, "finite_difference_hessians", counted)
+    wrong = -5.0 * good.output_hessians
+    fixed = ocp.solve(x0, refs, output_hessians=wrong)
+    assert measured and fixed.stop == "kkt"
+    assert fixed.cost == pytest.approx(good.cost, rel=1e-8)
+    np.testing.assert_allclose(fixed.U, good.U, atol=1e-4)
+    monkeypatch.setattr(nmpc, "CURVATURE_REFRESH_RATIO", -np.inf)  # never re-measure
+    measured.clear()
+    ocp.solve(x0, refs, output_hessians=wrong)
+    assert not measured

@@ -36,8 +36,10 @@ Converged mode adds to the Gauss-Newton Hessian the term it leaves out, the resi
 second derivatives of the output, from estimates of the output Hessians at every node that are
 learnt along the iterations and carried from one control step to the next
 (`mca_drake.cueing.output_curvature`; with large residuals Gauss-Newton alone converges
-slowly). Where that model is not convex it is convexified (`_convex_model`) and, after a full
-step the line search rejected, damped (Marquardt, `NmpcConfig.marquardt_damping`). It stops
+slowly); where a full step gains less than half what that model promised, the estimates are
+measured afresh (`CURVATURE_REFRESH_RATIO`). Where the model is not convex it is convexified
+(`_convex_model`) and, after a full step the line search rejected, damped (Marquardt,
+`NmpcConfig.marquardt_damping`). It stops
 once the KKT residual is below `kkt_tolerance` (relative to the cost), the step below
 `step_tolerance`, or no descent is left.
 """
@@ -738,15 +740,20 @@ class MotionCueingOcp:
                 U = U + step
                 break
             # Backtracking on the true cost; the segment stays feasible (linear constraints).
-            # A rise within the QP's accuracy (about 1e-9 relative) is accepted, so that the
-            # iteration can finish converging in U instead of stalling on round-off. A start
-            # that breaks a constraint (the shifted plan from a new state) takes the full
-            # step, which lands on the feasible set, whatever it costs: a cost line search
-            # from outside that set can stall there (on a 3 g step it did, 50 iterations).
-            # The full step's model is the next iteration's (its Jacobians are needed there).
-            allowance = 1e-9 * max(1.0, abs(cost))
+            # A rise within the QP's accuracy is accepted, so that the iteration can finish
+            # converging in U instead of stalling on round-off: about 1e-9 relative for
+            # Drake's solver, only the cost's round-off for the hot start's exact KKT solves
+            # (a wider allowance there let a poor model cycle, rising and falling by 3e-8 on
+            # a 3 g step, 50 iterations). A start that breaks a constraint (the shifted plan
+            # from a new state) takes the full step, which lands on the feasible set,
+            # whatever it costs: a cost line search from outside that set can stall there
+            # (on a 3 g step it did, 50 iterations). The full step's model is the next
+            # iteration's (its Jacobians are needed there).
+            allowance = (EXACT_QP_ALLOWANCE if hot else 1e-9) * max(1.0, abs(cost))
             alpha, next_model = 1.0, self._gauss_newton(x0, U + step, refs)
             trial_cost = next_model.cost
+            d = step.reshape(-1)
+            predicted = float(g @ d + 0.5 * d @ (H @ d))  # the model's change of the cost
             restoring = bool(np.any(CU < row_lo - 1e-9) or np.any(CU > row_hi + 1e-9))
             while trial_cost > cost + allowance and not restoring:
                 alpha, next_model = 0.5 * alpha, None
@@ -766,6 +773,10 @@ class MotionCueingOcp:
                 self._condensing.node_steps(alpha * step),
                 model.node_jacobian - old.node_jacobian,
             )
+            if predicted < 0 and trial_cost - cost > CURVATURE_REFRESH_RATIO * predicted:
+                # the full step gained less than that share of what the model promised: the
+                # learnt curvature has drifted from the cost's, so it is measured afresh
+                hessians = self._starting_hessians(x0, U, model, None)
             if alpha == 1.0 and solution is not None:
                 multipliers = solution.multipliers
             if np.max(np.abs(alpha * step)) < cfg.step_tolerance:
@@ -915,8 +926,18 @@ class MotionCueingOcp:
 
 # `_convex_model`'s multiples of N_A^T N_A (the guessed active rows' normals; H's entries are
 # of order 1e-2 to 1) and fractions of the residual curvature, in the order tried.
-CONVEXIFY_RHO = (1.0, 1e2)
+# Convexification weights of the guessed active rows (`_convex_candidates`). On a 3 g heave
+# step the reduced Newton model's smallest eigenvalue was 0.007 against couplings of order 1
+# to the constrained directions: rho must reach about 1e4 there, or the iteration fell back
+# to Gauss-Newton and converged linearly (18-40 iterations instead of 6-10).
+CONVEXIFY_RHO = (1.0, 1e2, 1e4)
 SHRINK_THETA = (0.5, 0.25, 0.125)
+# A full step whose true cost change is above this share of the model's predicted (negative)
+# change re-measures the output Hessians by finite differences (PSB's updates had drifted).
+CURVATURE_REFRESH_RATIO = 0.5
+# The line search's allowance for a rise after an exact (hot-started) QP step, relative to
+# the cost: its round-off, not a solver's accuracy.
+EXACT_QP_ALLOWANCE = 1e-12
 
 
 def _convex_candidates(H: np.ndarray, S: np.ndarray, active_normals: np.ndarray):
