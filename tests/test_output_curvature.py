@@ -154,7 +154,7 @@ def test_a_curvature_model_that_overpromises_is_measured_afresh(robot, monkeypat
     from mca_drake.cueing import nmpc
 
     ocp = MotionCueingOcp(NmpcConfig(mode="converged", nodes=6, horizon_steps=24), robot)
-    x0, refs = np.zeros(12), np.array([0.0, 0.0, 0.0, 14.715, 0.0, 0.0])
+    x0, refs = np.zeros(12), np.array([0.5, 0.3, 0.0, 14.715, 5.0, 9.81])
     good = ocp.solve(x0, refs)
     measured = []
 
@@ -163,11 +163,11 @@ def test_a_curvature_model_that_overpromises_is_measured_afresh(robot, monkeypat
         return finite_difference_hessians(*args)
 
     monkeypatch.setattr(nmpc, "finite_difference_hessians", counted)
-    wrong = -5.0 * good.output_hessians
+    wrong = -0.5 * good.output_hessians
     fixed = ocp.solve(x0, refs, output_hessians=wrong)
     assert measured and fixed.stop == "kkt"
-    assert fixed.cost == pytest.approx(good.cost, rel=1e-8)
-    np.testing.assert_allclose(fixed.U, good.U, atol=1e-4)
+    assert fixed.cost == pytest.approx(good.cost, rel=1e-7)
+    np.testing.assert_allclose(fixed.U, good.U, atol=1e-3)
     monkeypatch.setattr(nmpc, "CURVATURE_REFRESH_RATIO", -np.inf)  # never re-measure
     measured.clear()
     ocp.solve(x0, refs, output_hessians=wrong)

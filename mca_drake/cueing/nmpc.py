@@ -754,6 +754,9 @@ class MotionCueingOcp:
             trial_cost = next_model.cost
             d = step.reshape(-1)
             predicted = float(g @ d + 0.5 * d @ (H @ d))  # the model's change of the cost
+            # the full step gained less than that share of what the model promised: the
+            # learnt curvature has drifted from the cost's, so it is measured afresh below
+            drifted = predicted < 0 and trial_cost - cost > CURVATURE_REFRESH_RATIO * predicted
             restoring = bool(np.any(CU < row_lo - 1e-9) or np.any(CU > row_hi + 1e-9))
             while trial_cost > cost + allowance and not restoring:
                 alpha, next_model = 0.5 * alpha, None
@@ -773,9 +776,7 @@ class MotionCueingOcp:
                 self._condensing.node_steps(alpha * step),
                 model.node_jacobian - old.node_jacobian,
             )
-            if predicted < 0 and trial_cost - cost > CURVATURE_REFRESH_RATIO * predicted:
-                # the full step gained less than that share of what the model promised: the
-                # learnt curvature has drifted from the cost's, so it is measured afresh
+            if drifted:
                 hessians = self._starting_hessians(x0, U, model, None)
             if alpha == 1.0 and solution is not None:
                 multipliers = solution.multipliers
