@@ -62,3 +62,18 @@ def test_bad_settings_are_named():
         PhaseLockConfig(quantile=0.7).validate()
     with pytest.raises(ValueError, match="max_slew_s"):
         PhaseLockConfig(window_s=0.01, max_slew_s=0.005).validate()
+
+
+def test_windows_end_between_control_instants():
+    """The lock's windows end half a period after a control instant, never on one: the
+    Python between windows must not fall between a sample's poll and its MCA update."""
+    from mca_drake.live.loop import _window_end
+
+    h, t, ends = 0.01, 0.0, []
+    for _ in range(40):
+        t = _window_end(t, 0.5, h)
+        ends.append(t)
+    phase = np.array(ends) / h % 1.0
+    np.testing.assert_allclose(phase, 0.5, atol=1e-6)
+    np.testing.assert_allclose(np.diff(ends), 0.5, atol=1e-9)  # about window_s apart
+    assert ends[0] == pytest.approx(0.505)

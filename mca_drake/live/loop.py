@@ -11,6 +11,7 @@ time in each health state; the PI is scored against the reference that was recei
 from __future__ import annotations
 
 import gc
+import math
 import time
 from collections.abc import Callable
 
@@ -445,8 +446,16 @@ def _advance_phase_locked(simulator, probe, duration_s, pacer, lock, period_s):
         if shift:
             shifts.append(shift)
             pacer.target_phase_s += shift
-        simulator.AdvanceTo(min(duration_s, t + lock.window_s))
+        simulator.AdvanceTo(min(duration_s, _window_end(t, lock.window_s, period_s)))
     return shifts
+
+
+def _window_end(t: float, window_s: float, period_s: float) -> float:
+    """Where a phase-lock window from `t` ends: about `window_s` later, in the middle of a
+    control period. Between windows Python runs the lock's arithmetic and re-enters
+    AdvanceTo (0.3-1 ms); ending on a control instant put that between a sample's poll and
+    its MCA update, in one sample's latency of every fifty (the whole p99)."""
+    return (math.floor((t + window_s) / period_s) + 0.5) * period_s
 
 
 def _waits_for_due(probe: LatencyProbe, pacer: RealTimePacer, first: int) -> np.ndarray:
