@@ -16,6 +16,9 @@ CHANNELS = ("w_x", "w_y", "w_z", "f_x", "f_y", "a_z")
 GRAVITY = 9.81
 GRAVITY_W = np.array([0.0, 0.0, -GRAVITY])
 
+# Built-in flights with seeds from here on are evaluation flights: never trained or tuned on.
+FIRST_EVALUATION_SEED = 1000
+
 # Control period of the MCAs, the plant and the references, s (100 Hz).
 CONTROL_PERIOD_S = 0.01
 

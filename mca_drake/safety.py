@@ -158,6 +158,14 @@ class ViabilityClamp:
             )
         ]
 
+        # The far-from-limits test of `__call__` per joint: a, h a, c h^2 a, 1/2a, qd_max,
+        # the upper and mirrored lower limit less a margin (1e-9 rad) that keeps its verdict
+        # on the safe side of round-off.
+        self._free_constants = [
+            (a, h * a, self._b0 * a, 1 / (2 * a), vmax, upper - 1e-9, lower - 1e-9)
+            for a, _, _, _, _, vmax, upper, lower in self._joint_constants
+        ]
+
     @classmethod
     def for_robot(cls, robot, h: float, position_coefficient: float = 0.5) -> ViabilityClamp:
         """The clamp of a `mca_drake.robot.KR500` description."""
@@ -200,12 +208,25 @@ class ViabilityClamp:
         finite = all(math.isfinite(c) for c in us)
         safe, intervened = [], not finite
         for j in range(n):
-            q, v, a = xs[j], xs[n + j], self._joint_constants[j][0]
-            lo, hi = self._joint_interval(j, q, v)
-            if not lo <= hi + VIABILITY_TOLERANCE:  # not viable: brake as hard as allowed
-                lo = hi = min(max(-v / h, -a), a)
-                intervened = True
-            hi = max(hi, lo)
+            q, v = xs[j], xs[n + j]
+            a, ha, b0a, inv_2a, vmax, upper, lower = self._free_constants[j]
+            # Far from the limits every |u| <= a is viable: full acceleration either way
+            # leaves a state that can still brake in time (q' + max(qd', 0)^2 / 2a inside,
+            # which also bounds q' and the mid-step peak), within qd_max. The common case
+            # costs a few float operations instead of the two quadratics below.
+            up, down = v + ha, ha - v
+            if (
+                (v if v > 0.0 else -v) + ha <= vmax
+                and q + h * v + b0a + (up * up * inv_2a if up > 0.0 else 0.0) <= upper
+                and -q - h * v + b0a + (down * down * inv_2a if down > 0.0 else 0.0) <= lower
+            ):
+                lo, hi = -a, a
+            else:
+                lo, hi = self._joint_interval(j, q, v)
+                if not lo <= hi + VIABILITY_TOLERANCE:  # not viable: brake as hard as allowed
+                    lo = hi = min(max(-v / h, -a), a)
+                    intervened = True
+                hi = max(hi, lo)
             c = us[j] if finite else min(max(-v / h, -a), a)
             s = min(max(c, lo), hi)
             intervened = intervened or abs(s - c) > self.tolerance

@@ -82,3 +82,19 @@ def test_long_windows_join_consecutive_segments_of_one_flight():
         np.testing.assert_array_equal(np.diff(windows.U[w, :, 0]), 1.0)  # contiguous in time
     with pytest.raises(ValueError, match="no run of 9"):
         long_windows(data, 9)
+
+
+def test_mixed_vehicle_sets_deal_seeds_and_keep_evaluation_seeds_out():
+    config = ClosedLoopDatasetConfig(vehicles=("light", "f16"), flight_seeds=(5, 6, 7))
+    config.validate()
+    assert config.flights() == [("light", 5), ("f16", 6), ("light", 7)]
+    # a flight's file is keyed by its own vehicle, not by the rest of the list
+    other = ClosedLoopDatasetConfig(vehicles=("light", "A320"), flight_seeds=(5, 6, 7))
+    assert config.flight_key("light") == other.flight_key("light")
+    assert config.flight_key("light") != config.flight_key("f16")
+    with pytest.raises(ValueError, match="evaluation flights"):
+        ClosedLoopDatasetConfig(flight_seeds=(100, 1000)).validate()
+    with pytest.raises(ValueError, match="repeat"):
+        ClosedLoopDatasetConfig(flight_seeds=(100, 100)).validate()
+    with pytest.raises(ValueError, match="reserved"):
+        ClosedLoopDatasetConfig(vehicles=("light", "pa28")).validate()

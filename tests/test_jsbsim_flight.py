@@ -14,8 +14,13 @@ import jsbsim
 import numpy as np
 import pytest
 
+from mca_drake.references.flights import FlightSpec
 from mca_drake.references.jsbsim import (
     FULL_FLIGHT_MIN_DURATION_S,
+    JSBSIM_MODELS,
+    TRAINING_VEHICLES,
+    UNSEEN_VEHICLES,
+    VEHICLES,
     AltitudeChange,
     BankReversals,
     Doublet,
@@ -192,6 +197,20 @@ def test_bad_vehicle_lists_the_valid_ones():
         fly("x", 10.0, seed=0)
 
 
+@pytest.mark.parametrize("reserved", ["737", "pa28"])
+def test_reserved_aircraft_are_refused_by_name(reserved):
+    with pytest.raises(ValueError, match="reserved for unseen-vehicle checks"):
+        fly(reserved, 10.0, seed=0)
+    with pytest.raises(ValueError, match="reserved"):
+        FlightSpec(vehicle=reserved, seed=1000).validate()
+
+
+def test_airborne_only_vehicles_refuse_a_ground_start():
+    with pytest.raises(ValueError, match="airborne only"):
+        fly("A320", 10.0, seed=0, config=FlightConfig(from_ground=True))
+    assert FULL_FLIGHT_MIN_DURATION_S["A320"] == float("inf")
+
+
 def test_bad_config_is_refused():
     with pytest.raises(ValueError, match="turbulence_severity"):
         fly("light", 1.0, seed=0, config=FlightConfig(turbulence_severity=9))
@@ -256,6 +275,43 @@ def test_fifteen_minute_jet_flight_lands():
     assert np.abs(log.attitude[:, 0]).max() > np.radians(30)
     assert log.height_m.max() > 1500.0
     check_units(recording, where="jet flight")
+
+
+@pytest.mark.parametrize("vehicle", [v for v in VEHICLES if v not in ("light", "jet")])
+def test_every_other_vehicle_trims_level_and_reads_gravity(vehicle):
+    """Each airborne-only airframe trims and holds level flight: the accelerometer reads
+    gravity through the attitude plus the along-track acceleration (the autothrottle's slow
+    speed swings: d(airspeed)/dt by finite differences), and the rates stay near zero
+    (physics, not numbers the code printed)."""
+    recording, log = fly_with_log(vehicle, 20.0, seed=1, config=calm(Level(20.0)))
+    steady = recording.t > 5.0
+    speed_rate = np.gradient(log.airspeed_mps, recording.t)[steady]
+    phi, theta = log.attitude[steady, 0], log.attitude[steady, 1]
+    expected = np.column_stack(
+        [
+            G * np.sin(theta) + speed_rate,
+            G * np.sin(phi) * np.cos(theta),
+            G * np.cos(phi) * np.cos(theta),
+        ]
+    )
+    np.testing.assert_allclose(recording.f[steady], expected, atol=2 * GRAVITY_ATOL)
+    assert np.max(np.abs(recording.omega[steady])) < 0.02
+    assert recording.metadata["jsbsim_model"] == JSBSIM_MODELS[vehicle]
+
+
+def test_training_and_unseen_vehicles_are_apart():
+    assert not set(TRAINING_VEHICLES) & set(UNSEEN_VEHICLES)
+    assert {"light", "jet"} <= set(TRAINING_VEHICLES)
+    assert not {"737", "pa28"} & set(VEHICLES)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("vehicle", [v for v in VEHICLES if v not in ("light", "jet")])
+def test_random_plans_of_every_other_vehicle_fly_without_flight_error(vehicle):
+    for seed in range(3):
+        recording = fly(vehicle, 300.0, seed=seed)
+        assert np.all(np.isfinite(recording.as_array()))
+        check_units(recording, where=f"{vehicle} flight")
 
 
 @pytest.mark.slow

@@ -94,9 +94,23 @@ def test_clamp_call_equals_clipping_into_the_bounds(robot, rng):
     from mca_drake.safety import ViabilityClamp
 
     clamp = ViabilityClamp.for_robot(robot, 0.01)
-    for _ in range(2000):
-        q = rng.uniform(1.1 * robot.q_min, 1.1 * robot.q_max)
-        qd = rng.uniform(-1.2 * robot.qd_max, 1.2 * robot.qd_max)
+    # Everywhere (mostly near or past a limit), and near neutral, where the clamp's
+    # far-from-limits shortcut answers; and on the shortcut's edge: slow joints just inside
+    # their stopping distance of a limit.
+    middle = 0.5 * (robot.q_min + robot.q_max)
+    half = 0.5 * (robot.q_max - robot.q_min)
+    for k in range(4000):
+        if k < 2000:
+            q = rng.uniform(1.1 * robot.q_min, 1.1 * robot.q_max)
+            qd = rng.uniform(-1.2 * robot.qd_max, 1.2 * robot.qd_max)
+        elif k < 3000:
+            q = middle + rng.uniform(-0.8, 0.8, 6) * half
+            qd = rng.uniform(-0.5, 0.5, 6) * robot.qd_max
+        else:
+            qd = rng.uniform(-0.2, 0.2, 6) * robot.qd_max
+            reach = qd * np.abs(qd) / (2 * robot.qdd_max) + 0.01 * qd
+            side = np.where(qd > 0, robot.q_max, robot.q_min)
+            q = side - reach - rng.uniform(-2e-3, 2e-3, 6) * np.sign(qd)
         u = rng.uniform(-3 * robot.qdd_max, 3 * robot.qdd_max)
         lo, hi, viable = viable_acceleration_bounds(
             q, qd, robot.q_min, robot.q_max, robot.qd_max, robot.qdd_max, 0.01

@@ -139,8 +139,12 @@ def test_dpc_runs_of_another_policy_are_run_again(tmp_path):
 
 
 def test_training_seeds_are_refused():
-    with pytest.raises(ValueError, match="training flight seeds"):
+    with pytest.raises(ValueError, match="must be evaluation seeds"):
         EvaluationConfig(cases=(EvaluationCase("A", "light", (100, 1000)),)).validate()
+    with pytest.raises(ValueError, match="a flight seed repeats"):
+        EvaluationConfig(cases=(EvaluationCase("A", "light", (1000, 1000)),)).validate()
+    with pytest.raises(ValueError, match="reserved"):
+        EvaluationConfig(cases=(EvaluationCase("C", "", (3000,), vehicles=("737",)),)).validate()
     with pytest.raises(ValueError, match="unknown MCA"):
         EvaluationConfig(mcas=("lqr",)).validate()
     with pytest.raises(ValueError, match="share a name"):
@@ -161,3 +165,14 @@ def test_report_wording_of_p_values_and_verdicts():
     # lower PI is better: DPC ranked lower (z < 0) is the better side
     assert rank_sum_verdict({**apart, "z": -2.2}) == "significant at 0.05: DPC better"
     assert rank_sum_verdict({**apart, "z": 2.2}) == "significant at 0.05: DPC worse"
+
+
+def test_case_c_deals_unseen_aircraft_to_its_seeds():
+    from mca_drake.references.jsbsim import TRAINING_VEHICLES, UNSEEN_VEHICLES
+    from mca_drake.studies.evaluation import default_cases
+
+    case = {c.name: c for c in default_cases()}["C"]
+    flown = [case.vehicle_of(seed) for seed in case.seeds]
+    assert flown[:4] == list(UNSEEN_VEHICLES) and flown[4] == UNSEEN_VEHICLES[0]
+    assert not set(flown) & set(TRAINING_VEHICLES)
+    assert case.label() == ", ".join(UNSEEN_VEHICLES)

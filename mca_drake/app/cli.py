@@ -28,7 +28,7 @@ from mca_drake.conventions import CHANNELS
 from mca_drake.cueing import MCA_NAMES, DpcConfig, mca_config_from_name, mca_name
 from mca_drake.plotting import plot_recording, save_figure
 from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
-from mca_drake.references.jsbsim import fly
+from mca_drake.references.jsbsim import VEHICLES, fly
 from mca_drake.references.recording import load_recording, save_recording
 from mca_drake.simulation.builders import default_visualization
 from mca_drake.simulation.closed_loop import PLANTS
@@ -197,6 +197,8 @@ def _cmd_dataset_closed_loop(args: argparse.Namespace) -> int:
             address="address",
         )
     )
+    if args.vehicles is not None:
+        scenario.vehicles = [v.strip() for v in args.vehicles.split(",") if v.strip()]
     if args.mca is not None:
         scenario.mca = mca_config_from_name(args.mca)
     if args.minutes is not None:
@@ -245,7 +247,7 @@ def _evaluate_suite(args: argparse.Namespace) -> int:
         ]
     if args.flights is not None and args.flights < 1:
         raise ValueError(f"--flights must be at least 1; got {args.flights}")
-    cases = {c.name: c for c in default_cases()}  # A: light_seeds, B: jet_seeds
+    cases = {c.name: c for c in default_cases()}  # A: light, B: jet, C: unseen seeds
     wanted = args.cases.split(",") if args.cases is not None else list(cases)
     unknown = [c for c in wanted if c not in cases]
     if unknown:
@@ -253,6 +255,7 @@ def _evaluate_suite(args: argparse.Namespace) -> int:
     flights = args.flights
     scenario.light_seeds = list(cases["A"].seeds[:flights]) if "A" in wanted else []
     scenario.jet_seeds = list(cases["B"].seeds[:flights]) if "B" in wanted else []
+    scenario.unseen_seeds = list(cases["C"].seeds[:flights]) if "C" in wanted else []
     run_scenario(scenario, progress=not args.quiet)
     print((Path(scenario.output_dir) / "evaluation.md").read_text())
     return 0
@@ -429,7 +432,9 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
     # torch: loaded by the training commands only, so the others start fast
     from mca_drake.learning.dpc import DpcTrainingConfig, train_policy
 
-    config = DpcTrainingConfig(
+    base = DpcTrainingConfig.paper() if args.objective == "paper" else DpcTrainingConfig()
+    config = dataclasses.replace(
+        base,
         **_given(
             args,
             targets="targets",
@@ -438,7 +443,7 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             seed="seed",
             window_segments="window_segments",
             init_policy="initial_policy",
-        )
+        ),
     )
     if args.no_compile:
         config.compile = False
@@ -557,7 +562,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(func=_cmd_run)
 
     flight = sub.add_parser("flight", help="fly a JSBSim aircraft and record the pilot's IMU")
-    flight.add_argument("--vehicle", default="light", help="light (c172p) or jet (global5000)")
+    flight.add_argument(
+        "--vehicle",
+        default="light",
+        help=f"light (c172p), jet (global5000) or a JSBSim model: {', '.join(VEHICLES[2:])}",
+    )
     flight.add_argument("--minutes", type=float, default=15.0, help="flight length, min")
     flight.add_argument("--seed", type=int, default=0, help="seed of the scripted pilot")
     flight.add_argument("--out", default="flight.csv", help="recording CSV to write")
@@ -591,7 +600,14 @@ def build_parser() -> argparse.ArgumentParser:
     closed = dataset_sub.add_parser(
         "closed-loop", help="MCA closed loops over JSBSim flights (defaults: paper size)"
     )
-    closed.add_argument("--vehicle", help=f"light or jet (default {dataset_defaults.vehicle})")
+    closed.add_argument(
+        "--vehicle", help=f"one vehicle (default {dataset_defaults.vehicle}); see --vehicles"
+    )
+    closed.add_argument(
+        "--vehicles",
+        help="a mixed set: comma-separated vehicles, dealt to the seeds in turn (seed i flies "
+        f"vehicle i mod n); valid: {', '.join(VEHICLES)}",
+    )
     closed.add_argument(
         "--flights", type=int, help=f"flights (default {len(dataset_defaults.flight_seeds)})"
     )
@@ -630,7 +646,7 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--policy", help="policy file for --mca dpc (default: the shipped one)")
     evaluate.add_argument("--reference", help="recording CSV (one run)")
     evaluate.add_argument(
-        "--suite", action="store_true", help="the scenario set: cases A and B, report, box plot"
+        "--suite", action="store_true", help="the scenario set: cases A, B and C, report, box plot"
     )
     evaluate.add_argument(
         "--cases",
@@ -732,7 +748,14 @@ def build_parser() -> argparse.ArgumentParser:
     policy = sub.add_parser(
         "train-policy",
         help="train the DPC policy on a closed-loop dataset (unset flags: the defaults of "
-        "mca_drake.learning.dpc.DpcTrainingConfig, the paper's)",
+        "mca_drake.learning.dpc.DpcTrainingConfig: the shipped NMPC's objective)",
+    )
+    policy.add_argument(
+        "--objective",
+        choices=("tuned", "paper"),
+        default="tuned",
+        help="loss weights: tuned (the shipped NMPC's weights, tracking the references; "
+        "default) or paper (equation 9, tracking the NMPC-achieved outputs: v5 and v6)",
     )
     policy.add_argument("--dataset", default=DEFAULT_DATASET)
     policy.add_argument("--out-dir", default="results/policy")
@@ -745,8 +768,8 @@ def build_parser() -> argparse.ArgumentParser:
     policy.add_argument("--window-segments", type=int, help="dataset segments joined per window")
     policy.add_argument(
         "--channel-weights",
-        help="tracking weights per output channel: uniform (the paper's), normalized "
-        "(1 / target variance) or six numbers",
+        help="tracking weights per output channel: six numbers (default the objective's), "
+        "uniform, or normalized (1 / target variance)",
     )
     policy.add_argument("--init-policy", help="start from this policy file's weights")
     policy.add_argument("--max-epochs", type=int, help="epochs per curriculum step")

@@ -123,7 +123,8 @@ class ClosedLoopScenario:
 
 @dataclasses.dataclass
 class EvaluationScenario:
-    """The scenario evaluation of the MCAs (Case A light aircraft, Case B jet)."""
+    """The scenario evaluation of the MCAs (Case A light aircraft, Case B jet, Case C
+    aircraft neither trained nor tuned on)."""
 
     # MCAs compared (DPC is tested against each other one): configs or names.
     mcas: list[McaConfig] = dataclasses.field(
@@ -135,6 +136,14 @@ class EvaluationScenario:
     )
     # Case B flight seeds (jet); empty: skip the case.
     jet_seeds: list[int] = dataclasses.field(default_factory=lambda: list(default_cases()[1].seeds))
+    # Case C flight seeds (dealt to `unseen_vehicles` in turn); empty: skip the case.
+    unseen_seeds: list[int] = dataclasses.field(
+        default_factory=lambda: list(default_cases()[2].seeds)
+    )
+    # Case C's aircraft.
+    unseen_vehicles: list[str] = dataclasses.field(
+        default_factory=lambda: list(default_cases()[2].vehicles)
+    )
     # Simulated seconds per flight.
     duration_s: float = EvaluationConfig.duration_s
     # CPUs of the local Ray the runs go to (1: one after the other, in this process).
@@ -150,8 +159,12 @@ class EvaluationScenario:
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""
-        if not (self.light_seeds or self.jet_seeds):
-            raise ValueError("light_seeds and jet_seeds are both empty: nothing to evaluate")
+        if not (self.light_seeds or self.jet_seeds or self.unseen_seeds):
+            raise ValueError(
+                "light_seeds, jet_seeds and unseen_seeds are all empty: nothing to evaluate"
+            )
+        if self.unseen_seeds and not self.unseen_vehicles:
+            raise ValueError("unseen_seeds given but unseen_vehicles is empty")
         if self.workers < 1:
             raise ValueError(f"workers must be >= 1; got {self.workers}")
         for mca in self.mcas:
@@ -165,6 +178,12 @@ class EvaluationScenario:
             cases.append(EvaluationCase("A", "light", tuple(self.light_seeds)))
         if self.jet_seeds:
             cases.append(EvaluationCase("B", "jet", tuple(self.jet_seeds)))
+        if self.unseen_seeds:
+            cases.append(
+                EvaluationCase(
+                    "C", "", tuple(self.unseen_seeds), vehicles=tuple(self.unseen_vehicles)
+                )
+            )
         return EvaluationConfig(
             mcas=tuple(self.mcas), cases=tuple(cases), duration_s=self.duration_s
         )
@@ -174,8 +193,11 @@ class EvaluationScenario:
 class DatasetScenario:
     """Closed-loop dataset generation (the training data of the plant models and DPC)."""
 
-    # Vehicle class flown by JSBSim: "light" or "jet".
+    # Vehicle flown by JSBSim (`mca_drake.references.jsbsim.VEHICLES`) when `vehicles` is
+    # empty.
     vehicle: str = ClosedLoopDatasetConfig.vehicle
+    # Vehicles of a mixed set: flight_seeds[i] flies vehicles[i % len(vehicles)].
+    vehicles: list[str] = dataclasses.field(default_factory=list)
     # Flight seeds (evaluation uses 1000 on; keep these apart).
     flight_seeds: list[int] = dataclasses.field(
         default_factory=lambda: list(ClosedLoopDatasetConfig().flight_seeds)
@@ -210,6 +232,7 @@ class DatasetScenario:
         scenario."""
         return ClosedLoopDatasetConfig(
             vehicle=self.vehicle,
+            vehicles=tuple(self.vehicles),
             flight_seeds=tuple(self.flight_seeds),
             flight_duration_s=self.flight_duration_s,
             horizon=self.horizon,

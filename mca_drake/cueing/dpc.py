@@ -58,6 +58,15 @@ def default_policy_path() -> Path:
     return path
 
 
+def shipped_policy_path(name: str) -> Path:
+    """A policy file shipped in mca_drake/data: "default_policy" (the default) or an earlier
+    one kept loadable, e.g. "policy_v6" (five c172p flights, the paper's loss)."""
+    path = Path(__file__).resolve().parents[1] / "data" / f"{name}.npz"
+    if not path.is_file():
+        raise FileNotFoundError(f"no shipped policy '{name}' at {path}")
+    return path
+
+
 def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
     """(arrays, metadata) of a policy file; ValueError with the reason if it is not one or
     its arrays do not fit together, FileNotFoundError if it is missing."""

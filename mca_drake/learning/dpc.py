@@ -18,10 +18,12 @@ plus, beyond the paper, the NMPC's terminal cost ||q_n||^2 + ||qd_n||^2 on the l
 long flight), and the rollout runs behind the viability clamp the deployed policy runs
 behind (`safety_filter`), so that training and deployment see the same closed loop.
 
-Targets Y are the NMPC-achieved outputs of the closed-loop dataset (the paper's choice,
-`targets="achieved"`) or the references the NMPC was given (`targets="reference"`). The plant
-is the exact analytical torch plant by default, or the paper's learned NODE 2 + mixed
-analytical model (`plant="learned"`, weights from a Table II run).
+The weights default to the shipped NMPC's (`NmpcConfig`'s tuned defaults, carried over by
+`DpcTrainingConfig.matching`): the policy learns the objective the tuned NMPC minimises,
+tracking the references the NMPC was given (`targets="reference"`); `DpcTrainingConfig.paper()`
+gives the paper's loss (uniform tracking of the NMPC-achieved outputs, input 0.1, washout
+1). The plant is the exact analytical torch plant by default, or the paper's learned NODE 2 +
+mixed analytical model (`plant="learned"`, weights from a Table II run).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from torch import nn
 
 from mca_drake.atomic_io import check_writable, file_sha256
 from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.cueing import NmpcConfig
 from mca_drake.cueing.dpc import load_policy_arrays
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
 from mca_drake.learning.output_models import MixedAnalyticalOutput
@@ -62,12 +65,17 @@ def _default_train() -> TrainConfig:
     )
 
 
+# The shipped NMPC's weights (tuned), the DPC loss's defaults: one home, NmpcConfig.
+_NMPC = NmpcConfig()
+
+
 @dataclasses.dataclass
 class DpcTrainingConfig:
-    """DPC policy training settings (defaults: the paper's, see the module docstring)."""
+    """DPC policy training settings (defaults: the shipped NMPC's objective, see the module
+    docstring; `paper()` for the paper's loss)."""
 
     # Targets: "achieved" (NMPC outputs) or "reference" (the NMPC's references).
-    targets: str = "achieved"
+    targets: str = "reference"
     # Frozen plant of the rollouts: "exact" or "learned" (NODE 2 + mixed analytical).
     plant: str = "exact"
     # With plant="learned": the mixed analytical model's best weights (a Table II run's
@@ -76,19 +84,19 @@ class DpcTrainingConfig:
     # Loss weights: tracking, state prediction, input (paper 0.1), washout, state limits.
     tracking_weight: float = 1.0
     # Per-channel weights inside the tracking term (w_x, w_y, w_z, f_x, f_y, f_z), applied as
-    # sum_k c_k (y_k - Y_k)^2: "uniform" (all 1, the paper's), "normalized" (c_k = mean
-    # variance / variance of channel k of the training targets: every channel counts alike,
-    # as in the PI, whose CC term ignores scale, while doing nothing costs what it costs
-    # with uniform weights, so the balance with the other terms stays), or six numbers.
-    tracking_channel_weights: str | tuple[float, ...] = "uniform"
+    # sum_k c_k (y_k - Y_k)^2: six numbers (default the NMPC's output weights), "uniform"
+    # (all 1, the paper's), or "normalized" (c_k = mean variance / variance of channel k of
+    # the training targets: every channel counts alike, as in the PI, whose CC term ignores
+    # scale, while doing nothing costs what it costs with uniform weights).
+    tracking_channel_weights: str | tuple[float, ...] = tuple(_NMPC.output_weights)
     state_estimate_weight: float = 1.0
-    input_weight: float = 0.1
-    washout_weight: float = 1.0
+    input_weight: float = _NMPC.input_weight
+    washout_weight: float = _NMPC.washout_weight
     limit_weight: float = 100.0
     # Terminal cost on the rollout's last state, as the NMPC's (weights of ||q_N||^2 and
     # ||qd_N||^2): an addition to the paper's loss that teaches washout beyond n_c.
-    terminal_position_weight: float = 1.0
-    terminal_velocity_weight: float = 1.0
+    terminal_position_weight: float = _NMPC.terminal_position_weight
+    terminal_velocity_weight: float = _NMPC.terminal_velocity_weight
     # Run the rollouts behind the viability clamp, as the policy runs when deployed
     # (`mca_drake.safety`); gradients pass through the clamp.
     safety_filter: bool = True
@@ -116,6 +124,27 @@ class DpcTrainingConfig:
     # Fuse each rollout step with torch.compile (about 9x faster on CPU after a compile of
     # about a minute; needs a C++ compiler). False: plain eager mode.
     compile: bool = True
+
+    @classmethod
+    def matching(cls, nmpc: NmpcConfig, **changes) -> DpcTrainingConfig:
+        """A config whose loss is `nmpc`'s objective: its output, input, washout and terminal
+        weights, tracking the references; `changes` set other fields."""
+        weights = dict(
+            targets="reference",
+            tracking_channel_weights=tuple(float(w) for w in nmpc.output_weights),
+            input_weight=nmpc.input_weight,
+            washout_weight=nmpc.washout_weight,
+            terminal_position_weight=nmpc.terminal_position_weight,
+            terminal_velocity_weight=nmpc.terminal_velocity_weight,
+        )
+        return cls(**{**weights, **changes})
+
+    @classmethod
+    def paper(cls, **changes) -> DpcTrainingConfig:
+        """The paper's loss (equation 9 with the NMPC's paper weights: uniform tracking of the
+        NMPC-achieved outputs, input 0.1, washout 1; our terminal cost 1, 1), with which the
+        v5 and v6 policies were trained; `changes` set other fields."""
+        return cls.matching(NmpcConfig.paper(), **{"targets": "achieved", **changes})
 
     def validate(self) -> None:
         if self.targets not in TARGETS:

@@ -9,7 +9,7 @@ closed-loop dataset alike.
 import dataclasses
 from pathlib import Path
 
-from mca_drake.references.jsbsim import VEHICLES, fly
+from mca_drake.references.jsbsim import check_vehicle, fly
 from mca_drake.references.recording import Recording, load_recording, save_recording
 from mca_drake.references.reference import Reference, ReferenceScaling, reference_from_recording
 
@@ -28,9 +28,8 @@ class FlightSpec:
 
     def validate(self) -> None:
         """Raises ValueError for an unknown vehicle or a missing recording file."""
-        if not self.recording and self.vehicle not in VEHICLES:
-            valid = ", ".join(VEHICLES)
-            raise ValueError(f"unknown vehicle '{self.vehicle}'; valid: {valid}")
+        if not self.recording:
+            check_vehicle(self.vehicle)
         if not self.recording and not 0 <= self.seed < 2**32:
             raise ValueError(f"flight.seed must be in [0, 2^32); got {self.seed}")
         if self.recording and not Path(self.recording).is_file():

@@ -1,6 +1,6 @@
 """Closed-loop dataset: an MCA cueing JSBSim flights, cut into n_p-long segments.
 
-For each flight seed: fly the vehicle (`mca_drake.references.flights`), scale the
+For each flight seed: fly its vehicle (`mca_drake.references.flights`), scale the
 recording into a reference, run ReferenceSource -> MCA -> MotionCueingPlant at 100 Hz, and
 cut the logged trajectory into non-overlapping segments holding U, X, Y, F, dF, ddF and the
 reference R (see `mca_drake.segments`). Each flight is one file, written atomically; a
@@ -9,8 +9,10 @@ resumes. The flights run in parallel local processes. `merge` joins them and lab
 70:20:10 train/validation/test split with a fixed seed.
 
 The paper's size, the default: five 15-minute light-aircraft flights, n_p = 256 (about
-1750 segments). The MCA defaults to NMPC in rti mode, which tracks the converged solution
-to within a few 1e-4 of PI (benchmarks/bench_nmpc.py) at a fraction of the cost.
+1750 segments). A mixed-vehicle set lists `vehicles`: the seeds are dealt to them in turn
+(seed i flies vehicles[i % len(vehicles)]), so every flight keeps a seed of its own. The MCA
+defaults to NMPC in rti mode (at the tuned weights), which tracks the converged solution to
+within a few 1e-4 of PI (benchmarks/bench_nmpc.py) at a fraction of the cost.
 """
 
 from __future__ import annotations
@@ -25,12 +27,12 @@ from pathlib import Path
 import numpy as np
 
 from mca_drake.atomic_io import check_writable
-from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.conventions import CONTROL_PERIOD_S, FIRST_EVALUATION_SEED
 from mca_drake.cueing import McaConfig, NmpcConfig, as_mca_config, mca_config_record
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
 from mca_drake.kinematics import head_motion, output_from_motion, pose_derivatives_from_motion
 from mca_drake.references.flights import FlightSpec, flight_recording
-from mca_drake.references.jsbsim import VEHICLES
+from mca_drake.references.jsbsim import check_vehicle
 from mca_drake.references.reference import ReferenceScaling, reference_from_recording
 from mca_drake.robot import NUM_JOINTS, load_kr500
 from mca_drake.segments import SOURCE_COLUMNS, SPLIT_NAMES, SegmentDataset, package_versions
@@ -46,8 +48,11 @@ DEFAULT_DATASET = f"{DEFAULT_DATASET_DIR}/dataset.npz"
 class ClosedLoopDatasetConfig:
     """What to simulate and where to write it; defaults are the paper's dataset."""
 
-    # Vehicle class flown by JSBSim: "light" or "jet".
+    # Vehicle flown by JSBSim (`mca_drake.references.jsbsim.VEHICLES`), when `vehicles` is
+    # empty.
     vehicle: str = "light"
+    # Vehicles of a mixed set: flight_seeds[i] flies vehicles[i % len(vehicles)].
+    vehicles: tuple[str, ...] = ()
     # Seeds of the flights; evaluation uses seeds from 1000 on, never these.
     flight_seeds: tuple[int, ...] = (100, 101, 102, 103, 104)
     # Length of each flight, s.
@@ -72,10 +77,17 @@ class ClosedLoopDatasetConfig:
         """Raises ValueError for an unknown vehicle, no seeds, a bad horizon, split or
         flight length; before any flight is simulated."""
         check_config_numbers(self)
-        if self.vehicle not in VEHICLES:
-            raise ValueError(f"unknown vehicle '{self.vehicle}'; valid: {', '.join(VEHICLES)}")
+        for vehicle in self.vehicles or (self.vehicle,):
+            check_vehicle(vehicle)
         if not self.flight_seeds:
             raise ValueError("flight_seeds is empty")
+        if len(set(self.flight_seeds)) != len(self.flight_seeds):
+            raise ValueError(f"flight_seeds repeat a seed: {self.flight_seeds}")
+        if any(s >= FIRST_EVALUATION_SEED for s in self.flight_seeds):
+            raise ValueError(
+                f"flight_seeds from {FIRST_EVALUATION_SEED} on are evaluation flights, never "
+                f"trained on; got {self.flight_seeds}"
+            )
         if any(not 0 <= s < 2**32 for s in self.flight_seeds):
             raise ValueError(f"flight_seeds must be in [0, 2^32); got {self.flight_seeds}")
         if self.horizon < 1:
@@ -101,11 +113,19 @@ class ClosedLoopDatasetConfig:
         """The config as a JSON-ready dict, the MCA's tagged with its class."""
         return {**dataclasses.asdict(self), "mca": mca_config_record(self.mca)}
 
-    def flight_key(self) -> str:
-        """Hash of everything that shapes one flight's file (not the seeds list or split)."""
+    def flights(self) -> list[tuple[str, int]]:
+        """(vehicle, seed) of every flight, in seed order: the seeds dealt to `vehicles` in
+        turn, or all to `vehicle`."""
+        vehicles = self.vehicles or (self.vehicle,)
+        return [(vehicles[i % len(vehicles)], s) for i, s in enumerate(self.flight_seeds)]
+
+    def flight_key(self, vehicle: str) -> str:
+        """Hash of everything that shapes one flight's file of `vehicle` (not the seeds, the
+        other vehicles or the split)."""
         fields = self.record()
-        for name in ("flight_seeds", "split_fractions", "split_seed"):
+        for name in ("flight_seeds", "split_fractions", "split_seed", "vehicles"):
             fields.pop(name)
+        fields["vehicle"] = vehicle
         return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:16]
 
 
@@ -114,14 +134,18 @@ def flight_path(out_dir: Path, seed: int) -> Path:
     return Path(out_dir) / f"flight_{seed:05d}.npz"
 
 
-def simulate_flight(config: ClosedLoopDatasetConfig, seed: int) -> SegmentDataset:
-    """One flight through the closed loop, cut into segments (no file written)."""
+def simulate_flight(
+    config: ClosedLoopDatasetConfig, seed: int, vehicle: str | None = None
+) -> SegmentDataset:
+    """One flight of `vehicle` (default `config.vehicle`) through the closed loop, cut into
+    segments (no file written)."""
+    vehicle = vehicle or config.vehicle
     robot = load_kr500()
     started = time.perf_counter()
-    flight = FlightSpec(vehicle=config.vehicle, seed=seed)
+    flight = FlightSpec(vehicle=vehicle, seed=seed)
     recording = flight_recording(flight, config.flight_duration_s)
     reference = reference_from_recording(
-        recording, config.scaling, name=f"{config.vehicle} flight seed {seed}"
+        recording, config.scaling, name=f"{vehicle} flight seed {seed}"
     )
     result = run_closed_loop(mca=config.mca, reference=reference, robot=robot, progress=False)
     n_p = config.horizon
@@ -150,8 +174,9 @@ def simulate_flight(config: ClosedLoopDatasetConfig, seed: int) -> SegmentDatase
     metadata = {
         "kind": "closed-loop MCA dataset, one flight",
         "config": config.record(),
-        "config_key": config.flight_key(),
+        "config_key": config.flight_key(vehicle),
         "flight_seed": seed,
+        "vehicle": vehicle,
         "source_columns": list(SOURCE_COLUMNS),
         "summary": result.summary,
         "recording_metadata": recording.metadata,
@@ -170,9 +195,9 @@ def _flight_is_done(path: Path, key: str) -> bool:
         return False  # a damaged file: simulate again
 
 
-def _run_one(config: ClosedLoopDatasetConfig, seed: int, out_dir: str) -> str:
+def _run_one(config: ClosedLoopDatasetConfig, vehicle: str, seed: int, out_dir: str) -> str:
     path = flight_path(Path(out_dir), seed)
-    simulate_flight(config, seed).save(path)
+    simulate_flight(config, seed, vehicle).save(path)
     return str(path)
 
 
@@ -191,11 +216,10 @@ def generate_closed_loop_dataset(
     config = config or ClosedLoopDatasetConfig()
     config.validate()
     out_dir = check_writable(out_dir, folder=True)
-    key = config.flight_key()
     todo = [
-        (config, s, str(out_dir))
-        for s in config.flight_seeds
-        if not _flight_is_done(flight_path(out_dir, s), key)
+        (config, vehicle, s, str(out_dir))
+        for vehicle, s in config.flights()
+        if not _flight_is_done(flight_path(out_dir, s), config.flight_key(vehicle))
     ]
     run_tasks(
         _run_one,
@@ -227,6 +251,7 @@ def merge(config: ClosedLoopDatasetConfig, out_dir: str | Path) -> Path:
         "source_columns": list(SOURCE_COLUMNS),
         "split_names": list(SPLIT_NAMES),
         "flights": {str(p.metadata["flight_seed"]): p.metadata["summary"] for p in parts},
+        "flight_vehicles": {seed: vehicle for vehicle, seed in config.flights()},
         "versions": package_versions(),
     }
     return merged.save(out_dir / "dataset.npz")

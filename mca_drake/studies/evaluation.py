@@ -1,7 +1,8 @@
 """Evaluation over a scenario set (the paper's Section VI-B, Fig. 3), with more MCAs.
 
 For every case (Case A: light-aircraft flights with seeds never used in training; Case B:
-jet flights) and every MCA config (default: dpc, nmpc-converged, nmpc-rti, washout) the
+jet flights; Case C: flights of aircraft used in neither training nor tuning) and every MCA
+config (default: dpc, nmpc-converged, nmpc-rti, washout) the
 closed loop on the analytical plant is run over each flight; per run the result summary
 (README, "Result summary") is written as one JSON file, atomically. A re-run skips
 finished runs of the same MCA config, duration and policy, so a killed evaluation resumes.
@@ -26,6 +27,7 @@ from mca_drake.atomic_io import (
     check_writable,
     file_sha256,
 )
+from mca_drake.conventions import FIRST_EVALUATION_SEED
 from mca_drake.cueing import (
     DpcConfig,
     McaConfig,
@@ -38,6 +40,7 @@ from mca_drake.input_checks import MAX_DURATION_S, check_range
 from mca_drake.metrics import wilcoxon_rank_sum, wilcoxon_signed_rank
 from mca_drake.plotting import plot_pi_boxes, save_figure
 from mca_drake.references.flights import FlightSpec, flight_reference
+from mca_drake.references.jsbsim import UNSEEN_VEHICLES, check_vehicle
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.parallel import run_tasks
 
@@ -47,14 +50,27 @@ DEFAULT_MCAS = ("dpc", "nmpc-converged", "nmpc-rti", "washout")
 
 @dataclasses.dataclass
 class EvaluationCase:
-    """A set of flights of one vehicle class."""
+    """A set of flights: of one vehicle, or of several (`vehicles`, dealt to the seeds in
+    turn: seed i flies vehicles[i % len(vehicles)])."""
 
-    # Label in the report ("A", "B").
+    # Label in the report ("A", "B", "C").
     name: str
-    # "light" or "jet" (`mca_drake.references.jsbsim`).
+    # The vehicle (`mca_drake.references.jsbsim.VEHICLES`) when `vehicles` is empty.
     vehicle: str
-    # Flight seeds; training used 100-104, so these must differ.
+    # Flight seeds: evaluation flights, from FIRST_EVALUATION_SEED on.
     seeds: tuple[int, ...]
+    # Several vehicles, dealt to the seeds in turn.
+    vehicles: tuple[str, ...] = ()
+
+    def vehicle_of(self, seed: int) -> str:
+        """The vehicle that flight `seed` of this case flies."""
+        if not self.vehicles:
+            return self.vehicle
+        return self.vehicles[self.seeds.index(seed) % len(self.vehicles)]
+
+    def label(self) -> str:
+        """The case's vehicles for the report: "light", or "t6texan2, T38, ..."."""
+        return ", ".join(self.vehicles) if self.vehicles else self.vehicle
 
 
 # Level of the report's rank-sum tests (the paper's).
@@ -62,10 +78,12 @@ SIGNIFICANCE_LEVEL = 0.05
 
 
 def default_cases() -> tuple[EvaluationCase, ...]:
-    """The paper's two cases: 10 light-aircraft and 10 jet flights, unseen in training."""
+    """The paper's two cases, 10 light-aircraft and 10 jet flights unseen in training, and
+    case C: 10 flights of aircraft neither trained nor tuned on."""
     return (
         EvaluationCase("A", "light", tuple(range(1000, 1010))),
         EvaluationCase("B", "jet", tuple(range(2000, 2010))),
+        EvaluationCase("C", "", tuple(range(3000, 3010)), vehicles=UNSEEN_VEHICLES),
     )
 
 
@@ -97,14 +115,18 @@ class EvaluationConfig:
             "EvaluationConfig", "duration_s", self.duration_s, 0.0, MAX_DURATION_S, low_open=True
         )
         for case in self.cases:
-            if any(not 0 <= s < 2**32 for s in case.seeds):
-                raise ValueError(f"case {case.name}: flight seeds must be in [0, 2^32)")
+            if any(not FIRST_EVALUATION_SEED <= s < 2**32 for s in case.seeds):
+                raise ValueError(
+                    f"case {case.name}: flight seeds must be evaluation seeds, in "
+                    f"[{FIRST_EVALUATION_SEED}, 2^32): lower ones are for training and tuning"
+                )
+            if len(set(case.seeds)) != len(case.seeds):
+                raise ValueError(f"case {case.name}: a flight seed repeats")
+            for vehicle in case.vehicles or (case.vehicle,):
+                check_vehicle(vehicle)
         names = self.names()
         if len(set(names)) != len(names):
             raise ValueError(f"two MCAs share a name in {names}; compare distinct MCAs")
-        for case in self.cases:
-            if set(case.seeds) & set(range(100, 105)) and case.vehicle == "light":
-                raise ValueError(f"case {case.name} uses training flight seeds 100-104")
 
     def names(self) -> list[str]:
         """The report's label of every MCA, in order."""
@@ -146,10 +168,11 @@ def _run_one(
     config: McaConfig, case: EvaluationCase, seed: int, duration_s: float, out: str
 ) -> dict:
     out_dir = Path(out)
-    flight = FlightSpec(vehicle=case.vehicle, seed=seed)
+    vehicle = case.vehicle_of(seed)
+    flight = FlightSpec(vehicle=vehicle, seed=seed)
     reference = flight_reference(flight, duration_s, cache_dir=out_dir / "flights")
     result = run_closed_loop(mca=config, reference=reference, duration_s=duration_s, progress=False)
-    summary = {**result.summary, "case": case.name, "seed": seed, "vehicle": case.vehicle}
+    summary = {**result.summary, "case": case.name, "seed": seed, "vehicle": vehicle}
     fingerprint = policy_fingerprint(config)
     if fingerprint:
         summary["policy_sha256"] = fingerprint
@@ -212,7 +235,7 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
         "cases": {},
     }
     for case in config.cases:
-        entry = {"vehicle": case.vehicle, "seeds": list(case.seeds), "mcas": {}}
+        entry = {"vehicle": case.label(), "seeds": list(case.seeds), "mcas": {}}
         for mca in config.names():
             rs = list(runs[(case.name, mca)].values())
             if not rs:

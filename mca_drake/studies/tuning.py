@@ -36,18 +36,17 @@ from mca_drake.atomic_io import (
     atomic_write_text,
     check_writable,
 )
+from mca_drake.conventions import FIRST_EVALUATION_SEED
 from mca_drake.cueing import NmpcConfig, WashoutConfig, mca_config_record
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
 from mca_drake.plotting import save_figure
 from mca_drake.references.flights import FlightSpec, flight_reference
-from mca_drake.references.jsbsim import VEHICLES
+from mca_drake.references.jsbsim import check_vehicle
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.parallel import ray_address, ray_session
 
 # Added to an infeasible trial's median PI (the PI's range is about -6 to +10).
 INFEASIBLE_PENALTY = 10.0
-# Seeds from here on are evaluation flights: never tuned on.
-FIRST_EVALUATION_SEED = 1000
 TUNABLE_MCAS = ("nmpc-rti", "washout")
 CHANNELS_WEIGHTED = ("w_x", "w_y", "w_z", "f_x", "f_y", "a_z")
 
@@ -90,8 +89,7 @@ class TuningConfig:
         if not self.flights:
             raise ValueError("flights is empty: nothing to tune on")
         for vehicle, seed in self.flights:
-            if vehicle not in VEHICLES:
-                raise ValueError(f"unknown vehicle '{vehicle}'; valid: {', '.join(VEHICLES)}")
+            check_vehicle(vehicle)
             if not 0 <= seed < FIRST_EVALUATION_SEED:
                 raise ValueError(
                     f"flight seed {seed}: tuning uses seeds 0 to {FIRST_EVALUATION_SEED - 1}; "

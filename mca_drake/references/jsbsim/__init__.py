@@ -6,10 +6,15 @@ airspeed and sideslip) whose targets and segment durations are drawn from a nump
 seeded by `seed`, and returns what an IMU at the pilot's eye point measured as a `Recording`
 (head-frame axes x forward, y left, z up; SI units).
 
-Vehicles (JSBSim models shipped with the `jsbsim` wheel):
+Vehicles (JSBSim models shipped with the `jsbsim` wheel; the table is `fleet`'s docstring):
 
     light  c172p       a single-engine piston aircraft, our analogue of the Cirrus SR-22
     jet    global5000  a twin-jet business aircraft, our analogue of the Cessna Citation X
+    f16, DHC6, A320, 787-8, t6texan2, T38, MD11, B747 (named by their JSBSim
+           models): a fighter, a twin turboprop, airliners, two trainers and a jumbo,
+           flown airborne only (trimmed at the maneuver altitude)
+
+JSBSim's 737 and pa28 are reserved for unseen-vehicle checks and refused by name.
 
 Flight plans. Flights of at least `FULL_FLIGHT_MIN_DURATION_S[vehicle]` start parked on the
 ground: taxi, take-off, a climbing turn to the maneuver altitude, the maneuvers, a descent,
@@ -49,7 +54,8 @@ Limitations (of the models and of this pilot):
 
 Modules, each depending only on those above it:
 
-    aircraft   vehicles, units, the per-model airframe constants and config defaults
+    aircraft   units, the step, and `Airframe` (what the pilot must know of a model)
+    fleet      the vehicles: their airframes, config defaults, classes; `check_vehicle`
     maneuvers  the maneuver dataclasses (`Maneuver`) and their phase names
     config     `FlightConfig`, `default_config` and the config checks
     plan       `RandomPlan`: the seeded random choice of maneuvers, drawn as the flight goes
@@ -61,13 +67,18 @@ Modules, each depending only on those above it:
 
 from __future__ import annotations
 
-from mca_drake.references.jsbsim.aircraft import (
+from mca_drake.references.jsbsim.aircraft import SAMPLE_RATE_HZ
+from mca_drake.references.jsbsim.config import FlightConfig, default_config
+from mca_drake.references.jsbsim.fleet import (
     FULL_FLIGHT_MIN_DURATION_S,
     JSBSIM_MODELS,
-    SAMPLE_RATE_HZ,
+    RESERVED_MODELS,
+    TRAINING_VEHICLES,
+    UNSEEN_VEHICLES,
+    VEHICLE_CLASSES,
     VEHICLES,
+    check_vehicle,
 )
-from mca_drake.references.jsbsim.config import FlightConfig, default_config
 from mca_drake.references.jsbsim.flight import FlightLog, fly, fly_with_log
 from mca_drake.references.jsbsim.maneuvers import (
     AltitudeChange,
@@ -88,8 +99,12 @@ from mca_drake.references.jsbsim.model import FlightError
 __all__ = [
     "FULL_FLIGHT_MIN_DURATION_S",
     "JSBSIM_MODELS",
+    "RESERVED_MODELS",
     "SAMPLE_RATE_HZ",
+    "TRAINING_VEHICLES",
+    "UNSEEN_VEHICLES",
     "VEHICLES",
+    "VEHICLE_CLASSES",
     "AltitudeChange",
     "BankReversals",
     "Doublet",
@@ -105,6 +120,7 @@ __all__ = [
     "Taxi",
     "Turbulence",
     "Turn",
+    "check_vehicle",
     "default_config",
     "fly",
     "fly_with_log",

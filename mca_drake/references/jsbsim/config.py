@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from mca_drake.references.jsbsim.aircraft import DEG, VEHICLE_DEFAULTS, check_vehicle
+from mca_drake.references.jsbsim.aircraft import DEG
+from mca_drake.references.jsbsim.fleet import VEHICLE_DEFAULTS, check_vehicle
 from mca_drake.references.jsbsim.maneuvers import Doublet, Maneuver, Turbulence
 
 

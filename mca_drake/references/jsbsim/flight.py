@@ -16,16 +16,13 @@ import jsbsim
 import numpy as np
 from tqdm.auto import tqdm
 
-from mca_drake.references.jsbsim.aircraft import (
+from mca_drake.references.jsbsim.aircraft import FT, SAMPLE_RATE_HZ, STEP_S, G
+from mca_drake.references.jsbsim.config import FlightConfig, check_config
+from mca_drake.references.jsbsim.fleet import (
     AIRFRAMES,
-    FT,
     FULL_FLIGHT_MIN_DURATION_S,
-    SAMPLE_RATE_HZ,
-    STEP_S,
-    G,
     check_vehicle,
 )
-from mca_drake.references.jsbsim.config import FlightConfig, check_config
 from mca_drake.references.jsbsim.loops import Loops
 from mca_drake.references.jsbsim.model import Model, QuietLogger
 from mca_drake.references.jsbsim.pilot import Pilot
@@ -154,6 +151,11 @@ def _record(
         from_ground = duration_s >= FULL_FLIGHT_MIN_DURATION_S[vehicle]
     else:
         from_ground = bool(config.from_ground)
+    if from_ground and not air.ground_ops:
+        raise ValueError(
+            f"{vehicle} ({air.model}) flies airborne only: the pilot's taxi, take-off and "
+            "landing are calibrated for light and jet; set from_ground False"
+        )
     # The generator's draws come in a fixed order, so a seed always gives the same flight:
     # the turbulence generator's seed first, then the heading, then the plan's, as it flies.
     model = Model(

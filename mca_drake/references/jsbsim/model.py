@@ -163,7 +163,7 @@ class Model:
     """One JSBSim aircraft: FGFDMExec, its property nodes, the clock, the sanity checks.
 
     Args:
-        vehicle: "light" or "jet" (quoted by FlightError).
+        vehicle: the vehicle's name (`fleet.VEHICLES`; quoted by FlightError).
         seed: the flight's seed (quoted by FlightError).
         air: the vehicle's airframe constants (JSBSim model name, limits).
         logger: receives JSBSim's messages; the last one is quoted by FlightError.
@@ -264,8 +264,9 @@ class Model:
         if not fdm.run_ic():
             self.fail("JSBSim rejected the initial conditions")
         fdm["propulsion/set-running"] = -1
-        if air.engines == 1:
-            fdm["fcs/mixture-cmd-norm"] = 1.0
+        if air.piston:
+            for i in range(air.engines):
+                fdm[f"fcs/mixture-cmd-norm[{i}]"] = 1.0
         if from_ground:
             # Parked: idle, brakes set; settle on the gear (not recorded).
             controls.set_brakes(1.0)

@@ -39,6 +39,9 @@ from mca_drake.references.jsbsim.maneuvers import (
 )
 from mca_drake.references.jsbsim.model import Model
 
+# Bank at which the pilot ends a doublet's hands-off free response, rad.
+DOUBLET_BANK_LIMIT = 75 * DEG
+
 
 class Pilot:
     """Flies `plan` with `loops` in `model`; `fly()` steps it, one JSBSim step per `next`.
@@ -214,7 +217,9 @@ class Pilot:
         axis.offset = -m.amplitude
         yield from self._wait(m.half_period_s)
         axis.offset = 0.0
-        yield from self._wait(m.settle_s)
+        # The free response, unless it banks the aircraft steeply: a pilot takes the
+        # controls back then (a spirally unstable trainer rolls on past 100 deg otherwise).
+        yield from self._wait_until(lambda: abs(s.phi) > DOUBLET_BANK_LIMIT, m.settle_s)
         loops.yaw.hands_off = False
         loops.hold_altitude(loops.pitch.altitude_c)
         if loops.roll.mode == ROLL_HOLD:
