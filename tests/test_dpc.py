@@ -411,3 +411,13 @@ def test_default_loss_is_the_shipped_nmpc_objective_and_paper_is_v6s():
     ):
         assert getattr(paper, name) == recorded[name], name
     assert set(paper.tracking_channel_weights) == {1.0}
+
+
+def test_bad_loss_weights_are_refused():
+    with pytest.raises(ValueError, match="washout_weight must be a finite number >= 0"):
+        DpcTrainingConfig(washout_weight=-0.1).validate()
+    with pytest.raises(ValueError, match="input_weight"):
+        DpcTrainingConfig(input_weight=float("nan")).validate()
+    with pytest.raises(ValueError, match="perturbed_fraction"):
+        DpcTrainingConfig(perturbed_fraction=1.5).validate()
+    DpcTrainingConfig(washout_weight=0.5, input_weight=0.0).validate()

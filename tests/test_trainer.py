@@ -232,3 +232,36 @@ def test_a_checkpoint_without_its_parts_is_refused(tiny_split, tmp_path):
     save_checkpoint(path, payload, {k: v for k, v in meta.items() if k != "format"})
     with pytest.raises(CheckpointError, match=r"lacks \['best_model'\]"):
         _run(tmp_path, "d.pt", train, validation, resume=True, max_epochs=1)
+
+
+def test_batches_with_a_non_finite_gradient_are_skipped_and_too_many_stop(tiny_split, tmp_path):
+    """A finite loss whose gradient is infinite (sqrt at 0, the trap of a piecewise bound)
+    must not reach the weights: that batch is skipped and counted; when most are, an error."""
+    train, validation = tiny_split
+    torch.manual_seed(0)
+    calls = {"n": 0}
+
+    def objective(model, batch, poison_every):
+        loss = state_objective(model, batch)
+        calls["n"] += 1
+        if model.training and calls["n"] % poison_every == 0:
+            w = next(model.parameters())
+            loss = loss + torch.sqrt(w.sum() - w.sum().detach())  # value 0, slope inf
+        return loss
+
+    model = make_state_model("nssm")
+    config = _config(max_epochs=3, horizons=(16,), batch_size=4)
+    trainer = CurriculumTrainer(
+        model, lambda m, b: objective(m, b, 7), config, tmp_path / "skip.pt"
+    )
+    result = trainer.fit(train, validation, progress=False)
+    assert sum(r.skipped_batches for r in result.history) >= 1
+    assert all(torch.isfinite(p).all() for p in model.parameters())
+    assert "skipped_batches" in (tmp_path / "skip_loss.csv").read_text().splitlines()[0]
+
+    calls["n"] = 0
+    every = CurriculumTrainer(
+        make_state_model("nssm"), lambda m, b: objective(m, b, 1), config, tmp_path / "all.pt"
+    )
+    with pytest.raises(FloatingPointError, match="gradient was not finite"):
+        every.fit(train, validation, progress=False)

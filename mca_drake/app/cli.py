@@ -443,6 +443,9 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             seed="seed",
             window_segments="window_segments",
             init_policy="initial_policy",
+            washout_weight="washout_weight",
+            input_weight="input_weight",
+            perturbed_fraction="perturbed_fraction",
         ),
     )
     if args.no_compile:
@@ -772,6 +775,17 @@ def build_parser() -> argparse.ArgumentParser:
         "uniform, or normalized (1 / target variance)",
     )
     policy.add_argument("--init-policy", help="start from this policy file's weights")
+    policy.add_argument(
+        "--washout-weight", type=float, help="weight of ||q||^2 (default the objective's)"
+    )
+    policy.add_argument(
+        "--input-weight", type=float, help="weight of ||u||^2 (default the objective's)"
+    )
+    policy.add_argument(
+        "--perturbed-fraction",
+        type=float,
+        help="fraction of training rollouts from perturbed initial positions (default 0.5)",
+    )
     policy.add_argument("--max-epochs", type=int, help="epochs per curriculum step")
     policy.add_argument("--patience", type=int, help="early stopping, epochs")
     policy.add_argument("--seed", type=int, help="seed of the weight initialisation")

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 
 import torch
@@ -162,6 +163,21 @@ class DpcTrainingConfig:
             raise ValueError(f"tracking_channel_weights needs six finite numbers >= 0: {weights}")
         if self.initial_policy and not Path(self.initial_policy).is_file():
             raise ValueError(f"initial_policy file not found: {self.initial_policy}")
+        for name in (
+            "tracking_weight",
+            "state_estimate_weight",
+            "input_weight",
+            "washout_weight",
+            "limit_weight",
+            "terminal_position_weight",
+            "terminal_velocity_weight",
+            "initial_state_noise",
+        ):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0; got {value}")
+        if not 0.0 <= self.perturbed_fraction <= 1.0:
+            raise ValueError(f"perturbed_fraction must be in [0, 1]; got {self.perturbed_fraction}")
         if self.plant == "learned" and not Path(self.learned_output_weights).is_file():
             raise ValueError(
                 "plant='learned' needs learned_output_weights, the mixed analytical model's "
