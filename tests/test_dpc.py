@@ -421,3 +421,34 @@ def test_bad_loss_weights_are_refused():
     with pytest.raises(ValueError, match="perturbed_fraction"):
         DpcTrainingConfig(perturbed_fraction=1.5).validate()
     DpcTrainingConfig(washout_weight=0.5, input_weight=0.0).validate()
+
+
+def test_clamp_bounds_are_constants_of_the_step_unless_asked(robot):
+    """Near a limit the clamp's bound moves with the state at about 1/(c h^2) per rad: by
+    default training treats it as a constant (gradient zero through it), `bound_gradients`
+    lets it through, and then it matches a finite difference of the bound."""
+    from mca_drake.learning.dpc import RolloutPlant
+
+    x = torch.zeros(1, 12, dtype=torch.float32)
+    x[0, 0] = float(robot.q_max[0]) - 1e-4  # joint 1 just below its upper limit, at rest
+    u = torch.full((1, 6), float(robot.qdd_max[0]))  # full acceleration towards it
+
+    def clamped(config, state):
+        state = state.clone().requires_grad_(True)
+        out = RolloutPlant(config).clamp(state, u)
+        if not out.requires_grad:  # no path from the state to the command at all
+            return out, torch.zeros_like(state)
+        (grad,) = torch.autograd.grad(out[0, 0], state)
+        return out.detach(), grad
+
+    out, grad = clamped(DpcTrainingConfig(), x)
+    assert out[0, 0] < u[0, 0]  # it was clamped
+    assert torch.all(grad == 0)
+    _, grad = clamped(DpcTrainingConfig(bound_gradients=True), x)
+    step = 2e-5
+    shifted = x.clone()
+    shifted[0, 0] -= step
+    out_shifted, _ = clamped(DpcTrainingConfig(bound_gradients=True), shifted)
+    slope = (out[0, 0] - out_shifted[0, 0]) / step
+    assert grad[0, 0] == pytest.approx(float(slope), rel=0.1)
+    assert abs(float(grad[0, 0])) > 100.0

@@ -101,6 +101,13 @@ class DpcTrainingConfig:
     # Run the rollouts behind the viability clamp, as the policy runs when deployed
     # (`mca_drake.safety`); gradients pass through the clamp.
     safety_filter: bool = True
+    # Let gradients flow through the clamp's bounds into the state. False (the default):
+    # the bounds are constants of each step (the command's gradient passes where it is not
+    # clamped): near a limit the bounds' slopes in the state reach 1/(c h^2) = 2e4 per
+    # step, and from the tuned NMPC's far-from-neutral states of the mixed-vehicle set the
+    # rollout gradients overflowed (norms of 1e17 to inf at n_c = 256-1024). v5 and v6 were
+    # trained with True (`paper()`).
+    bound_gradients: bool = False
     # Training rollouts of this fraction of each batch start from perturbed positions: the
     # dataset's first state plus uniform noise of `initial_state_noise` times the joints'
     # half-ranges, clipped inside the limits. The NMPC data stay near neutral; without
@@ -145,7 +152,9 @@ class DpcTrainingConfig:
         """The paper's loss (equation 9 with the NMPC's paper weights: uniform tracking of the
         NMPC-achieved outputs, input 0.1, washout 1; our terminal cost 1, 1), with which the
         v5 and v6 policies were trained; `changes` set other fields."""
-        return cls.matching(NmpcConfig.paper(), **{"targets": "achieved", **changes})
+        return cls.matching(
+            NmpcConfig.paper(), **{"targets": "achieved", "bound_gradients": True, **changes}
+        )
 
     def validate(self) -> None:
         if self.targets not in TARGETS:
@@ -196,6 +205,7 @@ class RolloutPlant(nn.Module):
         robot = robot if robot is not None else load_kr500()
         self.kind = config.plant
         self.safety_filter = config.safety_filter
+        self.bound_gradients = config.bound_gradients
         self.dt = CONTROL_PERIOD_S
         for name in ("q_min", "q_max", "qd_max", "qdd_max"):
             self.register_buffer(
@@ -218,6 +228,8 @@ class RolloutPlant(nn.Module):
         lo, hi = viable_acceleration_bounds_torch(
             x, self.q_min, self.q_max, self.qd_max, self.qdd_max, self.dt
         )
+        if not self.bound_gradients:
+            lo, hi = lo.detach(), hi.detach()
         return torch.minimum(torch.maximum(u, lo), hi)
 
     def step(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
