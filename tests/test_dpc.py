@@ -452,3 +452,25 @@ def test_clamp_bounds_are_constants_of_the_step_unless_asked(robot):
     slope = (out[0, 0] - out_shifted[0, 0]) / step
     assert grad[0, 0] == pytest.approx(float(slope), rel=0.1)
     assert abs(float(grad[0, 0])) > 100.0
+
+
+def test_near_neutral_windows_keep_the_starts_inside_the_bound(tmp_path):
+    from mca_drake.learning.dpc import near_neutral_windows
+
+    data = _sine_target_dataset(n_segments=10, horizon=8)
+    data.arrays["X"][3, 0, 2] = 0.5  # starts 0.5 rad out on joint 3
+    data.arrays["X"][7, 0, 0] = -0.31
+    data.arrays["X"][5, 4, 1] = 2.0  # far out later in the window: does not count
+    kept = near_neutral_windows(data, 0.3)
+    assert len(kept) == 8
+    assert np.abs(kept.arrays["X"][:, 0, :6]).max() <= 0.3
+    assert near_neutral_windows(data, 0.6).arrays["X"].shape[0] == 10
+    with pytest.raises(ValueError, match="max_start_position_rad"):
+        DpcTrainingConfig(max_start_position_rad=0.0).validate()
+    path = data.save(tmp_path / "far.npz")
+    data.arrays["X"][:, 0, 0] = 1.0  # every window starts far out
+    far = data.save(tmp_path / "all_far.npz")
+    config = DpcTrainingConfig(max_start_position_rad=0.3, compile=False, window_segments=1)
+    with pytest.raises(ValueError, match="start within max_start_position_rad"):
+        train_policy(config, far, tmp_path / "out", progress=False)
+    assert path.is_file()

@@ -446,6 +446,7 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             washout_weight="washout_weight",
             input_weight="input_weight",
             perturbed_fraction="perturbed_fraction",
+            max_start_position="max_start_position_rad",
         ),
     )
     if args.no_compile:
@@ -784,6 +785,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     policy.add_argument(
         "--input-weight", type=float, help="weight of ||u||^2 (default the objective's)"
+    )
+    policy.add_argument(
+        "--max-start-position",
+        type=float,
+        help="train only on windows starting with every |q| within this many rad of neutral",
     )
     policy.add_argument(
         "--perturbed-fraction",

@@ -33,6 +33,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -117,6 +118,12 @@ class DpcTrainingConfig:
     # uses the dataset states.
     perturbed_fraction: float = 0.5
     initial_state_noise: float = 0.1
+    # Train and validate only on windows whose first joint positions are all within this
+    # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
+    # tilted far out (|q| up to 2.6 rad) in states the policy never visits in its own closed
+    # loop; their rollouts dominate the clipped gradient and fine-tuning barely moved v6 (with
+    # 0.3: the f16 check flight 10.7 -> 7.9; benchmarks/results/dpc_mixed.md).
+    max_start_position_rad: float = math.inf
     # Train on windows of this many consecutive dataset segments (n_c up to 4 x 256 = 10.24 s;
     # `mca_drake.segments.long_windows`); 1 uses the segments and their split.
     window_segments: int = 4
@@ -185,6 +192,10 @@ class DpcTrainingConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0; got {value}")
+        if not self.max_start_position_rad > 0:
+            raise ValueError(
+                f"max_start_position_rad must be > 0; got {self.max_start_position_rad}"
+            )
         if not 0.0 <= self.perturbed_fraction <= 1.0:
             raise ValueError(f"perturbed_fraction must be in [0, 1]; got {self.perturbed_fraction}")
         if self.plant == "learned" and not Path(self.learned_output_weights).is_file():
@@ -381,6 +392,16 @@ def dpc_objective(
     return objective
 
 
+def near_neutral_windows(windows: SegmentDataset, max_position_rad: float) -> SegmentDataset:
+    """The windows whose first joint positions X[:, 0, :6] are all within `max_position_rad`
+    of neutral (rad)."""
+    start = np.abs(windows.arrays["X"][:, 0, :NUM_JOINTS]).max(axis=1)
+    keep = start <= max_position_rad
+    return SegmentDataset(
+        {k: v[keep] for k, v in windows.arrays.items()}, windows.source[keep], windows.metadata
+    )
+
+
 def train_policy(
     config: DpcTrainingConfig,
     dataset: str | Path,
@@ -405,6 +426,17 @@ def train_policy(
         splits = long_windows(data, config.window_segments)
     else:
         splits = split_of(data)
+    if math.isfinite(config.max_start_position_rad):
+        splits = {
+            name: near_neutral_windows(part, config.max_start_position_rad)
+            for name, part in splits.items()
+        }
+    for name in ("train", "validation"):
+        if len(splits[name]) == 0:
+            raise ValueError(
+                f"no {name} windows in {dataset} start within max_start_position_rad = "
+                f"{config.max_start_position_rad} rad of neutral"
+            )
     torch.manual_seed(config.seed)
     if config.initial_policy:
         policy = load_policy_network(config.initial_policy)
