@@ -98,3 +98,5 @@ def test_mixed_vehicle_sets_deal_seeds_and_keep_evaluation_seeds_out():
         ClosedLoopDatasetConfig(flight_seeds=(100, 100)).validate()
     with pytest.raises(ValueError, match="reserved"):
         ClosedLoopDatasetConfig(vehicles=("light", "pa28")).validate()
+    with pytest.raises(ValueError, match="kept for evaluation case C"):
+        ClosedLoopDatasetConfig(vehicles=("light", "B747")).validate()

@@ -31,6 +31,8 @@ TINY = dict(trials=3, duration_s=2.0, flights=(("light", 100),))
     [
         (dict(flights=(("light", 1000),)), "evaluation flights are never tuned on"),
         (dict(flights=(("boeing", 100),)), "unknown vehicle 'boeing'"),
+        (dict(flights=(("737", 100),)), "reserved for unseen-vehicle checks"),
+        (dict(flights=(("T38", 100),)), "kept for evaluation case C"),
         (dict(mca="dpc"), "cannot tune 'dpc'"),
         (dict(trials=0), "trials must be at least 1"),
         (dict(flights=()), "flights is empty"),

@@ -28,7 +28,7 @@ from mca_drake.conventions import CHANNELS
 from mca_drake.cueing import MCA_NAMES, DpcConfig, mca_config_from_name, mca_name
 from mca_drake.plotting import plot_recording, save_figure
 from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
-from mca_drake.references.jsbsim import VEHICLES, fly
+from mca_drake.references.jsbsim import TRAINING_VEHICLES, VEHICLES, fly
 from mca_drake.references.recording import load_recording, save_recording
 from mca_drake.simulation.builders import default_visualization
 from mca_drake.simulation.closed_loop import PLANTS
@@ -614,7 +614,7 @@ def build_parser() -> argparse.ArgumentParser:
     closed.add_argument(
         "--vehicles",
         help="a mixed set: comma-separated vehicles, dealt to the seeds in turn (seed i flies "
-        f"vehicle i mod n); valid: {', '.join(VEHICLES)}",
+        f"vehicle i mod n); training aircraft: {', '.join(TRAINING_VEHICLES)}",
     )
     closed.add_argument(
         "--flights", type=int, help=f"flights (default {len(dataset_defaults.flight_seeds)})"

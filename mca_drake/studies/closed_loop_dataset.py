@@ -32,7 +32,7 @@ from mca_drake.cueing import McaConfig, NmpcConfig, as_mca_config, mca_config_re
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
 from mca_drake.kinematics import head_motion, output_from_motion, pose_derivatives_from_motion
 from mca_drake.references.flights import FlightSpec, flight_recording
-from mca_drake.references.jsbsim import check_vehicle
+from mca_drake.references.jsbsim import check_training_vehicle
 from mca_drake.references.reference import ReferenceScaling, reference_from_recording
 from mca_drake.robot import NUM_JOINTS, load_kr500
 from mca_drake.segments import SOURCE_COLUMNS, SPLIT_NAMES, SegmentDataset, package_versions
@@ -78,7 +78,7 @@ class ClosedLoopDatasetConfig:
         flight length; before any flight is simulated."""
         check_config_numbers(self)
         for vehicle in self.vehicles or (self.vehicle,):
-            check_vehicle(vehicle)
+            check_training_vehicle(vehicle)
         if not self.flight_seeds:
             raise ValueError("flight_seeds is empty")
         if len(set(self.flight_seeds)) != len(self.flight_seeds):

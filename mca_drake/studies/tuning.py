@@ -41,7 +41,7 @@ from mca_drake.cueing import NmpcConfig, WashoutConfig, mca_config_record
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
 from mca_drake.plotting import save_figure
 from mca_drake.references.flights import FlightSpec, flight_reference
-from mca_drake.references.jsbsim import check_vehicle
+from mca_drake.references.jsbsim import check_training_vehicle
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.parallel import ray_address, ray_session
 
@@ -89,7 +89,7 @@ class TuningConfig:
         if not self.flights:
             raise ValueError("flights is empty: nothing to tune on")
         for vehicle, seed in self.flights:
-            check_vehicle(vehicle)
+            check_training_vehicle(vehicle)
             if not 0 <= seed < FIRST_EVALUATION_SEED:
                 raise ValueError(
                     f"flight seed {seed}: tuning uses seeds 0 to {FIRST_EVALUATION_SEED - 1}; "

@@ -77,6 +77,7 @@ from mca_drake.references.jsbsim.fleet import (
     UNSEEN_VEHICLES,
     VEHICLE_CLASSES,
     VEHICLES,
+    check_training_vehicle,
     check_vehicle,
 )
 from mca_drake.references.jsbsim.flight import FlightLog, fly, fly_with_log
@@ -120,6 +121,7 @@ __all__ = [
     "Taxi",
     "Turbulence",
     "Turn",
+    "check_training_vehicle",
     "check_vehicle",
     "default_config",
     "fly",

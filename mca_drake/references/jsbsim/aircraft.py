@@ -76,10 +76,6 @@ class Airframe:
     # shorter stall); else those of large aircraft (reversals 5-9 s, gentler doublets,
     # altitude changes of 300-800 m, speeds down to 0.8 cruise).
     agile: bool = False
-    # Multiplies the random doublets' surface steps: below 1 for airframes whose surfaces
-    # roll them far faster at the same normalised deflection (an open-loop aileron step of
-    # 0.4 rolls a jet trainer past 100 deg within its half period).
-    doublet_scale: float = 1.0
     # Taxi, take-off and landing are calibrated for this airframe (its ground, flare and
     # approach constants were flown); else its flights start and stay airborne.
     ground_ops: bool = False

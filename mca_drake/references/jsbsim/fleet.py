@@ -71,7 +71,6 @@ def _airborne(
     retractable_gear: bool,
     piston: bool = False,
     agile: bool = False,
-    doublet_scale: float = 1.0,
 ) -> Airframe:
     """An airframe flown airborne only: the constants of the maneuvers as given (speeds kt,
     climb and descent rate m/s, pitch limits (max, min) deg, gains (roll rate, pitch rate,
@@ -118,8 +117,36 @@ def _airborne(
         rollout_s=60.0,
         piston=piston,
         agile=agile,
-        doublet_scale=doublet_scale,
         ground_ops=False,
+    )
+
+
+def _airliner(
+    model: str,
+    engines: int,
+    *,
+    stall_kt: float,
+    never_exceed_kt: float,
+    rates_deg: tuple[float, float, float],
+    climb_rate: float = 12.0,
+    max_load_factor: float = 4.0,
+) -> Airframe:
+    """An airborne-only transport jet: the jet's (global5000's) pitch limits, bank, gains and
+    dynamic-pressure reference, with the type's speeds and rate limits (`_airborne`)."""
+    return _airborne(
+        model,
+        engines,
+        stall_kt=stall_kt,
+        never_exceed_kt=never_exceed_kt,
+        climb_rate=climb_rate,
+        pitch_deg=(20, -10),
+        heading_bank_deg=25,
+        stall_alpha=0.19,
+        qbar_ref_psf=200.0,
+        gains=(1.4, 2.0, 3.0),
+        rates_deg=rates_deg,
+        max_load_factor=max_load_factor,
+        retractable_gear=True,
     )
 
 
@@ -244,36 +271,8 @@ AIRFRAMES = {
         retractable_gear=False,
         agile=True,
     ),
-    "A320": _airborne(
-        "A320",
-        2,
-        stall_kt=140,
-        never_exceed_kt=350,
-        climb_rate=12.0,
-        pitch_deg=(20, -10),
-        heading_bank_deg=25,
-        stall_alpha=0.19,
-        qbar_ref_psf=200.0,
-        gains=(1.4, 2.0, 3.0),
-        rates_deg=(8, 15, 5),
-        max_load_factor=4.0,
-        retractable_gear=True,
-    ),
-    "787-8": _airborne(
-        "787-8",
-        2,
-        stall_kt=150,
-        never_exceed_kt=360,
-        climb_rate=12.0,
-        pitch_deg=(20, -10),
-        heading_bank_deg=25,
-        stall_alpha=0.19,
-        qbar_ref_psf=200.0,
-        gains=(1.4, 2.0, 3.0),
-        rates_deg=(7, 12, 4),
-        max_load_factor=4.0,
-        retractable_gear=True,
-    ),
+    "A320": _airliner("A320", 2, stall_kt=140, never_exceed_kt=350, rates_deg=(8, 15, 5)),
+    "787-8": _airliner("787-8", 2, stall_kt=150, never_exceed_kt=360, rates_deg=(7, 12, 4)),
     "t6texan2": _airborne(
         "t6texan2",
         1,
@@ -289,7 +288,6 @@ AIRFRAMES = {
         max_load_factor=7.0,
         retractable_gear=True,
         agile=True,
-        doublet_scale=0.25,
     ),
     "T38": _airborne(
         "T38",
@@ -306,134 +304,53 @@ AIRFRAMES = {
         max_load_factor=7.0,
         retractable_gear=True,
         agile=True,
-        doublet_scale=0.3,
     ),
-    "MD11": _airborne(
-        "MD11",
-        3,
-        stall_kt=150,
-        never_exceed_kt=365,
-        climb_rate=12.0,
-        pitch_deg=(20, -10),
-        heading_bank_deg=25,
-        stall_alpha=0.19,
-        qbar_ref_psf=200.0,
-        gains=(1.4, 2.0, 3.0),
-        rates_deg=(7, 12, 4),
-        max_load_factor=3.8,
-        retractable_gear=True,
+    "MD11": _airliner(
+        "MD11", 3, stall_kt=150, never_exceed_kt=365, rates_deg=(7, 12, 4), max_load_factor=3.8
     ),
-    "B747": _airborne(
+    "B747": _airliner(
         "B747",
         4,
         stall_kt=150,
         never_exceed_kt=365,
-        climb_rate=10.0,
-        pitch_deg=(20, -10),
-        heading_bank_deg=25,
-        stall_alpha=0.19,
-        qbar_ref_psf=200.0,
-        gains=(1.4, 2.0, 3.0),
         rates_deg=(6, 10, 4),
+        climb_rate=10.0,
         max_load_factor=3.8,
-        retractable_gear=True,
     ),
 }
 
 
+def _defaults(
+    max_bank_deg: float, altitude_m: tuple[float, float, float], cruise_kt: float
+) -> dict:
+    """`FlightConfig` knobs: light turbulence with moderate patches, the bank limit (deg),
+    the maneuver, lowest and highest altitude above ground (m) and the cruise speed (kt)."""
+    maneuver, lowest, highest = altitude_m
+    return dict(
+        turbulence_severity=2,
+        turbulence_patch_severity=3,
+        max_bank_rad=max_bank_deg * DEG,
+        maneuver_altitude_m=maneuver,
+        min_altitude_m=lowest,
+        max_altitude_m=highest,
+        cruise_speed_mps=cruise_kt * KT,
+    )
+
+
+_TRANSPORT = _defaults(45, (2000.0, 1500.0, 3500.0), 250)
 # Default knobs of `FlightConfig` per vehicle (field name: value; angles rad, heights above
 # ground m, speeds m/s calibrated).
 VEHICLE_DEFAULTS = {
-    "light": dict(
-        turbulence_severity=2,
-        turbulence_patch_severity=3,
-        max_bank_rad=60 * DEG,
-        maneuver_altitude_m=600.0,
-        min_altitude_m=400.0,
-        max_altitude_m=1200.0,
-        cruise_speed_mps=100 * KT,
-    ),
-    "jet": dict(
-        turbulence_severity=2,
-        turbulence_patch_severity=3,
-        max_bank_rad=45 * DEG,
-        maneuver_altitude_m=2000.0,
-        min_altitude_m=1500.0,
-        max_altitude_m=3500.0,
-        cruise_speed_mps=250 * KT,
-    ),
-    "f16": dict(
-        turbulence_severity=2,
-        turbulence_patch_severity=3,
-        max_bank_rad=75 * DEG,
-        maneuver_altitude_m=2000.0,
-        min_altitude_m=1500.0,
-        max_altitude_m=4000.0,
-        cruise_speed_mps=350 * KT,
-    ),
-    "DHC6": dict(
-        turbulence_severity=2,
-        turbulence_patch_severity=3,
-        max_bank_rad=50 * DEG,
-        maneuver_altitude_m=800.0,
-        min_altitude_m=500.0,
-        max_altitude_m=1500.0,
-        cruise_speed_mps=130 * KT,
-    ),
-    "A320": dict(
-        turbulence_severity=2,
-        turbulence_patch_severity=3,
-        max_bank_rad=45 * DEG,
-        maneuver_altitude_m=2000.0,
-        min_altitude_m=1500.0,
-        max_altitude_m=3500.0,
-        cruise_speed_mps=250 * KT,
-    ),
-    "787-8": dict(
-        turbulence_severity=2,
-        turbulence_patch_severity=3,
-        max_bank_rad=45 * DEG,
-        maneuver_altitude_m=2000.0,
-        min_altitude_m=1500.0,
-        max_altitude_m=3500.0,
-        cruise_speed_mps=250 * KT,
-    ),
-    "t6texan2": dict(
-        turbulence_severity=2,
-        turbulence_patch_severity=3,
-        max_bank_rad=70 * DEG,
-        maneuver_altitude_m=1500.0,
-        min_altitude_m=1000.0,
-        max_altitude_m=3000.0,
-        cruise_speed_mps=200 * KT,
-    ),
-    "T38": dict(
-        turbulence_severity=2,
-        turbulence_patch_severity=3,
-        max_bank_rad=55 * DEG,
-        maneuver_altitude_m=2000.0,
-        min_altitude_m=1500.0,
-        max_altitude_m=4000.0,
-        cruise_speed_mps=350 * KT,
-    ),
-    "MD11": dict(
-        turbulence_severity=2,
-        turbulence_patch_severity=3,
-        max_bank_rad=45 * DEG,
-        maneuver_altitude_m=2000.0,
-        min_altitude_m=1500.0,
-        max_altitude_m=3500.0,
-        cruise_speed_mps=250 * KT,
-    ),
-    "B747": dict(
-        turbulence_severity=2,
-        turbulence_patch_severity=3,
-        max_bank_rad=45 * DEG,
-        maneuver_altitude_m=2000.0,
-        min_altitude_m=1500.0,
-        max_altitude_m=3500.0,
-        cruise_speed_mps=250 * KT,
-    ),
+    "light": _defaults(60, (600.0, 400.0, 1200.0), 100),
+    "jet": _TRANSPORT,
+    "f16": _defaults(75, (2000.0, 1500.0, 4000.0), 350),
+    "DHC6": _defaults(50, (800.0, 500.0, 1500.0), 130),
+    "A320": _TRANSPORT,
+    "787-8": _TRANSPORT,
+    "t6texan2": _defaults(70, (1500.0, 1000.0, 3000.0), 200),
+    "T38": _defaults(55, (2000.0, 1500.0, 4000.0), 350),
+    "MD11": _TRANSPORT,
+    "B747": _TRANSPORT,
 }
 
 JSBSIM_MODELS = {vehicle: air.model for vehicle, air in AIRFRAMES.items()}
@@ -441,8 +358,10 @@ JSBSIM_MODELS = {vehicle: air.model for vehicle, air in AIRFRAMES.items()}
 # Taxi, take-off, climb, descent, approach and roll-out take about 8 minutes in the light
 # aircraft (to 600 m) and 9 in the jet (to 2000 m); the rest is maneuvers. Airborne-only
 # vehicles never start on the ground.
+_FULL_FLIGHT_S = {"light": 600.0, "jet": 720.0}
 FULL_FLIGHT_MIN_DURATION_S = {
-    vehicle: {"light": 600.0, "jet": 720.0}.get(vehicle, math.inf) for vehicle in VEHICLES
+    vehicle: _FULL_FLIGHT_S[vehicle] if air.ground_ops else math.inf
+    for vehicle, air in AIRFRAMES.items()
 }
 assert set(AIRFRAMES) == set(VEHICLES) == set(VEHICLE_DEFAULTS)
 assert set(TRAINING_VEHICLES) | set(UNSEEN_VEHICLES) <= set(VEHICLES)
@@ -459,4 +378,16 @@ def check_vehicle(vehicle: str) -> str:
         )
     if vehicle not in AIRFRAMES:
         raise ValueError(f"unknown vehicle '{vehicle}'; valid: {', '.join(VEHICLES)}")
+    return vehicle
+
+
+def check_training_vehicle(vehicle: str) -> str:
+    """`check_vehicle`, and ValueError for the aircraft kept for evaluation case C
+    (UNSEEN_VEHICLES): tuning and training data never fly them."""
+    check_vehicle(vehicle)
+    if vehicle in UNSEEN_VEHICLES:
+        raise ValueError(
+            f"'{vehicle}' is kept for evaluation case C (aircraft never trained or tuned on); "
+            f"training and tuning fly: {', '.join(TRAINING_VEHICLES)}"
+        )
     return vehicle

@@ -176,7 +176,6 @@ def _record(
             rng,
             config,
             air,
-            vehicle,
             from_ground=from_ground,
             duration_s=duration_s,
             time_s=lambda: model.t,

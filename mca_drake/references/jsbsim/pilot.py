@@ -120,11 +120,11 @@ class Pilot:
 
     # ------------------------------------------------------------------------------ helpers
 
-    def _wait(self, seconds: float) -> Iterator[None]:
-        """Steps for `seconds` s (to the nearest step)."""
+    def _wait(self, seconds: float, until: Callable[[], bool] | None = None) -> Iterator[None]:
+        """Steps for `seconds` s (to the nearest step), or until `until()` holds."""
         model = self.model
         end = model.t + seconds
-        while model.t < end - 0.5 * STEP_S:
+        while model.t < end - 0.5 * STEP_S and not (until is not None and until()):
             yield
 
     def _wait_until(self, condition: Callable[[], bool], timeout_s: float) -> Iterator[None]:
@@ -211,15 +211,21 @@ class Pilot:
         loops.keep_heading()
         yield from self._wait_until(lambda: abs(s.p) < 0.03 and abs(s.phi) < 5 * DEG, 10.0)
         # Hands off that axis: its control stays where the loop had it, plus the steps.
+        # The steps and the free response, unless they bank the aircraft steeply: a pilot
+        # takes the controls back then (the trainers' ailerons roll them past 100 deg within
+        # a step, and a spirally unstable one rolls on in the free response).
         axis = loops.hands_off(m.control)
-        axis.offset = m.amplitude
-        yield from self._wait(m.half_period_s)
-        axis.offset = -m.amplitude
-        yield from self._wait(m.half_period_s)
+        steep = lambda: abs(s.phi) > DOUBLET_BANK_LIMIT  # noqa: E731
+        for offset, duration in (
+            (m.amplitude, m.half_period_s),
+            (-m.amplitude, m.half_period_s),
+            (0.0, m.settle_s),
+        ):
+            axis.offset = offset
+            yield from self._wait(duration, until=steep)
+            if steep():
+                break
         axis.offset = 0.0
-        # The free response, unless it banks the aircraft steeply: a pilot takes the
-        # controls back then (a spirally unstable trainer rolls on past 100 deg otherwise).
-        yield from self._wait_until(lambda: abs(s.phi) > DOUBLET_BANK_LIMIT, m.settle_s)
         loops.yaw.hands_off = False
         loops.hold_altitude(loops.pitch.altitude_c)
         if loops.roll.mode == ROLL_HOLD:

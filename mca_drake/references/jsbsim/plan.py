@@ -42,8 +42,7 @@ class RandomPlan:
     Args:
         rng: the flight's Generator (its set-up draws already taken); the plan draws from it.
         config: the resolved flight config (altitudes, speeds, bank, turbulence knobs).
-        air: the vehicle's airframe constants.
-        vehicle: the vehicle's name (unused: `air.agile` picks the maneuvers' ranges).
+        air: the vehicle's airframe constants (`air.agile` picks the maneuvers' ranges).
         from_ground: the flight takes off and must land before `duration_s`.
         duration_s: length of the recording, s.
         time_s: the flight's simulation time now, s.
@@ -56,7 +55,6 @@ class RandomPlan:
         rng: np.random.Generator,
         config: FlightConfig,
         air: Airframe,
-        vehicle: str,
         *,
         from_ground: bool,
         duration_s: float,
@@ -185,7 +183,7 @@ class RandomPlan:
             size = {"elevator": (0.04, 0.1), "aileron": (0.08, 0.2), "rudder": (0.05, 0.12)}
         return Doublet(
             control=control,
-            amplitude=side * self.air.doublet_scale * float(rng.uniform(*size[control])),
+            amplitude=side * float(rng.uniform(*size[control])),
             half_period_s=float(rng.uniform(0.5, 1.5)),
             settle_s=float(rng.uniform(3.0, 8.0)),
         )
