@@ -46,22 +46,25 @@ class DpcConfig:
         return Path(self.policy) if self.policy else default_policy_path()
 
 
+_DATA_DIR = Path(__file__).resolve().parents[1] / "data"
+
+
 def default_policy_path() -> Path:
     """The policy shipped with the package (mca_drake/data/default_policy.npz); raises
     FileNotFoundError with the command that makes one if it is missing."""
-    path = Path(__file__).resolve().parents[1] / "data" / "default_policy.npz"
-    if not path.is_file():
+    try:
+        return shipped_policy_path("default_policy")
+    except FileNotFoundError:
         raise FileNotFoundError(
-            f"no default policy at {path}; train one with `mca-drake train-policy` and pass "
-            "--policy, or reinstall the package"
-        )
-    return path
+            f"no default policy at {_DATA_DIR / 'default_policy.npz'}; train one with "
+            "`mca-drake train-policy` and pass --policy, or reinstall the package"
+        ) from None
 
 
 def shipped_policy_path(name: str) -> Path:
     """A policy file shipped in mca_drake/data: "default_policy" (the default) or an earlier
     one kept loadable, e.g. "policy_v6" (five c172p flights, the paper's loss)."""
-    path = Path(__file__).resolve().parents[1] / "data" / f"{name}.npz"
+    path = _DATA_DIR / f"{name}.npz"
     if not path.is_file():
         raise FileNotFoundError(f"no shipped policy '{name}' at {path}")
     return path
