@@ -77,3 +77,31 @@ def test_windows_end_between_control_instants():
     np.testing.assert_allclose(phase, 0.5, atol=1e-6)
     np.testing.assert_allclose(np.diff(ends), 0.5, atol=1e-9)  # about window_s apart
     assert ends[0] == pytest.approx(0.505)
+
+
+def test_a_few_late_samples_never_push_the_rest_out_of_the_wake_window():
+    """On a loaded machine a few samples arrive several ms late (here 3 % of them, 4.5 ms
+    behind a steady phase whose samples wait 5 ms). Following the latest arrival alone would
+    move the polls 0.5 ms later, and every other sample would wait 5.5 ms, outside the 4 ms
+    wake window; the lock keeps the median sample `wake_window_s - margin_s` before its poll."""
+    config = PhaseLockConfig(margin_s=1e-3, wake_window_s=4e-3, quantile=0.01)
+    rng = np.random.default_rng(3)
+    steady = waits(5.05e-3, 1e-4, n=194, seed=4)
+    late = steady[:6] - 4.5e-3
+    shift = phase_correction(rng.permutation(np.concatenate([steady, late])), H, config)
+    assert np.median(steady) - shift == pytest.approx(3e-3, abs=1e-5)
+    # without the wake window the latest arrivals decide, as before
+    plain = PhaseLockConfig(margin_s=1e-3, wake_window_s=0.0, quantile=0.01)
+    shift = phase_correction(np.concatenate([steady, late]), H, plain)
+    latest = np.quantile(np.concatenate([steady, late]), 0.01)
+    assert shift == pytest.approx(latest - 1e-3, abs=2e-5)
+    assert shift < 0
+
+
+def test_waits_of_half_a_period_shift_the_shorter_way_whichever_side_they_unwrap_on():
+    """Waits of 5.0 to 5.1 ms in a 10 ms period sit where the circle's unwrapping may read them as
+    -4.95 ms: the shift must still be the short one (4 ms earlier), not 6 ms later."""
+    config = PhaseLockConfig(margin_s=1e-3, wake_window_s=0.0, max_slew_s=0.005)
+    for seed in range(5):
+        shift = phase_correction(waits(5.1e-3, 1e-4, seed=seed), H, config)
+        assert shift == pytest.approx(0.0051 - 1e-4 * 0.99 - 1e-3, abs=3e-5)
