@@ -95,6 +95,47 @@ def performance_index(target, achieved) -> float:
     return tracking_score(target, achieved).pi
 
 
+# Rotation-rate thresholds of the semicircular canals about the head's x, y and z axes, rad/s:
+# 3.0, 3.6 and 2.6 deg/s (Reid & Nahon 1985, the values motion-cueing studies use). A false
+# rotation below them goes unnoticed; tilt coordination is rate-limited to about these.
+ROTATION_THRESHOLD_RAD_S = tuple(float(v) for v in np.radians([3.0, 3.6, 2.6]))
+
+
+@dataclasses.dataclass(frozen=True)
+class FalseRotation:
+    """Rotation the occupant feels that the vehicle did not make (see `false_rotation`)."""
+
+    rms_deg_s: float  # RMS over time of the false rotation rate's norm, deg/s
+    share_felt: float  # share of samples whose false rotation exceeds the thresholds, 0-1
+
+
+def false_rotation(target, achieved) -> FalseRotation:
+    """The false rotation cues of `achieved` against `target` (both (T, 6), channels as in
+    the module docstring; only w_x, w_y, w_z are read).
+
+    Per axis, the false part of the achieved rate w against the target w_r is |w| where
+    the two differ in sign (a rotation the wrong way) and max(|w| - |w_r|, 0) where they
+    agree (more rotation than the vehicle's); a missing rotation is not false. A sample is
+    felt when the false rates, each divided by its axis's `ROTATION_THRESHOLD_RAD_S`, have a
+    norm above 1. The PI prices rotation errors in rad/s beside specific-force errors in
+    m/s^2, so an MCA can buy a better PI with large false rotations (a tuned NMPC swung the
+    cabin at 50 deg/s RMS to sustain heave): this measure shows it.
+    """
+    target, achieved = _signals(target, achieved)
+    if target.shape[1] != len(CHANNELS):
+        raise ValueError(
+            f"signals must have {len(CHANNELS)} channels {CHANNELS}; got {target.shape}"
+        )
+    w, w_r = achieved[:, :3], target[:, :3]
+    same_way = np.sign(w) == np.sign(w_r)
+    false = np.where(same_way, np.maximum(np.abs(w) - np.abs(w_r), 0.0), np.abs(w))
+    felt = np.linalg.norm(false / np.asarray(ROTATION_THRESHOLD_RAD_S), axis=1) > 1.0
+    return FalseRotation(
+        rms_deg_s=float(np.degrees(np.sqrt(np.mean(np.sum(false**2, axis=1))))),
+        share_felt=float(np.mean(felt)),
+    )
+
+
 @dataclasses.dataclass(frozen=True)
 class RankSumResult:
     """Wilcoxon rank-sum test: z statistic, two-sided p-value, medians of both samples."""

@@ -152,3 +152,35 @@ def test_joint_range_used_is_the_swept_share_of_each_range(robot):
     expected = robot.q_max[4] / (robot.q_max[4] - robot.q_min[4])
     np.testing.assert_allclose(used[4], expected, atol=1e-12)
     assert used[1] == used[2] == used[3] == used[5] == 0.0
+
+
+def test_false_rotation_on_hand_computable_cases():
+    """Closed-form cases: a faithful, a scaled-down and a missing rotation are not false; a
+    rotation the wrong way is false at its whole rate, more than the vehicle's at the excess."""
+    target = np.zeros((1000, 6))
+    target[:, 0] = np.radians(10.0)  # 10 deg/s of roll throughout
+    assert metrics.false_rotation(target, target).rms_deg_s == pytest.approx(0.0)
+    assert metrics.false_rotation(target, 0.5 * target).share_felt == 0.0
+    assert metrics.false_rotation(target, np.zeros_like(target)).rms_deg_s == 0.0
+    wrong_way = -target
+    result = metrics.false_rotation(target, wrong_way)
+    assert result.rms_deg_s == pytest.approx(10.0)
+    assert result.share_felt == 1.0
+    # 2 deg/s more than the vehicle's: below the 3 deg/s roll threshold, never felt
+    excess = target.copy()
+    excess[:, 0] += np.radians(2.0)
+    result = metrics.false_rotation(target, excess)
+    assert result.rms_deg_s == pytest.approx(2.0)
+    assert result.share_felt == 0.0
+    # a yaw of 4 deg/s half the time where the vehicle has none: over the 2.6 deg/s threshold
+    spurious = target.copy()
+    spurious[::2, 2] = np.radians(4.0)
+    result = metrics.false_rotation(target, spurious)
+    assert result.rms_deg_s == pytest.approx(np.sqrt(0.5 * 16.0))
+    assert result.share_felt == pytest.approx(0.5)
+    # the thresholds combine: 2.4 deg/s of roll and 2.9 of pitch, each below its own
+    both = np.zeros((10, 6))
+    both[:, 0], both[:, 1] = np.radians(2.4), np.radians(2.9)
+    assert metrics.false_rotation(np.zeros((10, 6)), both).share_felt == 1.0
+    with pytest.raises(ValueError, match="channels"):
+        metrics.false_rotation(np.zeros((10, 3)), np.zeros((10, 3)))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 
+import numpy as np
 import pytest
 
 from mca_drake.cueing import DpcConfig, NmpcConfig, mca_config_from_name, mca_config_record
@@ -31,6 +32,16 @@ def test_small_suite_report_and_resume(tmp_path):
     assert "Case A" in (tmp_path / "evaluation.md").read_text()
     run = json.loads((tmp_path / "runs" / "A_washout_1001.json").read_text())
     assert run["mca"] == "washout" and run["seed"] == 1001
+    # the false rotation of every run, and its median per MCA in the report
+    false = [
+        json.loads((tmp_path / "runs" / f"A_washout_{s}.json").read_text())["false_rotation"]
+        for s in (1000, 1001)
+    ]
+    assert all(f["rms_deg_s"] >= 0 and 0 <= f["share_felt"] <= 1 for f in false)
+    assert case["mcas"]["washout"]["false_rotation_median_deg_s"] == pytest.approx(
+        np.median([f["rms_deg_s"] for f in false])
+    )
+    assert "deg/s |" in (tmp_path / "evaluation.md").read_text()
     # a re-run reads every finished run back: same report, nothing simulated again
     stamp = (tmp_path / "runs" / "A_washout_1001.json").stat().st_mtime_ns
     again = run_evaluation(config, tmp_path, progress=False)

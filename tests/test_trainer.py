@@ -9,13 +9,13 @@ import torch
 
 from mca_drake.learning import CheckpointError, CurriculumTrainer, TrainConfig
 from mca_drake.learning.checkpoint import load_checkpoint
-from mca_drake.learning.trainer import TrainingDiverged
 from mca_drake.learning.plant_candidates import (
     make_output_model,
     make_state_model,
     output_objective,
     state_objective,
 )
+from mca_drake.learning.trainer import TrainingDivergedError
 from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
 
 
@@ -264,7 +264,7 @@ def test_batches_with_a_non_finite_gradient_are_skipped_and_too_many_stop(tiny_s
     every = CurriculumTrainer(
         make_state_model("nssm"), lambda m, b: objective(m, b, 1), config, tmp_path / "all.pt"
     )
-    with pytest.raises(TrainingDiverged, match="gradient was not finite") as raised:
+    with pytest.raises(TrainingDivergedError, match="gradient was not finite") as raised:
         every.fit(train, validation, progress=False)
     # the command line reports it as an error the user can act on, not as a bug
     assert isinstance(raised.value, RuntimeError) and isinstance(raised.value, FloatingPointError)

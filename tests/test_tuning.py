@@ -9,6 +9,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from mca_drake.app.jobs import run_scenario
@@ -23,7 +24,8 @@ from mca_drake.studies.tuning import (
 )
 
 REPO = Path(__file__).resolve().parents[1]
-TINY = dict(trials=3, duration_s=2.0, flights=(("light", 100),))
+# no false-rotation limit: what is tested here is the tune's machinery, whatever 2 s show
+TINY = dict(trials=3, duration_s=2.0, flights=(("light", 100),), max_false_rotation_deg_s=0.0)
 
 
 @pytest.mark.parametrize(
@@ -36,6 +38,7 @@ TINY = dict(trials=3, duration_s=2.0, flights=(("light", 100),))
         (dict(mca="dpc"), "cannot tune 'dpc'"),
         (dict(trials=0), "trials must be at least 1"),
         (dict(flights=()), "flights is empty"),
+        (dict(max_false_rotation_deg_s=-1.0), "max_false_rotation_deg_s"),
     ],
 )
 def test_bad_tuning_settings_are_refused(change, match):
@@ -60,6 +63,32 @@ def test_a_new_tune_starts_at_the_shipped_defaults(mca):
     config = config_from_parameters(mca, starting_point(mca))
     default = NmpcConfig(mode="rti") if mca == "nmpc-rti" else WashoutConfig()
     assert config == default
+
+
+def test_a_config_over_the_false_rotation_limit_is_infeasible(tmp_path):
+    """The limit reads the runs' false rotation (median RMS over the flights): the same
+    config is feasible under a loose limit and infeasible, penalised and named, under one
+    below what it made, whose figures the score reports per flight."""
+    from mca_drake.studies.tuning import INFEASIBLE_PENALTY, score_config
+
+    flights = (("light", 100), ("jet", 100))
+    config = NmpcConfig(mode="rti")
+    loose = score_config(
+        config,
+        TuningConfig(duration_s=3.0, flights=flights, max_false_rotation_deg_s=1e3),
+        tmp_path,
+    )
+    assert loose["feasible"] and loose["objective"] == loose["pi_median"]
+    made = float(np.median(loose["false_rotation_deg_s"]))
+    assert len(loose["false_rotation_deg_s"]) == 2 and made > 0
+    tight = score_config(
+        config,
+        TuningConfig(duration_s=3.0, flights=flights, max_false_rotation_deg_s=0.5 * made),
+        tmp_path,
+    )
+    assert not tight["feasible"] and "false rotation" in tight["why"]
+    assert tight["objective"] == pytest.approx(tight["pi_median"] + INFEASIBLE_PENALTY)
+    assert tight["false_rotation_deg_s"] == pytest.approx(loose["false_rotation_deg_s"])
 
 
 def _trial_results(out: Path) -> list[Path]:

@@ -293,6 +293,8 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     )
     if args.budget_ms is not None:
         tuning.step_time_budget_s = args.budget_ms / 1e3
+    if args.max_false_rotation is not None:
+        tuning.max_false_rotation_deg_s = args.max_false_rotation
     command = "mca-drake " + " ".join(sys.argv[1:]) if sys.argv[0].endswith("mca-drake") else ""
     report = run_tuning(
         tuning,
@@ -701,6 +703,12 @@ def build_parser() -> argparse.ArgumentParser:
     tune.add_argument("--vehicles", help="with --seeds: every vehicle on every seed")
     tune.add_argument("--seeds", help="e.g. 100,101,102 (the training range: below 1000)")
     tune.add_argument("--budget-ms", type=float, help="step-time p99 budget, ms (default none)")
+    tune.add_argument(
+        "--max-false-rotation",
+        type=float,
+        help="false rotation limit, deg/s RMS, median over the flights (default "
+        f"{tuning_defaults.max_false_rotation_deg_s:g}; 0: none)",
+    )
     tune.add_argument("--workers", type=int, help="trials at once, on a local Ray (default 1)")
     tune.add_argument("--address", help=ADDRESS_HELP)
     tune.add_argument("--out-dir", default="results/tune")

@@ -39,7 +39,7 @@ from mca_drake.segments import SegmentDataset
 Objective = Callable[[nn.Module, dict[str, torch.Tensor]], torch.Tensor]
 
 
-class TrainingDiverged(FloatingPointError, RuntimeError):
+class TrainingDivergedError(FloatingPointError, RuntimeError):
     """Training cannot go on: the loss or too many batches' gradients were not finite. A
     RuntimeError too, so that the command line reports it as an error the user can act on
     (a lower learning rate, other data), not as a bug."""
@@ -373,7 +373,7 @@ class CurriculumTrainer:
                     optimiser.zero_grad(set_to_none=True)
                     loss = self.objective(self.model, batch)
                     if not torch.isfinite(loss):
-                        raise TrainingDiverged(
+                        raise TrainingDivergedError(
                             f"training loss is {float(loss)} at n_p={horizon}, epoch {epoch}: "
                             "lower the learning rate or check the data"
                         )
@@ -391,7 +391,7 @@ class CurriculumTrainer:
                     total += loss.item() * batch["U"].shape[0]
                     count += batch["U"].shape[0]
                 if skipped > MAX_SKIPPED_FRACTION * batches:
-                    raise TrainingDiverged(
+                    raise TrainingDivergedError(
                         f"the gradient was not finite in {skipped} of {batches} batches at "
                         f"n_p={horizon}, epoch {epoch}: lower the learning rate or check the "
                         "data"

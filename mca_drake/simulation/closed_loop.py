@@ -28,7 +28,7 @@ from tqdm.auto import tqdm
 from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
 from mca_drake.kinematics import plant_output
-from mca_drake.metrics import joint_range_used, joint_usage, tracking_score
+from mca_drake.metrics import false_rotation, joint_range_used, joint_usage, tracking_score
 from mca_drake.references.reference import Reference
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop, MakeMultibodyClosedLoop
@@ -136,6 +136,8 @@ def closed_loop_summary(
         "pi_zero_motion": zero_motion.pi,
         "rmse": score.rmse.tolist(),
         "cc": score.cc.tolist(),
+        # rotation felt that the vehicle did not make (metrics.false_rotation)
+        "false_rotation": dataclasses.asdict(false_rotation(reference, outputs)),
         "step_time_s": step_time_summary(step_times),
         "violations": usage.violations(),
         "joint_range_used": joint_range_used(states[:, :NUM_JOINTS], robot).round(4).tolist(),

@@ -7,7 +7,8 @@ closed loop on the analytical plant is run over each flight; per run the result 
 (README, "Result summary") is written as one JSON file, atomically. A re-run skips
 finished runs of the same MCA config, duration and policy, so a killed evaluation resumes.
 
-The report gives per case and MCA the PI distribution beside the zero-motion PI, step
+The report gives per case and MCA the PI distribution beside the zero-motion PI, the false
+rotation cues (`mca_drake.metrics.false_rotation`, which the PI prices cheaply), step
 times, violations and safety interventions; the Wilcoxon rank-sum test of DPC against
 every other MCA and the paired signed-rank test; the step-time ratios; a box-plot figure
 like the paper's Fig. 3; markdown and JSON.
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -253,6 +255,12 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                 "joint_range_used_median": float(
                     np.median([max(r["joint_range_used"]) for r in rs])
                 ),
+                # rotation felt that the vehicle did not make (metrics.false_rotation),
+                # median over flights of each run's RMS, deg/s (runs from before the
+                # measure have none: nan)
+                "false_rotation_median_deg_s": float(
+                    np.median([r.get("false_rotation", {}).get("rms_deg_s", np.nan) for r in rs])
+                ),
                 "step_time_median_s": float(np.median(steps)),
                 "step_time_max_s": float(max(r["step_time_s"]["max"] for r in rs)),
                 "violations": int(sum(sum(r["violations"].values()) for r in rs)),
@@ -332,8 +340,9 @@ def evaluation_markdown(report: dict) -> str:
             f"{case['seeds'][0]}-{case['seeds'][-1]}",
             "",
             "| MCA | runs | PI median | PI IQR | zero-motion PI median | joint range used | "
-            "step median | step max | violations | safety interventions | solver failures |",
-            "|---|---|---|---|---|---|---|---|---|---|---|",
+            "false rotation | step median | step max | violations | safety interventions | "
+            "solver failures |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         flights = len(case["seeds"])
         for mca, m in case["mcas"].items():
@@ -342,6 +351,7 @@ def evaluation_markdown(report: dict) -> str:
                 f"| {mca} | {runs} | {m['pi_median']:.3f} | {m['pi_iqr'][0]:.3f} to "
                 f"{m['pi_iqr'][1]:.3f} | {m['pi_zero_motion_median']:.3f} | "
                 f"{m['joint_range_used_median']:.0%} | "
+                f"{m.get('false_rotation_median_deg_s', math.nan):.1f} deg/s | "
                 f"{m['step_time_median_s'] * 1e3:.3f} ms | "
                 f"{m['step_time_max_s'] * 1e3:.2f} ms | {m['violations']} | "
                 f"{m['safety_interventions']} | {m['solver_failures']} |"

@@ -4,7 +4,8 @@ A trial is one MCA config (`NmpcConfig` in rti mode, or `WashoutConfig`) run in 
 on the analytical plant over a set of training flights; its objective is the median PI.
 Any limit violation or solver failure makes a trial infeasible: it then scores its median
 PI plus `INFEASIBLE_PENALTY`, so the searcher learns to avoid it. Optionally a trial whose
-99th-percentile step time exceeds a budget is infeasible too.
+99th-percentile step time exceeds a budget is infeasible too, and so is one whose false
+rotation cues (`mca_drake.metrics.false_rotation`) exceed `max_false_rotation_deg_s`.
 
 Flights are built-in JSBSim flights of the training range (seeds below 1000: evaluation
 uses 1000 on) and never a reserved aircraft (only `mca_drake.references.jsbsim.VEHICLES`
@@ -72,6 +73,14 @@ class TuningConfig:
     )
     # A trial whose 99th-percentile MCA step time exceeds this is infeasible, s (0: none).
     step_time_budget_s: float = 0.0
+    # A trial whose false rotation (`mca_drake.metrics.false_rotation`: RMS rate of the
+    # rotation the occupant feels that the vehicle did not make), median over the flights,
+    # exceeds this is infeasible, deg/s (0: none). The PI prices rotation errors in rad/s
+    # beside specific-force errors in m/s^2: tuned on the PI alone, the NMPC swung the cabin
+    # at 16-58 deg/s RMS of false rotation (felt 80-90 % of the time) to sustain heave by
+    # centripetal acceleration. 5 deg/s, about twice the vestibular thresholds, leaves room
+    # for tilt coordination at its usual rate limits (DPC v6 and the washout: 1-4 deg/s).
+    max_false_rotation_deg_s: float = 5.0
     # Seed of the TPE sampler.
     seed: int = 0
 
@@ -97,6 +106,8 @@ class TuningConfig:
                 )
         if self.step_time_budget_s < 0:
             raise ValueError("step_time_budget_s must be >= 0")
+        if self.max_false_rotation_deg_s < 0:
+            raise ValueError("max_false_rotation_deg_s must be >= 0 (0: no limit)")
 
 
 def search_space(mca: str) -> dict:
@@ -173,8 +184,9 @@ def baseline_config(mca: str) -> NmpcConfig | WashoutConfig:
 
 def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
     """Runs `config` over the training flights: {"objective", "pi_median", "feasible",
-    "pi" (per flight), "pi_zero_motion" (per flight), "step_time_p99_s", "why"}."""
-    pis, zero, p99, why = [], [], 0.0, ""
+    "pi" (per flight), "pi_zero_motion" (per flight), "false_rotation_deg_s" (per flight,
+    RMS), "step_time_p99_s", "why"}."""
+    pis, zero, false, p99, why = [], [], [], 0.0, ""
     for vehicle, seed in tuning.flights:
         reference = flight_reference(
             FlightSpec(vehicle=vehicle, seed=seed), tuning.duration_s, cache_dir=flights_dir
@@ -185,6 +197,7 @@ def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
         s = result.summary
         pis.append(s["pi"])
         zero.append(s["pi_zero_motion"])
+        false.append(s["false_rotation"]["rms_deg_s"])
         p99 = max(p99, s["step_time_s"]["p99"])
         if sum(s["violations"].values()):
             why = why or f"limit violations on {vehicle} {seed}"
@@ -192,6 +205,9 @@ def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
             why = why or f"solver failures on {vehicle} {seed}"
     if tuning.step_time_budget_s and p99 > tuning.step_time_budget_s:
         why = why or f"step p99 {p99 * 1e3:.2f} ms over the budget"
+    limit = tuning.max_false_rotation_deg_s
+    if limit and np.median(false) > limit:
+        why = why or f"false rotation {np.median(false):.1f} deg/s RMS over {limit:g}"
     median = float(np.median(pis))
     return {
         "objective": median + (INFEASIBLE_PENALTY if why else 0.0),
@@ -200,6 +216,7 @@ def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
         "why": why,
         "pi": pis,
         "pi_zero_motion": zero,
+        "false_rotation_deg_s": false,
         "step_time_p99_s": p99,
     }
 
@@ -339,6 +356,8 @@ def write_tuning_report(
         row |= {f"config/{k}": v for k, v in r["parameters"].items()}
         row |= {k: r[k] for k in ("objective", "pi_median", "feasible", "why", "step_time_p99_s")}
         row |= {"pi": json.dumps(r["pi"]), "pi_zero_motion": json.dumps(r["pi_zero_motion"])}
+        # (tunes before the false-rotation measure have none)
+        row["false_rotation_deg_s"] = json.dumps(r.get("false_rotation_deg_s", []))
         rows.append(row)
     table = pd.DataFrame(rows)
     parameter_columns = sorted(c for c in table.columns if c.startswith("config/"))
@@ -374,16 +393,22 @@ def write_tuning_report(
         "trials": len(table),
         "feasible_trials": int(table["feasible"].sum()),
         "best_config": mca_config_record(best),
-        "best": {"pi_median": float(best_row["pi_median"]), "pi": best_pis},
+        "best": {
+            "pi_median": float(best_row["pi_median"]),
+            "pi": best_pis,
+            "false_rotation_deg_s": json.loads(best_row["false_rotation_deg_s"]),
+        },
         "baseline": {
             "config": mca_config_record(baseline),
             "pi_median": float(np.median(baseline_scores["pi"])),
             "pi": baseline_scores["pi"],
             "feasible": baseline_scores["feasible"],
+            "false_rotation_deg_s": baseline_scores["false_rotation_deg_s"],
         },
         "zero_motion": {"pi_median": float(np.median(zero)), "pi": zero},
         "flights": [list(f) for f in tuning.flights],
         "duration_s": tuning.duration_s,
+        "max_false_rotation_deg_s": tuning.max_false_rotation_deg_s,
     }
     atomic_write_json(out / "report.json", report)
     atomic_write_text(out / "report.md", _markdown(report, feasible, parameter_columns))
@@ -403,17 +428,26 @@ def _markdown(report: dict, feasible, parameter_columns) -> str:
         f"{report['baseline']['pi_median']:.3f}; zero motion "
         f"{report['zero_motion']['pi_median']:.3f}.",
         "",
-        "| flight | best | baseline | zero motion |",
-        "|---|---|---|---|",
+        f"False rotation limit (median RMS over the flights): "
+        f"{report['max_false_rotation_deg_s']:g} deg/s (0: none).",
+        "",
+        "| flight | best | baseline | zero motion | false rotation best, deg/s RMS | baseline |",
+        "|---|---|---|---|---|---|",
     ]
-    for (vehicle, seed), best, base, zero in zip(
+    false_best = report["best"]["false_rotation_deg_s"] or [math.nan] * len(report["flights"])
+    for (vehicle, seed), best, base, zero, false, false_base in zip(
         report["flights"],
         report["best"]["pi"],
         report["baseline"]["pi"],
         report["zero_motion"]["pi"],
+        false_best,
+        report["baseline"]["false_rotation_deg_s"],
         strict=True,
     ):
-        lines.append(f"| {vehicle} {seed} | {best:.3f} | {base:.3f} | {zero:.3f} |")
+        lines.append(
+            f"| {vehicle} {seed} | {best:.3f} | {base:.3f} | {zero:.3f} | {false:.1f} | "
+            f"{false_base:.1f} |"
+        )
     names = [c.removeprefix("config/") for c in parameter_columns]
     lines += [
         "",
