@@ -3,6 +3,7 @@ best config loads into a scenario and runs."""
 
 from __future__ import annotations
 
+import dataclasses
 import signal
 import subprocess
 import sys
@@ -20,7 +21,7 @@ from mca_drake.studies.tuning import (
     config_from_parameters,
     run_tuning,
     search_space,
-    starting_point,
+    starting_points,
 )
 
 REPO = Path(__file__).resolve().parents[1]
@@ -59,17 +60,30 @@ def test_every_point_of_the_space_is_a_valid_config(mca):
 
 @pytest.mark.parametrize("mca", ["nmpc-rti", "washout"])
 def test_a_new_tune_starts_at_the_shipped_defaults(mca):
-    """The first point of a new tune is the default config (inside the space, unchanged)."""
-    config = config_from_parameters(mca, starting_point(mca))
+    """The first point of a new tune is the default config (inside the space, unchanged); the
+    NMPC's second is the same with its three rotation weights x100 and nothing else changed."""
+    points = starting_points(mca)
+    config = config_from_parameters(mca, points[0])
     default = NmpcConfig(mode="rti") if mca == "nmpc-rti" else WashoutConfig()
     assert config == default
+    if mca == "nmpc-rti":
+        second = config_from_parameters(mca, points[1])
+        np.testing.assert_allclose(
+            second.output_weights[:3], np.asarray(default.output_weights[:3]) * 100
+        )
+        assert second.output_weights[3:] == default.output_weights[3:]
+        assert dataclasses.replace(second, output_weights=default.output_weights) == default
 
 
 def test_a_config_over_the_false_rotation_limit_is_infeasible(tmp_path):
     """The limit reads the runs' false rotation (median RMS over the flights): the same
     config is feasible under a loose limit and infeasible, penalised and named, under one
     below what it made, whose figures the score reports per flight."""
-    from mca_drake.studies.tuning import INFEASIBLE_PENALTY, score_config
+    from mca_drake.studies.tuning import (
+        FALSE_ROTATION_PENALTY_PER_LIMIT,
+        INFEASIBLE_PENALTY,
+        score_config,
+    )
 
     flights = (("light", 100), ("jet", 100))
     config = NmpcConfig(mode="rti")
@@ -87,7 +101,10 @@ def test_a_config_over_the_false_rotation_limit_is_infeasible(tmp_path):
         tmp_path,
     )
     assert not tight["feasible"] and "false rotation" in tight["why"]
-    assert tight["objective"] == pytest.approx(tight["pi_median"] + INFEASIBLE_PENALTY)
+    # at twice the limit: the flat penalty plus one limit's worth of the graded one
+    assert tight["objective"] == pytest.approx(
+        tight["pi_median"] + INFEASIBLE_PENALTY + FALSE_ROTATION_PENALTY_PER_LIMIT
+    )
     assert tight["false_rotation_deg_s"] == pytest.approx(loose["false_rotation_deg_s"])
 
 

@@ -48,6 +48,11 @@ from mca_drake.studies.parallel import ray_address, ray_session
 
 # Added to an infeasible trial's median PI (the PI's range is about -6 to +10).
 INFEASIBLE_PENALTY = 10.0
+# Added on top, per limit's worth of false rotation above the limit (a trial at twice the
+# limit scores INFEASIBLE_PENALTY + 2): graded, so that TPE, whose "good" trials are the best
+# quantile, learns the way to feasibility while every trial is still over the limit (under a
+# flat penalty the best infeasible trials are those that bought PI with the most rotation).
+FALSE_ROTATION_PENALTY_PER_LIMIT = 2.0
 TUNABLE_MCAS = ("nmpc-rti", "washout")
 CHANNELS_WEIGHTED = ("w_x", "w_y", "w_z", "f_x", "f_y", "a_z")
 
@@ -117,6 +122,12 @@ def search_space(mca: str) -> dict:
 
     if mca == "nmpc-rti":
         space = {f"weight_{c}": tune.loguniform(0.1, 10.0) for c in CHANNELS_WEIGHTED}
+        # Rotation errors are in rad/s beside specific force in m/s^2: a false rotation at
+        # the vestibular threshold (0.05 rad/s) costs a 400th of a 1 m/s^2 force error at
+        # equal weights. Rotation weights up to 300 let the tune price it near the force
+        # channels' (x100 on the 2026-11-23 weights: 2.2 deg/s RMS false rotation on a
+        # 120 s jet flight against 26.6, PI -1.62 against -1.79).
+        space |= {f"weight_{c}": tune.loguniform(0.1, 300.0) for c in ("w_x", "w_y", "w_z")}
         space |= {
             # down to 1e-3: the 23-trial tune of 2026-11-23 put its best at 0.01, the bound
             # then (the exact QPs of the dual active-set method keep such weights real-time)
@@ -165,15 +176,23 @@ def parameters_of(mca: str, config: NmpcConfig | WashoutConfig) -> dict[str, flo
     return {k: float(getattr(config, k)) for k in search_space(mca)}
 
 
-def starting_point(mca: str) -> dict[str, float]:
-    """The first trial of a new tune: the shipped defaults, clipped into the search space, so
-    that a tune never ends worse than the defaults on its own objective."""
+def starting_points(mca: str) -> list[dict[str, float]]:
+    """The first trials of a new tune, clipped into the search space: the shipped defaults
+    (so that a tune never ends worse than them on its own objective) and, for the NMPC, the
+    defaults with the rotation weights x100 (a point under the false-rotation limit when the
+    defaults were tuned without one)."""
     space = search_space(mca)
     default = NmpcConfig(mode="rti") if mca == "nmpc-rti" else WashoutConfig()
-    return {
-        k: float(np.clip(v, space[k].lower, space[k].upper))
-        for k, v in parameters_of(mca, default).items()
-    }
+    points = [parameters_of(mca, default)]
+    if mca == "nmpc-rti":
+        points.append(
+            points[0]
+            | {f"weight_{c}": 100 * points[0][f"weight_{c}"] for c in ("w_x", "w_y", "w_z")}
+        )
+    return [
+        {k: float(np.clip(v, space[k].lower, space[k].upper)) for k, v in point.items()}
+        for point in points
+    ]
 
 
 def baseline_config(mca: str) -> NmpcConfig | WashoutConfig:
@@ -206,11 +225,13 @@ def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
     if tuning.step_time_budget_s and p99 > tuning.step_time_budget_s:
         why = why or f"step p99 {p99 * 1e3:.2f} ms over the budget"
     limit = tuning.max_false_rotation_deg_s
+    excess = 0.0
     if limit and np.median(false) > limit:
         why = why or f"false rotation {np.median(false):.1f} deg/s RMS over {limit:g}"
+        excess = FALSE_ROTATION_PENALTY_PER_LIMIT * (float(np.median(false)) / limit - 1.0)
     median = float(np.median(pis))
     return {
-        "objective": median + (INFEASIBLE_PENALTY if why else 0.0),
+        "objective": median + (INFEASIBLE_PENALTY + excess if why else 0.0),
         "pi_median": median,
         "feasible": not why,
         "why": why,
@@ -317,7 +338,7 @@ def run_tuning(
                 sampler=optuna.samplers.TPESampler(seed=tuning.seed + len(done)),
                 # A resume hands over every finished trial with its score; a new tune
                 # starts at the shipped defaults.
-                points_to_evaluate=[d["parameters"] for d in done] or [starting_point(tuning.mca)],
+                points_to_evaluate=[d["parameters"] for d in done] or starting_points(tuning.mca),
                 evaluated_rewards=[d["objective"] for d in done] or None,
             )
             trainable = tune.with_parameters(
