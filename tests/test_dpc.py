@@ -51,6 +51,31 @@ def test_policy_output_is_always_inside_bounds(seed, scale, robot):
     assert torch.all(upper[:6] == torch.tensor(robot.qdd_max, dtype=torch.float32))
 
 
+def test_a_policy_file_keeps_its_own_input_scales(tmp_path, rng):
+    """The output scales at the network's input are constants of each file: v6's file loads
+    with v6's (0.5 rad/s) into a network that computes what its numpy inference computes,
+    a new network gets `OUTPUT_SCALE` (0.1 rad/s), and a bad scale is refused."""
+    from mca_drake.cueing.dpc import shipped_policy_path
+    from mca_drake.learning.policy import OUTPUT_SCALE, OUTPUT_SCALE_V6
+
+    v6_path = shipped_policy_path("policy_v6")
+    v6 = load_policy_network(v6_path).double()
+    np.testing.assert_allclose(v6.export()["input_scale"][:6], OUTPUT_SCALE_V6)
+    inference = PolicyInference(load_policy_arrays(v6_path)[0])
+    y, x, r = rng.normal(size=6) * 0.3, rng.normal(size=12) * 0.3, rng.normal(size=6) * 0.3
+    u_torch, _ = v6(*(torch.tensor(v)[None] for v in (y, x, r)))
+    np.testing.assert_allclose(inference(y, x, r)[0], u_torch[0].detach().numpy(), atol=1e-9)
+    fresh = PolicyNetwork()
+    np.testing.assert_allclose(fresh.export()["input_scale"][18:], OUTPUT_SCALE, rtol=1e-6)
+    save_policy(tmp_path / "fresh.npz", fresh, {"model": "dpc-policy"})
+    again = load_policy_network(tmp_path / "fresh.npz")
+    np.testing.assert_allclose(again.export()["input_scale"], fresh.export()["input_scale"])
+    with pytest.raises(ValueError, match="output_scale"):
+        PolicyNetwork(output_scale=(0.1, 0.1, 0.0, 2.0, 2.0, 2.0))
+    with pytest.raises(ValueError, match="output_scale"):
+        DpcTrainingConfig(output_scale=(1.0,) * 5).validate()
+
+
 def test_numpy_inference_equals_torch(rng):
     policy = _random_policy(1, gain=2.0).double()
     inference = PolicyInference(policy.export())

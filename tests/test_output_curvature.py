@@ -7,6 +7,8 @@ minimal-change property of the Powell-symmetric-Broyden update on a quadratic.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -132,8 +134,16 @@ def test_tiny_steps_leave_the_estimates_alone():
     assert np.array_equal(psb_update(M, s, np.ones((1, 6, 18))), M)
 
 
+# The solver's mechanisms are tested at the paper's weights, where a 3 g surge step is a
+# large-residual problem: at the shipped weights (tuned) the solve ends after two iterations
+# on the step tolerance, its plan at the input bounds, which would test nothing here.
+def _paper_converged(robot) -> MotionCueingOcp:
+    config = dataclasses.replace(NmpcConfig.paper(), mode="converged", nodes=6, horizon_steps=24)
+    return MotionCueingOcp(config, robot)
+
+
 def test_converged_solve_carries_its_hessians_and_refuses_ones_that_do_not_fit(robot):
-    ocp = MotionCueingOcp(NmpcConfig(mode="converged", nodes=6, horizon_steps=24), robot)
+    ocp = _paper_converged(robot)
     x0, refs = np.zeros(12), np.array([0.0, 0.0, 0.0, 14.715, 0.0, 0.0])
     first = ocp.solve(x0, refs)
     assert first.output_hessians.shape == (ocp.N, 6, 18, 18)
@@ -153,7 +163,7 @@ def test_a_curvature_model_that_overpromises_is_measured_afresh(robot, monkeypat
     on 3 g steps with drifted estimates, is measured in benchmarks/bench_nmpc.py.)"""
     from mca_drake.cueing import nmpc
 
-    ocp = MotionCueingOcp(NmpcConfig(mode="converged", nodes=6, horizon_steps=24), robot)
+    ocp = _paper_converged(robot)
     x0, refs = np.zeros(12), np.array([0.5, 0.3, 0.0, 14.715, 5.0, 9.81])
     good = ocp.solve(x0, refs)
     measured = []

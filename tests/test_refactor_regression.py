@@ -37,6 +37,7 @@ import numpy as np
 import pytest
 
 from mca_drake.cueing import DpcConfig, NmpcConfig, WashoutConfig
+from mca_drake.cueing.dpc import shipped_policy_path
 from mca_drake.references.jsbsim import fly
 from mca_drake.references.recording import Recording
 from mca_drake.references.reference import reference_from_recording
@@ -50,7 +51,7 @@ OUTPUT_TOLERANCE = 1e-12
 # The MCAs as the fixture ran them: the defaults of f31529d, named explicitly so that
 # tuned defaults do not change them.
 MCAS = {
-    "dpc": DpcConfig(),
+    "dpc": DpcConfig(policy=str(shipped_policy_path("policy_v6"))),  # shipped at f31529d
     "nmpc-rti": NmpcConfig.paper("rti"),
     "nmpc-converged": NmpcConfig.paper("converged"),
     "washout": WashoutConfig.classic(),

@@ -43,7 +43,13 @@ from mca_drake.cueing import NmpcConfig
 from mca_drake.cueing.dpc import load_policy_arrays
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
 from mca_drake.learning.output_models import MixedAnalyticalOutput
-from mca_drake.learning.policy import PolicyNetwork, load_policy_network, save_policy
+from mca_drake.learning.policy import (
+    OUTPUT_SCALE,
+    OUTPUT_SCALE_V6,
+    PolicyNetwork,
+    load_policy_network,
+    save_policy,
+)
 from mca_drake.learning.state_models import Node2State
 from mca_drake.learning.trainer import CurriculumTrainer, TrainConfig
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
@@ -129,6 +135,10 @@ class DpcTrainingConfig:
     window_segments: int = 4
     # Hidden neurons of the policy (paper: 128).
     hidden: int = 128
+    # Scales of the measured and target outputs at the network's input (w_x, w_y, w_z in
+    # rad/s, f_x, f_y, a_z in m/s^2; `mca_drake.learning.policy.OUTPUT_SCALE`). A policy
+    # fine-tuned from `initial_policy` keeps that file's scales.
+    output_scale: tuple[float, ...] = OUTPUT_SCALE
     # Optimiser, epochs, batch and the rollout length n_c (train.horizons, one step).
     train: TrainConfig = dataclasses.field(default_factory=_default_train)
     # Seed of the weight initialisation.
@@ -160,7 +170,13 @@ class DpcTrainingConfig:
         NMPC-achieved outputs, input 0.1, washout 1; our terminal cost 1, 1), with which the
         v5 and v6 policies were trained; `changes` set other fields."""
         return cls.matching(
-            NmpcConfig.paper(), **{"targets": "achieved", "bound_gradients": True, **changes}
+            NmpcConfig.paper(),
+            **{
+                "targets": "achieved",
+                "bound_gradients": True,
+                "output_scale": OUTPUT_SCALE_V6,
+                **changes,
+            },
         )
 
     def validate(self) -> None:
@@ -192,6 +208,8 @@ class DpcTrainingConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0; got {value}")
+        if len(self.output_scale) != 6 or not all(0 < v < float("inf") for v in self.output_scale):
+            raise ValueError(f"output_scale needs six positive numbers; got {self.output_scale}")
         if not self.max_start_position_rad > 0:
             raise ValueError(
                 f"max_start_position_rad must be > 0; got {self.max_start_position_rad}"
@@ -446,7 +464,7 @@ def train_policy(
                 f"the config {config.hidden}"
             )
     else:
-        policy = PolicyNetwork(hidden=config.hidden)
+        policy = PolicyNetwork(hidden=config.hidden, output_scale=config.output_scale)
     plant = RolloutPlant(config)
     train_targets = splits["train"].arrays[target_array(config)]
     channel_weights = tracking_channel_weights(config, train_targets)

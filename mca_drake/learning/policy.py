@@ -12,7 +12,8 @@ f_pi is two bias-free linear layers of 128 with a GELU between; sat is the ReLU 
 lb + relu(z - lb) - relu(z - ub) = min(max(z, lb), ub) with lb = [qdd-, q-, qd-] and
 ub = [qdd+, q+, qd+] (Table I). One addition to the paper: the inputs are divided by fixed
 scales (the joint limits for x, `OUTPUT_SCALE` for y and Y) so that every input is of order
-one; the scales are constants of the network, exported with its weights.
+one; the scales are constants of the network, exported with its weights (a file keeps its own:
+v5 and v6 were trained with `OUTPUT_SCALE_V6`).
 """
 
 from __future__ import annotations
@@ -35,7 +36,13 @@ from mca_drake.learning.blocks import Mlp
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 
 # Typical magnitudes of the output channels [w_x, w_y, w_z, f_x, f_y, a_z]: rad/s, m/s^2.
-OUTPUT_SCALE = (0.5, 0.5, 0.5, 2.0, 2.0, 2.0)
+# The scaled references' rates have a spread of 0.02-0.06 rad/s (the mixed-vehicle set; p99
+# 0.09-0.28) against 0.3-1.4 m/s^2 for the forces: at v6's 0.5 rad/s an airliner's yaw rate
+# reached the network at a fiftieth of a force's size, and Adam's bounded steps never grew
+# its weights enough (yaw CC 0.14 against the NMPC's 0.96 on a 787 flight).
+OUTPUT_SCALE = (0.1, 0.1, 0.1, 2.0, 2.0, 2.0)
+# The scales of v5 and v6 (their files carry them).
+OUTPUT_SCALE_V6 = (0.5, 0.5, 0.5, 2.0, 2.0, 2.0)
 
 
 def relu_clamp(z: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor) -> torch.Tensor:
@@ -51,17 +58,26 @@ class PolicyNetwork(nn.Module):
     Args:
         robot: the KR500 description (limits of the saturation, input scales).
         hidden: neurons of the hidden layer (paper: 128).
+        output_scale: the scales of y and Y (6; default `OUTPUT_SCALE`).
     """
 
-    def __init__(self, robot: KR500 | None = None, hidden: int = 128):
+    def __init__(
+        self,
+        robot: KR500 | None = None,
+        hidden: int = 128,
+        output_scale: tuple[float, ...] | np.ndarray = OUTPUT_SCALE,
+    ):
         super().__init__()
         robot = robot if robot is not None else load_kr500()
         self.hidden = int(hidden)
         self.f_pi = Mlp(INPUT_SIZE, OUTPUT_SIZE, hidden)
         lower = np.concatenate([-robot.qdd_max, robot.q_min, -robot.qd_max])
         upper = np.concatenate([robot.qdd_max, robot.q_max, robot.qd_max])
+        output_scale = np.asarray(output_scale, float)
+        if output_scale.shape != (6,) or not np.all(output_scale > 0):
+            raise ValueError(f"output_scale must be six positive values; got {output_scale}")
         input_scale = np.concatenate(
-            [OUTPUT_SCALE, np.maximum(-robot.q_min, robot.q_max), robot.qd_max, OUTPUT_SCALE]
+            [output_scale, np.maximum(-robot.q_min, robot.q_max), robot.qd_max, output_scale]
         )
 
         def buffer(name, value):
@@ -103,10 +119,13 @@ def save_policy(path, policy: PolicyNetwork, metadata: dict) -> None:
 
 
 def load_policy_network(path, robot: KR500 | None = None) -> PolicyNetwork:
-    """A PolicyNetwork holding the weights of a policy file (for further training or torch
-    inference). Raises ValueError if the file's bounds are not this robot's limits."""
+    """A PolicyNetwork holding the weights and input scales of a policy file (for further
+    training or torch inference). Raises ValueError if the file's bounds or joint scales are
+    not this robot's limits."""
     arrays, _ = load_policy_arrays(path)
-    policy = PolicyNetwork(robot, hidden=arrays["W1"].shape[0])
+    policy = PolicyNetwork(
+        robot, hidden=arrays["W1"].shape[0], output_scale=arrays["input_scale"][:6]
+    )
     for name in ("lower", "upper", "input_scale"):
         if not np.allclose(arrays[name], getattr(policy, name).double().numpy(), atol=1e-6):
             raise ValueError(f"{path}: {name} of the policy does not match this robot's limits")

@@ -176,23 +176,16 @@ def parameters_of(mca: str, config: NmpcConfig | WashoutConfig) -> dict[str, flo
     return {k: float(getattr(config, k)) for k in search_space(mca)}
 
 
-def starting_points(mca: str) -> list[dict[str, float]]:
-    """The first trials of a new tune, clipped into the search space: the shipped defaults
-    (so that a tune never ends worse than them on its own objective) and, for the NMPC, the
-    defaults with the rotation weights x100 (a point under the false-rotation limit when the
-    defaults were tuned without one)."""
+def starting_point(mca: str) -> dict[str, float]:
+    """The first trial of a new tune: the shipped defaults, clipped into the search space, so
+    that a tune never ends worse than the defaults on its own objective. (Where the defaults
+    are over the false-rotation limit, the graded penalty leads the searcher back under it.)"""
     space = search_space(mca)
     default = NmpcConfig(mode="rti") if mca == "nmpc-rti" else WashoutConfig()
-    points = [parameters_of(mca, default)]
-    if mca == "nmpc-rti":
-        points.append(
-            points[0]
-            | {f"weight_{c}": 100 * points[0][f"weight_{c}"] for c in ("w_x", "w_y", "w_z")}
-        )
-    return [
-        {k: float(np.clip(v, space[k].lower, space[k].upper)) for k, v in point.items()}
-        for point in points
-    ]
+    return {
+        k: float(np.clip(v, space[k].lower, space[k].upper))
+        for k, v in parameters_of(mca, default).items()
+    }
 
 
 def baseline_config(mca: str) -> NmpcConfig | WashoutConfig:
@@ -338,7 +331,7 @@ def run_tuning(
                 sampler=optuna.samplers.TPESampler(seed=tuning.seed + len(done)),
                 # A resume hands over every finished trial with its score; a new tune
                 # starts at the shipped defaults.
-                points_to_evaluate=[d["parameters"] for d in done] or starting_points(tuning.mca),
+                points_to_evaluate=[d["parameters"] for d in done] or [starting_point(tuning.mca)],
                 evaluated_rewards=[d["objective"] for d in done] or None,
             )
             trainable = tune.with_parameters(
