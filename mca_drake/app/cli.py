@@ -797,12 +797,13 @@ def build_parser() -> argparse.ArgumentParser:
     policy.add_argument(
         "--max-start-position",
         type=float,
-        help="train only on windows starting with every |q| within this many rad of neutral",
+        help="train only on windows starting with every |q| within this many rad of neutral "
+        "(default 0.6; inf: all)",
     )
     policy.add_argument(
         "--perturbed-fraction",
         type=float,
-        help="fraction of training rollouts from perturbed initial positions (default 0.5)",
+        help="fraction of training rollouts from perturbed initial positions (default 0)",
     )
     policy.add_argument("--max-epochs", type=int, help="epochs per curriculum step")
     policy.add_argument("--patience", type=int, help="early stopping, epochs")
