@@ -118,14 +118,12 @@ class DpcTrainingConfig:
     bound_gradients: bool = False
     # Training rollouts of this fraction of each batch start from perturbed positions: the
     # dataset's first state plus uniform noise of `initial_state_noise` times the joints'
-    # half-ranges, clipped inside the limits. The NMPC data stay near neutral; without
-    # seeing other states, the policy never learns to wash out from them and slowly drifts
-    # to a limit in long flights. Larger offsets (or velocity noise) make tilt errors of
-    # several m/s^2 dominate the loss and drive the network into saturation. Validation
-    # uses the dataset states.
-    # 0 (v8): with the tuned loss, rollouts from perturbed starts carried losses of 10-30
-    # against the dataset states' 1-2 and drowned the tracking of small signals (an
-    # airliner's yaw); v5 and v6 used 0.5 (`paper()`).
+    # half-ranges, clipped inside the limits; validation uses the dataset states. v5 and v6
+    # used 0.5 (`paper()`: the paper-weight NMPC's data stayed near neutral, and without
+    # other states the policy drifted to a limit in long flights). 0 (v8): the tuned NMPC's
+    # data already range over the workspace, and perturbed rollouts carried losses of 10-30
+    # against the dataset states' 1-2, drowning the tracking of small signals (an
+    # airliner's yaw).
     perturbed_fraction: float = 0.0
     initial_state_noise: float = 0.1
     # Train and validate only on windows whose first joint positions are all within this
