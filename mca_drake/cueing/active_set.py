@@ -22,8 +22,9 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import scipy.linalg
 import scipy.linalg.lapack
+
+from mca_drake.cueing import lapack
 
 # A row counts as violated beyond this (absolute, in the units of C d; the NMPC keeps a
 # reserve of 1e-3 of every limit, so this never turns into a limit violation).
@@ -85,7 +86,7 @@ def solve_on_active_set(
     factor = cholesky_of_H if cholesky_of_H is not None else cholesky(H)
     if factor is None:
         return None
-    Hinv_g = scipy.linalg.cho_solve(factor, g)
+    Hinv_g = lapack.cho_solve(factor, g)
     dual_tolerance = DUAL_TOLERANCE * max(1.0, float(np.max(np.abs(g), initial=0.0)))
     active = np.array(active, dtype=np.int8)
     # an active row whose bound on that side is infinite cannot be active
@@ -105,7 +106,7 @@ def solve_on_active_set(
             rhs = np.where(side > 0, hi[index], lo[index])
             missing = index[~known[index]]
             if missing.size:
-                Hinv_Ct[:, missing] = scipy.linalg.cho_solve(factor, C[missing].T)
+                Hinv_Ct[:, missing] = lapack.cho_solve(factor, C[missing].T)
                 known[missing] = True
             Y = Hinv_Ct[:, index]  # H^-1 rows^T, (n, k)
             S = rows @ Y
@@ -122,7 +123,7 @@ def solve_on_active_set(
                 schur = cholesky(rows @ Y)
                 if schur is None:
                     return None
-            mu = scipy.linalg.cho_solve(schur, -rows @ Hinv_g - rhs)
+            mu = lapack.cho_solve(schur, -rows @ Hinv_g - rhs)
             d = -Hinv_g - Y @ mu
         else:
             mu = np.zeros(0)
@@ -208,9 +209,8 @@ PIVOT_RATIO = 1e-12
 
 def cholesky(M: np.ndarray):
     """cho_factor of M, or None when M is not (numerically) positive definite."""
-    try:
-        factor = scipy.linalg.cho_factor(M, check_finite=False)
-    except (np.linalg.LinAlgError, ValueError):
+    factor = lapack.cho_factor(M)
+    if factor is None:
         return None
     pivots = np.abs(np.diag(factor[0])) ** 2
     if not np.all(np.isfinite(pivots)) or pivots.min() < PIVOT_RATIO * pivots.max():

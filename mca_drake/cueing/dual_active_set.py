@@ -33,8 +33,9 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import scipy.linalg
 import scipy.linalg.lapack
+
+from mca_drake.cueing import lapack
 
 from mca_drake.cueing.active_set import (
     DUAL_TOLERANCE,
@@ -101,7 +102,7 @@ def solve_dual_active_set(
     row_norms = np.where(row_norms > 0, row_norms, 1.0)
     max_steps = 10 * n if max_steps is None else max_steps
     H_inv = None  # formed at the first step: a right guess needs none
-    H_inv_g = scipy.linalg.cho_solve(factor, g, check_finite=False)
+    H_inv_g = lapack.cho_solve(factor, g)
     # The active set, in arrays of capacity n (independent rows are at most n): row index,
     # signed row (side * C_i, so every active row reads N_i d = b_i with lambda_i >= 0),
     # H^-1 N_i^T, the multipliers, and S^-1.
@@ -209,9 +210,7 @@ def _hot_start(factor, H_inv_g, C, lo, hi, guess, index, signed_rows, lam):
     triangle, lower = factor
     # R^-T N^T: with an upper factor (H = U^T U) a transposed solve, with a lower one
     # (H = L L^T) a plain one
-    W = scipy.linalg.solve_triangular(
-        triangle, N.T, trans="N" if lower else "T", lower=lower, check_finite=False
-    )
+    W = lapack.triangular_solve(triangle, N.T, lower=lower, transposed=not lower)
     S = W.T @ W
     rhs = -N @ H_inv_g - np.where(side > 0, hi[rows], -lo[rows])
     keep = np.arange(rows.size)
@@ -221,7 +220,7 @@ def _hot_start(factor, H_inv_g, C, lo, hi, guess, index, signed_rows, lam):
         schur = cholesky(S[np.ix_(keep, keep)])
         if schur is None:
             break  # dependent rows in the guess: start from nothing instead
-        mu = scipy.linalg.cho_solve(schur, rhs[keep], check_finite=False)
+        mu = lapack.cho_solve(schur, rhs[keep])
         wrong = mu < 0
         if wrong.any():
             keep = keep[~wrong]
@@ -229,9 +228,7 @@ def _hot_start(factor, H_inv_g, C, lo, hi, guess, index, signed_rows, lam):
         k = keep.size
         index[:k], signed_rows[:k], lam[:k] = rows[keep], N[keep], mu
         # d = -H^-1 g - H^-1 N^T mu = -H^-1 g - R^-1 (W mu)
-        back = scipy.linalg.solve_triangular(
-            triangle, W[:, keep] @ mu, trans="T" if lower else "N", lower=lower, check_finite=False
-        )
+        back = lapack.triangular_solve(triangle, W[:, keep] @ mu, lower=lower, transposed=lower)
         return k, -H_inv_g - back, schur
     return start
 
