@@ -1,12 +1,18 @@
 """Real-time factor of the KR500 station closed loop, and measured-vs-analytical PI.
 
     python benchmarks/bench_station.py [--minutes 10] [--mca dpc] [--repeats 1] [--seed 1000]
+    python benchmarks/bench_station.py --case C [--minutes 5] [--mca dpc] [--json out.json]
 
 Runs the MCA at 100 Hz on the 1 kHz MultibodyPlant station (inverse dynamics, head IMU)
 over a built-in light-aircraft flight, `repeats` times, and once on the analytical plant.
 Prints the real-time factor (simulated s per wall s; median and spread over repeats), the
 per-channel RMSE/CC and PI of both plants, and their PI difference. Targets (issue 7):
 real-time factor >= 10 for a 10-minute DPC flight; |PI_multibody - PI_analytical| <= 0.1.
+
+`--case C` (or A, B) instead flies every flight of that case of the evaluation suite
+(`mca_drake.studies.evaluation.default_cases`; C: aircraft used in neither training nor
+tuning) on both plants and prints per flight the two PIs and their difference, then the
+median and largest |difference| (issue 19's target: within 0.1 on case C).
 """
 
 from __future__ import annotations
@@ -19,9 +25,56 @@ import platform
 import numpy as np
 from common import print_calibration
 
+from mca_drake.atomic_io import atomic_write_json
+from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
 from mca_drake.simulation.closed_loop import run_closed_loop
+from mca_drake.studies.evaluation import default_cases
+
+
+def compare_case(case_name: str, mca: str, duration: float, json_path: str | None) -> None:
+    """Station against analytical plant on every flight of an evaluation case."""
+    cases = {case.name: case for case in default_cases()}
+    if case_name not in cases:
+        raise SystemExit(f"unknown case '{case_name}'; valid: {', '.join(cases)}")
+    case = cases[case_name]
+    print(f"{mca}, case {case.name} ({case.label()}), {duration:.0f} s flights, 1 kHz plant")
+    rows = []
+    for seed in case.seeds:
+        vehicle = case.vehicle_of(seed)
+        reference = flight_reference(FlightSpec(vehicle=vehicle, seed=seed), duration)
+        station, analytical = (
+            run_closed_loop(
+                plant=plant, mca=mca, reference=reference, duration_s=duration, progress=False
+            ).summary
+            for plant in ("multibody", "analytical")
+        )
+        row = {
+            "vehicle": vehicle,
+            "seed": seed,
+            "pi_multibody": station["pi"],
+            "pi_analytical": analytical["pi"],
+            "pi_zero_motion": analytical["pi_zero_motion"],
+            "difference": station["pi"] - analytical["pi"],
+            "realtime_factor_multibody": station["realtime_factor"],
+            "violations_multibody": int(sum(station["violations"].values())),
+        }
+        rows.append(row)
+        print(
+            f"  {vehicle:9s} {seed}: PI multibody {row['pi_multibody']:+.4f}, analytical "
+            f"{row['pi_analytical']:+.4f} (zero motion {row['pi_zero_motion']:+.4f}), "
+            f"difference {row['difference']:+.4f}; real-time factor "
+            f"{row['realtime_factor_multibody']:.1f}; violations {row['violations_multibody']}",
+            flush=True,
+        )
+    gaps = np.abs([r["difference"] for r in rows])
+    print(
+        f"|PI multibody - PI analytical|: median {np.median(gaps):.4f}, max {gaps.max():.4f} "
+        f"over {len(rows)} flights (target <= 0.1)"
+    )
+    if json_path:
+        atomic_write_json(json_path, {"case": case.name, "mca": mca, "flights": rows})
 
 
 def main() -> None:
@@ -31,8 +84,12 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--json", help="also write the figures to this JSON file")
+    parser.add_argument("--case", help="an evaluation case (A, B, C): station vs analytical")
     args = parser.parse_args()
     print_calibration()
+    if args.case:
+        compare_case(args.case, args.mca, 60.0 * args.minutes, args.json)
+        return
     duration = 60.0 * args.minutes
     reference = reference_from_recording(
         fly("light", duration, args.seed), name=f"light {args.seed}"

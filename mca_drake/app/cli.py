@@ -461,6 +461,7 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
         max_epochs="max_epochs",
         patience="early_stopping_patience",
         learning_rate="learning_rate",
+        batch_size="batch_size",
     )
     if args.horizons is not None:
         train["horizons"] = tuple(int(h) for h in args.horizons.split(","))
@@ -808,6 +809,9 @@ def build_parser() -> argparse.ArgumentParser:
     policy.add_argument("--max-epochs", type=int, help="epochs per curriculum step")
     policy.add_argument("--patience", type=int, help="early stopping, epochs")
     policy.add_argument("--learning-rate", type=float, help="the optimiser's (default 1e-3)")
+    policy.add_argument(
+        "--batch-size", type=int, help="training windows per gradient step (default 256)"
+    )
     policy.add_argument("--seed", type=int, help="seed of the weight initialisation")
     policy.add_argument("--device", help="auto (CUDA if present), cpu, cuda")
     policy.add_argument("--no-compile", action="store_true", help="eager torch (slower)")
