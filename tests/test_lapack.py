@@ -56,3 +56,14 @@ def test_singular_triangle_gives_non_finite_not_garbage():
     triangle = np.array([[1.0, 2.0], [0.0, 0.0]])
     x = triangular_solve(triangle, np.ones(2), lower=False, transposed=False)
     assert not np.all(np.isfinite(x))
+
+
+def test_active_set_solvers_refuse_a_non_finite_gradient():
+    """A NaN in g must give no solution, not a NaN one (scipy's checks used to raise)."""
+    from mca_drake.cueing.active_set import solve_on_active_set
+    from mca_drake.cueing.dual_active_set import solve_dual_active_set
+
+    H, C = np.eye(3), np.eye(3)
+    g, lo, hi = np.array([np.nan, 1.0, 1.0]), -np.ones(3), np.ones(3)
+    assert solve_on_active_set(H, g, C, lo, hi, np.zeros(3, dtype=np.int8)) is None
+    assert solve_dual_active_set(H, g, C, lo, hi) is None

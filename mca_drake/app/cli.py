@@ -449,6 +449,7 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             input_weight="input_weight",
             perturbed_fraction="perturbed_fraction",
             max_start_position="max_start_position_rad",
+            hidden="hidden",
         ),
     )
     if args.no_compile:
@@ -809,6 +810,7 @@ def build_parser() -> argparse.ArgumentParser:
     policy.add_argument("--max-epochs", type=int, help="epochs per curriculum step")
     policy.add_argument("--patience", type=int, help="early stopping, epochs")
     policy.add_argument("--learning-rate", type=float, help="the optimiser's (default 1e-3)")
+    policy.add_argument("--hidden", type=int, help="hidden neurons of the policy (default 128)")
     policy.add_argument(
         "--batch-size", type=int, help="training windows per gradient step (default 256)"
     )

@@ -74,15 +74,18 @@ def solve_on_active_set(
     groups: np.ndarray | None = None,
 ) -> ActiveSetSolution | None:
     """Solves the QP from a guessed active set; None when the guess cannot be corrected in
-    `max_corrections` rounds (or the active rows are linearly dependent).
+    `max_corrections` rounds (or the active rows are linearly dependent, or g is not
+    finite).
 
     Args:
         H: (n, n) symmetric positive definite. g: (n,). C: (m, n). lo, hi: (m,), may be
             infinite. active: (m,) in {-1, 0, +1}, the guess.
-        cholesky_of_H: `scipy.linalg.cho_factor(H)` when the caller has it already.
+        cholesky_of_H: `cholesky(H)` (or scipy's cho_factor) when the caller has it already.
         groups: `parallel_groups(C)` when the caller has it: of rows that are multiples of
             one another at most one is made active (two would make the KKT system singular).
     """
+    if not np.all(np.isfinite(g)):
+        return None
     factor = cholesky_of_H if cholesky_of_H is not None else cholesky(H)
     if factor is None:
         return None

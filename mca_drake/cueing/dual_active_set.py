@@ -36,7 +36,6 @@ import numpy as np
 import scipy.linalg.lapack
 
 from mca_drake.cueing import lapack
-
 from mca_drake.cueing.active_set import (
     DUAL_TOLERANCE,
     PRIMAL_TOLERANCE,
@@ -77,7 +76,7 @@ def solve_dual_active_set(
             infinite (lo <= hi).
         guess: (m,) in {-1, 0, +1}: rows guessed at their lower (-1) or upper (+1) bound;
             None: start from the unconstrained minimiser.
-        cholesky_of_H: `scipy.linalg.cho_factor(H)` when the caller has it already.
+        cholesky_of_H: `cholesky(H)` (or scipy's cho_factor) when the caller has it already.
         row_norms: the Euclidean norms of C's rows (m,), when the caller has them: the most
             violated row is chosen by its distance, not by its raw residual.
         groups: `active_set.parallel_groups(C)` when the caller has it: of parallel rows in

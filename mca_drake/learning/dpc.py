@@ -216,6 +216,8 @@ class DpcTrainingConfig:
                 raise ValueError(f"{name} must be a finite number >= 0; got {value}")
         if len(self.output_scale) != 6 or not all(0 < v < float("inf") for v in self.output_scale):
             raise ValueError(f"output_scale needs six positive numbers; got {self.output_scale}")
+        if self.hidden < 1:
+            raise ValueError(f"hidden must be at least 1 neuron; got {self.hidden}")
         if not self.max_start_position_rad > 0:
             raise ValueError(
                 f"max_start_position_rad must be > 0; got {self.max_start_position_rad}"
