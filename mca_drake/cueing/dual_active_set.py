@@ -35,7 +35,7 @@ import dataclasses
 import numpy as np
 import scipy.linalg.lapack
 
-from mca_drake.cueing import lapack
+import mca_drake.cueing.lapack as lapack
 from mca_drake.cueing.active_set import (
     DUAL_TOLERANCE,
     PRIMAL_TOLERANCE,
