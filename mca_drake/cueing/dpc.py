@@ -112,16 +112,18 @@ class PolicyInference:
     """
 
     def __init__(self, arrays: dict[str, np.ndarray]):
-        # Fold the input scaling into the first layer: W1 (v / s) = (W1 / s) v.
-        self._W1 = np.ascontiguousarray(arrays["W1"] / arrays["input_scale"][None, :])
-        self._W2 = np.ascontiguousarray(arrays["W2"])
+        # Fold the input scaling and GELU's 1/sqrt(2) into the first layer and GELU's
+        # 1/2 and sqrt(2) into the second: with b = W1 v / sqrt(2),
+        # W2 gelu(W1 v) = W2 (1/2) sqrt(2) b (1 + erf(b)) = (W2 / sqrt(2)) (b + b erf(b)):
+        # two fewer vector operations per step (the DPC's step budget is 25 us).
+        self._W1 = np.ascontiguousarray(arrays["W1"] / arrays["input_scale"][None, :] * _SQRT_HALF)
+        self._W2 = np.ascontiguousarray(arrays["W2"] * _SQRT_HALF)
         self._lower, self._upper = arrays["lower"].copy(), arrays["upper"].copy()
 
     def __call__(self, y, x, target) -> tuple[np.ndarray, np.ndarray]:
         """(u (6), x_hat (12)) for y (6), x (12), target (6); 1-D numpy arrays."""
         # A new feature vector per call (0.1 us), not a buffer on self: one inference object
         # may serve several contexts at once.
-        a = self._W1 @ np.concatenate((y, x, target))
-        a = 0.5 * a * (1.0 + erf(a * _SQRT_HALF))
-        z = np.minimum(np.maximum(self._W2 @ a, self._lower), self._upper)
+        b = self._W1 @ np.concatenate((y, x, target))
+        z = np.minimum(np.maximum(self._W2 @ (b + b * erf(b)), self._lower), self._upper)
         return z[:NUM_JOINTS], z[NUM_JOINTS:]
