@@ -259,3 +259,31 @@ def test_cli_misuse_is_one_line_and_exit_2(argv, match, capsys, monkeypatch):
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
     assert match in err and "Traceback" not in err and err.count("\n") == 1
+
+
+def test_train_policy_flags_reach_the_training_config(tmp_path, monkeypatch, capsys):
+    """`train-policy`'s options land in DpcTrainingConfig (training itself is tested in
+    test_dpc.py): the recorded config is what the command hands over, and a bad value is
+    refused by the config's own validation."""
+    import mca_drake.learning.dpc as dpc
+
+    seen = []
+
+    def fake_train_policy(config, dataset, out_dir, **_):
+        config.validate()
+        seen.append(config)
+        return None, Path(out_dir) / "policy.npz"
+
+    monkeypatch.setattr(dpc, "train_policy", fake_train_policy)
+    args = ["train-policy", "--dataset", "d.npz", "--out-dir", str(tmp_path), "--quiet"]
+    flags = ["--hidden", "64", "--batch-size", "32", "--max-start-position", "1.0", "--seed", "3"]
+    assert cli.main(args + flags) == 0
+    config = seen[-1]
+    assert (config.hidden, config.train.batch_size) == (64, 32)
+    assert (config.max_start_position_rad, config.seed) == (1.0, 3)
+    # untouched options keep the defaults
+    assert config.train.horizons == dpc.DpcTrainingConfig().train.horizons
+    for flag, name in (("--hidden", "hidden"), ("--batch-size", "batch_size")):
+        capsys.readouterr()
+        assert cli.main([*args, flag, "0"]) != 0
+        assert name in capsys.readouterr().err
