@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mca_drake.cueing.active_set import cholesky
-from mca_drake.cueing.lapack import cho_factor, cho_solve, triangular_solve
+from mca_drake.cueing.lapack import cho_factor, cho_inverse, cho_solve, triangular_solve
 
 
 @pytest.fixture
@@ -31,6 +31,13 @@ def test_factor_is_upper_and_reproduces_the_matrix(spd):
     assert lower is False
     R = np.triu(triangle)
     np.testing.assert_allclose(R.T @ R, M, rtol=1e-12, atol=1e-10)
+
+
+def test_cho_inverse_matches_numpy(spd):
+    M, _ = spd
+    inverse = cho_inverse(cho_factor(M))
+    np.testing.assert_allclose(inverse, np.linalg.inv(M), rtol=1e-9, atol=1e-12)
+    assert np.array_equal(inverse, inverse.T)
 
 
 @pytest.mark.parametrize("transposed", [False, True])

@@ -33,7 +33,6 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import scipy.linalg.lapack
 
 import mca_drake.cueing.lapack as lapack
 from mca_drake.cueing.active_set import (
@@ -124,12 +123,12 @@ def solve_dual_active_set(
         n_p = side * C[p]
         b_p = hi[p] if side > 0 else -lo[p]
         if H_inv is None:
-            H_inv = _inverse(factor)
+            H_inv = lapack.cho_inverse(factor)
             if H_inv is None:
                 return None
             if k:  # the start's H^-1 N^T and S^-1: only steps need them (a right guess none)
                 H_inv_rows[:, :k] = H_inv @ signed_rows[:k].T
-                S_inv_k = _inverse(schur)
+                S_inv_k = lapack.cho_inverse(schur)
                 if S_inv_k is None:
                     return None
                 S_inv[:k, :k] = S_inv_k
@@ -176,17 +175,6 @@ def solve_dual_active_set(
             break
     solution = (d, value, index[:k], signed_rows[:k], lam[:k])
     return _verified(H, g, C, lo, hi, solution, steps, factor)
-
-
-def _inverse(factor) -> np.ndarray | None:
-    """H^-1 from H's Cholesky factor (LAPACK's dpotri: a third cheaper than solving for I);
-    None if LAPACK reports a zero pivot."""
-    c, lower = factor
-    inverse, info = scipy.linalg.lapack.dpotri(c, lower=lower)
-    if info != 0:
-        return None
-    triangle = np.tril(inverse) if lower else np.triu(inverse)
-    return triangle + triangle.T - np.diag(np.diag(triangle))
 
 
 def _hot_start(factor, H_inv_g, C, lo, hi, guess, index, signed_rows, lam):

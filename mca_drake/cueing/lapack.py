@@ -4,7 +4,7 @@ The converged NMPC factors and solves with matrices of order 120 some fifty time
 control step. scipy.linalg's `cho_factor`, `cho_solve` and `solve_triangular` add 7-10 us
 of argument handling per call to LAPACK's 40-100 us (scipy 1.17, one BLAS thread): about
 0.4 ms of a 15 ms step. These wrappers call the same LAPACK routines (dpotrf, dpotrs,
-dtrtrs) with the inputs the NMPC already guarantees (float64, finite where it matters,
+dtrtrs, dpotri) with the inputs the NMPC already guarantees (float64, finite where it matters,
 checked by the callers) and keep scipy's factor format, (triangle, lower), so either can
 be passed where the other is expected.
 """
@@ -34,6 +34,17 @@ def cho_solve(factor: tuple[np.ndarray, bool], b: np.ndarray) -> np.ndarray:
     if info != 0:  # only an argument LAPACK rejects: a programming error here
         raise ValueError(f"dpotrs: illegal argument {-info}")
     return x
+
+
+def cho_inverse(factor: tuple[np.ndarray, bool]) -> np.ndarray | None:
+    """M^-1 (symmetric, full) from `cho_factor(M)` (dpotri: a third cheaper than solving for
+    the identity); None if LAPACK reports a zero pivot."""
+    triangle, lower = factor
+    inverse, info = lapack.dpotri(triangle, lower=lower)
+    if info != 0:
+        return None
+    half = np.tril(inverse) if lower else np.triu(inverse)
+    return half + half.T - np.diag(np.diag(half))
 
 
 def triangular_solve(
