@@ -313,6 +313,35 @@ def plant_output_jacobians(q, qd, qdd, robot: KR500 | None = None) -> OutputJaco
     return OutputJacobians(y, dy[..., :NUM_JOINTS], dy[..., NUM_JOINTS:], dy_dqdd)
 
 
+def output_velocity_hessians(q, robot: KR500 | None = None) -> np.ndarray:
+    """d^2 y / dqd^2, the output's curvature in the joint velocities: shape (..., 6, 6, 6),
+    [output, i, j], for joint positions q (..., 6) (rad).
+
+    y is quadratic in qd with coefficients that depend on q only, so this is independent of qd
+    and qdd and exact. The rates are linear in qd (rows 0-2 zero); for the forces (rows 3-5:
+    R^T r_ddot, gravity constant), with e_i = Z_i x (r - O_i) = d r_dot / d qd_i and the
+    velocity products of A = sum_(j<i) qd_j qd_i [xi_j, xi_i] + ...,
+
+        d^2 r_ddot / dqd_i dqd_j = D_ij,lin + D_ij,ang x r + Z_i x e_j + Z_j x e_i,
+        D_ij = [xi_min(i,j), xi_max(i,j)] (0 on the diagonal)
+
+    (module docstring: r_ddot = a_0 + alpha x r + omega x r_dot, omega = sum qd_i Z_i).
+    """
+    q = _joint_array("q", q)
+    zeros = np.zeros_like(q)
+    t = _twists(q, zeros, zeros, robot)
+    xi, Z, e = t.xi, t.xi[..., :3], t.r_per_q
+    bracket = np.swapaxes(_ad(xi) @ np.swapaxes(xi, -1, -2)[..., None, :, :], -1, -2)
+    # bracket[..., i, j, :] = [xi_i, xi_j]; D = that for i < j, [xi_j, xi_i] = -that for i > j
+    order = np.sign(np.subtract.outer(np.arange(NUM_JOINTS), np.arange(NUM_JOINTS)))
+    D = -order[:, :, None] * bracket
+    Z_e = _cross(Z[..., :, None, :], e[..., None, :, :])  # [..., i, j] = Z_i x e_j
+    h = D[..., 3:] + _cross(D[..., :3], t.r[..., None, None, :]) + Z_e + np.swapaxes(Z_e, -2, -3)
+    out = np.zeros((*q.shape[:-1], 6, NUM_JOINTS, NUM_JOINTS))
+    out[..., 3:, :, :] = np.moveaxis(h @ t.R[..., None, :, :], -1, -3)  # rows x -> R^T x
+    return out
+
+
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b over the last axis (length 3), broadcasting the leading axes. Same result as
     np.cross, whose axis bookkeeping costs ten times the arithmetic on small arrays."""

@@ -133,6 +133,32 @@ def test_jacobians_match_central_differences(robot, rng):
         )
 
 
+def test_velocity_hessians_are_the_quadratic_forms_of_the_output(robot, rng):
+    """y is exactly quadratic in qd, so the polarisation of four outputs at +-e_i +- e_j (unit
+    steps, no truncation error) is d^2 y / dqd_i dqd_j; it does not depend on qd or qdd."""
+    q, qd, qdd = random_joint_states(rng, robot, 8)
+    H = kinematics.output_velocity_hessians(q, robot)
+    assert H.shape == (8, 6, 6, 6)
+    eye = np.eye(6)
+    for i in range(6):
+        for j in range(6):
+
+            def y(a, b, i=i, j=j):
+                return kinematics.plant_output(q, qd + a * eye[i] + b * eye[j], qdd, robot)
+
+            polar = (y(1, 1) - y(1, -1) - y(-1, 1) + y(-1, -1)) / 4
+            np.testing.assert_allclose(H[:, :, i, j], polar, atol=1e-9, err_msg=f"{i},{j}")
+    np.testing.assert_array_equal(H[:, :3], 0.0)  # the rates are linear in qd
+
+
+def test_base_spin_curvature_is_twice_the_centripetal_radius(robot):
+    """Closed form: f_x = -w^2 radius for a base spin at q = 0, so d^2 f_x / dqd_1^2 = -2 radius."""
+    H = kinematics.output_velocity_hessians(np.zeros(6), robot)
+    radius = kinematics.head_pose(np.zeros(6), robot)[0, 3]
+    assert H[3, 0, 0] == pytest.approx(-2 * radius, abs=1e-12)
+    assert H[4, 0, 0] == pytest.approx(0.0, abs=1e-12)
+
+
 def test_head_pose_derivatives_are_time_derivatives(robot, rng):
     """dF and ddF equal central differences of F along q(t) = q0 + qd0 t + qdd0 t^2 / 2."""
     q0, qd0, qdd0 = (x[0] for x in random_joint_states(rng, robot, 1))

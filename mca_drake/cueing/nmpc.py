@@ -768,6 +768,21 @@ class MotionCueingOcp:
             if alpha < 1e-6:
                 stop = "no_descent"  # none along the Gauss-Newton direction: converged
                 break
+            if (
+                alpha == 1.0
+                and damping == 0.0
+                and not restoring
+                and trial_cost - cost < EXPANSION_RATIO * predicted
+            ):
+                # the step gained more than the model promised: its curvature overrates the
+                # cost's along the step (a convexified or damped model near a saddle; on a
+                # 1 g chirp such steps crept on at twice their promise for 40 iterations),
+                # so the step is tried longer, as far as the constraints allow
+                longer = self._expanded_step(U, step, row_lo, row_hi, CU)
+                if longer is not None:
+                    longer_cost = self.cost(x0, U + longer * step, refs)
+                    if longer_cost < trial_cost:
+                        alpha, trial_cost, next_model = longer, longer_cost, None
             if cfg.marquardt_damping:
                 damping = _next_damping(damping, accepted_full_step=alpha == 1.0)
             U, cost = U + alpha * step, trial_cost
@@ -798,6 +813,21 @@ class MotionCueingOcp:
             stop=stop,
             output_hessians=hessians,
         )
+
+    def _expanded_step(self, U, step, row_lo, row_hi, CU) -> float | None:
+        """The longest multiple alpha in (1, EXPANSION_MAX] of `step` that keeps U + alpha step
+        within the rows' bounds (to the 1e-9 the feasibility checks allow), or None where that
+        is not longer than the step by 1 %."""
+        Cd = self._C @ step.reshape(-1)
+        beyond = CU + Cd  # the rows after the full step
+        with np.errstate(divide="ignore", invalid="ignore"):
+            room = np.where(
+                Cd > 0,
+                (row_hi + 1e-9 - beyond) / Cd,
+                np.where(Cd < 0, (row_lo - 1e-9 - beyond) / Cd, np.inf),
+            )
+        alpha = min(EXPANSION_MAX, 1.0 + float(np.min(room, initial=np.inf)))
+        return alpha if alpha > 1.01 else None
 
     def _starting_hessians(self, x0, U, model, guess) -> np.ndarray:
         """The output Hessians to start from: `guess` where it fits, else finite differences
@@ -938,6 +968,9 @@ SHRINK_THETA = (0.5, 0.25, 0.125)
 # A full step whose true cost change is above this share of the model's predicted (negative)
 # change re-measures the output Hessians by finite differences (PSB's updates had drifted).
 CURVATURE_REFRESH_RATIO = 0.5
+# A full step that gained more than EXPANSION_RATIO times the model's promise is tried up to
+# EXPANSION_MAX times longer (`MotionCueingOcp._expanded_step`).
+EXPANSION_RATIO, EXPANSION_MAX = 1.5, 2.0
 # The line search's allowance for a rise after an exact (hot-started) QP step, relative to
 # the cost: its round-off, not a solver's accuracy.
 EXACT_QP_ALLOWANCE = 1e-12
