@@ -11,6 +11,7 @@ from mca_drake.studies.closed_loop_dataset import (
     ClosedLoopDatasetConfig,
     flight_path,
     generate_closed_loop_dataset,
+    join_datasets,
 )
 
 TINY = ClosedLoopDatasetConfig(flight_seeds=(1, 2), flight_duration_s=4.0, horizon=50)
@@ -100,3 +101,34 @@ def test_mixed_vehicle_sets_deal_seeds_and_keep_evaluation_seeds_out():
         ClosedLoopDatasetConfig(vehicles=("light", "pa28")).validate()
     with pytest.raises(ValueError, match="kept for evaluation case C"):
         ClosedLoopDatasetConfig(vehicles=("light", "B747")).validate()
+
+
+def test_join_keeps_every_segment_its_split_and_vehicle(generated, tmp_path):
+    """The tiny set cut by flight into two files, joined again: the same segments, splits
+    and flight_vehicles; a repeated flight or a file without vehicles is refused."""
+    _, data = generated
+    paths = []
+    for seed in (1, 2):
+        keep = data.source[:, 0] == seed
+        meta = {
+            **data.metadata,
+            "flights": {str(seed): data.metadata["flights"][str(seed)]},
+            "flight_vehicles": {str(seed): data.metadata["flight_vehicles"][str(seed)]},
+        }
+        part = SegmentDataset({k: v[keep] for k, v in data.arrays.items()}, data.source[keep], meta)
+        paths.append(part.save(tmp_path / f"part{seed}.npz"))
+    joined = SegmentDataset.load(join_datasets(paths, tmp_path / "joined.npz"))
+    order = np.argsort(data.source[:, 0], kind="stable")
+    np.testing.assert_array_equal(joined.source, data.source[order])
+    for name, array in data.arrays.items():
+        np.testing.assert_array_equal(joined.arrays[name], array[order], err_msg=name)
+    assert joined.metadata["flight_vehicles"] == data.metadata["flight_vehicles"]
+    assert set(joined.metadata["flights"]) == {"1", "2"}
+    assert [j["path"] for j in joined.metadata["joined_from"]] == [str(p) for p in paths]
+    with pytest.raises(ValueError, match="repeats flights"):
+        join_datasets([paths[0], paths[0]], tmp_path / "twice.npz")
+    bare = SegmentDataset(data.arrays, data.source, {})
+    with pytest.raises(ValueError, match="flight_vehicles"):
+        join_datasets([paths[0], bare.save(tmp_path / "bare.npz")], tmp_path / "bad.npz")
+    with pytest.raises(ValueError, match="at least two"):
+        join_datasets([paths[0]], tmp_path / "one.npz")

@@ -37,6 +37,7 @@ from mca_drake.studies.closed_loop_dataset import (
     DEFAULT_DATASET,
     ClosedLoopDatasetConfig,
     generate_closed_loop_dataset,
+    join_datasets,
 )
 from mca_drake.studies.evaluation import default_cases
 from mca_drake.studies.tuning import TUNABLE_MCAS, TuningConfig, run_tuning
@@ -209,6 +210,12 @@ def _cmd_dataset_closed_loop(args: argparse.Namespace) -> int:
         scenario.flight_seeds = list(range(first, first + count))
     summary = run_scenario(scenario, progress=not args.quiet)
     print(f"closed-loop dataset written to {summary['dataset']}")
+    return 0
+
+
+def _cmd_dataset_join(args: argparse.Namespace) -> int:
+    path = join_datasets(args.datasets, args.out)
+    print(f"joined dataset written to {path}")
     return 0
 
 
@@ -647,6 +654,12 @@ def build_parser() -> argparse.ArgumentParser:
     closed.add_argument("--out-dir", help=f"default {dataset_defaults.output_dir}")
     closed.add_argument("--quiet", action="store_true")
     closed.set_defaults(func=_cmd_dataset_closed_loop)
+    join = dataset_sub.add_parser(
+        "join", help="join closed-loop datasets of different flights into one file"
+    )
+    join.add_argument("datasets", nargs="+", help="dataset.npz files (two or more)")
+    join.add_argument("--out", required=True, help="the joined file (.npz)")
+    join.set_defaults(func=_cmd_dataset_join)
 
     evaluate = sub.add_parser(
         "evaluate", help="run one recording through an MCA on the analytical plant"

@@ -255,3 +255,45 @@ def merge(config: ClosedLoopDatasetConfig, out_dir: str | Path) -> Path:
         "versions": package_versions(),
     }
     return merged.save(out_dir / "dataset.npz")
+
+
+def join_datasets(paths: list[str | Path], out: str | Path) -> Path:
+    """Joins closed-loop datasets of different flights into one file at `out` (atomically).
+
+    Each segment keeps its split label; the metadata holds the union of the parts' flights
+    and flight_vehicles and each part's path and config (`joined_from`). For adding flights of
+    one aircraft class to a mixed set without regenerating it.
+
+    Raises:
+        ValueError: fewer than two parts, a part that is not a closed-loop dataset (no
+            flight_vehicles), parts that share a flight seed, or parts with different arrays
+            or horizons.
+    """
+    if len(paths) < 2:
+        raise ValueError(f"join needs at least two datasets; got {len(paths)}")
+    parts = [SegmentDataset.load(p) for p in paths]
+    flights: dict[str, object] = {}
+    vehicles: dict[str, str] = {}
+    for path, part in zip(paths, parts, strict=True):
+        names = part.metadata.get("flight_vehicles")
+        if not isinstance(names, dict):
+            raise ValueError(f"{path} is not a closed-loop dataset (no flight_vehicles)")
+        shared = sorted(set(names) & set(vehicles), key=int)
+        if shared:
+            raise ValueError(f"{path} repeats flights {shared} of an earlier part")
+        vehicles.update(names)
+        flights.update(part.metadata.get("flights", {}))
+    joined = SegmentDataset.concatenate(parts)
+    joined.metadata = {
+        "kind": "closed-loop MCA dataset",
+        "joined_from": [
+            {"path": str(p), "config": part.metadata.get("config")}
+            for p, part in zip(paths, parts, strict=True)
+        ],
+        "source_columns": list(SOURCE_COLUMNS),
+        "split_names": list(SPLIT_NAMES),
+        "flights": flights,
+        "flight_vehicles": vehicles,
+        "versions": package_versions(),
+    }
+    return joined.save(out)
