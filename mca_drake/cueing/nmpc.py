@@ -788,13 +788,14 @@ class MotionCueingOcp:
             U, cost = U + alpha * step, trial_cost
             old = model
             model = next_model if next_model is not None else self._gauss_newton(x0, U, refs)
-            hessians = psb_update(
-                hessians,
-                self._condensing.node_steps(alpha * step),
-                model.node_jacobian - old.node_jacobian,
-            )
-            if drifted:
+            if drifted:  # measured afresh: no secant update to make first
                 hessians = self._starting_hessians(x0, U, model, None)
+            else:
+                hessians = psb_update(
+                    hessians,
+                    self._condensing.node_steps(alpha * step),
+                    model.node_jacobian - old.node_jacobian,
+                )
             if alpha == 1.0 and solution is not None:
                 multipliers = solution.multipliers
             if np.max(np.abs(alpha * step)) < cfg.step_tolerance:
