@@ -245,16 +245,26 @@ def merge(config: ClosedLoopDatasetConfig, out_dir: str | Path) -> Path:
     for index, (a, b) in enumerate(itertools.pairwise(bounds)):
         labels[order[a:b]] = index
     merged.source[:, SOURCE_COLUMNS.index("split")] = labels
-    merged.metadata = {
+    merged.metadata = _dataset_metadata(
+        {str(p.metadata["flight_seed"]): p.metadata["summary"] for p in parts},
+        {seed: vehicle for vehicle, seed in config.flights()},
+        config=config.record(),
+    )
+    return merged.save(out_dir / "dataset.npz")
+
+
+def _dataset_metadata(flights: dict, flight_vehicles: dict, **provenance) -> dict:
+    """A closed-loop dataset's metadata: its flights' summaries and vehicles (seed -> ...),
+    the source and split layout, where it came from (`provenance`) and the versions."""
+    return {
         "kind": "closed-loop MCA dataset",
-        "config": config.record(),
+        **provenance,
         "source_columns": list(SOURCE_COLUMNS),
         "split_names": list(SPLIT_NAMES),
-        "flights": {str(p.metadata["flight_seed"]): p.metadata["summary"] for p in parts},
-        "flight_vehicles": {seed: vehicle for vehicle, seed in config.flights()},
+        "flights": flights,
+        "flight_vehicles": flight_vehicles,
         "versions": package_versions(),
     }
-    return merged.save(out_dir / "dataset.npz")
 
 
 def join_datasets(paths: list[str | Path], out: str | Path) -> Path:
@@ -284,16 +294,12 @@ def join_datasets(paths: list[str | Path], out: str | Path) -> Path:
         vehicles.update(names)
         flights.update(part.metadata.get("flights", {}))
     joined = SegmentDataset.concatenate(parts)
-    joined.metadata = {
-        "kind": "closed-loop MCA dataset",
-        "joined_from": [
+    joined.metadata = _dataset_metadata(
+        flights,
+        vehicles,
+        joined_from=[
             {"path": str(p), "config": part.metadata.get("config")}
             for p, part in zip(paths, parts, strict=True)
         ],
-        "source_columns": list(SOURCE_COLUMNS),
-        "split_names": list(SPLIT_NAMES),
-        "flights": flights,
-        "flight_vehicles": vehicles,
-        "versions": package_versions(),
-    }
+    )
     return joined.save(out)
