@@ -368,51 +368,6 @@ def test_channel_weights_make_every_channel_count_alike():
             DpcTrainingConfig(tracking_channel_weights=bad).validate()
 
 
-def test_vehicle_balance_weighs_every_vehicle_alike():
-    """Closed form: 1 light and 3 jet windows; exponent 1 gives light 2, jet 2/3 (mean
-    2 per vehicle over 1 and 3; mean over the windows already 1); exponent 0 all 1. The
-    loss terms weigh each segment by its weight: weights (2, 0) over two segments give the
-    first segment's terms alone."""
-    from mca_drake.learning.dpc import dpc_loss_terms, vehicle_balance_weights
-    from mca_drake.segments import SegmentDataset
-
-    n_p = 3
-    arrays = {
-        k: np.zeros((4, n_p, *shape)) for k, shape in (("U", (6,)), ("X", (12,)), ("Y", (6,)))
-    }
-    arrays.update(
-        F=np.zeros((4, n_p, 4, 4)), dF=np.zeros((4, n_p, 4, 4)), ddF=np.zeros((4, n_p, 4, 4))
-    )
-    meta = {"flight_vehicles": {"7": "light", "8": "jet", "9": "f16"}}
-    source = np.array([[7, 0, 0], [8, 0, 0], [8, 3, 0], [8, 6, 0]])
-    windows = SegmentDataset(arrays, source, meta)
-    np.testing.assert_allclose(
-        vehicle_balance_weights(windows, windows, 1.0), [2, 2 / 3, 2 / 3, 2 / 3]
-    )
-    np.testing.assert_allclose(vehicle_balance_weights(windows, windows, 0.0), 1.0)
-    # a vehicle the counted windows lack (validation of an f16) weighs like the rarest
-    other = SegmentDataset({k: v[:1] for k, v in arrays.items()}, np.array([[9, 0, 0]]), meta)
-    np.testing.assert_allclose(vehicle_balance_weights(other, windows, 1.0), [2.0])
-    with pytest.raises(ValueError, match="flight_vehicles"):
-        vehicle_balance_weights(SegmentDataset(arrays, source, {}), windows, 1.0)
-    with pytest.raises(ValueError, match="vehicle_balance"):
-        DpcTrainingConfig(vehicle_balance=-1.0).validate()
-
-    g = torch.Generator().manual_seed(1)
-    policy, T = PolicyNetwork(), 5
-    roll = type("R", (), {})()
-    roll.Y, roll.U = torch.randn(2, T, 6, generator=g), torch.randn(2, T, 6, generator=g)
-    roll.X_hat, roll.X = torch.randn(2, T, 12, generator=g), torch.randn(2, T + 1, 12, generator=g)
-    tgt = torch.randn(2, T, 6, generator=g)
-    weighted = dpc_loss_terms(roll, tgt, policy, window_weights=torch.tensor([2.0, 0.0]))
-    first = type("R", (), {})()
-    for name in ("Y", "U", "X_hat", "X"):
-        setattr(first, name, getattr(roll, name)[:1])
-    alone = dpc_loss_terms(first, tgt[:1], policy)
-    for name, value in alone.items():
-        torch.testing.assert_close(weighted[name], value, msg=name)
-
-
 def test_training_can_start_from_a_policy_file(trained, tmp_path):
     """initial_policy: with a vanishing learning rate the result is the starting policy."""
     policy, policy_path, _ = trained

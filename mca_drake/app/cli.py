@@ -456,7 +456,6 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             input_weight="input_weight",
             perturbed_fraction="perturbed_fraction",
             max_start_position="max_start_position_rad",
-            vehicle_balance="vehicle_balance",
             hidden="hidden",
         ),
     )
@@ -815,12 +814,6 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         help="train only on windows starting with every |q| within this many rad of neutral "
         "(default 0.6; inf: all)",
-    )
-    policy.add_argument(
-        "--vehicle-balance",
-        type=float,
-        help="weigh each window by (mean windows per vehicle / its vehicle's) ** this: "
-        "0 every window alike (default), 1 every vehicle alike",
     )
     policy.add_argument(
         "--perturbed-fraction",

@@ -53,19 +53,10 @@ from mca_drake.learning.policy import (
 from mca_drake.learning.state_models import Node2State
 from mca_drake.learning.trainer import CurriculumTrainer, TrainConfig
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
-from mca_drake.segments import (
-    SOURCE_COLUMNS,
-    SegmentDataset,
-    long_windows,
-    package_versions,
-    split_of,
-)
+from mca_drake.segments import SegmentDataset, long_windows, package_versions, split_of
 from mca_drake.torch_plant import TorchPlant, viable_acceleration_bounds_torch
 
 TARGETS = ("achieved", "reference")
-# The dataset array of per-window loss weights (J, n_p), constant along each window
-# (`DpcTrainingConfig.vehicle_balance`).
-WINDOW_WEIGHTS = "W"
 PLANTS = ("exact", "learned")
 
 
@@ -146,12 +137,6 @@ class DpcTrainingConfig:
     # Train on windows of this many consecutive dataset segments (n_c up to 4 x 256 = 10.24 s;
     # `mca_drake.segments.long_windows`); 1 uses the segments and their split.
     window_segments: int = 4
-    # Weigh every loss term of a window by (mean windows per vehicle / windows of its vehicle)
-    # ** vehicle_balance among the training windows, normalised to mean 1 (validation windows
-    # alike): 0 counts every window alike, 1 every vehicle alike. The start filter above keeps
-    # few windows of the vehicles the tuned NMPC tilts far (the light aircraft: 63 of the
-    # mixed set's 351 segments, the A320 273), and their cues are what the policy then misses.
-    vehicle_balance: float = 0.0
     # Hidden neurons of the policy (paper: 128).
     hidden: int = 128
     # Scales of the measured and target outputs at the network's input (w_x, w_y, w_z in
@@ -225,7 +210,6 @@ class DpcTrainingConfig:
             "terminal_position_weight",
             "terminal_velocity_weight",
             "initial_state_noise",
-            "vehicle_balance",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -349,33 +333,23 @@ def dpc_loss_terms(
     targets: torch.Tensor,
     policy: PolicyNetwork,
     channel_weights: torch.Tensor | None = None,
-    window_weights: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
     """The loss terms (unweighted), each averaged over segments and steps; the tracking
-    term's channels weighted by `channel_weights` (6) and every segment's terms by
-    `window_weights` (B,) if given."""
+    term's channels weighted by `channel_weights` (6) if given."""
     X_next = rollout.X[:, 1:]
     lower, upper = policy.lower[NUM_JOINTS:], policy.upper[NUM_JOINTS:]
     violation = torch.relu(X_next - upper) + torch.relu(lower - X_next)
     squared_error = (rollout.Y - targets) ** 2
     if channel_weights is not None:
         squared_error = squared_error * channel_weights
-
-    def mean(per_segment: torch.Tensor) -> torch.Tensor:
-        # per_segment: (B, ...) summed over channels already
-        if window_weights is None:
-            return per_segment.mean()
-        w = window_weights.reshape(-1, *([1] * (per_segment.dim() - 1)))
-        return (w * per_segment).mean()
-
     return {
-        "tracking": mean(squared_error.sum(-1)),
-        "state_estimate": mean(((rollout.X_hat - X_next) ** 2).sum(-1)),
-        "input": mean((rollout.U**2).sum(-1)),
-        "washout": mean((rollout.X[:, :-1, :NUM_JOINTS] ** 2).sum(-1)),
-        "limits": mean((violation**2).sum(-1)),
-        "terminal_position": mean((rollout.X[:, -1, :NUM_JOINTS] ** 2).sum(-1)),
-        "terminal_velocity": mean((rollout.X[:, -1, NUM_JOINTS:] ** 2).sum(-1)),
+        "tracking": squared_error.sum(-1).mean(),
+        "state_estimate": ((rollout.X_hat - X_next) ** 2).sum(-1).mean(),
+        "input": (rollout.U**2).sum(-1).mean(),
+        "washout": (rollout.X[:, :-1, :NUM_JOINTS] ** 2).sum(-1).mean(),
+        "limits": (violation**2).sum(-1).mean(),
+        "terminal_position": (rollout.X[:, -1, :NUM_JOINTS] ** 2).sum(-1).mean(),
+        "terminal_velocity": (rollout.X[:, -1, NUM_JOINTS:] ** 2).sum(-1).mean(),
     }
 
 
@@ -438,8 +412,7 @@ def dpc_objective(
             policy, plant, x0, batch["Y"][:, 0], targets, cells[id(policy)]
         )
         weights_here = None if channel_weights is None else channel_weights.to(targets)
-        window_weights = batch["W"][:, 0] if WINDOW_WEIGHTS in batch else None
-        terms = dpc_loss_terms(rollout, targets, policy, weights_here, window_weights)
+        terms = dpc_loss_terms(rollout, targets, policy, weights_here)
         return sum(weights[k] * v for k, v in terms.items())
 
     return objective
@@ -453,38 +426,6 @@ def near_neutral_windows(windows: SegmentDataset, max_position_rad: float) -> Se
     return SegmentDataset(
         {k: v[keep] for k, v in windows.arrays.items()}, windows.source[keep], windows.metadata
     )
-
-
-def vehicle_balance_weights(
-    windows: SegmentDataset, counted: SegmentDataset, exponent: float
-) -> np.ndarray:
-    """Per-window weights (J,) of `windows`: (mean windows per vehicle / windows of the
-    window's vehicle in `counted`) ** exponent, normalised to mean 1 over `counted`.
-
-    Vehicles come from the dataset metadata's `flight_vehicles` (seed -> name; datasets of
-    `mca-drake dataset closed-loop`). A vehicle absent from `counted` weighs like the rarest.
-    """
-    names = windows.metadata.get("flight_vehicles")
-    if not isinstance(names, dict) or not names:
-        raise ValueError(
-            "vehicle_balance needs the dataset's flight_vehicles metadata (seed -> vehicle), "
-            "written by `mca-drake dataset closed-loop`; this dataset has none"
-        )
-    seed_col = SOURCE_COLUMNS.index("flight_seed")
-
-    def vehicles(part: SegmentDataset) -> np.ndarray:
-        seeds = part.source[:, seed_col]
-        missing = sorted({int(s) for s in seeds} - {int(k) for k in names})
-        if missing:
-            raise ValueError(f"flight_vehicles names no vehicle for flights {missing}")
-        return np.array([names[str(int(s))] for s in seeds])
-
-    counted_vehicles = vehicles(counted)
-    kinds, counts = np.unique(counted_vehicles, return_counts=True)
-    raw = dict(zip(kinds, (counts.mean() / counts) ** exponent, strict=True))
-    rarest = max(raw.values())
-    norm = np.mean([raw[v] for v in counted_vehicles])
-    return np.array([raw.get(v, rarest) for v in vehicles(windows)]) / norm
 
 
 def train_policy(
@@ -522,13 +463,6 @@ def train_policy(
                 f"no {name} windows in {dataset} start within max_start_position_rad = "
                 f"{config.max_start_position_rad} rad of neutral"
             )
-    if config.vehicle_balance > 0:
-        counted = splits["train"]
-        for name in ("train", "validation"):
-            part = splits[name]
-            w = vehicle_balance_weights(part, counted, config.vehicle_balance)
-            arrays = {**part.arrays, WINDOW_WEIGHTS: np.repeat(w[:, None], part.horizon, 1)}
-            splits[name] = SegmentDataset(arrays, part.source, part.metadata)
     torch.manual_seed(config.seed)
     if config.initial_policy:
         policy = load_policy_network(config.initial_policy)
@@ -550,7 +484,6 @@ def train_policy(
         "tracking_channel_weights": None if channel_weights is None else channel_weights.tolist(),
     }
     names = ("X", "Y", "U") + (("R",) if config.targets == "reference" else ())
-    names += (WINDOW_WEIGHTS,) if config.vehicle_balance > 0 else ()
     trainer = CurriculumTrainer(
         policy,
         dpc_objective(config, plant, channel_weights),
