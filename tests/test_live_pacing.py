@@ -11,7 +11,7 @@ import pytest
 
 from mca_drake.live.pacing import RealTimePacer
 
-H, LEAD, WINDOW = 0.01, 2e-5, 4e-3
+H, WINDOW = 0.01, 4e-3
 
 
 class Clock:
@@ -36,14 +36,14 @@ def sockets():
 
 
 def pace_instant(pacer: RealTimePacer, k: int) -> float:
-    """Runs the pacer at poll instant k; the wall time it let the poll go."""
-    pacer(Clock(k * H - LEAD))
+    """Runs the pacer at control instant k; the wall time it let the poll go."""
+    pacer(Clock(k * H))
     return time.perf_counter()
 
 
 def test_without_a_datagram_the_poll_comes_at_its_instant(sockets):
     receiver, _ = sockets
-    pacer = RealTimePacer(H, LEAD, wake_socket=receiver, wake_window_s=WINDOW)
+    pacer = RealTimePacer(H, wake_socket=receiver, wake_window_s=WINDOW)
     pacer.start()
     released = pace_instant(pacer, 3)
     k, due = pacer.dues[-1]
@@ -55,9 +55,9 @@ def test_without_a_datagram_the_poll_comes_at_its_instant(sockets):
 def early_poll_trial(receiver, sender) -> tuple[int, float, float, float]:
     """One poll at instant 5 with a datagram sent 2 ms before it is due: the early polls
     counted, when the datagram was sent, when the poll was let go and when it was due."""
-    pacer = RealTimePacer(H, LEAD, wake_socket=receiver, wake_window_s=WINDOW)
+    pacer = RealTimePacer(H, wake_socket=receiver, wake_window_s=WINDOW)
     pacer.start()
-    due = pacer._wall_at_zero + 5 * H - LEAD
+    due = pacer._wall_at_zero + 5 * H
     sent = []
 
     def send_2ms_early():
@@ -103,7 +103,7 @@ def test_a_datagram_waiting_when_the_window_opens_does_not(sockets):
     """It arrived before the window: the poll keeps its instant (and takes it then), so the
     loop cannot settle one sample behind, polling at every window's opening."""
     receiver, sender = sockets
-    pacer = RealTimePacer(H, LEAD, wake_socket=receiver, wake_window_s=WINDOW)
+    pacer = RealTimePacer(H, wake_socket=receiver, wake_window_s=WINDOW)
     pacer.start()
     sender.sendto(b"x", receiver.getsockname())
     time.sleep(1e-3)
@@ -114,7 +114,7 @@ def test_a_datagram_waiting_when_the_window_opens_does_not(sockets):
 
 def test_a_closed_socket_only_keeps_the_time(sockets):
     receiver, _ = sockets
-    pacer = RealTimePacer(H, LEAD, wake_socket=receiver, wake_window_s=WINDOW)
+    pacer = RealTimePacer(H, wake_socket=receiver, wake_window_s=WINDOW)
     pacer.start()
     receiver.close()
     released = pace_instant(pacer, 2)
@@ -123,4 +123,4 @@ def test_a_closed_socket_only_keeps_the_time(sockets):
 
 def test_a_window_longer_than_the_period_is_refused(sockets):
     with pytest.raises(ValueError, match="wake_window_s"):
-        RealTimePacer(H, LEAD, wake_socket=sockets[0], wake_window_s=H)
+        RealTimePacer(H, wake_socket=sockets[0], wake_window_s=H)

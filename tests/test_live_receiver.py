@@ -107,7 +107,6 @@ def test_a_flood_is_read_a_bounded_number_per_poll():
 @pytest.mark.parametrize(
     "change, match",
     [
-        ({"poll_lead_s": 0.01}, "poll_lead_s"),
         ({"port": 70000}, "port"),
         ({"stale_after_s": 0.0}, "positive"),
     ],

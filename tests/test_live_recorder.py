@@ -11,10 +11,11 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import LogVectorOutput
 
 from mca_drake.live.loop import PLANT_DELAY_S, PROBE_DELAY_S
-from mca_drake.live.recorder import AFTER_COMMAND_S, LiveRecorder
+from mca_drake.live.recorder import AFTER_COMMAND_S, BEFORE_POLL_S, LiveRecorder
 from mca_drake.systems import MotionCueingPlant
+from mca_drake.systems.mca_update import DeclareMcaUpdate
 
-H, LEAD, STEPS = 0.01, 2e-5, 25
+H, STEPS = 0.01, 25
 
 
 def command_at(k: int) -> np.ndarray:
@@ -22,17 +23,17 @@ def command_at(k: int) -> np.ndarray:
 
 
 class CountingMca(LeafSystem):
-    """Stores command_at(k) at every t_k in an unrestricted update, as the MCAs do."""
+    """Stores command_at(k) at every t_k in a discrete update, as the live loop's MCAs do."""
 
     def __init__(self):
         super().__init__()
         self._index = self.DeclareDiscreteState(7)  # k, u
-        self.DeclarePeriodicUnrestrictedUpdateEvent(H, 0.0, self._update)
+        DeclareMcaUpdate(self, H, self._update, "discrete")
         self.DeclareVectorOutputPort("u", 6, self._output, {self.xd_ticket()})
 
-    def _update(self, context, state):
+    def _update(self, context, discrete):
         k = int(context.get_discrete_state(self._index).value()[0])
-        state.get_mutable_discrete_state().set_value(self._index, np.r_[k + 1, command_at(k)])
+        discrete.set_value(self._index, np.r_[k + 1, command_at(k)])
 
     def _output(self, context, output):
         output.SetFromVector(context.get_discrete_state(self._index).value()[1:])
@@ -40,7 +41,7 @@ class CountingMca(LeafSystem):
 
 def test_the_delays_keep_their_order():
     # probe, then the recorder, then the plant that integrates what was recorded
-    assert 0 < PROBE_DELAY_S < AFTER_COMMAND_S < PLANT_DELAY_S < H - LEAD
+    assert 0 < PROBE_DELAY_S < AFTER_COMMAND_S < PLANT_DELAY_S < H - BEFORE_POLL_S
 
 
 def test_rows_are_the_instants_values_and_the_commands_the_plant_integrated():
@@ -52,7 +53,7 @@ def test_rows_are_the_instants_values_and_the_commands_the_plant_integrated():
     )
     builder.Connect(mca.get_output_port(), plant.get_input_port())
     state = plant.GetOutputPort("state")
-    recorder = builder.AddSystem(LiveRecorder({"state": 12}, {"command": 6}, H, LEAD))
+    recorder = builder.AddSystem(LiveRecorder({"state": 12}, {"command": 6}, H))
     builder.Connect(state, recorder.GetInputPort("state"))
     builder.Connect(mca.get_output_port(), recorder.GetInputPort("command"))
     oracle = LogVectorOutput(state, builder, H)  # at every t_k, before its updates
@@ -74,9 +75,9 @@ def test_rows_are_the_instants_values_and_the_commands_the_plant_integrated():
 
 def test_bad_recorder_settings_are_named():
     with pytest.raises(ValueError, match="both"):
-        LiveRecorder({"a": 1}, {"a": 1}, H, LEAD)
-    with pytest.raises(ValueError, match="poll_lead_s"):
-        LiveRecorder({"a": 1}, {"b": 1}, H, H - 1e-6)
-    recorder = LiveRecorder({"a": 1}, {"b": 1}, H, LEAD)
+        LiveRecorder({"a": 1}, {"a": 1}, H)
+    with pytest.raises(ValueError, match="no room"):
+        LiveRecorder({"a": 1}, {"b": 1}, 1e-5)
+    recorder = LiveRecorder({"a": 1}, {"b": 1}, H)
     with pytest.raises(KeyError, match="no port 'c'"):
         recorder.rows("c")

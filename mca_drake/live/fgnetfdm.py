@@ -40,8 +40,6 @@ import math
 import operator
 import struct
 
-import numpy as np
-
 from mca_drake.live.telemetry import BadPacket, Decoder, LeverArm, TelemetrySample
 
 FGNETFDM_VERSION = 24
@@ -279,8 +277,8 @@ class FgNetFdmDecoder(Decoder):
             raise BadPacket(f"fgnetfdm packet has non-finite values: {listed}")
         phi, theta, phidot, thetadot, psidot, a_x, a_y, a_z = used
         p, q, r = body_rates_from_euler_rates(phi, theta, phidot, thetadot, psidot)
-        omega = np.array([p, -q, -r])
-        f = np.array([M_PER_FT * a_x, -M_PER_FT * a_y, -M_PER_FT * a_z])
+        omega = (p, -q, -r)  # TelemetrySample makes the arrays
+        f = (M_PER_FT * a_x, -M_PER_FT * a_y, -M_PER_FT * a_z)
         if self.time_resolution_s is None:
             return TelemetrySample(received_s, omega, f, time_source="arrival")
         if cur_time == JSBSIM_PLACEHOLDER_TIME:

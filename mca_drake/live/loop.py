@@ -160,7 +160,8 @@ def MakeLiveClosedLoop(
     source = builder.AddNamedSystem(
         "receiver", TelemetryReceiver(decoder, receiver_config, scaling)
     )
-    controller = AddMca(builder, mca, robot, h)
+    # the MCA's step after the poll, in the poll's simulator step (`systems.mca_update`)
+    controller = AddMca(builder, mca, robot, h, update_event="discrete")
     home = getattr(controller, "home_position", np.zeros(6))
     guard = builder.AddNamedSystem(
         "supervisor",
@@ -185,12 +186,11 @@ def MakeLiveClosedLoop(
         joint_acceleration = robot_system.GetInputPort("joint_acceleration")
     else:
         station = station or StationConfig()
-        if receiver_config.poll_lead_s + BEFORE_POLL_S >= station.plant_time_step:
+        if BEFORE_POLL_S >= station.plant_time_step:
             # the recorder reads the station just before the poll, as it is at t_k
             raise ValueError(
-                f"ReceiverConfig.poll_lead_s ({receiver_config.poll_lead_s} s) must be shorter "
-                f"than the station's plant_time_step ({station.plant_time_step} s) less "
-                f"{BEFORE_POLL_S} s"
+                f"the station's plant_time_step ({station.plant_time_step} s) must be longer "
+                f"than the live recorder's {BEFORE_POLL_S} s before the poll"
             )
         station_handles = AddKR500Station(
             builder,
@@ -239,7 +239,6 @@ def MakeLiveClosedLoop(
             {name: port.size() for name, port in before_poll.items()},
             {name: port.size() for name, port in after_command.items()},
             h,
-            receiver_config.poll_lead_s,
         ),
     )
     for name, port in (before_poll | after_command).items():
@@ -309,7 +308,6 @@ def run_live(
         if realtime_rate > 0:
             pacer = RealTimePacer(
                 h,
-                rc.poll_lead_s,
                 realtime_rate,
                 max_slew_per_period_s=lock.max_slew_s * h / lock.window_s,
                 wake_socket=source if lock.enabled else None,
@@ -453,8 +451,9 @@ def _advance_phase_locked(simulator, probe, duration_s, pacer, lock, period_s):
 def _window_end(t: float, window_s: float, period_s: float) -> float:
     """Where a phase-lock window from `t` ends: about `window_s` later, in the middle of a
     control period. Between windows Python runs the lock's arithmetic and re-enters
-    AdvanceTo (0.3-1 ms); ending on a control instant put that between a sample's poll and
-    its MCA update, in one sample's latency of every fifty (the whole p99)."""
+    AdvanceTo (0.3-1 ms); ending at a control instant would put that between the pacer's
+    wait for the sample and its poll, in one sample's latency of every fifty (the whole
+    p99)."""
     return (math.floor((t + window_s) / period_s) + 0.5) * period_s
 
 

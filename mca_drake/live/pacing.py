@@ -1,13 +1,13 @@
-"""Real-time pacing of the live loop: the telemetry poll on time, the MCA right after it.
+"""Real-time pacing of the live loop: the telemetry poll and the MCA on time.
 
 Drake's own pacing (`Simulator.set_target_realtime_rate`) sleeps before every step until the
-wall clock reaches the step's time. In the live loop that costs latency twice: the MCA's
-update comes `poll_lead_s` after the poll, in a step of its own, and a sleep that short
-overshoots (by about 1 ms on the development machine's virtual machine), so every sample
-waited that long between the poll and the command computed from it. The pacer instead runs
-as the simulator's monitor (called after every step) and waits only before the poll
-instants, sleeping until shortly before and spinning the last `SPIN_S`: the poll comes on
-time to a few microseconds, and the MCA, the supervisor and the robot follow at once.
+wall clock reaches the step's time, and a short sleep overshoots (by about 1 ms on the
+development machine's virtual machine). The pacer instead runs as the simulator's monitor
+(called after every step) and waits only before the control instants, where the telemetry
+poll and the MCA run in one step (`mca_drake.systems.mca_update`), sleeping until shortly
+before and spinning the last `SPIN_S`: the poll comes on time to a few microseconds, and the
+MCA, the supervisor and the robot follow at once; the steps between control instants run
+unpaced.
 
 A poll may also come early, when the sender's packet does: from `wake_window_s` before a poll
 instant the pacer watches the receiver's socket (a blocking `select`, then a spin that checks
@@ -30,7 +30,7 @@ from collections import deque
 
 from pydrake.systems.framework import Context, EventStatus
 
-# Sleep until this long before a poll instant, then spin: sleeps overshoot, spins do not.
+# Sleep until this long before a control instant, then spin: sleeps overshoot, spins do not.
 SPIN_S = 4e-4
 
 
@@ -39,31 +39,28 @@ class RealTimePacer:
 
     Args:
         period_s: the control period, s.
-        lead_s: how long before each control instant the poll runs, s
-            (`ReceiverConfig.poll_lead_s`).
         realtime_rate: wall seconds per simulated second, inverted (1: real time).
         max_slew_per_period_s: the most the phase moves in one period, s.
         wake_socket: the receiver's socket (anything with `fileno()`), watched from
-            `wake_window_s` before each poll instant; None: polls only at their instants.
+            `wake_window_s` before each control instant; None: polls only at their instants.
         wake_window_s: how early a datagram may bring a poll forward, s (< period_s).
     """
 
     def __init__(
         self,
         period_s: float,
-        lead_s: float,
         realtime_rate: float = 1.0,
         max_slew_per_period_s: float = 1e-4,
         wake_socket=None,
         wake_window_s: float = 0.0,
     ):
-        if not (period_s > 0 and 0 < lead_s < period_s and realtime_rate > 0):
-            raise ValueError("RealTimePacer needs period_s > 0, 0 < lead_s < period_s, rate > 0")
-        if not 0 <= wake_window_s < period_s - lead_s:
-            raise ValueError("RealTimePacer needs 0 <= wake_window_s < period_s - lead_s")
+        if not (period_s > 0 and realtime_rate > 0):
+            raise ValueError("RealTimePacer needs period_s > 0 and realtime_rate > 0")
+        if not 0 <= wake_window_s < period_s:
+            raise ValueError("RealTimePacer needs 0 <= wake_window_s < period_s")
         self._wake_socket = wake_socket if wake_window_s > 0 else None
         self._wake_window = wake_window_s
-        self._period, self._lead, self._rate = period_s, lead_s, realtime_rate
+        self._period, self._rate = period_s, realtime_rate
         self._max_slew = max_slew_per_period_s
         self.phase_s = 0.0  # the phase now, s (> 0: earlier)
         self.target_phase_s = 0.0  # where the phase goes, s
@@ -79,11 +76,11 @@ class RealTimePacer:
         self._wall_at_zero = time.perf_counter()
 
     def __call__(self, context: Context) -> EventStatus:
-        """The monitor: waits, before a poll instant, until its wall-clock time."""
+        """The monitor: waits, before a control instant, until its wall-clock time."""
         t = context.get_time()
-        k = round((t + self._lead) / self._period)
-        if self._wall_at_zero is None or abs(t - (k * self._period - self._lead)) > 1e-9:
-            return EventStatus.Succeeded()  # not a poll instant: no wait
+        k = round(t / self._period)
+        if self._wall_at_zero is None or abs(t - k * self._period) > 1e-9:
+            return EventStatus.Succeeded()  # not a control instant: no wait
         error = self.target_phase_s - self.phase_s
         self.phase_s += max(-self._max_slew, min(self._max_slew, error))
         due = self._wall_at_zero + t / self._rate - self.phase_s

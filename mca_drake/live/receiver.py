@@ -1,22 +1,25 @@
 """TelemetryReceiver: live vehicle motion from a UDP socket, as a Drake system.
 
-Every control period, shortly before the MCAs update (`ReceiverConfig.poll_lead_s`), the
-receiver drains its non-blocking socket: each datagram is decoded (`mca_drake.live`
-decoders, which also move it to the head point) and the newest sample is held (zero-order hold: the
-latest sample resampled to the control period). Bad datagrams, samples older than the one
-held (out of order) and gaps in the sender's sequence (dropped) are counted, never raised;
-so are control periods that brought nothing new (stale periods). The held sample leaves as
-the reference through the same scaling as recordings (`scaled_reference`).
+Every control instant the receiver drains its non-blocking socket: each datagram is decoded
+(`mca_drake.live` decoders, which also move it to the head point) and the newest sample is
+held (zero-order hold: the latest sample resampled to the control period). Bad datagrams,
+samples older than the one held (out of order) and gaps in the sender's sequence (dropped)
+are counted, never raised; so are control periods that brought nothing new (stale periods).
+The held sample leaves as the reference through the same scaling as recordings
+(`scaled_reference`).
 
-Polling before the control instant matters: Drake applies simultaneous updates to the state
-they all saw before, so a poll at the control instant itself would reach the MCA one period
-late. The lead is tiny (20 us) because at real-time rate the simulator waits out the lead
-between the poll and the MCA's update: every microsecond of it is latency.
+The poll is an unrestricted update at the control instant t_k. Drake runs an instant's
+unrestricted updates before its discrete ones, so an MCA whose step is a discrete update
+(`AddMca(..., update_event="discrete")`, as the live loop builds it) computes its command
+from the sample polled at its own instant, in the same simulator step: nothing waits between
+the poll and the MCA. An MCA with the offline default (an unrestricted step) would see the
+sample one period late.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import socket
 import struct
 import time
@@ -32,6 +35,8 @@ from mca_drake.references.reference import ReferenceScaling, scaled_reference
 # Linux's SO_TIMESTAMPNS (and SCM_TIMESTAMPNS): the kernel's receive time of a datagram, as a
 # struct timespec of CLOCK_REALTIME (Python's socket module does not name it).
 SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
+# The struct timespec it carries: seconds and nanoseconds.
+_TIMESPEC = struct.Struct("qq")
 
 # The `telemetry` output port, in this order.
 TELEMETRY_FIELDS = (
@@ -61,9 +66,6 @@ class ReceiverConfig:
     port: int = 5500
     # No new sample for this long (s) and the telemetry counts as stale.
     stale_after_s: float = 0.1
-    # The poll runs this long (s) before each control instant (see the module docstring):
-    # at real-time rate the loop waits this long between the poll and the MCA's update.
-    poll_lead_s: float = 2e-5
     # At most this many datagrams are read per poll (bounds a poll's time under a flood).
     max_datagrams_per_poll: int = 256
     # Control period, s.
@@ -76,10 +78,6 @@ class ReceiverConfig:
             raise ValueError(f"ReceiverConfig.port must be in [0, 65535]; got {self.port}")
         if not self.time_step > 0 or not self.stale_after_s > 0:
             raise ValueError("ReceiverConfig.time_step and stale_after_s must be positive")
-        if not 0 < self.poll_lead_s < self.time_step:
-            raise ValueError(
-                f"ReceiverConfig.poll_lead_s must be in (0, time_step); got {self.poll_lead_s}"
-            )
         if self.max_datagrams_per_poll < 1:
             raise ValueError("ReceiverConfig.max_datagrams_per_poll must be at least 1")
 
@@ -135,9 +133,7 @@ class TelemetryReceiver(LeafSystem):
         initial[[_T_S, _ARRIVAL, _SEQUENCE, _POLL]] = np.nan
         self._state_index = self.DeclareDiscreteState(initial)
         period = self._config.time_step
-        self.DeclarePeriodicUnrestrictedUpdateEvent(
-            period, period - self._config.poll_lead_s, self._poll
-        )
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._poll)
         self.DeclareVectorOutputPort("reference", 6, self._calc_reference, {self.xd_ticket()})
         # age depends on the wall clock: recomputed whenever time advances
         self.DeclareVectorOutputPort(
@@ -167,12 +163,15 @@ class TelemetryReceiver(LeafSystem):
         return dict(zip(TELEMETRY_FIELDS, (float(v) for v in values), strict=True))
 
     def _poll(self, context: Context, state: State) -> None:
-        x = np.array(context.get_discrete_state(self._state_index).value())
+        # Python floats, one list in and one array out: numpy scalar arithmetic and checks
+        # cost microseconds each, and this runs between a datagram and its command.
+        x = context.get_discrete_state(self._state_index).value().tolist()
         polled = time.perf_counter()
         new_sample = False
+        receive, decode = self._socket.recvmsg, self._decoder.decode
         for _ in range(self._config.max_datagrams_per_poll):
             try:
-                packet, ancillary, _, _ = self._socket.recvmsg(65536, 64)
+                packet, ancillary, _, _ = receive(65536, 64)
             except (BlockingIOError, InterruptedError):
                 break
             except OSError:  # closed socket
@@ -180,22 +179,23 @@ class TelemetryReceiver(LeafSystem):
             arrival = self._arrival(ancillary)
             x[_PACKETS] += 1
             try:
-                sample = self._decoder.decode(packet, arrival)
+                sample = decode(packet, arrival)
             except BadPacket:
                 x[_BAD] += 1
                 continue
-            if np.isfinite(x[_T_S]) and sample.t_s < x[_T_S]:
+            if sample.t_s < x[_T_S]:  # False while none is held (NaN)
                 x[_OUT_OF_ORDER] += 1
                 continue
-            if sample.sequence is not None and np.isfinite(x[_SEQUENCE]):
+            if sample.sequence is not None and math.isfinite(x[_SEQUENCE]):
                 x[_DROPPED] += max(0, sample.sequence - int(x[_SEQUENCE]) - 1)
-            x[_OMEGA], x[_F] = sample.omega, sample.f
+            x[_OMEGA] = sample.omega.tolist()
+            x[_F] = sample.f.tolist()
             x[_T_S], x[_ARRIVAL], x[_POLL] = sample.t_s, arrival, polled
-            x[_SEQUENCE] = np.nan if sample.sequence is None else sample.sequence
+            x[_SEQUENCE] = math.nan if sample.sequence is None else sample.sequence
             new_sample = True
         if not new_sample:
             x[_STALE] += 1
-        state.get_mutable_discrete_state().set_value(self._state_index, x)
+        state.get_mutable_discrete_state().set_value(self._state_index, np.array(x))
 
     def _arrival(self, ancillary) -> float:
         """When the datagram reached the socket, on the time.perf_counter() clock: the
@@ -203,7 +203,7 @@ class TelemetryReceiver(LeafSystem):
         now = time.perf_counter()
         for level, kind, data in ancillary:
             if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(data) >= 16:
-                seconds, nanoseconds = struct.unpack("qq", data[:16])
+                seconds, nanoseconds = _TIMESPEC.unpack_from(data)
                 waited = time.time() - (seconds + 1e-9 * nanoseconds)
                 if 0.0 <= waited < 1.0:  # a sane stamp (the clock may step)
                     return now - waited

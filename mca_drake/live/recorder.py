@@ -1,10 +1,8 @@
 """LiveRecorder: the live loop's signals, recorded off the path from a sample to its command.
 
-Drake's `LogVectorOutput` publishes at every control instant t_k, at the end of the step that
-reaches t_k: after the telemetry poll (t_k - poll lead) and before the MCA's update at t_k.
-Every port it reads (the supervised command, the robot's outputs) was then computed between
-the sample's arrival and the command computed from it, which added to the live latency.
-The recorder reads the same values at two other moments of each period:
+The live loop records its signals at two moments of each period, neither between a sample's
+poll and the command computed from it (the poll and the MCA run in one simulator step at t_k,
+`mca_drake.systems.mca_update`), and each row at the moment its meaning asks for:
 
 - `before_poll` ports just before the poll (`BEFORE_POLL_S` before it; at t = 0, at
   initialization): everything the MCA will read at t_k, since nothing in the live loop
@@ -37,7 +35,6 @@ class LiveRecorder(LeafSystem):
         before_poll: name -> size of the ports read just before each poll (and at t = 0).
         after_command: name -> size of the ports read just after each command.
         period_s: the control period, s.
-        poll_lead_s: how long before each control instant the receiver polls, s.
     """
 
     def __init__(
@@ -45,16 +42,15 @@ class LiveRecorder(LeafSystem):
         before_poll: dict[str, int],
         after_command: dict[str, int],
         period_s: float,
-        poll_lead_s: float,
     ):
         super().__init__()
         if set(before_poll) & set(after_command):
             raise ValueError("LiveRecorder: a port name is in both before_poll and after_command")
-        offset = period_s - poll_lead_s - BEFORE_POLL_S
-        if not (period_s > 0 and AFTER_COMMAND_S < offset < period_s):
+        offset = period_s - BEFORE_POLL_S
+        if not AFTER_COMMAND_S < offset < period_s:
             raise ValueError(
-                f"LiveRecorder: poll_lead_s {poll_lead_s} s leaves no room in a {period_s} s "
-                "period for the recordings before the poll and after the command"
+                f"LiveRecorder: a {period_s} s period leaves no room for the recordings "
+                f"before the poll and after the command ({BEFORE_POLL_S} s, {AFTER_COMMAND_S} s)"
             )
         self._ports = {
             name: self.DeclareVectorInputPort(name, size)

@@ -76,7 +76,8 @@ class TelemetrySample:
             value = np.array(getattr(self, name), dtype=np.float64)  # a copy: frozen for real
             if value.shape != (3,):
                 raise ValueError(f"telemetry sample {name} must have shape (3,); got {value.shape}")
-            if not np.isfinite(value).all():
+            # floats, not a numpy reduction: decoding sits between a packet and its command
+            if not all(map(math.isfinite, value.tolist())):
                 raise ValueError(f"telemetry sample {name} has non-finite values: {value}")
             value.flags.writeable = False
             object.__setattr__(self, name, value)
@@ -92,13 +93,14 @@ def check_plausible(sample: TelemetrySample, where: str) -> None:
     """Raises BadPacket if `sample` holds values no vehicle produces (garbage or wrong units):
     a specific-force component beyond `MAX_SPECIFIC_FORCE` (20 g) or an angular rate beyond
     `MAX_ANGULAR_RATE`. `where` starts the message (protocol and point)."""
-    worst_f = float(np.abs(sample.f).max())
+    # on three Python floats: a numpy reduction costs more (this runs on every datagram)
+    worst_f = max(map(abs, sample.f.tolist()))
     if worst_f > MAX_SPECIFIC_FORCE:
         raise BadPacket(
             f"{where}: specific force {np.round(sample.f, 3).tolist()} m/s^2 exceeds "
             f"{MAX_SPECIFIC_FORCE:g} m/s^2 (20 g): garbage, or a field in the wrong units"
         )
-    worst_w = float(np.abs(sample.omega).max())
+    worst_w = max(map(abs, sample.omega.tolist()))
     if worst_w > MAX_ANGULAR_RATE:
         raise BadPacket(
             f"{where}: angular velocity {np.round(sample.omega, 3).tolist()} rad/s exceeds "

@@ -71,6 +71,7 @@ def AddMca(
     mca: McaConfig | str,
     robot: KR500,
     time_step: float = CONTROL_PERIOD_S,
+    update_event: str = "unrestricted",
 ) -> LeafSystem:
     """Adds the motion cueing algorithm of `mca` (a typed config, or a name of
     `mca_drake.cueing.MCA_NAMES` for its default config) to `builder` as system "mca".
@@ -81,6 +82,10 @@ def AddMca(
 
     Args:
         time_step: the control period, s; an NmpcConfig must state the same.
+        update_event: the phase of each control instant the MCA's step runs in
+            (`mca_drake.systems.mca_update`): "unrestricted" (before the plant's discrete
+            update at the same instant) or "discrete" (after the instant's unrestricted
+            updates: the live loop's telemetry poll).
 
     Raises:
         ValueError: an unknown name, a config that does not validate, or an NmpcConfig
@@ -93,14 +98,19 @@ def AddMca(
                 f"NmpcConfig.time_step {config.time_step} s differs from the control period "
                 f"{time_step} s of the reference"
             )
-        return builder.AddNamedSystem("mca", NmpcController(config, robot))
+        return builder.AddNamedSystem(
+            "mca", NmpcController(config, robot, update_event=update_event)
+        )
     if isinstance(config, DpcConfig):
         config.validate()
         arrays, _ = load_policy_arrays(config.policy_path())
-        return builder.AddNamedSystem("mca", DpcPolicy(arrays, robot, time_step))
+        return builder.AddNamedSystem("mca", DpcPolicy(arrays, robot, time_step, update_event))
     if isinstance(config, WashoutConfig):
         return builder.AddNamedSystem(
-            "mca", ClassicalWashout(config=config, robot=robot, time_step=time_step)
+            "mca",
+            ClassicalWashout(
+                config=config, robot=robot, time_step=time_step, update_event=update_event
+            ),
         )
     raise TypeError(f"not an MCA config: {type(config).__name__}")
 

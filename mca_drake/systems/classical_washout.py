@@ -14,12 +14,13 @@ from pydrake.multibody.inverse_kinematics import (
 )
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import Context, LeafSystem, State, ValueProducer
+from pydrake.systems.framework import Context, DiscreteValues, LeafSystem, ValueProducer
 
 from mca_drake.conventions import CONTROL_PERIOD_S, MCA_STATISTICS
 from mca_drake.cueing.washout import WashoutConfig, WashoutFilters
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.safety import ViabilityClamp
+from mca_drake.systems.mca_update import DeclareMcaUpdate
 
 
 class ClassicalWashout(LeafSystem):
@@ -51,6 +52,8 @@ class ClassicalWashout(LeafSystem):
         config: filter cut-offs, gains and the tilt-rate limit.
         robot: the KR500 description (its URDF is parsed into the MultibodyPlant).
         time_step: control period, s.
+        update_event: the phase of t_k the step runs in (`mca_update.MCA_UPDATE_EVENTS`):
+            "unrestricted" offline, "discrete" in the live loop (after its telemetry poll).
     """
 
     def __init__(
@@ -58,6 +61,7 @@ class ClassicalWashout(LeafSystem):
         config: WashoutConfig | None = None,
         robot: KR500 | None = None,
         time_step: float = CONTROL_PERIOD_S,
+        update_event: str = "unrestricted",
     ):
         super().__init__()
         self._config = config or WashoutConfig()
@@ -100,7 +104,7 @@ class ClassicalWashout(LeafSystem):
         self._filter_index = self.DeclareDiscreteState(self._filters.state_size)
         self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
         self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
-        self.DeclarePeriodicUnrestrictedUpdateEvent(self._h, 0.0, self._update)
+        DeclareMcaUpdate(self, self._h, self._update, update_event)
         self.DeclareStateOutputPort("joint_acceleration", self._command_index)
         self.DeclareStateOutputPort("statistics", self._statistics_index)
 
@@ -119,7 +123,7 @@ class ClassicalWashout(LeafSystem):
         values = context.get_discrete_state(self._statistics_index).value()
         return dict(zip(MCA_STATISTICS, (float(v) for v in values), strict=True))
 
-    def _update(self, context: Context, state: State) -> None:
+    def _update(self, context: Context, discrete: DiscreteValues) -> None:
         x = self._state_port.Eval(context)
         reference = self._reference_port.Eval(context)
         # Timed from here: evaluating the inputs computes upstream systems (the plant's
@@ -165,7 +169,6 @@ class ClassicalWashout(LeafSystem):
             v_next = np.asarray(result.joint_velocities).reshape(-1)
         u = np.clip((v_next - qd) / self._h, -self._robot.qdd_max, self._robot.qdd_max)
         command, intervened = self._clamp(x, u)
-        discrete = state.get_mutable_discrete_state()
         discrete.set_value(self._filter_index, filters)
         discrete.set_value(self._command_index, command)
         discrete.set_value(

@@ -7,12 +7,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-from pydrake.systems.framework import Context, LeafSystem, State
+from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from mca_drake.conventions import CONTROL_PERIOD_S, MCA_STATISTICS
 from mca_drake.cueing.dpc import PolicyInference, load_policy_arrays
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.safety import ViabilityClamp
+from mca_drake.systems.mca_update import DeclareMcaUpdate
 
 
 class DpcPolicy(LeafSystem):
@@ -42,6 +43,8 @@ class DpcPolicy(LeafSystem):
         policy: a policy file (`mca_drake.learning.policy.save_policy`) or its arrays.
         robot: the KR500 description (the clamp's limits).
         time_step: control period, s.
+        update_event: the phase of t_k the step runs in (`mca_update.MCA_UPDATE_EVENTS`):
+            "unrestricted" offline, "discrete" in the live loop (after its telemetry poll).
     """
 
     def __init__(
@@ -49,6 +52,7 @@ class DpcPolicy(LeafSystem):
         policy: str | Path | dict,
         robot: KR500 | None = None,
         time_step: float = CONTROL_PERIOD_S,
+        update_event: str = "unrestricted",
     ):
         super().__init__()
         arrays = load_policy_arrays(policy)[0] if isinstance(policy, str | Path) else policy
@@ -60,9 +64,7 @@ class DpcPolicy(LeafSystem):
         self._output_port = self.DeclareVectorInputPort("inertial_output", 6)
         self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
         self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
-        # Unrestricted, like NmpcController: it runs before the plant's discrete update at
-        # the same instant, so the command computed from x_n acts from t_n (no extra delay).
-        self.DeclarePeriodicUnrestrictedUpdateEvent(time_step, 0.0, self._update)
+        DeclareMcaUpdate(self, time_step, self._update, update_event)
         self.DeclareStateOutputPort("joint_acceleration", self._command_index)
         self.DeclareStateOutputPort("statistics", self._statistics_index)
 
@@ -71,7 +73,7 @@ class DpcPolicy(LeafSystem):
         values = context.get_discrete_state(self._statistics_index).value()
         return dict(zip(MCA_STATISTICS, (float(v) for v in values), strict=True))
 
-    def _update(self, context: Context, state: State) -> None:
+    def _update(self, context: Context, discrete: DiscreteValues) -> None:
         x = self._state_port.Eval(context)
         y = self._output_port.Eval(context)
         reference = self._reference_port.Eval(context)
@@ -90,7 +92,6 @@ class DpcPolicy(LeafSystem):
                 y = np.zeros(6)  # a dropped IMU sample: the policy still sees state and target
         u, _ = self._inference(y, x, reference)
         command, intervened = self._clamp(x, u)
-        discrete = state.get_mutable_discrete_state()
         stats = context.get_discrete_state(self._statistics_index).value()
         discrete.set_value(self._command_index, command)
         # an array, not a list: pybind's conversion of a list costs 1-2 us of the budget

@@ -5,12 +5,13 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from pydrake.systems.framework import Context, LeafSystem, State
+from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from mca_drake.conventions import MCA_STATISTICS
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
 from mca_drake.robot import KR500, NUM_JOINTS
 from mca_drake.safety import ViabilityClamp
+from mca_drake.systems.mca_update import DeclareMcaUpdate
 
 
 class NmpcController(LeafSystem):
@@ -49,6 +50,8 @@ class NmpcController(LeafSystem):
         robot: the KR500 description.
         preview_samples: length N of the `reference_preview` port (6 N values, sample after
             sample); 0 declares no preview port.
+        update_event: the phase of t_k the step runs in (`mca_update.MCA_UPDATE_EVENTS`):
+            "unrestricted" offline, "discrete" in the live loop (after its telemetry poll).
     """
 
     def __init__(
@@ -56,6 +59,7 @@ class NmpcController(LeafSystem):
         config: NmpcConfig | None = None,
         robot: KR500 | None = None,
         preview_samples: int = 0,
+        update_event: str = "unrestricted",
     ):
         super().__init__()
         self._ocp = MotionCueingOcp(config, robot)
@@ -81,7 +85,7 @@ class NmpcController(LeafSystem):
             self._hessians_shape = (self._ocp.N, 6, 3 * NUM_JOINTS, 3 * NUM_JOINTS)
             self._hessians_index = self.DeclareDiscreteState(int(np.prod(self._hessians_shape)))
         self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
-        self.DeclarePeriodicUnrestrictedUpdateEvent(self._config.time_step, 0.0, self._update)
+        DeclareMcaUpdate(self, self._config.time_step, self._update, update_event)
         self._command_port = self.DeclareStateOutputPort("joint_acceleration", self._command_index)
         self._statistics_port = self.DeclareStateOutputPort("statistics", self._statistics_index)
 
@@ -103,7 +107,7 @@ class NmpcController(LeafSystem):
             return preview[rows]
         return np.broadcast_to(reference, (self._ocp.N, 6))
 
-    def _update(self, context: Context, state: State) -> None:
+    def _update(self, context: Context, discrete: DiscreteValues) -> None:
         x = self._state_port.Eval(context)
         refs = self._node_references(context)
         # Timed from here: evaluating the inputs computes upstream systems (the plant's
@@ -136,7 +140,6 @@ class NmpcController(LeafSystem):
         # failures).
         command, intervened = self._clamp(x, plan[0])
         interventions += intervened
-        discrete = state.get_mutable_discrete_state()
         discrete.set_value(self._command_index, command)
         discrete.set_value(self._plan_index, plan.reshape(-1))
         if result.active is not None:
