@@ -1,4 +1,4 @@
-"""Real-time operation: telemetry protocols, receiver and supervisor (later: robot drivers).
+"""Real-time operation: telemetry protocols, receiver and supervisor, robot protocols.
 
 Decoders turn one UDP datagram into a head-frame `TelemetrySample` (angular velocity, rad/s,
 and specific force, m/s^2, in the recording conventions), or raise `BadPacket`:
@@ -11,6 +11,8 @@ and specific force, m/s^2, in the recording conventions), or raise `BadPacket`:
                period (imported from its module: it loads pydrake, the decoders do not)
     supervisor Supervisor: health state machine (ok, degraded, fault) and the blended,
                limit-respecting wash-out to home (also imported from its module)
+    rsi_xml    KUKA RobotSensorInterface messages: the controller's state (IPOC, actual axis
+               positions) and the external reply (echoed IPOC, axis corrections), deg
 """
 
 from __future__ import annotations

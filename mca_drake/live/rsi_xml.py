@@ -1,0 +1,222 @@
+"""KUKA RobotSensorInterface (RSI) messages: the controller's state and the external reply.
+
+Every interpolation cycle (4 or 12 ms) an RSI controller sends one UDP datagram of XML and
+expects, within the cycle, a reply carrying the same cycle counter (IPOC). The layout is that
+of ROS-Industrial's `kuka_rsi_hw_interface` (tag names configurable, `RsiTags`):
+
+    controller -> external:   <Rob Type="KUKA">
+                                <AIPos A1=".." A2=".." A3=".." A4=".." A5=".." A6=".."/>
+                                <IPOC>n</IPOC>
+                              </Rob>
+    external -> controller:   <Sen Type="ImFree"><AK A1=".." ... A6=".."/><IPOC>n</IPOC></Sen>
+
+AIPos holds the actual axis positions, AK the axis corrections relative to the pose at the
+start of the RSI motion; both in degrees (the robot's units: this module converts nothing,
+its callers do, at their boundary). The state may carry other elements (RIst, RSol, ASPos,
+Delay, ...): they are ignored.
+
+Parsing is a scan for the few elements needed, not a general XML parser: it accepts only
+bounded datagrams of ASCII text, expands no entities and builds no tree, so a malformed or
+hostile datagram costs microseconds and raises `BadRsiPacket`, never anything else. The
+writers produce well-formed XML (checked in the tests with Python's own parser).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+
+# Longest datagram accepted, bytes: a full KUKA state message is under 1 kB.
+MAX_RSI_BYTES = 4096
+# IPOC is an unsigned 64-bit counter (milliseconds of the controller's clock).
+MAX_IPOC = 2**64 - 1
+
+
+class BadRsiPacket(ValueError):  # noqa: N818 (named like the telemetry layer's BadPacket)
+    """An RSI datagram that does not hold what the driver needs; the message says why."""
+
+
+@dataclasses.dataclass(frozen=True)
+class RsiTags:
+    """The XML names of the RSI object configuration (ROS-Industrial's defaults)."""
+
+    # Root element and its Type attribute of the controller's message.
+    state_root: str = "Rob"
+    state_type: str = "KUKA"
+    # Element of the actual axis positions, deg.
+    actual_positions: str = "AIPos"
+    # Root element and Type of the external system's reply.
+    reply_root: str = "Sen"
+    reply_type: str = "ImFree"
+    # Element of the axis corrections, deg.
+    corrections: str = "AK"
+    # The cycle counter element (in both messages).
+    ipoc: str = "IPOC"
+    # Attribute names of the six axes.
+    axes: tuple[str, ...] = ("A1", "A2", "A3", "A4", "A5", "A6")
+
+    def validate(self) -> None:
+        """Raises ValueError for a name that is not a plain XML name, naming it."""
+        names = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        axes = names.pop("axes")
+        if len(axes) != 6 or len(set(axes)) != 6:
+            raise ValueError(f"RsiTags.axes must be six distinct names; got {axes}")
+        for field, value in list(names.items()) + [("axes", a) for a in axes]:
+            if not _NAME.fullmatch(value):
+                raise ValueError(f"RsiTags.{field} must be a plain XML name; got {value!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class RsiMessage:
+    """One parsed message: the cycle counter and six axis values (deg)."""
+
+    ipoc: int
+    axes_deg: tuple[float, ...]
+
+
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]*")
+_ATTRIBUTE = re.compile(r'([A-Za-z_][A-Za-z0-9_.-]*)\s*=\s*"([^"<&]*)"')
+_NUMBER = re.compile(r"\s*[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?\s*")
+
+
+@dataclasses.dataclass(frozen=True)
+class _Patterns:
+    root: re.Pattern
+    element: re.Pattern
+    ipoc: re.Pattern
+
+
+_PATTERNS: dict[tuple[str, str, str, str], _Patterns] = {}
+# Tag sets already validated (a driver checks its tags once, not every 4 ms cycle).
+_VALID_TAGS: set[RsiTags] = set()
+
+
+def _checked(tags: RsiTags) -> RsiTags:
+    if tags not in _VALID_TAGS:
+        tags.validate()
+        _VALID_TAGS.add(tags)
+    return tags
+
+
+def _patterns(root: str, kind: str, element: str, ipoc: str) -> _Patterns:
+    key = (root, kind, element, ipoc)
+    if key not in _PATTERNS:
+        _PATTERNS[key] = _Patterns(
+            root=re.compile(
+                rf"\s*(?:<\?xml[^>]*\?>\s*)?<{re.escape(root)}\b([^>]*)>(.*)</{re.escape(root)}>\s*",
+                re.DOTALL,
+            ),
+            element=re.compile(rf"<{re.escape(element)}\b([^>]*?)/?>"),
+            ipoc=re.compile(rf"<{re.escape(ipoc)}>\s*(\d{{1,20}})\s*</{re.escape(ipoc)}>"),
+        )
+    return _PATTERNS[key]
+
+
+def _parse(packet: bytes, root: str, kind: str, element: str, tags: RsiTags) -> RsiMessage:
+    if not isinstance(packet, bytes | bytearray | memoryview):
+        raise BadRsiPacket(f"RSI packet must be bytes; got {type(packet).__name__}")
+    if len(packet) > MAX_RSI_BYTES:
+        raise BadRsiPacket(f"RSI packet of {len(packet)} bytes; at most {MAX_RSI_BYTES} accepted")
+    try:
+        text = bytes(packet).decode("ascii")
+    except UnicodeDecodeError as error:
+        raise BadRsiPacket(f"RSI packet is not ASCII text: {error}") from None
+    found = _patterns(root, kind, element, _checked(tags).ipoc)
+    whole = found.root.fullmatch(text)
+    if whole is None:
+        raise BadRsiPacket(f"RSI packet is not one <{root}> element")
+    root_attributes = dict(_ATTRIBUTE.findall(whole.group(1)))
+    if root_attributes.get("Type") != kind:
+        raise BadRsiPacket(
+            f'RSI <{root}> has Type="{root_attributes.get("Type")}"; expected Type="{kind}"'
+        )
+    body = whole.group(2)
+    elements = found.element.findall(body)
+    if len(elements) != 1:
+        raise BadRsiPacket(f"RSI packet has {len(elements)} <{element}> elements; needs one")
+    attributes = _ATTRIBUTE.findall(elements[0])
+    values = dict(attributes)
+    if len(values) != len(attributes):
+        raise BadRsiPacket(f"RSI <{element}> repeats an attribute")
+    axes = []
+    for axis in tags.axes:
+        raw = values.get(axis)
+        if raw is None:
+            raise BadRsiPacket(f"RSI <{element}> lacks axis {axis}")
+        if not _NUMBER.fullmatch(raw):
+            raise BadRsiPacket(f'RSI <{element}> {axis}="{raw}" is not a decimal number')
+        value = float(raw)
+        if not math.isfinite(value):
+            raise BadRsiPacket(f'RSI <{element}> {axis}="{raw}" is not finite')
+        axes.append(value)
+    counters = found.ipoc.findall(body)
+    if len(counters) != 1:
+        raise BadRsiPacket(
+            f"RSI packet has {len(counters)} <{tags.ipoc}> counters of digits; needs one"
+        )
+    ipoc = int(counters[0])
+    if ipoc > MAX_IPOC:
+        raise BadRsiPacket(f"RSI <{tags.ipoc}> {ipoc} exceeds 64 bits")
+    return RsiMessage(ipoc=ipoc, axes_deg=tuple(axes))
+
+
+def parse_state(packet: bytes, tags: RsiTags = RsiTags()) -> RsiMessage:
+    """The controller's cycle counter and actual axis positions (deg) in `packet`.
+
+    Raises:
+        BadRsiPacket: too long, not ASCII, not one root element of the right Type, no or
+            several position elements, a missing, repeated, non-numeric or non-finite axis,
+            no or several counters, a counter beyond 64 bits.
+    """
+    return _parse(packet, tags.state_root, tags.state_type, tags.actual_positions, tags)
+
+
+def parse_reply(packet: bytes, tags: RsiTags = RsiTags()) -> RsiMessage:
+    """The echoed cycle counter and the axis corrections (deg) of an external reply (what a
+    controller, or the loopback emulator, reads). Raises BadRsiPacket as `parse_state`."""
+    return _parse(packet, tags.reply_root, tags.reply_type, tags.corrections, tags)
+
+
+def _format(root: str, kind: str, element: str, ipoc: int, axes_deg, tags: RsiTags) -> bytes:
+    _checked(tags)
+    if not (isinstance(ipoc, int) and 0 <= ipoc <= MAX_IPOC):
+        raise ValueError(f"IPOC must be an integer in [0, 2^64); got {ipoc!r}")
+    values = [float(v) for v in axes_deg]
+    if len(values) != 6 or not all(map(math.isfinite, values)):
+        raise ValueError(f"six finite axis values (deg) needed; got {axes_deg!r}")
+    # four decimals: 1e-4 deg, far below the axes' resolution; fixed point, as KRL reads it
+    attributes = " ".join(f'{a}="{v:.4f}"' for a, v in zip(tags.axes, values, strict=True))
+    return (
+        f'<{root} Type="{kind}"><{element} {attributes}/><{tags.ipoc}>{ipoc}</{tags.ipoc}></{root}>'
+    ).encode("ascii")
+
+
+def format_reply(ipoc: int, corrections_deg, tags: RsiTags = RsiTags()) -> bytes:
+    """The external system's reply: the echoed `ipoc` and six axis corrections (deg).
+
+    Raises:
+        ValueError: a counter outside [0, 2^64) or corrections that are not six finite
+            numbers (the driver never sends what it could not check).
+    """
+    return _format(tags.reply_root, tags.reply_type, tags.corrections, ipoc, corrections_deg, tags)
+
+
+def format_state(ipoc: int, positions_deg, tags: RsiTags = RsiTags()) -> bytes:
+    """A controller's state message (what the loopback emulator sends): `ipoc` and the six
+    actual axis positions (deg). Raises ValueError as `format_reply`."""
+    return _format(
+        tags.state_root, tags.state_type, tags.actual_positions, ipoc, positions_deg, tags
+    )
+
+
+__all__ = [
+    "MAX_RSI_BYTES",
+    "BadRsiPacket",
+    "RsiMessage",
+    "RsiTags",
+    "format_reply",
+    "format_state",
+    "parse_reply",
+    "parse_state",
+]
