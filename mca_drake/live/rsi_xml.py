@@ -16,8 +16,9 @@ its callers do, at their boundary). The state may carry other elements (RIst, RS
 Delay, ...): they are ignored.
 
 Parsing is a scan for the few elements needed, not a general XML parser: it accepts only
-bounded datagrams of ASCII text, expands no entities and builds no tree, so a malformed or
-hostile datagram costs microseconds and raises `BadRsiPacket`, never anything else. The
+bounded datagrams of ASCII text with attribute values in double quotes (as KUKA writes them),
+expands no entities and builds no tree, so a malformed or hostile datagram costs
+microseconds and raises `BadRsiPacket`, never anything else. The
 writers produce well-formed XML (checked in the tests with Python's own parser).
 """
 
