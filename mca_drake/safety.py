@@ -204,7 +204,7 @@ class ViabilityClamp:
         command is replaced by the strongest braking command (and counts)."""
         n, h = self._n, self.h
         xs = np.asarray(x, float).tolist()
-        us = np.asarray(u, float).tolist()
+        us = u if type(u) is list else np.asarray(u, float).tolist()  # a list: the DPC's
         finite = all(math.isfinite(c) for c in us)
         safe, intervened = [], not finite
         for j in range(n):

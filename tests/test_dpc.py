@@ -85,6 +85,20 @@ def test_numpy_inference_equals_torch(rng):
         u, xh = inference(y, x, r)
         np.testing.assert_allclose(u, u_t[0].detach().numpy(), rtol=0, atol=1e-6)
         np.testing.assert_allclose(xh, xh_t[0].detach().numpy(), rtol=0, atol=1e-6)
+        command = inference.command(y, x, r)  # the live loop's u alone, in floats
+        assert all(type(v) is float for v in command)
+        np.testing.assert_allclose(command, u, rtol=0, atol=1e-12)
+
+
+def test_the_command_alone_is_nan_for_any_non_finite_input(rng):
+    """`command` bounds u like the full inference, so it must not let the bounds turn a
+    non-finite input into a finite command: any NaN or inf among the 24 inputs gives NaN."""
+    inference = PolicyInference(_random_policy(3).double().export())
+    for position in range(24):
+        for bad in (np.nan, np.inf, -np.inf):
+            v = rng.normal(size=24)
+            v[position] = bad
+            assert np.all(np.isnan(inference.command(v[:6], v[6:18], v[18:])))
 
 
 def test_policy_file_round_trip_and_bad_files(tmp_path, rng):

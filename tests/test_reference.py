@@ -9,7 +9,13 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput
 
 from mca_drake.references.recording import Recording
-from mca_drake.references.reference import Reference, ReferenceScaling, reference_from_recording
+from mca_drake.references.reference import (
+    Reference,
+    ReferenceScaling,
+    reference_from_recording,
+    scaled_reference,
+    scaled_reference_sample,
+)
 from mca_drake.systems import ReferenceSource
 
 G = 9.81
@@ -43,6 +49,29 @@ def test_limits_clip_and_tanh():
         rec, ReferenceScaling(force_scale=1.0, limits=limits, limit_mode="tanh")
     )
     assert soft.y[0, 3] == pytest.approx(2.0 * np.tanh(5.0))
+
+
+@pytest.mark.parametrize(
+    "scaling",
+    [
+        ReferenceScaling(),
+        ReferenceScaling(angular_scale=0.3, force_scale=0.7, limits=(0.2,) * 3 + (1.5,) * 3),
+        ReferenceScaling(limits=(0.4, 0.3, 0.2, 1.0, 2.0, 3.0), limit_mode="tanh"),
+    ],
+)
+def test_one_sample_in_floats_scales_as_the_arrays_do(scaling, rng):
+    """The live loop's float version against the array formula that scales recordings,
+    over samples within and beyond the limits."""
+    omega = rng.normal(scale=0.8, size=(200, 3))
+    f = rng.normal(scale=6.0, size=(200, 3))
+    f[:, 2] += G
+    expected = scaled_reference(omega, f, scaling)
+    got = [
+        scaled_reference_sample(w.tolist(), a.tolist(), scaling)
+        for w, a in zip(omega, f, strict=True)
+    ]
+    np.testing.assert_allclose(got, expected, rtol=1e-15, atol=1e-15)
+    assert all(type(v) is float for v in got[0])
 
 
 def test_bad_scaling_and_reference():

@@ -8,6 +8,7 @@ layers with the exact (erf) GELU between, and the saturation to the limits.
 """
 
 import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -120,6 +121,11 @@ class PolicyInference:
         self._W1 = np.ascontiguousarray(arrays["W1"] / arrays["input_scale"][None, :] * _SQRT_HALF)
         self._W2 = np.ascontiguousarray(arrays["W2"] * _SQRT_HALF)
         self._lower, self._upper = arrays["lower"].copy(), arrays["upper"].copy()
+        # u's rows and bounds alone, for `command`
+        self._W2_u = np.ascontiguousarray(self._W2[:NUM_JOINTS])
+        self._u_bounds = list(
+            zip(self._lower[:NUM_JOINTS].tolist(), self._upper[:NUM_JOINTS].tolist(), strict=True)
+        )
 
     def __call__(self, y, x, target) -> tuple[np.ndarray, np.ndarray]:
         """(u (6), x_hat (12)) for y (6), x (12), target (6); 1-D numpy arrays."""
@@ -128,3 +134,17 @@ class PolicyInference:
         b = self._W1 @ np.concatenate((y, x, target))
         z = np.minimum(np.maximum(self._W2 @ (b + b * erf(b)), self._lower), self._upper)
         return z[:NUM_JOINTS], z[NUM_JOINTS:]
+
+    def command(self, y, x, target) -> list[float]:
+        """u alone, as `__call__` computes it, in six Python floats: the live loop's step
+        (fewer numpy calls, and none to bound u). NaN in all six where an input is not finite
+        (their sum is not: one call instead of a check per input) or the network overflows,
+        which the bounds would otherwise hide."""
+        features = np.concatenate((y, x, target))
+        if not math.isfinite(features.sum()):
+            return [math.nan] * NUM_JOINTS
+        b = self._W1 @ features
+        raw = (self._W2_u @ (b + b * erf(b))).tolist()
+        if not all(map(math.isfinite, raw)):
+            return [math.nan] * NUM_JOINTS
+        return [min(max(v, low), high) for v, (low, high) in zip(raw, self._u_bounds, strict=True)]

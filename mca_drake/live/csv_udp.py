@@ -20,8 +20,6 @@ from __future__ import annotations
 import math
 import re
 
-import numpy as np
-
 from mca_drake.live.telemetry import BadPacket, Decoder, LeverArm, TelemetrySample
 from mca_drake.references.recording import COLUMNS
 
@@ -89,4 +87,4 @@ class CsvDecoder(Decoder):
             if not math.isfinite(value):  # "1e999" is a number that overflows
                 raise BadPacket(f"csv datagram field {column} overflows: {cell!r}")
             values.append(value)
-        return TelemetrySample(values[0], np.array(values[1:4]), np.array(values[4:7]))
+        return TelemetrySample(values[0], values[1:4], values[4:7])

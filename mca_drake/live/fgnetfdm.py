@@ -277,7 +277,7 @@ class FgNetFdmDecoder(Decoder):
             raise BadPacket(f"fgnetfdm packet has non-finite values: {listed}")
         phi, theta, phidot, thetadot, psidot, a_x, a_y, a_z = used
         p, q, r = body_rates_from_euler_rates(phi, theta, phidot, thetadot, psidot)
-        omega = (p, -q, -r)  # TelemetrySample makes the arrays
+        omega = (p, -q, -r)
         f = (M_PER_FT * a_x, -M_PER_FT * a_y, -M_PER_FT * a_z)
         if self.time_resolution_s is None:
             return TelemetrySample(received_s, omega, f, time_source="arrival")

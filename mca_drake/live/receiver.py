@@ -6,7 +6,8 @@ held (zero-order hold: the latest sample resampled to the control period). Bad d
 samples older than the one held (out of order) and gaps in the sender's sequence (dropped)
 are counted, never raised; so are control periods that brought nothing new (stale periods).
 The held sample leaves as the reference through the same scaling as recordings
-(`scaled_reference`).
+(`scaled_reference_sample`, computed once per sample at the poll and held as state, so
+that reading the reference costs the MCA nothing).
 
 The poll is an unrestricted update at the control instant t_k. Drake runs an instant's
 unrestricted updates before its discrete ones, so an MCA whose step is a discrete update
@@ -30,7 +31,7 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.telemetry import BadPacket, Decoder
-from mca_drake.references.reference import ReferenceScaling, scaled_reference
+from mca_drake.references.reference import ReferenceScaling, scaled_reference_sample
 
 # Linux's SO_TIMESTAMPNS (and SCM_TIMESTAMPNS): the kernel's receive time of a datagram, as a
 # struct timespec of CLOCK_REALTIME (Python's socket module does not name it).
@@ -132,9 +133,12 @@ class TelemetryReceiver(LeafSystem):
         initial[_F] = (0.0, 0.0, 9.81)  # level flight until a sample arrives: y_ref = 0
         initial[[_T_S, _ARRIVAL, _SEQUENCE, _POLL]] = np.nan
         self._state_index = self.DeclareDiscreteState(initial)
+        self._reference_index = self.DeclareDiscreteState(
+            scaled_reference_sample(initial[_OMEGA], initial[_F], self._scaling)
+        )
         period = self._config.time_step
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._poll)
-        self.DeclareVectorOutputPort("reference", 6, self._calc_reference, {self.xd_ticket()})
+        self.DeclareStateOutputPort("reference", self._reference_index)
         # age depends on the wall clock: recomputed whenever time advances
         self.DeclareVectorOutputPort(
             "telemetry",
@@ -188,14 +192,18 @@ class TelemetryReceiver(LeafSystem):
                 continue
             if sample.sequence is not None and math.isfinite(x[_SEQUENCE]):
                 x[_DROPPED] += max(0, sample.sequence - int(x[_SEQUENCE]) - 1)
-            x[_OMEGA] = sample.omega.tolist()
-            x[_F] = sample.f.tolist()
+            x[_OMEGA] = sample.omega
+            x[_F] = sample.f
             x[_T_S], x[_ARRIVAL], x[_POLL] = sample.t_s, arrival, polled
             x[_SEQUENCE] = math.nan if sample.sequence is None else sample.sequence
             new_sample = True
-        if not new_sample:
+        discrete = state.get_mutable_discrete_state()
+        if new_sample:
+            y_ref = scaled_reference_sample(x[_OMEGA], x[_F], self._scaling)
+            discrete.set_value(self._reference_index, np.array(y_ref))
+        else:
             x[_STALE] += 1
-        state.get_mutable_discrete_state().set_value(self._state_index, np.array(x))
+        discrete.set_value(self._state_index, np.array(x))
 
     def _arrival(self, ancillary) -> float:
         """When the datagram reached the socket, on the time.perf_counter() clock: the
@@ -208,10 +216,6 @@ class TelemetryReceiver(LeafSystem):
                 if 0.0 <= waited < 1.0:  # a sane stamp (the clock may step)
                     return now - waited
         return now
-
-    def _calc_reference(self, context: Context, output: BasicVector) -> None:
-        x = context.get_discrete_state(self._state_index).value()
-        output.SetFromVector(scaled_reference(x[_OMEGA], x[_F], self._scaling))
 
     def _calc_telemetry(self, context: Context, output: BasicVector) -> None:
         x = context.get_discrete_state(self._state_index).value()

@@ -228,12 +228,16 @@ class Supervisor(LeafSystem):
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
         x = self._state_port.Eval(context)
-        u_mca = self._command_port.Eval(context)
+        u_mca = self._command_port.Eval(context).tolist()
         w = float(context.get_discrete_state(self._index).value()[_WEIGHT])
-        if not np.isfinite(u_mca).all():
+        if not all(map(math.isfinite, u_mca)):
             w = 0.0  # nothing to blend with
-        # (the wash-out's command only where it has weight: this runs between a live sample
-        # and its command)
-        u = u_mca if w == 1.0 else (1.0 - w) * self.home_command(x) + (w * u_mca if w else 0.0)
+        # (the wash-out's command only where it has weight, and Python floats, not numpy
+        # calls, for the MCA's: this runs between a live sample and its command)
+        if w != 1.0:
+            u_home = (1.0 - w) * self.home_command(x)
+            u = u_home + w * np.asarray(u_mca) if w else u_home
+        else:
+            u = u_mca
         u, _ = self._clamp(x, u)
         output.SetFromVector(u)

@@ -29,8 +29,6 @@ import dataclasses
 import math
 import struct
 
-import numpy as np
-
 from mca_drake.conventions import GRAVITY
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.telemetry import BadPacket, Decoder, LeverArm, TelemetrySample
@@ -187,8 +185,9 @@ class XPlaneDecoder(Decoder):
         )
         forward = -axial if layout.axial_positive_aft else axial
         left = -side if layout.side_positive_right else side
-        f = GRAVITY * np.array([forward, left, normal]) + 0.0  # + 0.0: no -0.0 from -axial
+        # + 0.0: no -0.0 from -axial
+        f = (GRAVITY * forward + 0.0, GRAVITY * left + 0.0, GRAVITY * normal + 0.0)
         scale = RATE_UNITS[layout.rate_unit]
         p, q, r = (scale * rates[s] for s in layout.rate_slots)
-        omega = np.array([p, -q, -r])
+        omega = (p, -q, -r)
         return TelemetrySample(received_s, omega, f, time_source="arrival")

@@ -11,6 +11,7 @@ per-channel limits clip (or softly saturate) what is asked of the robot.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -103,6 +104,20 @@ def scaled_reference(omega: np.ndarray, f: np.ndarray, scaling: ReferenceScaling
             else limits * np.tanh(y / limits)
         )
     return y
+
+
+def scaled_reference_sample(omega, f, scaling: ReferenceScaling) -> list[float]:
+    """`scaled_reference` of one sample in Python floats: omega (3, rad/s) and f (3, m/s^2)
+    to y_ref (6 floats), the same formula. For the live loop, which scales every datagram
+    between its arrival and the command: a dozen numpy calls on a cold core cost it about
+    50 us, these float operations a few."""
+    sw, sf = scaling.angular_scale, scaling.force_scale
+    y = [sw * omega[0], sw * omega[1], sw * omega[2], sf * f[0], sf * f[1], sf * (f[2] - GRAVITY)]
+    if not scaling.limits:
+        return y
+    if scaling.limit_mode == "clip":
+        return [min(max(v, -limit), limit) for v, limit in zip(y, scaling.limits, strict=True)]
+    return [limit * math.tanh(v / limit) for v, limit in zip(y, scaling.limits, strict=True)]
 
 
 def reference_from_recording(

@@ -80,17 +80,18 @@ class DpcPolicy(LeafSystem):
         # Timed from here: evaluating the inputs computes upstream systems (the plant's
         # output), which is simulation, not this MCA's work.
         start = time.perf_counter()
-        # A sum is finite when every element is (NaN and inf propagate); it is one numpy
-        # call per input instead of six, a tenth of the step. Only if one is not (or the sum
-        # overflows) are the exact checks run.
-        if not math.isfinite(x.sum() + reference.sum() + y.sum()):
+        u = self._inference.command(y, x, reference)
+        # NaN from the network says an input is not finite (or it overflowed): only then are
+        # the inputs checked one by one
+        if not math.isfinite(u[0]):
             if not (np.all(np.isfinite(x)) and np.all(np.isfinite(reference))):
                 raise RuntimeError(
                     f"DpcPolicy: non-finite state or reference at t = {context.get_time()} s"
                 )
             if not np.all(np.isfinite(y)):
-                y = np.zeros(6)  # a dropped IMU sample: the policy still sees state and target
-        u, _ = self._inference(y, x, reference)
+                # a dropped IMU sample: the policy still sees state and target
+                u = self._inference.command(np.zeros(6), x, reference)
+            # else the network overflowed on huge inputs: the clamp brakes on NaN
         command, intervened = self._clamp(x, u)
         stats = context.get_discrete_state(self._statistics_index).value()
         discrete.set_value(self._command_index, command)
