@@ -199,6 +199,17 @@ class ViabilityClamp:
                 lo = max(-bound, -a)
         return lo, hi
 
+    def is_viable(self, x) -> bool:
+        """Whether state x = [q, qd] (12) is viable: every joint has a non-empty interval,
+        so some command keeps the robot inside its limits from here on."""
+        xs = np.asarray(x, float).tolist()
+        n = self._n
+        for j in range(n):
+            lo, hi = self._joint_interval(j, xs[j], xs[n + j])
+            if not lo <= hi + VIABILITY_TOLERANCE:
+                return False
+        return True
+
     def __call__(self, x, u) -> tuple[np.ndarray, bool]:
         """(u_safe, intervened) for state x = [q, qd] (12) and command u (6). A non-finite
         command is replaced by the strongest braking command (and counts)."""

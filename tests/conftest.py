@@ -7,7 +7,9 @@ import pytest
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 
+from mca_drake.live.rsi_motion import CommandSegment
 from mca_drake.robot import load_kr500, model_path
+from mca_drake.safety import ViabilityClamp
 
 
 @pytest.fixture(scope="session")
@@ -35,3 +37,26 @@ def random_joint_states(rng, robot, n: int):
     qd = rng.uniform(-robot.qd_max, robot.qd_max, size=(n, 6))
     qdd = rng.uniform(-robot.qdd_max, robot.qdd_max, size=(n, 6))
     return q, qd, qdd
+
+
+RSI_LOOP_PERIOD = H = 0.01  # the live loop's control period, s
+
+
+def limits_of(robot):
+    return [robot.q_min, robot.q_max, robot.qd_max, robot.qdd_max]
+
+
+def mca_like_segments(robot, rng, steps: int, gain: float = 0.8) -> list[CommandSegment]:
+    """Segments of a random but viable run from home at rest, as the loop sends them: the
+    state x_k and the clamped command u_k (a random walk in acceleration, clamped as every
+    MCA's command is)."""
+    clamp = ViabilityClamp.for_robot(robot, H)
+    q, qd = np.zeros(6), np.zeros(6)
+    wish = np.zeros(6)
+    segments = []
+    for k in range(steps):
+        wish = 0.9 * wish + gain * robot.qdd_max * rng.normal(size=6) * 0.5
+        u, _ = clamp(np.r_[q, qd], wish)
+        segments.append(CommandSegment(k, q, qd, u))
+        q, qd = q + H * qd + 0.5 * H * H * u, qd + H * u
+    return segments

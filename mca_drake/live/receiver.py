@@ -39,6 +39,32 @@ SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
 # The struct timespec it carries: seconds and nanoseconds.
 _TIMESPEC = struct.Struct("qq")
 
+
+def enable_kernel_timestamps(sock: socket.socket) -> bool:
+    """Asks the kernel to stamp every datagram `sock` receives (Linux's SO_TIMESTAMPNS), so
+    that the time a datagram waited in the socket counts in its latency; False where the
+    platform has no such stamps (`arrival_time` then takes the time it is read)."""
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+    except OSError:
+        return False
+    return True
+
+
+def arrival_time(ancillary) -> float:
+    """When a datagram read by `recvmsg(..., 64)` reached its socket, on the
+    time.perf_counter() clock: the kernel's stamp in `ancillary` where there is one
+    (`enable_kernel_timestamps`), else now."""
+    now = time.perf_counter()
+    for level, kind, data in ancillary:
+        if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(data) >= 16:
+            seconds, nanoseconds = _TIMESPEC.unpack_from(data)
+            waited = time.time() - (seconds + 1e-9 * nanoseconds)
+            if 0.0 <= waited < 1.0:  # a sane stamp (the clock may step)
+                return now - waited
+    return now
+
+
 # The `telemetry` output port, in this order.
 TELEMETRY_FIELDS = (
     "age_s",  # wall-clock time since the held sample reached the socket, s (inf: none yet)
@@ -121,14 +147,8 @@ class TelemetryReceiver(LeafSystem):
         self._socket.setblocking(False)
         self._socket.bind((self._config.host, self._config.port))
         self._address = self._socket.getsockname()
-        # The kernel's receive time of every datagram (Linux), so that the time a datagram
-        # waited in the socket for the next poll counts in its age and latency; elsewhere
-        # the time it is read stands in.
-        try:
-            self._socket.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
-            self._kernel_stamps = True
-        except OSError:
-            self._kernel_stamps = False
+        # the time a datagram waited in the socket for the next poll counts in its age
+        enable_kernel_timestamps(self._socket)
         initial = np.zeros(_STATE_SIZE)
         initial[_F] = (0.0, 0.0, 9.81)  # level flight until a sample arrives: y_ref = 0
         initial[[_T_S, _ARRIVAL, _SEQUENCE, _POLL]] = np.nan
@@ -180,7 +200,7 @@ class TelemetryReceiver(LeafSystem):
                 break
             except OSError:  # closed socket
                 break
-            arrival = self._arrival(ancillary)
+            arrival = arrival_time(ancillary)
             x[_PACKETS] += 1
             try:
                 sample = decode(packet, arrival)
@@ -204,18 +224,6 @@ class TelemetryReceiver(LeafSystem):
         else:
             x[_STALE] += 1
         discrete.set_value(self._state_index, np.array(x))
-
-    def _arrival(self, ancillary) -> float:
-        """When the datagram reached the socket, on the time.perf_counter() clock: the
-        kernel's stamp where there is one, else now."""
-        now = time.perf_counter()
-        for level, kind, data in ancillary:
-            if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(data) >= 16:
-                seconds, nanoseconds = _TIMESPEC.unpack_from(data)
-                waited = time.time() - (seconds + 1e-9 * nanoseconds)
-                if 0.0 <= waited < 1.0:  # a sane stamp (the clock may step)
-                    return now - waited
-        return now
 
     def _calc_telemetry(self, context: Context, output: BasicVector) -> None:
         x = context.get_discrete_state(self._state_index).value()

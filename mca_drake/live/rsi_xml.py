@@ -30,6 +30,8 @@ import re
 
 # Longest datagram accepted, bytes: a full KUKA state message is under 1 kB.
 MAX_RSI_BYTES = 4096
+# Resolution of the axis values written, deg (six decimals).
+RSI_RESOLUTION_DEG = 1e-6
 # IPOC is an unsigned 64-bit counter (milliseconds of the controller's clock).
 MAX_IPOC = 2**64 - 1
 
@@ -186,8 +188,9 @@ def _format(root: str, kind: str, element: str, ipoc: int, axes_deg, tags: RsiTa
     values = [float(v) for v in axes_deg]
     if len(values) != 6 or not all(map(math.isfinite, values)):
         raise ValueError(f"six finite axis values (deg) needed; got {axes_deg!r}")
-    # four decimals: 1e-4 deg, far below the axes' resolution; fixed point, as KRL reads it
-    attributes = " ".join(f'{a}="{v:.4f}"' for a, v in zip(tags.axes, values, strict=True))
+    # fixed point, as KRL reads it, to RSI_RESOLUTION_DEG: coarser rounding shows in the
+    # second differences a controller checks (1e-4 deg is 12 deg/s^2 at a 4 ms cycle)
+    attributes = " ".join(f'{a}="{v:.6f}"' for a, v in zip(tags.axes, values, strict=True))
     return (
         f'<{root} Type="{kind}"><{element} {attributes}/><{tags.ipoc}>{ipoc}</{tags.ipoc}></{root}>'
     ).encode("ascii")
@@ -213,6 +216,7 @@ def format_state(ipoc: int, positions_deg, tags: RsiTags = RsiTags()) -> bytes:
 
 __all__ = [
     "MAX_RSI_BYTES",
+    "RSI_RESOLUTION_DEG",
     "BadRsiPacket",
     "RsiMessage",
     "RsiTags",

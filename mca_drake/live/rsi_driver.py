@@ -1,0 +1,322 @@
+"""RsiDriver: the live loop's joint commands to a KUKA robot over RSI, in a process of its own.
+
+    python -m mca_drake.live.rsi_driver --job job.json --command-fd N [--status status.json]
+
+A KUKA controller running RSI sends its state (`mca_drake.live.rsi_xml`) every interpolation
+cycle, 4 or 12 ms, and needs the reply, with the same IPOC, within that cycle; the live loop
+steps every 10 ms in Python and may stall, or die. So the RSI socket has a process of its
+own that does nothing else: every cycle it reads the state, takes the loop's newest command
+segments from its command socket (`rsi_motion.CommandSegment`, Unix datagrams), steps its
+`MotionFollower` (the exact trajectory, `delay_s` behind the loop, checked against the
+robot's limits, braking when the segments stop) and replies with the axis corrections: the
+commanded joint positions relative to the home pose, in degrees, with the axis signs of the
+robot (`RsiDriverConfig.axis_signs`).
+
+Safety, in order: the driver refuses to start (sends nothing and exits) unless the robot
+reports the expected home pose within `home_tolerance_deg`; every correction it sends is a
+state that passed the follower's per-cycle checks (limits, viability at the cycle period)
+or a braking step from one; a stalled or killed loop, stale telemetry that ended the loop's
+run, a malformed state packet or SIGTERM make it brake to rest and hold there; when the robot
+stops sending (RSI ended) it writes its counters and exits.
+
+The loop's simulated time is mapped to the robot's IPOC clock (milliseconds) when the first
+segment arrives; both are then assumed to run at the same rate, which holds for the loopback
+emulator (the same machine clock). A real controller's clock drifts from the PC's by parts per
+million; the `lead_s` figures in the counters show it (the held trajectory's reach beyond the
+played time), and a lead that runs out ends in braking, never in a jump.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import signal
+import socket
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from mca_drake.atomic_io import atomic_write_json
+from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.input_checks import check_config_numbers
+from mca_drake.live.receiver import arrival_time, enable_kernel_timestamps
+from mca_drake.live.rsi_motion import (
+    BadSegment,
+    CommandSegment,
+    MotionFollower,
+    RsiMotionConfig,
+    SegmentBuffer,
+)
+from mca_drake.live.rsi_xml import MAX_RSI_BYTES, BadRsiPacket, RsiTags, format_reply, parse_state
+from mca_drake.robot import NUM_JOINTS
+
+# Counters the driver reports, in this order.
+DRIVER_COUNTERS = (
+    "cycles",  # state packets answered
+    "bad_state",  # state packets that did not parse (no reply: no IPOC to echo)
+    "missed_cycles",  # cycles the IPOC skipped (state packets the driver never saw)
+    "late_replies",  # replies sent more than one cycle after their state packet arrived
+    "segments",  # command segments taken from the loop
+    "bad_segments",  # command datagrams that were not segments
+)
+
+
+class RsiRefused(RuntimeError):  # noqa: N818 (a refusal, not a failure)
+    """The driver will not move the robot (not at the home pose); the message says why."""
+
+
+@dataclasses.dataclass
+class RsiDriverConfig:
+    """Where the driver listens and how joint commands become RSI axis corrections."""
+
+    # Address the driver listens on for the controller's state packets (the RSI config's
+    # IP_NUMBER and PORT on the controller side point here).
+    host: str = "127.0.0.1"
+    port: int = 49152
+    # How the trajectory is played (cycle, delay behind the loop).
+    motion: RsiMotionConfig = dataclasses.field(default_factory=RsiMotionConfig)
+    # The controller's axis positions A1..A6 (deg) at the MCA's home pose; None: the home
+    # pose's joint angles in degrees times axis_signs (the model's zero is the robot's).
+    home_deg: list[float] | None = None
+    # +1 or -1 per axis: the robot's axis direction against the model's joint.
+    axis_signs: list[float] = dataclasses.field(default_factory=lambda: [1.0] * NUM_JOINTS)
+    # The robot must report home_deg within this (deg) at the first cycle, or nothing moves.
+    home_tolerance_deg: float = 0.5
+    # No state packet for this long (s): the controller ended RSI; the driver exits.
+    robot_silence_s: float = 0.5
+    # The loop's control period (s): a segment k holds over [k h, (k + 1) h).
+    period_s: float = CONTROL_PERIOD_S
+    # The RSI object configuration's XML names.
+    tags: RsiTags = dataclasses.field(default_factory=RsiTags)
+
+    def validate(self) -> None:
+        """Raises ValueError for a setting that cannot run, naming it."""
+        check_config_numbers(self)
+        self.motion.validate()
+        self.tags.validate()
+        if not 0 <= self.port <= 65535:
+            raise ValueError(f"RsiDriverConfig.port must be in [0, 65535]; got {self.port}")
+        if len(self.axis_signs) != NUM_JOINTS or any(s not in (1, -1) for s in self.axis_signs):
+            raise ValueError(
+                f"RsiDriverConfig.axis_signs must be six of +1 or -1; got {self.axis_signs}"
+            )
+        if self.home_deg is not None and len(self.home_deg) != NUM_JOINTS:
+            raise ValueError(f"RsiDriverConfig.home_deg must hold six angles; got {self.home_deg}")
+        if not (self.home_tolerance_deg > 0 and self.robot_silence_s > 0 and self.period_s > 0):
+            raise ValueError(
+                "RsiDriverConfig.home_tolerance_deg, robot_silence_s and period_s must be positive"
+            )
+
+    def to_dict(self) -> dict:
+        """The settings as JSON-ready values (`from_dict` reads them back)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: dict) -> RsiDriverConfig:
+        """Settings from `to_dict`'s form; ValueError naming an unknown key."""
+        values = dict(values)
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = set(values) - known
+        if unknown:
+            raise ValueError(f"unknown RsiDriverConfig settings: {sorted(unknown)}")
+        if isinstance(values.get("motion"), dict):
+            values["motion"] = RsiMotionConfig(**values["motion"])
+        if isinstance(values.get("tags"), dict):
+            tags = dict(values["tags"])
+            if "axes" in tags:
+                tags["axes"] = tuple(tags["axes"])
+            values["tags"] = RsiTags(**tags)
+        return cls(**values)
+
+
+class RsiDriver:
+    """Answers the controller's RSI cycles from the loop's command segments (module docstring).
+
+    Args:
+        config: addresses, cycle and axis mapping (validated here).
+        limits: q_min, q_max (rad), qd_max (rad/s), qdd_max (rad/s^2), 6 values each.
+        home: the MCA's home pose, rad (6): the loop's first segment starts there.
+        commands: the socket the loop's segments arrive on (datagrams), or None.
+
+    Raises:
+        ValueError: a bad setting or home pose. OSError: the RSI address cannot be bound.
+    """
+
+    def __init__(self, config: RsiDriverConfig, limits, home, commands: socket.socket | None):
+        config.validate()
+        self.config = config
+        self.follower = MotionFollower(limits, home, config.motion)
+        motion = config.motion
+        capacity = math.ceil((motion.delay_s + 0.5) / config.period_s) + 8
+        self.buffer = SegmentBuffer(config.period_s, capacity)
+        self._home = [float(v) for v in home]
+        self._signs = [float(s) for s in config.axis_signs]
+        self._home_deg = (
+            [float(v) for v in config.home_deg]
+            if config.home_deg is not None
+            else [s * math.degrees(q) for s, q in zip(self._signs, self._home, strict=True)]
+        )
+        self._rsi = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._rsi.bind((config.host, config.port))
+        self._rsi.settimeout(config.robot_silence_s)
+        enable_kernel_timestamps(self._rsi)
+        self.address = self._rsi.getsockname()
+        self._commands = commands
+        if commands is not None:
+            commands.setblocking(False)
+        self.counters = dict.fromkeys(DRIVER_COUNTERS, 0)
+        self.latencies_s: list[float] = []  # per cycle: state packet arrival -> reply sent
+        self.leads_s: list[float] = []  # per cycle: the held trajectory's reach beyond s
+        self._ipoc: int | None = None  # the last state packet's IPOC
+        self._anchor: tuple[int, int] | None = None  # (IPOC, k) at the first segment
+        self._stop_requested = False
+
+    def request_stop(self, reason: str = "the driver was asked to stop") -> None:
+        """Brakes to rest and holds; `run` returns once the robot is at rest."""
+        self._stop_requested = True
+        self.follower.halt(reason)
+
+    def close(self) -> None:
+        """Closes the RSI socket."""
+        self._rsi.close()
+
+    def run(self, max_cycles: int | None = None) -> dict:
+        """Answers cycles until the robot falls silent, `max_cycles` are done, or a requested
+        stop has brought the robot to rest; returns `summary()`.
+
+        Raises:
+            RsiRefused: the robot's first state is not the home pose (nothing was sent).
+        """
+        cycle_ms = self.config.motion.cycle_s * 1e3
+        tags = self.config.tags
+        while max_cycles is None or self.counters["cycles"] < max_cycles:
+            if self._stop_requested and self.follower.mode == "stopped":
+                break
+            try:
+                packet, ancillary, _, robot = self._rsi.recvmsg(MAX_RSI_BYTES + 1, 64)
+            except TimeoutError:
+                break  # the controller ended RSI
+            arrival = arrival_time(ancillary)
+            try:
+                state = parse_state(packet, tags)
+            except BadRsiPacket as error:
+                self.counters["bad_state"] += 1
+                self.follower.halt(f"malformed state packet: {error}")
+                continue
+            if self._ipoc is None:
+                self._check_home(state.axes_deg)
+                dt = self.config.motion.cycle_s
+            else:
+                elapsed_ms = state.ipoc - self._ipoc
+                if elapsed_ms <= 0:
+                    self.counters["bad_state"] += 1
+                    self.follower.halt(f"IPOC went from {self._ipoc} to {state.ipoc}")
+                    continue
+                self.counters["missed_cycles"] += max(0, round(elapsed_ms / cycle_ms) - 1)
+                dt = elapsed_ms * 1e-3
+            self._ipoc = state.ipoc
+            self._take_segments()
+            if self._anchor is None:
+                q = self.follower.q  # waiting at home for the loop's first segment
+            else:
+                ipoc0, k0 = self._anchor
+                s = k0 * self.config.period_s + (state.ipoc - ipoc0) * 1e-3
+                s -= self.config.motion.delay_s
+                self.leads_s.append(self.buffer.lead_s(s))
+                q = self.follower.step(s, dt, self.buffer)
+            corrections = [
+                sign * math.degrees(value - home)
+                for sign, value, home in zip(self._signs, q, self._home, strict=True)
+            ]
+            self._rsi.sendto(format_reply(state.ipoc, corrections, tags), robot)
+            latency = time.perf_counter() - arrival
+            self.latencies_s.append(latency)
+            self.counters["cycles"] += 1
+            if latency > self.config.motion.cycle_s:
+                self.counters["late_replies"] += 1
+        return self.summary()
+
+    def summary(self) -> dict:
+        """Counters, reply latency (median, p99, max, s), trajectory lead (min, median, s),
+        the follower's mode and why it left "following"."""
+        out: dict = dict(self.counters)
+        latencies = np.asarray(self.latencies_s)
+        out["reply_latency_s"] = (
+            {
+                "median": float(np.median(latencies)),
+                "p99": float(np.percentile(latencies, 99)),
+                "max": float(latencies.max()),
+            }
+            if latencies.size
+            else {}
+        )
+        leads = np.asarray(self.leads_s)
+        out["lead_s"] = (
+            {"min": float(leads.min()), "median": float(np.median(leads))} if leads.size else {}
+        )
+        out["mode"] = self.follower.mode
+        out["reason"] = self.follower.reason
+        return out
+
+    def _check_home(self, axes_deg) -> None:
+        worst = max(range(NUM_JOINTS), key=lambda j: abs(axes_deg[j] - self._home_deg[j]))
+        off = axes_deg[worst] - self._home_deg[worst]
+        if abs(off) > self.config.home_tolerance_deg:
+            raise RsiRefused(
+                f"the robot is not at the home pose: {self.config.tags.axes[worst]} reads "
+                f"{axes_deg[worst]:.3f} deg, home is {self._home_deg[worst]:.3f} deg "
+                f"(tolerance {self.config.home_tolerance_deg} deg); nothing was sent"
+            )
+
+    def _take_segments(self) -> None:
+        if self._commands is None:
+            return
+        while True:
+            try:
+                datagram = self._commands.recv(256)
+            except BlockingIOError:
+                return
+            except OSError:  # the loop's end of the socket is gone
+                return
+            try:
+                segment = CommandSegment.unpack(datagram)
+            except BadSegment:
+                self.counters["bad_segments"] += 1
+                continue
+            if self.buffer.add(segment):
+                self.counters["segments"] += 1
+                if self._anchor is None:
+                    self._anchor = (self._ipoc, segment.k)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--job", required=True, help="JSON: config, limits, home")
+    parser.add_argument("--command-fd", type=int, help="the loop's segment socket (inherited)")
+    parser.add_argument("--status", help="write the counters here (JSON) at the end")
+    args = parser.parse_args(argv)
+    job = json.loads(Path(args.job).read_text())
+    config = RsiDriverConfig.from_dict(job["config"])
+    commands = socket.socket(fileno=args.command_fd) if args.command_fd is not None else None
+    driver = RsiDriver(config, job["limits"], job["home"], commands)
+    signal.signal(signal.SIGTERM, lambda *_: driver.request_stop())
+    host, port = driver.address
+    print(f"rsi driver listening on udp://{host}:{port}", flush=True)
+    try:
+        summary = driver.run()
+    except RsiRefused as error:
+        summary = {"refused": str(error)}
+        print(f"rsi driver refused: {error}", file=sys.stderr, flush=True)
+    finally:
+        driver.close()
+    if args.status:
+        atomic_write_json(args.status, summary)
+    return 2 if "refused" in summary else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,306 @@
+"""A loopback RSI robot: the controller side of KUKA RSI, for tests and demos.
+
+    python -m mca_drake.live.rsi_emulator --driver 127.0.0.1:49152 --duration 60
+        [--cycle-ms 4] [--report report.json] [--recording recording.npz]
+
+Every cycle (4 or 12 ms, on the wall clock) it sends the driver a state packet
+(`rsi_xml.format_state`: the axis positions, deg, and the IPOC, ms) and waits for the reply
+until the next cycle is due. A reply with this cycle's IPOC is on time and its corrections
+(deg, relative to the start pose) become the axes' new positions; a reply for an earlier
+cycle is late and ignored; none by the next cycle is a missed cycle (the axes hold). Like a
+controller, it stops (and sends nothing more) when `max_missed` cycles in a row go without
+an on-time reply, and when a correction would take an axis beyond its limits: position,
+velocity (per-cycle difference) or acceleration (second difference), each with the real
+robot's values (`mca_drake.robot.KR500`, in degrees). After a missed cycle the differences
+are taken over the time since the last correction applied, as an interpolating controller
+moves its set point from one correction to the next.
+
+It records what it received, per cycle: IPOC, the reply's latency from the state packet's
+sending (NaN: none on time), the corrections and the axis positions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import select
+import socket
+import sys
+import time
+
+import numpy as np
+
+from mca_drake.atomic_io import atomic_write_bytes, atomic_write_json
+from mca_drake.input_checks import check_config_numbers
+from mca_drake.live.rsi_xml import (
+    MAX_RSI_BYTES,
+    RSI_RESOLUTION_DEG,
+    BadRsiPacket,
+    RsiTags,
+    format_state,
+    parse_reply,
+)
+from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+
+# Counters the emulator reports, in this order.
+EMULATOR_COUNTERS = ("cycles", "on_time", "late", "missed", "bad_replies")
+
+
+@dataclasses.dataclass
+class RsiEmulatorConfig:
+    """The emulated controller's cycle, start pose and limits."""
+
+    # Interpolation cycle, s (RSI: 0.004 or 0.012).
+    cycle_s: float = 0.004
+    # Axis positions at the start, deg (the driver checks it is its home pose).
+    start_deg: list[float] = dataclasses.field(default_factory=lambda: [0.0] * NUM_JOINTS)
+    # Stop after this many cycles in a row without an on-time reply.
+    max_missed: int = 10
+    # IPOC of the first cycle, ms (a controller's counter does not start at 0).
+    first_ipoc: int = 1_000_000
+    # Slack on the limit checks, relative (round-off of the driver's degrees, not room).
+    relative_tolerance: float = 1e-6
+
+    def validate(self) -> None:
+        """Raises ValueError for a setting that cannot run, naming it."""
+        check_config_numbers(self)
+        if not 0 < self.cycle_s <= 0.1 or round(self.cycle_s * 1e3) < 1:
+            raise ValueError(
+                f"RsiEmulatorConfig.cycle_s must be in [0.001, 0.1] s; got {self.cycle_s}"
+            )
+        if len(self.start_deg) != NUM_JOINTS:
+            raise ValueError(
+                f"RsiEmulatorConfig.start_deg must hold six angles; got {self.start_deg}"
+            )
+        if self.max_missed < 1 or self.first_ipoc < 0:
+            raise ValueError("RsiEmulatorConfig.max_missed must be >= 1 and first_ipoc >= 0")
+
+
+@dataclasses.dataclass
+class AxisLimits:
+    """Axis limits in the controller's units: deg, deg/s, deg/s^2, 6 values each."""
+
+    min_deg: list[float]
+    max_deg: list[float]
+    velocity_deg_s: list[float]
+    acceleration_deg_s2: list[float]
+
+    @classmethod
+    def of_robot(cls, robot: KR500, signs=(1.0,) * NUM_JOINTS) -> AxisLimits:
+        """The KR500's joint limits as the controller's axes see them (a sign of -1 swaps an
+        axis's position limits)."""
+        low, high = [], []
+        for sign, a, b in zip(signs, np.degrees(robot.q_min), np.degrees(robot.q_max), strict=True):
+            low.append(float(min(sign * a, sign * b)))
+            high.append(float(max(sign * a, sign * b)))
+        return cls(low, high, np.degrees(robot.qd_max).tolist(), np.degrees(robot.qdd_max).tolist())
+
+
+class RsiEmulator:
+    """The controller side of RSI over loopback (module docstring).
+
+    Args:
+        driver: the driver's (host, port).
+        config: cycle, start pose, stop rule.
+        limits: the axes' limits (None: the KR500's).
+    """
+
+    def __init__(
+        self,
+        driver: tuple[str, int],
+        config: RsiEmulatorConfig | None = None,
+        limits: AxisLimits | None = None,
+        tags: RsiTags | None = None,
+    ):
+        self.config = config or RsiEmulatorConfig()
+        self.config.validate()
+        self.limits = limits or AxisLimits.of_robot(load_kr500())
+        self.tags = tags or RsiTags()
+        self._driver = driver
+        self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._socket.bind(("127.0.0.1", 0))
+        self._socket.setblocking(False)
+        self.counters = dict.fromkeys(EMULATOR_COUNTERS, 0)
+        self.stop_reason = ""
+        self.rows: dict[str, list] = {
+            "ipoc": [],
+            "latency_s": [],
+            "corrections_deg": [],
+            "axes_deg": [],
+        }
+
+    def close(self) -> None:
+        """Closes the socket."""
+        self._socket.close()
+
+    def run(self, duration_s: float) -> dict:
+        """Runs cycles for `duration_s` (or until it stops); returns `report()`."""
+        cfg = self.config
+        cycle_ms = round(cfg.cycle_s * 1e3)
+        cycle = cycle_ms * 1e-3
+        start = list(map(float, cfg.start_deg))
+        axes, velocity = list(start), [0.0] * NUM_JOINTS
+        last_applied, last_step = -1, cycle  # cycle of the last correction, time before it
+        missed_in_a_row = 0
+        t0 = time.perf_counter() + cycle
+        n_cycles = max(1, math.floor(duration_s / cycle))
+        for n in range(n_cycles):
+            _wait_until(t0 + n * cycle)
+            ipoc = cfg.first_ipoc + n * cycle_ms
+            sent = time.perf_counter()
+            self._socket.sendto(self._state_packet(n, ipoc, axes), self._driver)
+            self.counters["cycles"] += 1
+            reply = self._reply_for(ipoc, t0 + (n + 1) * cycle)
+            corrections = [math.nan] * NUM_JOINTS
+            latency = math.nan
+            if reply is None:
+                self.counters["missed"] += 1
+                missed_in_a_row += 1
+            else:
+                latency, corrections = reply[0] - sent, reply[1]
+                self.counters["on_time"] += 1
+                missed_in_a_row = 0
+                new_axes = [s + c for s, c in zip(start, corrections, strict=True)]
+                step = (n - last_applied) * cycle
+                problem = self._check(axes, velocity, new_axes, step, last_step)
+                if problem:
+                    self.stop_reason = problem
+                else:
+                    velocity = [(b - a) / step for a, b in zip(axes, new_axes, strict=True)]
+                    axes, last_applied, last_step = new_axes, n, step
+            self._record(ipoc, latency, corrections, axes)
+            if self.stop_reason:
+                break
+            if missed_in_a_row >= cfg.max_missed:
+                self.stop_reason = f"{missed_in_a_row} cycles in a row without an on-time reply"
+                break
+        return self.report()
+
+    def report(self) -> dict:
+        """Counters, reply latency on time (median, p99, max, s) and why it stopped ("" if
+        it ran its time)."""
+        out: dict = dict(self.counters)
+        latencies = np.asarray(self.rows["latency_s"], float)
+        latencies = latencies[np.isfinite(latencies)]
+        out["reply_latency_s"] = (
+            {
+                "median": float(np.median(latencies)),
+                "p99": float(np.percentile(latencies, 99)),
+                "max": float(latencies.max()),
+            }
+            if latencies.size
+            else {}
+        )
+        out["stop_reason"] = self.stop_reason
+        return out
+
+    def recording(self) -> dict[str, np.ndarray]:
+        """The recording: ipoc (n,), latency_s (n,), corrections_deg (n, 6), axes_deg (n, 6)."""
+        return {
+            "ipoc": np.asarray(self.rows["ipoc"], np.int64),
+            "latency_s": np.asarray(self.rows["latency_s"], float),
+            "corrections_deg": np.asarray(self.rows["corrections_deg"], float).reshape(-1, 6),
+            "axes_deg": np.asarray(self.rows["axes_deg"], float).reshape(-1, 6),
+        }
+
+    def _state_packet(self, n: int, ipoc: int, axes: list[float]) -> bytes:
+        """Cycle n's state message (a test's subclass may corrupt it)."""
+        return format_state(ipoc, axes, self.tags)
+
+    def _record(self, ipoc, latency, corrections, axes) -> None:
+        rows = self.rows
+        rows["ipoc"].append(ipoc)
+        rows["latency_s"].append(latency)
+        rows["corrections_deg"].append(list(corrections))
+        rows["axes_deg"].append(list(axes))
+
+    def _reply_for(self, ipoc: int, deadline: float) -> tuple[float, list[float]] | None:
+        """(arrival time, corrections) of this cycle's reply if it comes before `deadline`;
+        late replies to earlier cycles and malformed ones are counted on the way."""
+        while True:
+            left = deadline - time.perf_counter()
+            if left <= 0 or not select.select([self._socket], [], [], left)[0]:
+                return None
+            try:
+                datagram = self._socket.recv(MAX_RSI_BYTES + 1)
+            except BlockingIOError:
+                continue
+            arrived = time.perf_counter()
+            try:
+                reply = parse_reply(datagram, self.tags)
+            except BadRsiPacket:
+                self.counters["bad_replies"] += 1
+                continue
+            if reply.ipoc == ipoc:
+                return arrived, list(reply.axes_deg)
+            self.counters["late"] += 1
+
+    def _check(self, axes, velocity, new_axes, step: float, last_step: float) -> str:
+        """Why `new_axes`, `step` s after the last correction applied (`axes`, reached at
+        `velocity` over `last_step` s), cannot be applied ("" if they can)."""
+        lim, tol = self.limits, self.config.relative_tolerance
+        names = self.tags.axes
+        # the replies' rounding to RSI_RESOLUTION_DEG shows in the differences: allowed
+        position_slack = RSI_RESOLUTION_DEG
+        velocity_slack = 2 * RSI_RESOLUTION_DEG / step
+        mean_step = 0.5 * (step + last_step)
+        acceleration_slack = 4 * RSI_RESOLUTION_DEG / (step * mean_step)
+        for j in range(NUM_JOINTS):
+            low, high = lim.min_deg[j], lim.max_deg[j]
+            if (
+                not low - tol * abs(low) - position_slack
+                <= new_axes[j]
+                <= high + tol * abs(high) + position_slack
+            ):
+                return f"{names[j]} position {new_axes[j]:.4f} deg beyond its limits"
+            v = (new_axes[j] - axes[j]) / step
+            if abs(v) > lim.velocity_deg_s[j] * (1 + tol) + velocity_slack:
+                return f"{names[j]} velocity {v:.3f} deg/s over its limit"
+            a = (v - velocity[j]) / mean_step
+            if abs(a) > lim.acceleration_deg_s2[j] * (1 + tol) + acceleration_slack:
+                return f"{names[j]} acceleration {a:.2f} deg/s^2 over its limit"
+        return ""
+
+
+def _wait_until(wall_s: float) -> None:
+    """Sleeps until 0.3 ms before `wall_s` (time.perf_counter()), then spins to it."""
+    left = wall_s - time.perf_counter()
+    if left > 3e-4:
+        time.sleep(left - 3e-4)
+    while time.perf_counter() < wall_s:
+        pass
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--driver", required=True, help="HOST:PORT the driver listens on")
+    parser.add_argument("--duration", type=float, default=60.0, help="s")
+    parser.add_argument("--cycle-ms", type=int, default=4, help="4 or 12")
+    parser.add_argument("--start-deg", help="six comma-separated angles (default zeros)")
+    parser.add_argument("--report", help="write the counters here (JSON)")
+    parser.add_argument("--recording", help="write the per-cycle recording here (npz)")
+    args = parser.parse_args(argv)
+    host, _, port = args.driver.rpartition(":")
+    config = RsiEmulatorConfig(cycle_s=args.cycle_ms * 1e-3)
+    if args.start_deg:
+        config.start_deg = [float(v) for v in args.start_deg.split(",")]
+    emulator = RsiEmulator((host, int(port)), config)
+    try:
+        report = emulator.run(args.duration)
+    finally:
+        emulator.close()
+    if args.report:
+        atomic_write_json(args.report, report)
+    if args.recording:
+        import io
+
+        buffer = io.BytesIO()
+        np.savez(buffer, **emulator.recording())
+        atomic_write_bytes(args.recording, buffer.getvalue())
+    print(report, flush=True)
+    return 0 if not report["stop_reason"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,157 @@
+"""The live loop's side of the RSI link: command segments out, the driver process started.
+
+`RsiCommandSender` is the LeafSystem that, just after every control instant's command
+(`AFTER_COMMAND_S`, before the analytical plant's step), sends the segment (k, q_k, qd_k,
+u_k) to the driver over a Unix datagram socket: a non-blocking send, off the path from a
+telemetry sample to its command. `start_rsi_driver` starts `mca_drake.live.rsi_driver` in a
+process of its own, with one end of the socket pair, and waits until it listens; `RsiLink`
+holds both and stops the driver (which brakes the robot to rest first).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import socket
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from pydrake.systems.framework import Context, EventStatus, LeafSystem
+
+from mca_drake.live.recorder import AFTER_COMMAND_S
+from mca_drake.live.rsi_driver import RsiDriverConfig
+from mca_drake.live.rsi_motion import CommandSegment
+from mca_drake.robot import KR500, NUM_JOINTS
+
+
+def parse_robot_url(url: str) -> tuple[str, int]:
+    """(host, port) of an `rsi://HOST:PORT` address (the driver listens there)."""
+    prefix = "rsi://"
+    if not url.startswith(prefix):
+        raise ValueError(f"robot address must look like rsi://HOST:PORT; got {url!r}")
+    host, sep, port = url[len(prefix) :].rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"robot address must look like rsi://HOST:PORT; got {url!r}")
+    return host, int(port)
+
+
+class RsiCommandSender(LeafSystem):
+    """Sends every control period's command segment to the RSI driver.
+
+    .. pydrake_system::
+
+        name: RsiCommandSender
+        input_ports:
+        - state
+        - command
+
+    `state` (12): x_k = [q, qd] of the plant the MCA controls, as the MCA read it;
+    `command` (6): the joint acceleration the robot gets over the period (the supervisor's).
+
+    Args:
+        commands: the loop's end of the segment socket pair (datagrams).
+        period_s: the control period h, s.
+    """
+
+    def __init__(self, commands: socket.socket, period_s: float):
+        super().__init__()
+        self._commands = commands
+        self._commands.setblocking(False)
+        self._period = period_s
+        self._state = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
+        self._command = self.DeclareVectorInputPort("command", NUM_JOINTS)
+        self.DeclarePeriodicPublishEvent(period_s, AFTER_COMMAND_S, self._send)
+        self.sent = 0
+        self.unsent = 0  # segments the socket would not take (the driver gone or stalled)
+
+    def finish(self, context: Context) -> None:
+        """Sends the end-of-run segment: the plant's state now, no acceleration; the driver
+        brakes to rest from there."""
+        x = self._state.Eval(context).tolist()
+        k = round(context.get_time() / self._period)
+        self._emit(CommandSegment(k, x[:NUM_JOINTS], x[NUM_JOINTS:], [0.0] * NUM_JOINTS, True))
+
+    def _send(self, context: Context) -> EventStatus:
+        x = self._state.Eval(context).tolist()
+        u = self._command.Eval(context).tolist()
+        k = round(context.get_time() / self._period)
+        self._emit(CommandSegment(k, x[:NUM_JOINTS], x[NUM_JOINTS:], u))
+        return EventStatus.Succeeded()
+
+    def _emit(self, segment: CommandSegment) -> None:
+        try:
+            self._commands.send(segment.pack())
+            self.sent += 1
+        except OSError:  # full (a stalled driver) or closed (a dead one): it brakes by itself
+            self.unsent += 1
+
+
+@dataclasses.dataclass
+class RsiLink:
+    """A running driver process and the loop's end of its segment socket."""
+
+    process: subprocess.Popen
+    commands: socket.socket
+    address: tuple[str, int]
+    status_path: Path
+
+    def stop(self, timeout_s: float = 30.0) -> dict:
+        """Asks the driver to brake to rest and end (SIGTERM), waits for it and returns its
+        counters (`rsi_driver.DRIVER_COUNTERS` and figures; {"refused": why} if it never
+        moved the robot)."""
+        if self.process.poll() is None:
+            self.process.terminate()
+        try:
+            self.process.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+        self.commands.close()
+        if self.status_path.exists():
+            return json.loads(self.status_path.read_text())
+        return {"error": f"the RSI driver ended with code {self.process.returncode}, no status"}
+
+
+def start_rsi_driver(config: RsiDriverConfig, robot: KR500, home) -> RsiLink:
+    """Starts `python -m mca_drake.live.rsi_driver` listening on config's address and waits
+    until it does (its `listening` line); raises RuntimeError if it ends first (an address
+    in use, a bad setting: its own error output says which). Its error output goes to ours,
+    never into a pipe that could fill and stall it."""
+    config.validate()
+    folder = Path(tempfile.mkdtemp(prefix="mca_drake_rsi_"))
+    job = {
+        "config": config.to_dict(),
+        "limits": [v.tolist() for v in (robot.q_min, robot.q_max, robot.qd_max, robot.qdd_max)],
+        "home": [float(v) for v in home],
+    }
+    (folder / "job.json").write_text(json.dumps(job))
+    status = folder / "status.json"
+    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_DGRAM)
+    command = [
+        sys.executable,
+        "-m",
+        "mca_drake.live.rsi_driver",
+        "--job",
+        str(folder / "job.json"),
+        "--command-fd",
+        str(theirs.fileno()),
+        "--status",
+        str(status),
+    ]
+    process = subprocess.Popen(
+        command,
+        pass_fds=(theirs.fileno(),),
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    theirs.close()
+    line = process.stdout.readline() if process.stdout else ""  # "" when it ended
+    if "listening on udp://" not in line:
+        process.kill()
+        process.wait()
+        ours.close()
+        raise RuntimeError(f"the RSI driver did not start (its error output above): {line!r}")
+    host, _, port = line.strip().rpartition("udp://")[2].rpartition(":")
+    return RsiLink(process, ours, (host, int(port)), status)

@@ -1,0 +1,170 @@
+"""The RSI driver process against the loopback RSI robot emulator (loopback only, bounded)."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+from conftest import RSI_LOOP_PERIOD as H
+from conftest import limits_of, mca_like_segments
+
+from mca_drake.live.rsi_driver import RsiDriver, RsiDriverConfig, RsiRefused
+from mca_drake.live.rsi_emulator import AxisLimits, RsiEmulator, RsiEmulatorConfig
+from mca_drake.live.rsi_link import start_rsi_driver
+from mca_drake.live.rsi_motion import RsiMotionConfig, SegmentBuffer
+
+CYCLE = 0.004
+
+
+def feed(commands, segments, stop_after: int | None = None) -> threading.Thread:
+    """Sends the segments in real time (segment k at k H) from a thread, as the loop does;
+    stops after `stop_after` of them without an end segment (a killed loop)."""
+
+    def run():
+        t0 = time.perf_counter()
+        for segment in segments[:stop_after]:
+            time.sleep(max(0.0, t0 + segment.k * H - time.perf_counter()))
+            commands.send(segment.pack())
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread
+
+
+def best_offset_error(recording, segments, robot_start_deg) -> tuple[int, float]:
+    """The played trajectory against the integrated commands: for the time offset (whole
+    ms, IPOC's unit) that fits best, the largest difference (deg) between the emulated axes
+    and the exact trajectory, over the cycles that followed it."""
+    buffer = SegmentBuffer(H, capacity=len(segments) + 1)
+    for segment in segments:
+        buffer.add(segment)
+    ipoc = recording["ipoc"] - recording["ipoc"][0]
+    axes = recording["axes_deg"] - robot_start_deg
+    best = (0, np.inf)
+    for offset_ms in range(-200, 200):
+        errors = []
+        for n, t_ms in enumerate(ipoc):
+            s = (t_ms - offset_ms) * 1e-3
+            held = buffer.state_at(s) if s >= 0 else None
+            if held is not None:
+                errors.append(np.max(np.abs(np.degrees(held[0]) - axes[n])))
+        if len(errors) > 100 and max(errors) < best[1]:
+            best = (offset_ms, max(errors))
+    return best
+
+
+@pytest.fixture
+def moving_run(robot):
+    return mca_like_segments(robot, np.random.default_rng(11), 150, gain=1.5)
+
+
+def test_a_killed_loop_ends_in_a_controlled_stop_along_the_commanded_trajectory(robot, moving_run):
+    """The driver in its own process, the emulator here: the emulated axes follow the exact
+    trajectory of the segments (to the replies' rounding), every reply echoes its IPOC on
+    time, and when the segments stop coming mid-motion (the loop killed) the driver brakes
+    to rest inside every limit; the emulator never sees a limit exceeded."""
+    config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
+    link = start_rsi_driver(config, robot, np.zeros(6))
+    emulator = RsiEmulator(link.address, RsiEmulatorConfig(cycle_s=CYCLE))
+    try:
+        feeder = feed(link.commands, moving_run, stop_after=120)
+        report = emulator.run(2.0)
+        feeder.join()
+    finally:
+        emulator.close()
+        status = link.stop()
+    assert report["stop_reason"] == "", report
+    assert report["bad_replies"] == 0
+    # replies with the right IPOC within the cycle (a loaded CI machine may miss a few)
+    assert report["on_time"] >= 0.97 * report["cycles"], report
+    assert status["bad_state"] == 0 and status["segments"] == 120
+    assert status["mode"] == "stopped" and "no command" in status["reason"], status
+    recording = emulator.recording()
+    _, error = best_offset_error(recording, moving_run[:120], 0.0)
+    assert error < 1e-5  # deg: the six decimals of the replies
+    # it was moving when the segments stopped, and it came to rest
+    speed = np.abs(np.diff(recording["axes_deg"], axis=0)) / CYCLE
+    assert speed[len(speed) // 2].max() > 1.0
+    np.testing.assert_array_equal(recording["axes_deg"][-1], recording["axes_deg"][-10])
+
+
+class CorruptingEmulator(RsiEmulator):
+    """Sends garbage instead of its state at one cycle."""
+
+    corrupt_at = 200
+
+    def _state_packet(self, n, ipoc, axes):
+        if n == self.corrupt_at:
+            return b'<Rob Type="KUKA"><AIPos A1="garbage'
+        return super()._state_packet(n, ipoc, axes)
+
+
+def test_a_malformed_state_packet_brakes_the_robot_to_rest(robot, moving_run):
+    config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
+    link = start_rsi_driver(config, robot, np.zeros(6))
+    emulator = CorruptingEmulator(link.address, RsiEmulatorConfig(cycle_s=CYCLE))
+    try:
+        feeder = feed(link.commands, moving_run)
+        report = emulator.run(1.6)
+        feeder.join()
+    finally:
+        emulator.close()
+        status = link.stop()
+    assert report["stop_reason"] == "", report  # no limit exceeded on the way to rest
+    assert status["bad_state"] == 1
+    assert status["mode"] == "stopped" and "malformed state packet" in status["reason"]
+    axes = emulator.recording()["axes_deg"]
+    np.testing.assert_array_equal(axes[-1], axes[-20])
+
+
+def test_the_driver_refuses_a_robot_away_from_home(robot):
+    """Nothing is sent to a robot that does not report the home pose: it misses its replies
+    and stops, and the driver says why."""
+    config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE), robot_silence_s=0.3)
+    driver = RsiDriver(config, limits_of(robot), np.zeros(6), commands=None)
+    outcome = {}
+
+    def run():
+        try:
+            driver.run()
+        except RsiRefused as error:
+            outcome["refused"] = str(error)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    start = [0.0, 3.0, 0.0, 0.0, 0.0, 0.0]
+    emulator = RsiEmulator(driver.address, RsiEmulatorConfig(cycle_s=CYCLE, start_deg=start))
+    try:
+        report = emulator.run(1.0)
+    finally:
+        emulator.close()
+        thread.join(timeout=5)
+        driver.close()
+    assert "A2 reads 3.000 deg" in outcome["refused"]
+    assert report["on_time"] == 0 and "without an on-time reply" in report["stop_reason"]
+
+
+def test_the_emulator_stops_a_correction_beyond_the_limits(robot):
+    """The emulator's own check, with the real limits: a reply that would move an axis
+    faster than it can is not applied, and the emulator stops."""
+    limits = AxisLimits.of_robot(robot)
+    config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
+    emulator = RsiEmulator(("127.0.0.1", 9), RsiEmulatorConfig(cycle_s=CYCLE), limits)
+    too_fast = limits.velocity_deg_s[0] * CYCLE * 1.01
+    fast = [too_fast, 0, 0, 0, 0, 0]
+    assert "velocity" in emulator._check([0.0] * 6, [0.0] * 6, fast, CYCLE, CYCLE)
+    # after a held cycle the same step is half the speed: allowed at that speed
+    cruising = [too_fast / (2 * CYCLE), 0, 0, 0, 0, 0]
+    assert emulator._check([0.0] * 6, cruising, fast, 2 * CYCLE, CYCLE) == ""
+    beyond = [0.0] * 6
+    beyond[2] = limits.max_deg[2] + 0.01
+    assert "position" in emulator._check(beyond, [0.0] * 6, beyond, CYCLE, CYCLE)
+    emulator.close()
+    assert config.to_dict()["motion"]["cycle_s"] == CYCLE
+    assert RsiDriverConfig.from_dict(config.to_dict()) == config
+    with pytest.raises(ValueError, match="unknown"):
+        RsiDriverConfig.from_dict({"speed": 3})
+    with pytest.raises(ValueError, match="axis_signs"):
+        RsiDriverConfig(axis_signs=[1, 1, 1, 1, 1, 2]).validate()
