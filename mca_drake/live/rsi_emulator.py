@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import io
 import math
 import select
 import socket
@@ -293,8 +294,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.report:
         atomic_write_json(args.report, report)
     if args.recording:
-        import io
-
         buffer = io.BytesIO()
         np.savez(buffer, **emulator.recording())
         atomic_write_bytes(args.recording, buffer.getvalue())
