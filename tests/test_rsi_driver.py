@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import json
+import socket
+import subprocess
+import sys
 import threading
 import time
 
@@ -12,7 +16,7 @@ from conftest import limits_of, mca_like_segments
 
 from mca_drake.live.rsi_driver import RsiDriver, RsiDriverConfig, RsiRefused
 from mca_drake.live.rsi_emulator import AxisLimits, RsiEmulator, RsiEmulatorConfig
-from mca_drake.live.rsi_link import start_rsi_driver
+from mca_drake.live.rsi_link import segment_socket_pair, start_rsi_driver
 from mca_drake.live.rsi_motion import RsiMotionConfig, SegmentBuffer
 
 CYCLE = 0.004
@@ -66,15 +70,17 @@ def test_a_killed_loop_ends_in_a_controlled_stop_along_the_commanded_trajectory(
     time, and when the segments stop coming mid-motion (the loop killed) the driver brakes
     to rest inside every limit; the emulator never sees a limit exceeded."""
     config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
-    link = start_rsi_driver(config, robot, np.zeros(6))
+    ours, theirs = segment_socket_pair()
+    link = start_rsi_driver(config, robot, np.zeros(6), theirs)
     emulator = RsiEmulator(link.address, RsiEmulatorConfig(cycle_s=CYCLE))
     try:
-        feeder = feed(link.commands, moving_run, stop_after=120)
+        feeder = feed(ours, moving_run, stop_after=120)
         report = emulator.run(2.0)
         feeder.join()
     finally:
         emulator.close()
         status = link.stop()
+        ours.close()
     assert report["stop_reason"] == "", report
     assert report["bad_replies"] == 0
     # replies with the right IPOC within the cycle (a loaded CI machine may miss a few)
@@ -103,15 +109,17 @@ class CorruptingEmulator(RsiEmulator):
 
 def test_a_malformed_state_packet_brakes_the_robot_to_rest(robot, moving_run):
     config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
-    link = start_rsi_driver(config, robot, np.zeros(6))
+    ours, theirs = segment_socket_pair()
+    link = start_rsi_driver(config, robot, np.zeros(6), theirs)
     emulator = CorruptingEmulator(link.address, RsiEmulatorConfig(cycle_s=CYCLE))
     try:
-        feeder = feed(link.commands, moving_run)
+        feeder = feed(ours, moving_run)
         report = emulator.run(1.6)
         feeder.join()
     finally:
         emulator.close()
         status = link.stop()
+        ours.close()
     assert report["stop_reason"] == "", report  # no limit exceeded on the way to rest
     assert status["bad_state"] == 1
     assert status["mode"] == "stopped" and "malformed state packet" in status["reason"]
@@ -168,3 +176,59 @@ def test_the_emulator_stops_a_correction_beyond_the_limits(robot):
         RsiDriverConfig.from_dict({"speed": 3})
     with pytest.raises(ValueError, match="axis_signs"):
         RsiDriverConfig(axis_signs=[1, 1, 1, 1, 1, 2]).validate()
+
+
+def free_udp_port() -> int:
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()
+    return port
+
+
+def test_a_live_run_drives_the_emulated_robot_through_a_telemetry_stop(tmp_path):
+    """`run_live` with a robot: CSV telemetry with a 0.6 s stop and a NaN burst, the washout
+    MCA, the driver in its process and the emulator in another (started at the washout's
+    home pose, so the driver accepts it). The robot follows every period's segment, washes
+    out through the stop (the supervisor's), never meets a limit, and after the run the
+    driver brakes it to rest; only then do the replies end."""
+    from test_live_loop import stream
+
+    from mca_drake.live.csv_udp import CsvDecoder
+    from mca_drake.live.loop import run_live
+    from mca_drake.live.receiver import ReceiverConfig
+
+    port = free_udp_port()
+    home_deg = np.degrees([0.0, 0.0, 0.5, 0.0, -0.5, 0.0])
+    processes, threads = [], []
+
+    def start(address):
+        threads.append(threading.Thread(target=stream, args=(address, 3.2), daemon=True))
+        threads[0].start()
+        command = [sys.executable, "-m", "mca_drake.live.rsi_emulator"]
+        command += ["--driver", f"127.0.0.1:{port}", "--duration", "8"]
+        command += ["--start-deg", ",".join(repr(float(v)) for v in home_deg)]
+        command += ["--report", str(tmp_path / "report.json")]
+        command += ["--recording", str(tmp_path / "recording.npz")]
+        processes.append(subprocess.Popen(command, stdout=subprocess.DEVNULL))
+
+    rsi = RsiDriverConfig(port=port, motion=RsiMotionConfig(cycle_s=CYCLE))
+    summary = run_live(
+        CsvDecoder(), "washout", 3.0, receiver=ReceiverConfig(port=0), on_listening=start, rsi=rsi
+    )
+    processes[0].wait(timeout=30)
+    threads[0].join(timeout=5)
+    report = json.loads((tmp_path / "report.json").read_text())
+    recording = np.load(tmp_path / "recording.npz")
+    driver = summary["rsi"]
+    assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    assert driver["segments"] == driver["segments_sent"] >= 299 and driver["segments_unsent"] == 0
+    assert driver["bad_state"] == 0 and driver["bad_segments"] == 0
+    assert driver["mode"] == "stopped", driver
+    assert driver["reason"] in ("the loop ended", "the driver was asked to stop"), driver
+    assert "limit" not in report["stop_reason"], report  # it ended by the replies stopping
+    assert report["bad_replies"] == 0 and report["on_time"] >= 0.97 * report["cycles"], report
+    axes = recording["axes_deg"] - home_deg
+    assert np.abs(axes).max() > 0.5  # it moved (the surge oscillation)
+    on_time = np.isfinite(recording["latency_s"])
+    np.testing.assert_array_equal(axes[on_time][-1], axes[on_time][-10])  # at rest at the end

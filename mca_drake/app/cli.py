@@ -342,6 +342,19 @@ def _cmd_live(args: argparse.Namespace) -> int:
         decoder = make_decoder(args.protocol, xplane_version=args.xplane_version)
     plant = args.plant or "analytical"
     receiver = ReceiverConfig(host=args.host, port=args.port)
+    rsi = None
+    if args.robot:
+        # the RSI layer only when a robot is asked for
+        from mca_drake.live.rsi_driver import RsiDriverConfig
+        from mca_drake.live.rsi_link import parse_robot_url
+        from mca_drake.live.rsi_motion import RsiMotionConfig
+
+        if plant != "analytical":
+            raise ValueError("--robot follows the analytical plant: drop --plant multibody")
+        host, port = parse_robot_url(args.robot)
+        rsi = RsiDriverConfig(
+            host=host, port=port, motion=RsiMotionConfig(cycle_s=args.rsi_cycle_ms * 1e-3)
+        )
     if args.meshcat and plant != "multibody":
         raise ValueError("--meshcat draws the KR500 station: add --plant multibody")
     meshcat = start_meshcat() if args.meshcat else None
@@ -362,6 +375,7 @@ def _cmd_live(args: argparse.Namespace) -> int:
             on_listening=listening,
             plant=plant,
             meshcat=meshcat,
+            rsi=rsi,
         )
     finally:
         for process in sender:
@@ -377,6 +391,14 @@ def _cmd_live(args: argparse.Namespace) -> int:
         f"health {live['health']}; PI {summary['pi']:.3f} "
         f"(zero motion {summary['pi_zero_motion']:.3f}); violations {summary['violations']}"
     )
+    if "rsi" in summary:
+        r = summary["rsi"]
+        reply = {k: f"{v * 1e3:.3f} ms" for k, v in r.get("reply_latency_s", {}).items()}
+        print(
+            f"robot {r['address']}: {r.get('cycles', 0)} cycles, {r.get('late_replies', 0)} "
+            f"late, {r.get('missed_cycles', 0)} missed, {r.get('bad_state', 0)} bad state "
+            f"packets; reply latency {reply}; ended {r.get('mode')} ({r.get('reason')})"
+        )
     if args.json:
         atomic_write_json(args.json, summary)
     _hold_meshcat(meshcat)
@@ -748,6 +770,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     live.add_argument("--meshcat", action="store_true", help="draw the station in Meshcat")
     live.add_argument("--json", help="result summary with its live block")
+    live.add_argument(
+        "--robot",
+        help="rsi://HOST:PORT: drive a KUKA robot over RSI (the driver listens there for the "
+        "controller's state packets; analytical plant)",
+    )
+    live.add_argument(
+        "--rsi-cycle-ms", type=int, default=4, choices=(4, 12), help="the robot's RSI cycle"
+    )
     live.add_argument(
         "--demo",
         action="store_true",

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import gc
 import math
+import socket
 import time
 from collections.abc import Callable
 
@@ -28,6 +29,8 @@ from mca_drake.live.pacing import RealTimePacer
 from mca_drake.live.phase_lock import PhaseLockConfig, phase_correction
 from mca_drake.live.receiver import TELEMETRY_FIELDS, ReceiverConfig, TelemetryReceiver
 from mca_drake.live.recorder import BEFORE_POLL_S, LiveRecorder
+from mca_drake.live.rsi_driver import RsiDriverConfig
+from mca_drake.live.rsi_link import RsiCommandSender, segment_socket_pair, start_rsi_driver
 from mca_drake.live.supervisor import Supervisor, SupervisorConfig
 from mca_drake.live.telemetry import Decoder
 from mca_drake.live.xplane import XPlaneDecoder
@@ -136,6 +139,7 @@ def MakeLiveClosedLoop(
     robot: KR500 | None = None,
     station: StationConfig | None = None,
     meshcat=None,
+    rsi_commands: socket.socket | None = None,
 ) -> tuple[Diagram, dict]:
     """TelemetryReceiver -> MCA -> Supervisor -> robot, with logs and a LatencyProbe; the
     robot is the analytical plant or the KR500 station (multibody, optionally drawn in
@@ -148,11 +152,19 @@ def MakeLiveClosedLoop(
         `state` (the state the MCA reads), `statistics`, `health` and, on the station,
         `true_state` and `measured_output` (the head IMU without its delay: what the occupant
         felt); after each command, `reference` and `command` (what the robot got).
+        With `rsi_commands` (the loop's end of `live.rsi_link.segment_socket_pair`; the
+        analytical plant only: its trajectory is the one a real robot follows), an
+        `RsiCommandSender` `rsi` sends every period's command segment there; `home` is the
+        MCA's home pose (rad), where the robot must start.
     """
     if plant not in PLANTS:
         raise ValueError(f"unknown plant '{plant}'; valid: {', '.join(PLANTS)}")
     if meshcat is not None and plant != "multibody":
         raise ValueError("meshcat needs plant 'multibody'")
+    if rsi_commands is not None and plant != "analytical":
+        raise ValueError(
+            "a robot over RSI follows the analytical plant's trajectory: use plant 'analytical'"
+        )
     robot = robot if robot is not None else load_kr500()
     receiver_config = receiver or ReceiverConfig()
     h = receiver_config.time_step
@@ -169,7 +181,7 @@ def MakeLiveClosedLoop(
             supervisor or SupervisorConfig(time_step=h), robot, home, judge_offset_s=JUDGE_DELAY_S
         ),
     )
-    handles = dict(receiver=source, mca=controller, supervisor=guard)
+    handles = dict(receiver=source, mca=controller, supervisor=guard, home=home)
     initial_state = np.r_[home, np.zeros(6)]
     before_poll = {}
     if plant == "analytical":
@@ -224,6 +236,11 @@ def MakeLiveClosedLoop(
     builder.Connect(command, joint_acceleration)
     builder.Connect(source.GetOutputPort("telemetry"), probe.GetInputPort("telemetry"))
     builder.Connect(command, probe.GetInputPort("command"))
+    if rsi_commands is not None:
+        sender = builder.AddNamedSystem("rsi", RsiCommandSender(rsi_commands, h))
+        builder.Connect(state, sender.GetInputPort("state"))
+        builder.Connect(command, sender.GetInputPort("command"))
+        handles["rsi"] = sender
     # recorded off the path from a sample to its command (`live.recorder`)
     before_poll |= {
         "state": state,
@@ -268,6 +285,7 @@ def run_live(
     station: StationConfig | None = None,
     meshcat=None,
     phase_lock: PhaseLockConfig | None = None,
+    rsi: RsiDriverConfig | None = None,
 ) -> dict:
     """Runs the live loop for `duration_s` (s of simulated time, at `realtime_rate`) and
     returns its summary with the `live` block.
@@ -280,6 +298,10 @@ def run_live(
             `meshcat` a pydrake Meshcat to draw it in).
         phase_lock: how the loop follows a periodic sender's phase (`live.phase_lock`;
             default on), so that samples wait little for their poll; at real-time rates only.
+        rsi: drive a KUKA robot over RSI (`live.rsi_driver`; analytical plant, real time):
+            the driver starts in its own process before the loop and brakes the robot to
+            rest after it; its counters are the summary's `rsi` block. The driver refuses
+            (and the run ends with RuntimeError) if the robot is not at the MCA's home pose.
     """
     if not 0 < duration_s <= 24 * 3600:
         raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
@@ -289,6 +311,13 @@ def run_live(
     lock.validate()
     rc = receiver or ReceiverConfig()
     h = rc.time_step
+    loop_end = driver_end = None
+    if rsi is not None:
+        if realtime_rate != 1.0:
+            raise ValueError("a robot over RSI runs in real time: realtime_rate must be 1")
+        rsi.period_s = h
+        rsi.validate()
+        loop_end, driver_end = segment_socket_pair()
     diagram, handles = MakeLiveClosedLoop(
         decoder,
         config,
@@ -299,9 +328,13 @@ def run_live(
         robot=robot,
         station=station,
         meshcat=meshcat,
+        rsi_commands=loop_end,
     )
     source = handles["receiver"]
+    link = None
     try:
+        if rsi is not None:
+            link = start_rsi_driver(rsi, robot, handles["home"], driver_end)
         simulator = Simulator(diagram)
         # the loop paces itself (`live.pacing`): the poll on time, the MCA right after it
         pacer = None
@@ -327,12 +360,22 @@ def run_live(
         start, cpu_start = time.perf_counter(), time.process_time()
         if pacer is not None:
             pacer.start()
-        shifts = _advance_phase_locked(simulator, handles["probe"], duration_s, pacer, lock, h)
+        shifts = _advance_phase_locked(
+            simulator, handles["probe"], duration_s, pacer, lock, h, link
+        )
         wall_s = time.perf_counter() - start
         cpu_s = time.process_time() - cpu_start
+        if link is not None:
+            sender = handles["rsi"]
+            sender.finish(sender.GetMyContextFromRoot(simulator.get_context()))
     finally:
         gc.unfreeze()
         source.close()
+        rsi_status = link.stop() if link is not None else None
+        if loop_end is not None:
+            loop_end.close()
+        if driver_end is not None:
+            driver_end.close()
     context = simulator.get_context()
 
     rows = handles["recorder"].rows
@@ -411,6 +454,14 @@ def run_live(
         # this process's CPU time over wall time (1.0: one core busy)
         "cpu_load": cpu_s / max(wall_s, 1e-9),
     }
+    if rsi_status is not None:
+        sender = handles["rsi"]
+        summary["rsi"] = {
+            "address": f"rsi://{link.address[0]}:{link.address[1]}",
+            "segments_sent": sender.sent,
+            "segments_unsent": sender.unsent,
+            **rsi_status,
+        }
     return summary
 
 
@@ -422,18 +473,33 @@ def _stalls(instants_s: list[float], period_s: float, realtime_rate: float) -> i
     return int(np.sum(np.diff(instants_s) > STALL_PERIODS * period_s / realtime_rate))
 
 
-def _advance_phase_locked(simulator, probe, duration_s, pacer, lock, period_s):
+def _check_driver(link) -> None:
+    """Raises RuntimeError if the RSI driver process has ended (it refused the robot, or
+    died): the loop must not go on cueing a robot nobody drives."""
+    if link is not None and link.process.poll() is not None:
+        status = link.stop()
+        why = status.get("refused") or status.get("error") or status
+        raise RuntimeError(f"the RSI driver ended during the run: {why}")
+
+
+def _advance_phase_locked(simulator, probe, duration_s, pacer, lock, period_s, link=None):
     """Advances to `duration_s` in windows of `lock.window_s`; after a window measured at a
     steady phase, the phase lock's correction (`phase_correction` of the samples' waits for
     the time their poll was due) becomes the pacer's new target phase, which it slews to
-    within the next window (measured only after that). No pacer (as fast as possible) or no
-    lock: one AdvanceTo. Returns the shifts."""
-    if pacer is None or not lock.enabled:
+    within the next window (measured only after that). Between windows the RSI driver of
+    `link` (if any) is checked alive (`_check_driver`). No pacer (as fast as possible) or no
+    lock, and no driver: one AdvanceTo. Returns the shifts."""
+    locked = pacer is not None and lock.enabled
+    if not locked and link is None:
         simulator.AdvanceTo(duration_s)
         return []
     shifts, measured_from, shift = [], 0, 0.0
     while simulator.get_context().get_time() < duration_s - 1e-9:
+        _check_driver(link)
         t = simulator.get_context().get_time()
+        if not locked:
+            simulator.AdvanceTo(min(duration_s, _window_end(t, lock.window_s, period_s)))
+            continue
         # a window right after a shift only measures (its waits show the new phase)
         shift = (
             0.0

@@ -65,6 +65,10 @@ DRIVER_COUNTERS = (
 )
 
 
+# After a requested stop brought the robot to rest, the driver answers this long (s) more.
+HOLD_AFTER_STOP_S = 0.2
+
+
 class RsiRefused(RuntimeError):  # noqa: N818 (a refusal, not a failure)
     """The driver will not move the robot (not at the home pose); the message says why."""
 
@@ -86,7 +90,8 @@ class RsiDriverConfig:
     axis_signs: list[float] = dataclasses.field(default_factory=lambda: [1.0] * NUM_JOINTS)
     # The robot must report home_deg within this (deg) at the first cycle, or nothing moves.
     home_tolerance_deg: float = 0.5
-    # No state packet for this long (s): the controller ended RSI; the driver exits.
+    # No state packet for this long (s) after the first: the controller ended RSI; the
+    # driver exits. Before the first it waits (until asked to stop).
     robot_silence_s: float = 0.5
     # The loop's control period (s): a segment k holds over [k h, (k + 1) h).
     period_s: float = CONTROL_PERIOD_S
@@ -162,7 +167,8 @@ class RsiDriver:
         )
         self._rsi = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._rsi.bind((config.host, config.port))
-        self._rsi.settimeout(config.robot_silence_s)
+        # short reads: a stop request is seen while no robot sends
+        self._rsi.settimeout(min(0.1, config.robot_silence_s))
         enable_kernel_timestamps(self._rsi)
         self.address = self._rsi.getsockname()
         self._commands = commands
@@ -193,13 +199,23 @@ class RsiDriver:
         """
         cycle_ms = self.config.motion.cycle_s * 1e3
         tags = self.config.tags
+        last_packet = at_rest = None
         while max_cycles is None or self.counters["cycles"] < max_cycles:
             if self._stop_requested and self.follower.mode == "stopped":
-                break
+                # hold at rest a little, so that the controller sees it still before the
+                # replies end (and RSI stops the robot where it stands)
+                at_rest = at_rest or time.monotonic()
+                if last_packet is None or time.monotonic() - at_rest > HOLD_AFTER_STOP_S:
+                    break
             try:
                 packet, ancillary, _, robot = self._rsi.recvmsg(MAX_RSI_BYTES + 1, 64)
             except TimeoutError:
-                break  # the controller ended RSI
+                if last_packet is None:
+                    continue  # no robot yet: waiting for the controller to start RSI
+                if time.monotonic() - last_packet > self.config.robot_silence_s:
+                    break  # the controller ended RSI
+                continue
+            last_packet = time.monotonic()
             arrival = arrival_time(ancillary)
             try:
                 state = parse_state(packet, tags)

@@ -2,10 +2,11 @@
 
 `RsiCommandSender` is the LeafSystem that, just after every control instant's command
 (`AFTER_COMMAND_S`, before the analytical plant's step), sends the segment (k, q_k, qd_k,
-u_k) to the driver over a Unix datagram socket: a non-blocking send, off the path from a
-telemetry sample to its command. `start_rsi_driver` starts `mca_drake.live.rsi_driver` in a
-process of its own, with one end of the socket pair, and waits until it listens; `RsiLink`
-holds both and stops the driver (which brakes the robot to rest first).
+u_k) to the driver over a Unix datagram socket (`segment_socket_pair`): a non-blocking send,
+off the path from a telemetry sample to its command. `start_rsi_driver` starts
+`mca_drake.live.rsi_driver` in a process of its own, with the driver's end of the pair, and
+waits until it listens; `RsiLink.stop` stops it (the driver brakes the robot to rest first)
+and returns its counters.
 """
 
 from __future__ import annotations
@@ -90,10 +91,9 @@ class RsiCommandSender(LeafSystem):
 
 @dataclasses.dataclass
 class RsiLink:
-    """A running driver process and the loop's end of its segment socket."""
+    """A running driver process and the address it listens on for the robot."""
 
     process: subprocess.Popen
-    commands: socket.socket
     address: tuple[str, int]
     status_path: Path
 
@@ -108,17 +108,24 @@ class RsiLink:
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait()
-        self.commands.close()
         if self.status_path.exists():
             return json.loads(self.status_path.read_text())
         return {"error": f"the RSI driver ended with code {self.process.returncode}, no status"}
 
 
-def start_rsi_driver(config: RsiDriverConfig, robot: KR500, home) -> RsiLink:
-    """Starts `python -m mca_drake.live.rsi_driver` listening on config's address and waits
-    until it does (its `listening` line); raises RuntimeError if it ends first (an address
-    in use, a bad setting: its own error output says which). Its error output goes to ours,
-    never into a pipe that could fill and stall it."""
+def segment_socket_pair() -> tuple[socket.socket, socket.socket]:
+    """(the loop's end, the driver's end) of a new segment socket pair (Unix datagrams)."""
+    return socket.socketpair(socket.AF_UNIX, socket.SOCK_DGRAM)
+
+
+def start_rsi_driver(
+    config: RsiDriverConfig, robot: KR500, home, driver_end: socket.socket
+) -> RsiLink:
+    """Starts `python -m mca_drake.live.rsi_driver` listening on config's address, with
+    `driver_end` of a `segment_socket_pair` (closed here once the driver has it), and waits
+    until it listens (its `listening` line); raises RuntimeError if it ends first (an
+    address in use, a bad setting: its own error output says which). Its error output goes
+    to ours, never into a pipe that could fill and stall it."""
     config.validate()
     folder = Path(tempfile.mkdtemp(prefix="mca_drake_rsi_"))
     job = {
@@ -128,7 +135,7 @@ def start_rsi_driver(config: RsiDriverConfig, robot: KR500, home) -> RsiLink:
     }
     (folder / "job.json").write_text(json.dumps(job))
     status = folder / "status.json"
-    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_DGRAM)
+    theirs = driver_end
     command = [
         sys.executable,
         "-m",
@@ -151,7 +158,6 @@ def start_rsi_driver(config: RsiDriverConfig, robot: KR500, home) -> RsiLink:
     if "listening on udp://" not in line:
         process.kill()
         process.wait()
-        ours.close()
         raise RuntimeError(f"the RSI driver did not start (its error output above): {line!r}")
     host, _, port = line.strip().rpartition("udp://")[2].rpartition(":")
-    return RsiLink(process, ours, (host, int(port)), status)
+    return RsiLink(process, (host, int(port)), status)
