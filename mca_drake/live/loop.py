@@ -30,7 +30,12 @@ from mca_drake.live.phase_lock import PhaseLockConfig, phase_correction
 from mca_drake.live.receiver import TELEMETRY_FIELDS, ReceiverConfig, TelemetryReceiver
 from mca_drake.live.recorder import BEFORE_POLL_S, LiveRecorder
 from mca_drake.live.rsi_driver import RsiDriverConfig
-from mca_drake.live.rsi_link import RsiCommandSender, segment_socket_pair, start_rsi_driver
+from mca_drake.live.rsi_link import (
+    RsiCommandSender,
+    segment_socket_pair,
+    start_rsi_driver,
+    wait_for_robot,
+)
 from mca_drake.live.supervisor import Supervisor, SupervisorConfig
 from mca_drake.live.telemetry import Decoder
 from mca_drake.live.xplane import XPlaneDecoder
@@ -352,6 +357,8 @@ def run_live(
         simulator.Initialize()
         if on_listening is not None:
             on_listening(source.address)
+        if link is not None:
+            wait_for_robot(loop_end, link, rsi.connect_timeout_s)
         # Everything built so far (torch, Drake, the diagram) leaves the garbage collector's
         # view: a full collection of it took about 0.1 s, a stall in the loop whenever one
         # came due; the loop's own garbage is still collected.

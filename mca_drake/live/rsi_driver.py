@@ -19,11 +19,13 @@ or a braking step from one; a stalled or killed loop, stale telemetry that ended
 run, a malformed state packet or SIGTERM make it brake to rest and hold there; when the robot
 stops sending (RSI ended) it writes its counters and exits.
 
-The loop's simulated time is mapped to the robot's IPOC clock (milliseconds) when the first
-segment arrives; both are then assumed to run at the same rate, which holds for the loopback
-emulator (the same machine clock). A real controller's clock drifts from the PC's by parts per
-million; the `lead_s` figures in the counters show it (the held trajectory's reach beyond the
-played time), and a lead that runs out ends in braking, never in a jump.
+The loop's simulated time is mapped to the robot's IPOC clock (milliseconds) at the first
+cycle that brings segments (the newest of them is the loop's present; older ones that
+waited for the robot's first cycle are its past); both are then assumed to run at the same
+rate, which holds for the loopback emulator (the same machine clock). A real controller's
+clock drifts from the PC's by parts per million: the `lead_s` figures in the counters show
+it (how far the held trajectory reaches beyond the played time, `delay_s` at the start),
+and a lead that runs out ends in braking, never in a jump.
 """
 
 from __future__ import annotations
@@ -65,6 +67,9 @@ DRIVER_COUNTERS = (
 )
 
 
+# What the driver tells the loop once the robot's first state packet showed the home pose:
+# the loop may start (`mca_drake.live.rsi_link.wait_for_robot`).
+ROBOT_READY = b"robot ready"
 # After a requested stop brought the robot to rest, the driver answers this long (s) more.
 HOLD_AFTER_STOP_S = 0.2
 
@@ -93,6 +98,9 @@ class RsiDriverConfig:
     # No state packet for this long (s) after the first: the controller ended RSI; the
     # driver exits. Before the first it waits (until asked to stop).
     robot_silence_s: float = 0.5
+    # The live loop waits this long (s) for the robot's first state packet at home before
+    # it starts (`RobotReady`); then it gives up.
+    connect_timeout_s: float = 60.0
     # The loop's control period (s): a segment k holds over [k h, (k + 1) h).
     period_s: float = CONTROL_PERIOD_S
     # The RSI object configuration's XML names.
@@ -111,10 +119,9 @@ class RsiDriverConfig:
             )
         if self.home_deg is not None and len(self.home_deg) != NUM_JOINTS:
             raise ValueError(f"RsiDriverConfig.home_deg must hold six angles; got {self.home_deg}")
-        if not (self.home_tolerance_deg > 0 and self.robot_silence_s > 0 and self.period_s > 0):
-            raise ValueError(
-                "RsiDriverConfig.home_tolerance_deg, robot_silence_s and period_s must be positive"
-            )
+        positive = ("home_tolerance_deg", "robot_silence_s", "period_s", "connect_timeout_s")
+        if not all(getattr(self, name) > 0 for name in positive):
+            raise ValueError(f"RsiDriverConfig.{', '.join(positive)} must be positive")
 
     def to_dict(self) -> dict:
         """The settings as JSON-ready values (`from_dict` reads them back)."""
@@ -226,6 +233,7 @@ class RsiDriver:
             if self._ipoc is None:
                 self._check_home(state.axes_deg)
                 dt = self.config.motion.cycle_s
+                self._tell_loop(ROBOT_READY)
             else:
                 elapsed_ms = state.ipoc - self._ipoc
                 if elapsed_ms <= 0:
@@ -242,7 +250,8 @@ class RsiDriver:
                 ipoc0, k0 = self._anchor
                 s = k0 * self.config.period_s + (state.ipoc - ipoc0) * 1e-3
                 s -= self.config.motion.delay_s
-                self.leads_s.append(self.buffer.lead_s(s))
+                if self.follower.mode == "following":
+                    self.leads_s.append(self.buffer.lead_s(s))
                 q = self.follower.step(s, dt, self.buffer)
             corrections = [
                 sign * math.degrees(value - home)
@@ -288,6 +297,13 @@ class RsiDriver:
                 f"(tolerance {self.config.home_tolerance_deg} deg); nothing was sent"
             )
 
+    def _tell_loop(self, message: bytes) -> None:
+        if self._commands is not None:
+            try:
+                self._commands.send(message)
+            except OSError:  # the loop is gone or not listening: it will find out
+                pass
+
     def _take_segments(self) -> None:
         if self._commands is None:
             return
@@ -295,9 +311,9 @@ class RsiDriver:
             try:
                 datagram = self._commands.recv(256)
             except BlockingIOError:
-                return
+                break
             except OSError:  # the loop's end of the socket is gone
-                return
+                break
             try:
                 segment = CommandSegment.unpack(datagram)
             except BadSegment:
@@ -305,8 +321,10 @@ class RsiDriver:
                 continue
             if self.buffer.add(segment):
                 self.counters["segments"] += 1
-                if self._anchor is None:
-                    self._anchor = (self._ipoc, segment.k)
+        if self._anchor is None and self.buffer.newest_k >= 0:
+            # the newest segment now is the loop's present: play `delay_s` behind it (a
+            # backlog that waited for the robot's first cycle is the past)
+            self._anchor = (self._ipoc, self.buffer.newest_k)
 
 
 def main(argv: list[str] | None = None) -> int:

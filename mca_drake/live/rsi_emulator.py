@@ -124,6 +124,7 @@ class RsiEmulator:
         self._socket.setblocking(False)
         self.counters = dict.fromkeys(EMULATOR_COUNTERS, 0)
         self.stop_reason = ""
+        self.final_missed = 0  # the run of missed cycles that stopped it (the driver's end)
         self.rows: dict[str, list] = {
             "ipoc": [],
             "latency_s": [],
@@ -175,6 +176,7 @@ class RsiEmulator:
                 break
             if missed_in_a_row >= cfg.max_missed:
                 self.stop_reason = f"{missed_in_a_row} cycles in a row without an on-time reply"
+                self.final_missed = missed_in_a_row
                 break
         return self.report()
 
@@ -194,6 +196,8 @@ class RsiEmulator:
             else {}
         )
         out["stop_reason"] = self.stop_reason
+        # missed cycles before the run of them that stopped the emulator
+        out["missed_before_stop"] = self.counters["missed"] - self.final_missed
         return out
 
     def recording(self) -> dict[str, np.ndarray]:

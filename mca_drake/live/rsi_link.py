@@ -13,16 +13,18 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import select
 import socket
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
 from mca_drake.live.recorder import AFTER_COMMAND_S
-from mca_drake.live.rsi_driver import RsiDriverConfig
+from mca_drake.live.rsi_driver import ROBOT_READY, RsiDriverConfig
 from mca_drake.live.rsi_motion import CommandSegment
 from mca_drake.robot import KR500, NUM_JOINTS
 
@@ -111,6 +113,26 @@ class RsiLink:
         if self.status_path.exists():
             return json.loads(self.status_path.read_text())
         return {"error": f"the RSI driver ended with code {self.process.returncode}, no status"}
+
+
+def wait_for_robot(loop_end: socket.socket, link: RsiLink, timeout_s: float) -> None:
+    """Waits until the driver reports the robot's first state at the home pose
+    (`rsi_driver.ROBOT_READY` on the segment socket): the loop starts only then, so the
+    robot follows it from its first period. RuntimeError if the driver ends first (it
+    refused the robot: the message says why) or `timeout_s` passes."""
+    deadline = time.monotonic() + timeout_s
+    while (left := deadline - time.monotonic()) > 0:
+        if select.select([loop_end], [], [], min(left, 0.2))[0]:
+            if loop_end.recv(256) == ROBOT_READY:
+                return
+        if link.process.poll() is not None:
+            status = link.stop()
+            why = status.get("refused") or status.get("error") or status
+            raise RuntimeError(f"the RSI driver ended before the robot was ready: {why}")
+    raise RuntimeError(
+        f"no RSI robot at rsi://{link.address[0]}:{link.address[1]} within {timeout_s:g} s: "
+        "start the RSI program on the controller (its state packets must reach this address)"
+    )
 
 
 def segment_socket_pair() -> tuple[socket.socket, socket.socket]:

@@ -214,8 +214,9 @@ class MotionFollower:
         if not self._clamp.is_viable(self.home + [0.0] * NUM_JOINTS):
             raise ValueError(f"home pose {self.home} is not inside the robot's limits")
         self.q, self.qd = list(self.home), [0.0] * NUM_JOINTS
-        # the positions sent the cycle before self.q and the cycle's length (None: none yet)
-        self._previous: tuple[list[float] | None, float] = (None, self.config.cycle_s)
+        # the positions sent the cycle before self.q and the cycle's length: the robot rested
+        # at home before, so the first target is checked as a start from rest
+        self._previous: tuple[list[float], float] = (list(self.home), self.config.cycle_s)
         self.mode = "waiting"
         self.reason = ""
 
@@ -263,14 +264,13 @@ class MotionFollower:
                 return (
                     f"joint {j + 1} moves {velocity:.4f} rad/s in a cycle: a jump in the commands"
                 )
-            if sent is not None:
-                before = (self.q[j] - sent[j]) / sent_dt
-                acceleration = (velocity - before) / (0.5 * (dt + sent_dt))
-                if abs(acceleration) > self._qdd_max[j]:
-                    return (
-                        f"joint {j + 1} acceleration {acceleration:.3f} rad/s^2 between cycles "
-                        "over its limit: a jump in the commands"
-                    )
+            before = (self.q[j] - sent[j]) / sent_dt
+            acceleration = (velocity - before) / (0.5 * (dt + sent_dt))
+            if abs(acceleration) > self._qdd_max[j]:
+                return (
+                    f"joint {j + 1} acceleration {acceleration:.3f} rad/s^2 between cycles "
+                    "over its limit: a jump in the commands"
+                )
             if not self._q_min[j] <= q[j] <= self._q_max[j]:
                 return f"joint {j + 1} position {q[j]:.4f} rad outside its limits"
             if abs(qd[j]) > self._qd_max[j]:

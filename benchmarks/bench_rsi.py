@@ -1,0 +1,115 @@
+"""RSI driver figures (issue 21): reply latency per robot cycle and late replies, live.
+
+    python benchmarks/bench_rsi.py [--duration 600] [--cycles-ms 4,12] [--mca dpc]
+        [--json out.json]
+
+For each RSI cycle: the live loop of `bench_live.py` (JSBSim flies the light aircraft in
+real time and streams FGNetFDM packets over loopback; the MCA on the analytical plant at
+real-time rate 1) drives a robot over RSI (`mca-drake live --robot`): the driver in its own
+process, the loopback RSI robot emulator (`mca_drake.live.rsi_emulator`) in another, started
+at the home pose, sending its state every cycle for the whole run. Prints, per cycle, the
+reply latency as the robot sees it (state sent -> reply received: median, p99, max), the
+driver's own (state packet's kernel arrival -> reply sent), late and missed replies, the
+emulator's verdict, and the loop's telemetry latency beside them. The machine's calibration
+first.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import socket
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from common import print_calibration
+
+from mca_drake.atomic_io import atomic_write_json
+from mca_drake.cueing import mca_config_from_name
+from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S, start_demo_sender
+from mca_drake.live.loop import make_decoder, run_live
+from mca_drake.live.receiver import ReceiverConfig
+from mca_drake.live.rsi_driver import RsiDriverConfig
+from mca_drake.live.rsi_motion import RsiMotionConfig
+
+
+def free_udp_port() -> int:
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()
+    return port
+
+
+def ms(figures: dict) -> dict:
+    return {k: f"{v * 1e3:.3f}" for k, v in figures.items()}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--duration", type=float, default=600.0, help="s per cycle time")
+    parser.add_argument("--cycles-ms", default="4,12")
+    parser.add_argument("--mca", default="dpc")
+    parser.add_argument("--json", help="write the figures here")
+    args = parser.parse_args()
+    report = {"calibration": print_calibration(), "runs": {}}
+    folder = Path(tempfile.mkdtemp(prefix="bench_rsi_"))
+    for cycle_ms in (int(c) for c in args.cycles_ms.split(",")):
+        port = free_udp_port()
+        processes = []
+        emulator_report = folder / f"emulator_{cycle_ms}.json"
+
+        def start(address, processes=processes, port=port, out=emulator_report, c=cycle_ms):
+            processes.append(start_demo_sender(address[1], args.duration + 3.0))
+            command = [sys.executable, "-m", "mca_drake.live.rsi_emulator"]
+            command += ["--driver", f"127.0.0.1:{port}", "--cycle-ms", str(c)]
+            command += ["--duration", repr(args.duration + 2.0), "--report", str(out)]
+            processes.append(subprocess.Popen(command, stdout=subprocess.DEVNULL))
+
+        rsi = RsiDriverConfig(port=port, motion=RsiMotionConfig(cycle_s=cycle_ms * 1e-3))
+        summary = run_live(
+            make_decoder("fgnetfdm", fgnetfdm_time_resolution_s=DEMO_TIME_RESOLUTION_S),
+            mca_config_from_name(args.mca),
+            args.duration,
+            receiver=ReceiverConfig(port=0),
+            on_listening=start,
+            rsi=rsi,
+        )
+        sender, emulator = processes
+        sender.terminate()
+        sender.wait(timeout=10)
+        emulator.wait(timeout=60)
+        robot = json.loads(emulator_report.read_text())
+        driver = summary["rsi"]
+        live = summary["live"]
+        label = f"{args.mca}, RSI cycle {cycle_ms} ms"
+        report["runs"][label] = {
+            "emulator": robot,
+            "driver": driver,
+            "live_latency_s": live["latency_s"],
+            "cpu_load": live["cpu_load"],
+            "violations": summary["violations"],
+            "pi": summary["pi"],
+        }
+        print(
+            f"{label}: {args.duration:g} s; the robot's view: {robot['cycles']} cycles, "
+            f"{robot['on_time']} replies on time, {robot['late']} late, "
+            f"{robot['missed_before_stop']} missed before the driver's end, "
+            f"{robot['bad_replies']} bad, reply latency ms "
+            f"{ms(robot['reply_latency_s'])}, stopped: {robot['stop_reason'] or 'no'}; the "
+            f"driver's: {driver['cycles']} cycles, {driver['late_replies']} late, "
+            f"{driver['missed_cycles']} missed, latency ms {ms(driver['reply_latency_s'])}, "
+            f"trajectory lead ms {ms(driver['lead_s'])}, ended {driver['mode']} "
+            f"({driver['reason']}); loop latency ms {ms(live['latency_s'])}, CPU load "
+            f"{live['cpu_load']:.2f}; violations {summary['violations']}; PI "
+            f"{summary['pi']:.3f}",
+            flush=True,
+        )
+    if args.json:
+        atomic_write_json(args.json, report)
+
+
+if __name__ == "__main__":
+    main()
