@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import signal
 import socket
 import subprocess
 import sys
@@ -13,11 +14,17 @@ import numpy as np
 import pytest
 from conftest import RSI_LOOP_PERIOD as H
 from conftest import limits_of, mca_like_segments
+from test_live_loop import stream
 
-from mca_drake.live.rsi_driver import RsiDriver, RsiDriverConfig, RsiRefused
+from mca_drake.live.csv_udp import CsvDecoder
+from mca_drake.live.loop import run_live
+from mca_drake.live.receiver import ReceiverConfig
+from mca_drake.live.rsi_driver import RsiDriver, RsiDriverConfig, RsiRefused, lead_report
 from mca_drake.live.rsi_emulator import AxisLimits, RsiEmulator, RsiEmulatorConfig
-from mca_drake.live.rsi_link import segment_socket_pair, start_rsi_driver
-from mca_drake.live.rsi_motion import RsiMotionConfig, SegmentBuffer
+from mca_drake.live.rsi_link import RobotClockServo, segment_socket_pair, start_rsi_driver
+from mca_drake.live.rsi_motion import CommandSegment, RsiMotionConfig, SegmentBuffer
+from mca_drake.references.flights import FlightSpec, flight_reference
+from mca_drake.simulation.closed_loop import run_closed_loop
 
 CYCLE = 0.004
 
@@ -192,11 +199,6 @@ def test_a_live_run_drives_the_emulated_robot_through_a_telemetry_stop(tmp_path)
     home pose, so the driver accepts it). The robot follows every period's segment, washes
     out through the stop (the supervisor's), never meets a limit, and after the run the
     driver brakes it to rest; only then do the replies end."""
-    from test_live_loop import stream
-
-    from mca_drake.live.csv_udp import CsvDecoder
-    from mca_drake.live.loop import run_live
-    from mca_drake.live.receiver import ReceiverConfig
 
     port = free_udp_port()
     home_deg = np.degrees([0.0, 0.0, 0.5, 0.0, -0.5, 0.0])
@@ -232,3 +234,112 @@ def test_a_live_run_drives_the_emulated_robot_through_a_telemetry_stop(tmp_path)
     assert np.abs(axes).max() > 0.5  # it moved (the surge oscillation)
     on_time = np.isfinite(recording["latency_s"])
     np.testing.assert_array_equal(axes[on_time][-1], axes[on_time][-10])  # at rest at the end
+
+
+class FakePacer:
+    phase_s = 0.0
+    rate_trim = 0.0
+
+
+def test_the_loops_clock_follows_a_drifting_robot_clock():
+    """A controller whose clock runs 300 ppm fast against the PC's: without the servo the
+    driver's lead would shrink by 0.3 ms every second; the servo's trim settles at -300 ppm
+    and the lead back where it started. The lead's model: d lead / dt = -(drift + trim)
+    (the loop's segments come at 1 - trim, the robot plays at 1 + drift); the reports are
+    the driver's own bytes through a socket pair."""
+    ours, theirs = segment_socket_pair()
+    ours.setblocking(False)
+    now = [0.0]
+    pacer = FakePacer()
+    servo = RobotClockServo(ours, pacer, clock=lambda: now[0])
+    drift, lead, dt = 3e-4, 0.030, 0.6
+    leads = []
+    for step in range(200):  # 120 s of reports
+        theirs.send(lead_report(lead))
+        servo.update()
+        leads.append(lead)
+        lead -= (drift + pacer.rate_trim) * dt
+        now[0] += dt
+        if step == 100:
+            pacer.phase_s += 0.004  # a phase-lock shift: the lead jumps, by design
+            lead += 0.004
+    ours.close()
+    theirs.close()
+    assert pacer.rate_trim == pytest.approx(-drift, rel=0.05)
+    assert abs(leads[-1] - 0.004 - 0.030) < 2e-4  # back at its start (and the shift kept)
+    assert min(leads) > 0.025  # never near running out
+
+
+def test_killing_the_live_process_brakes_the_robot_to_rest():
+    """`mca-drake live --robot` in its own process, killed (SIGKILL) while the robot moves:
+    its driver process runs on, brakes the emulated robot to rest inside every limit and
+    holds it there while the robot keeps asking."""
+    port, telemetry_port = free_udp_port(), free_udp_port()
+    command = [
+        sys.executable,
+        "-c",
+        "import sys; from mca_drake.app.cli import main; sys.exit(main())",
+    ]
+    command += ["live", "--protocol", "csv", "--port", str(telemetry_port), "--duration", "30"]
+    command += ["--mca", "washout", "--robot", f"rsi://127.0.0.1:{port}"]
+    live = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
+    try:
+        assert "listening on udp://" in live.stdout.readline()
+        threading.Thread(
+            target=stream,
+            args=(("127.0.0.1", telemetry_port), 6.0),
+            kwargs={"gap": (9, 9)},
+            daemon=True,
+        ).start()
+        home_deg = np.degrees([0.0, 0.0, 0.5, 0.0, -0.5, 0.0]).tolist()
+        emulator = RsiEmulator(
+            ("127.0.0.1", port), RsiEmulatorConfig(cycle_s=CYCLE, start_deg=home_deg)
+        )
+        killer = threading.Timer(2.5, lambda: live.send_signal(signal.SIGKILL))
+        killer.start()
+        report = emulator.run(5.5)
+        emulator.close()
+    finally:
+        live.kill()
+        live.wait(timeout=10)
+    assert report["stop_reason"] == "", report  # replies all along, no limit met
+    assert report["on_time"] >= 0.97 * report["cycles"], report
+    axes = emulator.recording()["axes_deg"] - home_deg
+    moving = np.abs(np.diff(axes, axis=0)).max(axis=1) / CYCLE
+    assert moving[: round(2.4 / CYCLE)].max() > 0.5  # deg/s: it moved before the kill
+    np.testing.assert_array_equal(axes[-1], axes[-100])  # at rest, held, at the end
+
+
+def test_a_replayed_flight_drives_the_emulated_axes_along_the_mcas_trajectory(robot):
+    """The DPC on a built-in light-aircraft flight (a training seed), closed on the
+    analytical plant; its states and commands, sent as the loop sends them in real time,
+    drive the emulated axes exactly along the plant's trajectory: to 1e-5 deg (the replies'
+    six decimals) at the best whole-millisecond offset, every reply on time with its IPOC;
+    the end segment brings the robot to rest."""
+    reference = flight_reference(FlightSpec(vehicle="light", seed=3), 3.0)
+    result = run_closed_loop(mca="dpc", reference=reference, plant="analytical", progress=False)
+    segments = [
+        CommandSegment(k, x[:6], x[6:], u)
+        for k, (x, u) in enumerate(zip(result.states[:-1], result.commands[:-1], strict=True))
+    ]
+    last = result.states[-1]
+    segments.append(CommandSegment(len(segments), last[:6], last[6:], [0.0] * 6, end=True))
+    config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
+    ours, theirs = segment_socket_pair()
+    link = start_rsi_driver(config, robot, np.zeros(6), theirs)
+    emulator = RsiEmulator(link.address, RsiEmulatorConfig(cycle_s=CYCLE))
+    try:
+        feeder = feed(ours, segments)
+        report = emulator.run(len(segments) * H + 3.0)
+        feeder.join()
+    finally:
+        emulator.close()
+        status = link.stop()
+        ours.close()
+    assert status["mode"] == "stopped" and status["reason"] == "the loop ended", status
+    assert report["stop_reason"] == "" and report["bad_replies"] == 0, report
+    assert report["late"] + report["missed"] <= 0.03 * report["cycles"], report
+    recording = emulator.recording()
+    _, error = best_offset_error(recording, segments[:-1], 0.0)
+    assert error < 1e-5  # deg
+    assert np.abs(recording["axes_deg"]).max() > 0.5  # the flight moved it

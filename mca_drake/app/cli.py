@@ -14,6 +14,7 @@ from mca_drake import __version__
 from mca_drake.app.jobs import (
     closed_loop_outputs,
     run_closed_loop_scenario,
+    run_live_scenario,
     run_scenario,
     start_meshcat,
 )
@@ -21,9 +22,10 @@ from mca_drake.app.scenarios import (
     ClosedLoopScenario,
     DatasetScenario,
     EvaluationScenario,
+    LiveScenario,
     load_scenario,
 )
-from mca_drake.atomic_io import atomic_write_json, check_writable
+from mca_drake.atomic_io import check_writable
 from mca_drake.conventions import CHANNELS
 from mca_drake.cueing import MCA_NAMES, DpcConfig, mca_config_from_name, mca_name
 from mca_drake.plotting import plot_recording, save_figure
@@ -319,44 +321,34 @@ def _cmd_tune(args: argparse.Namespace) -> int:
 
 
 def _cmd_live(args: argparse.Namespace) -> int:
-    # the live layer (sockets, the live diagram) only for this command
-    from mca_drake.live.loop import make_decoder, run_live
-    from mca_drake.live.receiver import ReceiverConfig
-
-    if args.json:
-        check_writable(args.json)
+    scenario = LiveScenario(
+        host=args.host,
+        port=args.port,
+        mca=mca_config_from_name(args.mca),
+        robot=args.robot or "",
+        rsi_cycle_ms=args.rsi_cycle_ms,
+        output_json=args.json or "",
+    )
     sender = []
     if args.demo:
         # a JSBSim process flies the light aircraft and streams FGNetFDM packets to us; the
-        # station in Meshcat unless told otherwise
+        # station in Meshcat unless told otherwise (or a robot is driven)
         from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S, start_demo_sender
 
-        args.protocol, args.port = "fgnetfdm", 0
-        args.plant = args.plant or "multibody"
+        scenario.protocol, scenario.port = "fgnetfdm", 0
+        scenario.fgnetfdm_time_resolution_s = DEMO_TIME_RESOLUTION_S
+        args.plant = args.plant or ("analytical" if args.robot else "multibody")
         args.meshcat = args.meshcat or args.plant == "multibody"
         args.duration = args.duration or 60.0
-        decoder = make_decoder("fgnetfdm", fgnetfdm_time_resolution_s=DEMO_TIME_RESOLUTION_S)
     elif args.protocol is None or args.duration is None:
         raise ValueError("live needs --protocol and --duration (or --demo)")
     else:
-        decoder = make_decoder(args.protocol, xplane_version=args.xplane_version)
-    plant = args.plant or "analytical"
-    receiver = ReceiverConfig(host=args.host, port=args.port)
-    rsi = None
-    if args.robot:
-        # the RSI layer only when a robot is asked for
-        from mca_drake.live.rsi_driver import RsiDriverConfig
-        from mca_drake.live.rsi_link import parse_robot_url
-        from mca_drake.live.rsi_motion import RsiMotionConfig
-
-        if plant != "analytical":
-            raise ValueError("--robot follows the analytical plant: drop --plant multibody")
-        host, port = parse_robot_url(args.robot)
-        rsi = RsiDriverConfig(
-            host=host, port=port, motion=RsiMotionConfig(cycle_s=args.rsi_cycle_ms * 1e-3)
-        )
-    if args.meshcat and plant != "multibody":
+        scenario.protocol, scenario.xplane_version = args.protocol, args.xplane_version or 0
+    scenario.plant = args.plant or "analytical"
+    scenario.duration_s = args.duration
+    if args.meshcat and scenario.plant != "multibody":
         raise ValueError("--meshcat draws the KR500 station: add --plant multibody")
+    scenario.validate()
     meshcat = start_meshcat() if args.meshcat else None
 
     def listening(address):
@@ -366,17 +358,7 @@ def _cmd_live(args: argparse.Namespace) -> int:
             sender.append(start_demo_sender(address[1], args.duration + 2.0))
 
     try:
-        summary = run_live(
-            decoder,
-            mca_config_from_name(args.mca),
-            args.duration,
-            receiver=receiver,
-            realtime_rate=args.realtime_rate,
-            on_listening=listening,
-            plant=plant,
-            meshcat=meshcat,
-            rsi=rsi,
-        )
+        summary = run_live_scenario(scenario, on_listening=listening, meshcat=meshcat)
     finally:
         for process in sender:
             process.terminate()
@@ -399,8 +381,6 @@ def _cmd_live(args: argparse.Namespace) -> int:
             f"late, {r.get('missed_cycles', 0)} missed, {r.get('bad_state', 0)} bad state "
             f"packets; reply latency {reply}; ended {r.get('mode')} ({r.get('reason')})"
         )
-    if args.json:
-        atomic_write_json(args.json, summary)
     _hold_meshcat(meshcat)
     return 0
 

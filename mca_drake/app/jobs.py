@@ -16,6 +16,7 @@ from mca_drake.app.scenarios import (
     ClosedLoopScenario,
     DatasetScenario,
     EvaluationScenario,
+    LiveScenario,
     PlantDemoScenario,
     Scenario,
 )
@@ -198,8 +199,59 @@ def run_scenario(
             "mca": mca_name(scenario.mca),
             "mca_config": mca_config_record(scenario.mca),
         }
+    elif isinstance(scenario, LiveScenario):
+        summary = run_live_scenario(scenario, on_listening=_print_listening)
     else:
         raise TypeError(f"not a scenario: {type(scenario).__name__}")
     if json_path:
         atomic_write_json(json_path, summary)
+    return summary
+
+
+def _print_listening(address) -> None:
+    print(f"listening on udp://{address[0]}:{address[1]}", flush=True)
+
+
+def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None) -> dict:
+    """Runs a LiveScenario: cues the telemetry arriving on its port in real time (and
+    drives its robot over RSI, if it has one); returns the summary with its live block,
+    also written to `output_json` unless that is "".
+
+    Args:
+        on_listening: called with the bound (host, port) once the socket listens (the CLI
+            prints `listening on udp://HOST:PORT`; the demo starts its sender).
+        meshcat: a Meshcat to draw the station in (plant multibody).
+    """
+    # the live layer (sockets, the live diagram, the RSI driver) only for live jobs
+    from mca_drake.live.loop import make_decoder, run_live
+    from mca_drake.live.receiver import ReceiverConfig
+    from mca_drake.live.rsi_driver import RsiDriverConfig
+    from mca_drake.live.rsi_link import parse_robot_url
+    from mca_drake.live.rsi_motion import RsiMotionConfig
+
+    scenario.validate()
+    if scenario.output_json:
+        check_writable(scenario.output_json)
+    decoder = make_decoder(
+        scenario.protocol,
+        xplane_version=scenario.xplane_version or None,
+        fgnetfdm_time_resolution_s=scenario.fgnetfdm_time_resolution_s or None,
+    )
+    rsi = None
+    if scenario.robot:
+        host, port = parse_robot_url(scenario.robot)
+        motion = RsiMotionConfig(cycle_s=scenario.rsi_cycle_ms * 1e-3)
+        rsi = RsiDriverConfig(host=host, port=port, motion=motion)
+    summary = run_live(
+        decoder,
+        scenario.mca,
+        scenario.duration_s,
+        receiver=ReceiverConfig(host=scenario.host, port=scenario.port),
+        on_listening=on_listening,
+        plant=scenario.plant,
+        meshcat=meshcat,
+        rsi=rsi,
+    )
+    if scenario.output_json:
+        atomic_write_json(scenario.output_json, summary)
     return summary

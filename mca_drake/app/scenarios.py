@@ -241,9 +241,56 @@ class DatasetScenario:
         )
 
 
+@dataclasses.dataclass
+class LiveScenario:
+    """Live motion cueing of a running flight simulator's UDP telemetry (`mca-drake live`),
+    optionally driving a KUKA robot over RSI."""
+
+    # Telemetry protocol: fgnetfdm, xplane or csv.
+    protocol: str = "fgnetfdm"
+    # X-Plane's version, 11 or 12 (protocol xplane only; 0 otherwise).
+    xplane_version: int = 0
+    # FGNetFDM: the unit (s) of the packets' time, as JSBSim's <time resolution="..."/> sets
+    # it; 0: the packets carry none (arrival times).
+    fgnetfdm_time_resolution_s: float = 0.0
+    # Address to listen on (loopback by default) and UDP port (0: any free one).
+    host: str = "127.0.0.1"
+    port: int = 5500
+    # Seconds of live cueing.
+    duration_s: float = 600.0
+    # The motion cueing algorithm (a typed config or a name, as in ClosedLoopScenario).
+    mca: McaConfig = dataclasses.field(default_factory=DpcConfig)
+    # "analytical" or "multibody" (the KR500 station).
+    plant: str = "analytical"
+    # rsi://HOST:PORT: drive a KUKA robot over RSI, the driver listening there for the
+    # controller's state packets (analytical plant); "": no robot.
+    robot: str = ""
+    # The robot's RSI interpolation cycle, ms (4 or 12).
+    rsi_cycle_ms: int = 4
+    # The result summary with its live (and rsi) block; "": none.
+    output_json: str = "results/live/summary.json"
+
+    def __post_init__(self) -> None:
+        self.mca = as_mca_config(self.mca)
+
+    def validate(self) -> None:
+        """Raises ValueError for values that cannot run, naming the field."""
+        check_config_numbers(self)
+        if self.plant not in PLANTS:
+            raise ValueError(f"plant must be one of {', '.join(PLANTS)}; got {self.plant!r}")
+        check_range(
+            "LiveScenario", "duration_s", self.duration_s, 0.0, MAX_DURATION_S, low_open=True
+        )
+        if self.rsi_cycle_ms not in (4, 12):
+            raise ValueError(f"rsi_cycle_ms must be 4 or 12; got {self.rsi_cycle_ms}")
+        if self.robot and self.plant != "analytical":
+            raise ValueError("a robot over RSI follows the analytical plant: plant analytical")
+        self.mca.validate()
+
+
 # typing.Union, not `|`: Drake's YAML loader reads the members' tags from it.
 Scenario = Union[  # noqa: UP007
-    PlantDemoScenario, ClosedLoopScenario, EvaluationScenario, DatasetScenario
+    PlantDemoScenario, ClosedLoopScenario, EvaluationScenario, DatasetScenario, LiveScenario
 ]
 
 

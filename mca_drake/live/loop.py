@@ -31,6 +31,7 @@ from mca_drake.live.receiver import TELEMETRY_FIELDS, ReceiverConfig, TelemetryR
 from mca_drake.live.recorder import BEFORE_POLL_S, LiveRecorder
 from mca_drake.live.rsi_driver import RsiDriverConfig
 from mca_drake.live.rsi_link import (
+    RobotClockServo,
     RsiCommandSender,
     segment_socket_pair,
     start_rsi_driver,
@@ -357,8 +358,10 @@ def run_live(
         simulator.Initialize()
         if on_listening is not None:
             on_listening(source.address)
+        servo = None
         if link is not None:
             wait_for_robot(loop_end, link, rsi.connect_timeout_s)
+            servo = RobotClockServo(loop_end, pacer)
         # Everything built so far (torch, Drake, the diagram) leaves the garbage collector's
         # view: a full collection of it took about 0.1 s, a stall in the loop whenever one
         # came due; the loop's own garbage is still collected.
@@ -368,7 +371,7 @@ def run_live(
         if pacer is not None:
             pacer.start()
         shifts = _advance_phase_locked(
-            simulator, handles["probe"], duration_s, pacer, lock, h, link
+            simulator, handles["probe"], duration_s, pacer, lock, h, link, servo
         )
         wall_s = time.perf_counter() - start
         cpu_s = time.process_time() - cpu_start
@@ -467,6 +470,13 @@ def run_live(
             "address": f"rsi://{link.address[0]}:{link.address[1]}",
             "segments_sent": sender.sent,
             "segments_unsent": sender.unsent,
+            # the loop's clock following the robot's (`RobotClockServo`)
+            "rate_trim_ppm": 1e6 * pacer.rate_trim,
+            # the driver's lead against its first report, less the phase lock's shifts, s
+            "lead_error_s": {
+                "max_abs": max((abs(e) for _, e, _ in servo.reports), default=0.0),
+                "last": servo.reports[-1][1] if servo.reports else 0.0,
+            },
             **rsi_status,
         }
     return summary
@@ -489,13 +499,16 @@ def _check_driver(link) -> None:
         raise RuntimeError(f"the RSI driver ended during the run: {why}")
 
 
-def _advance_phase_locked(simulator, probe, duration_s, pacer, lock, period_s, link=None):
+def _advance_phase_locked(
+    simulator, probe, duration_s, pacer, lock, period_s, link=None, servo=None
+):
     """Advances to `duration_s` in windows of `lock.window_s`; after a window measured at a
     steady phase, the phase lock's correction (`phase_correction` of the samples' waits for
     the time their poll was due) becomes the pacer's new target phase, which it slews to
     within the next window (measured only after that). Between windows the RSI driver of
-    `link` (if any) is checked alive (`_check_driver`). No pacer (as fast as possible) or no
-    lock, and no driver: one AdvanceTo. Returns the shifts."""
+    `link` (if any) is checked alive (`_check_driver`) and the loop's clock follows the
+    robot's (`servo`). No pacer (as fast as possible) or no lock, and no driver: one
+    AdvanceTo. Returns the shifts."""
     locked = pacer is not None and lock.enabled
     if not locked and link is None:
         simulator.AdvanceTo(duration_s)
@@ -503,6 +516,8 @@ def _advance_phase_locked(simulator, probe, duration_s, pacer, lock, period_s, l
     shifts, measured_from, shift = [], 0, 0.0
     while simulator.get_context().get_time() < duration_s - 1e-9:
         _check_driver(link)
+        if servo is not None:
+            servo.update()
         t = simulator.get_context().get_time()
         if not locked:
             simulator.AdvanceTo(min(duration_s, _window_end(t, lock.window_s, period_s)))

@@ -19,7 +19,11 @@ run ahead.
 The pacer also carries the loop's phase: `target_phase_s` (> 0: every control instant
 earlier on the wall clock by that much) is reached at no more than `max_slew_per_period_s`
 per period, so a phase change never shortens or stretches one period by more than that
-(the phase lock of `mca_drake.live.phase_lock` sets it).
+(the phase lock of `mca_drake.live.phase_lock` sets it). And its rate: `rate_trim` (> 0:
+the loop's clock runs slower by that fraction, its instants drifting later) lets the loop
+follow another clock, a robot controller's (`mca_drake.live.rsi_link.RobotClockServo`);
+the drift accumulates period by period, so the time between instants changes by the trim
+alone, never by a jump.
 """
 
 from __future__ import annotations
@@ -64,6 +68,8 @@ class RealTimePacer:
         self._max_slew = max_slew_per_period_s
         self.phase_s = 0.0  # the phase now, s (> 0: earlier)
         self.target_phase_s = 0.0  # where the phase goes, s
+        self.rate_trim = 0.0  # > 0: the loop's clock runs slower by this fraction
+        self.drift_s = 0.0  # what the trim has added up to, s (> 0: later)
         self._wall_at_zero: float | None = None
         self.late_polls = 0  # polls that came later than their instant (the loop overran)
         self.early_polls = 0  # polls a datagram brought forward
@@ -83,7 +89,8 @@ class RealTimePacer:
             return EventStatus.Succeeded()  # not a control instant: no wait
         error = self.target_phase_s - self.phase_s
         self.phase_s += max(-self._max_slew, min(self._max_slew, error))
-        due = self._wall_at_zero + t / self._rate - self.phase_s
+        self.drift_s += self.rate_trim * self._period / self._rate
+        due = self._wall_at_zero + t / self._rate + self.drift_s - self.phase_s
         self.dues.append((k, due))
         if due < time.perf_counter():
             self.late_polls += 1

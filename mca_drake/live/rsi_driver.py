@@ -22,20 +22,22 @@ stops sending (RSI ended) it writes its counters and exits.
 The loop's simulated time is mapped to the robot's IPOC clock (milliseconds) at the first
 cycle that brings segments (the newest of them is the loop's present; older ones that
 waited for the robot's first cycle are its past); both are then assumed to run at the same
-rate, which holds for the loopback emulator (the same machine clock). A real controller's
-clock drifts from the PC's by parts per million: the `lead_s` figures in the counters show
-it (how far the held trajectory reaches beyond the played time, `delay_s` at the start),
-and a lead that runs out ends in braking, never in a jump.
+rate: the driver reports its mean lead (how far the held trajectory reaches beyond the time
+it plays, `delay_s` at the start) every 0.6 s, and the loop trims its clock's rate to keep
+it (`mca_drake.live.rsi_link.RobotClockServo`), since a controller's crystal drifts from
+the PC's by parts per million. A lead that runs out anyway ends in braking, never a jump.
 """
 
 from __future__ import annotations
 
 import argparse
+import array
 import dataclasses
 import json
 import math
 import signal
 import socket
+import struct
 import sys
 import time
 from pathlib import Path
@@ -45,6 +47,7 @@ import numpy as np
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import check_config_numbers
+from mca_drake.live.realtime import request_realtime_priority
 from mca_drake.live.receiver import arrival_time, enable_kernel_timestamps
 from mca_drake.live.rsi_motion import (
     BadSegment,
@@ -70,6 +73,26 @@ DRIVER_COUNTERS = (
 # What the driver tells the loop once the robot's first state packet showed the home pose:
 # the loop may start (`mca_drake.live.rsi_link.wait_for_robot`).
 ROBOT_READY = b"robot ready"
+# While following, the driver reports its mean lead (s) over this much robot time (s) to the
+# loop: LEAD_REPORT then the mean as a little-endian double. 0.6 s is a whole number of the
+# lead's sawtooth (the LCM of the 10 ms period and a 4 or 12 ms cycle), so it averages out.
+LEAD_REPORT = b"lead"
+LEAD_REPORT_EVERY_S = 0.6
+_DOUBLE = struct.Struct("<d")
+
+
+def lead_report(lead_s: float) -> bytes:
+    """The datagram that reports a mean lead of `lead_s` seconds to the loop."""
+    return LEAD_REPORT + _DOUBLE.pack(lead_s)
+
+
+def read_lead_report(message: bytes) -> float | None:
+    """The lead (s) a `lead_report` datagram carries; None for any other message."""
+    if message.startswith(LEAD_REPORT) and len(message) == len(LEAD_REPORT) + _DOUBLE.size:
+        return _DOUBLE.unpack_from(message, len(LEAD_REPORT))[0]
+    return None
+
+
 # After a requested stop brought the robot to rest, the driver answers this long (s) more.
 HOLD_AFTER_STOP_S = 0.2
 
@@ -103,6 +126,9 @@ class RsiDriverConfig:
     connect_timeout_s: float = 60.0
     # The loop's control period (s): a segment k holds over [k h, (k + 1) h).
     period_s: float = CONTROL_PERIOD_S
+    # SCHED_FIFO priority the driver asks for (`live.realtime`; 0: none): it must answer
+    # within the cycle while the flight simulator and the loop share the machine.
+    realtime_priority: int = 50
     # The RSI object configuration's XML names.
     tags: RsiTags = dataclasses.field(default_factory=RsiTags)
 
@@ -122,6 +148,8 @@ class RsiDriverConfig:
         positive = ("home_tolerance_deg", "robot_silence_s", "period_s", "connect_timeout_s")
         if not all(getattr(self, name) > 0 for name in positive):
             raise ValueError(f"RsiDriverConfig.{', '.join(positive)} must be positive")
+        if not 0 <= self.realtime_priority <= 99:
+            raise ValueError("RsiDriverConfig.realtime_priority must be in [0, 99]")
 
     def to_dict(self) -> dict:
         """The settings as JSON-ready values (`from_dict` reads them back)."""
@@ -182,11 +210,14 @@ class RsiDriver:
         if commands is not None:
             commands.setblocking(False)
         self.counters = dict.fromkeys(DRIVER_COUNTERS, 0)
-        self.latencies_s: list[float] = []  # per cycle: state packet arrival -> reply sent
-        self.leads_s: list[float] = []  # per cycle: the held trajectory's reach beyond s
+        # per cycle (8 bytes each: hours of 250 Hz fit): state packet arrival -> reply sent,
+        # and the held trajectory's reach beyond the time played, s
+        self.latencies_s = array.array("d")
+        self.leads_s = array.array("d")
         self._ipoc: int | None = None  # the last state packet's IPOC
         self._anchor: tuple[int, int] | None = None  # (IPOC, k) at the first segment
         self._stop_requested = False
+        self._report_from: tuple[int, int] | None = None  # (IPOC, index) of a lead window
 
     def request_stop(self, reason: str = "the driver was asked to stop") -> None:
         """Brakes to rest and holds; `run` returns once the robot is at rest."""
@@ -251,7 +282,7 @@ class RsiDriver:
                 s = k0 * self.config.period_s + (state.ipoc - ipoc0) * 1e-3
                 s -= self.config.motion.delay_s
                 if self.follower.mode == "following":
-                    self.leads_s.append(self.buffer.lead_s(s))
+                    self._note_lead(self.buffer.lead_s(s), state.ipoc)
                 q = self.follower.step(s, dt, self.buffer)
             corrections = [
                 sign * math.degrees(value - home)
@@ -297,6 +328,18 @@ class RsiDriver:
                 f"(tolerance {self.config.home_tolerance_deg} deg); nothing was sent"
             )
 
+    def _note_lead(self, lead_s: float, ipoc: int) -> None:
+        """Keeps the lead and, every LEAD_REPORT_EVERY_S of robot time, tells the loop its
+        mean (the loop's clock follows the robot's by it)."""
+        self.leads_s.append(lead_s)
+        if self._report_from is None:
+            self._report_from = (ipoc, len(self.leads_s) - 1)
+        first_ipoc, first = self._report_from
+        if (ipoc - first_ipoc) * 1e-3 >= LEAD_REPORT_EVERY_S - 1e-9:
+            window = self.leads_s[first:-1]
+            self._tell_loop(lead_report(sum(window) / len(window)))
+            self._report_from = (ipoc, len(self.leads_s) - 1)
+
     def _tell_loop(self, message: bytes) -> None:
         if self._commands is not None:
             try:
@@ -337,7 +380,10 @@ def main(argv: list[str] | None = None) -> int:
     config = RsiDriverConfig.from_dict(job["config"])
     commands = socket.socket(fileno=args.command_fd) if args.command_fd is not None else None
     driver = RsiDriver(config, job["limits"], job["home"], commands)
+    realtime = request_realtime_priority(config.realtime_priority)
+    # a stop request of either kind brakes the robot to rest before the driver ends
     signal.signal(signal.SIGTERM, lambda *_: driver.request_stop())
+    signal.signal(signal.SIGINT, lambda *_: driver.request_stop())
     host, port = driver.address
     print(f"rsi driver listening on udp://{host}:{port}", flush=True)
     try:
@@ -347,6 +393,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rsi driver refused: {error}", file=sys.stderr, flush=True)
     finally:
         driver.close()
+    summary["realtime_priority"] = config.realtime_priority if realtime else 0
     if args.status:
         atomic_write_json(args.status, summary)
     return 2 if "refused" in summary else 0

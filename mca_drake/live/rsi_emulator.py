@@ -34,6 +34,7 @@ import numpy as np
 
 from mca_drake.atomic_io import atomic_write_bytes, atomic_write_json
 from mca_drake.input_checks import check_config_numbers
+from mca_drake.live.realtime import request_realtime_priority
 from mca_drake.live.rsi_xml import (
     MAX_RSI_BYTES,
     RSI_RESOLUTION_DEG,
@@ -45,7 +46,14 @@ from mca_drake.live.rsi_xml import (
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 
 # Counters the emulator reports, in this order.
-EMULATOR_COUNTERS = ("cycles", "on_time", "late", "missed", "bad_replies")
+EMULATOR_COUNTERS = (
+    "cycles",  # state packets sent
+    "on_time",  # replies with the cycle's IPOC within a cycle of its sending
+    "late",  # replies to earlier cycles (arrived after their cycle)
+    "missed",  # cycles without an on-time reply
+    "bad_replies",  # replies that did not parse
+    "overruns",  # cycles this process could not send on time (its own stall: skipped)
+)
 
 
 @dataclasses.dataclass
@@ -147,13 +155,24 @@ class RsiEmulator:
         missed_in_a_row = 0
         t0 = time.perf_counter() + cycle
         n_cycles = max(1, math.floor(duration_s / cycle))
-        for n in range(n_cycles):
-            _wait_until(t0 + n * cycle)
+        n = -1
+        while (n := n + 1) < n_cycles:
+            due = t0 + n * cycle
+            _wait_until(due)
+            behind = math.floor((time.perf_counter() - due) / cycle)
+            if behind > 0:
+                # this process overslept whole cycles, which a controller never does: skip
+                # them (the IPOC jumps, as after missed cycles) and do not blame the driver
+                self.counters["overruns"] += behind
+                n += behind
+                if n >= n_cycles:
+                    break
             ipoc = cfg.first_ipoc + n * cycle_ms
             sent = time.perf_counter()
             self._socket.sendto(self._state_packet(n, ipoc, axes), self._driver)
             self.counters["cycles"] += 1
-            reply = self._reply_for(ipoc, t0 + (n + 1) * cycle)
+            # a reply is on time within a cycle of the state's sending
+            reply = self._reply_for(ipoc, sent + cycle)
             corrections = [math.nan] * NUM_JOINTS
             latency = math.nan
             if reply is None:
@@ -285,7 +304,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--start-deg", help="six comma-separated angles (default zeros)")
     parser.add_argument("--report", help="write the counters here (JSON)")
     parser.add_argument("--recording", help="write the per-cycle recording here (npz)")
+    parser.add_argument(
+        "--realtime-priority", type=int, default=60, help="SCHED_FIFO priority (0: none)"
+    )
     args = parser.parse_args(argv)
+    # a controller is hard real time: the emulator asks for it where it may
+    realtime = request_realtime_priority(args.realtime_priority)
     host, _, port = args.driver.rpartition(":")
     config = RsiEmulatorConfig(cycle_s=args.cycle_ms * 1e-3)
     if args.start_deg:
@@ -295,6 +319,7 @@ def main(argv: list[str] | None = None) -> int:
         report = emulator.run(args.duration)
     finally:
         emulator.close()
+    report["realtime_priority"] = args.realtime_priority if realtime else 0
     if args.report:
         atomic_write_json(args.report, report)
     if args.recording:

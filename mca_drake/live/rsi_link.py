@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import select
 import socket
 import subprocess
@@ -24,7 +25,7 @@ from pathlib import Path
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
 from mca_drake.live.recorder import AFTER_COMMAND_S
-from mca_drake.live.rsi_driver import ROBOT_READY, RsiDriverConfig
+from mca_drake.live.rsi_driver import ROBOT_READY, RsiDriverConfig, read_lead_report
 from mca_drake.live.rsi_motion import CommandSegment
 from mca_drake.robot import KR500, NUM_JOINTS
 
@@ -115,6 +116,78 @@ class RsiLink:
         return {"error": f"the RSI driver ended with code {self.process.returncode}, no status"}
 
 
+class RobotClockServo:
+    """Makes the live loop's clock follow the robot controller's.
+
+    The driver plays the loop's trajectory on the controller's clock (IPOC) a fixed delay
+    behind the loop's newest segment; the loop's instants follow the PC's clock. Two
+    crystals differ by parts per million, so the driver's lead (how far the held trajectory
+    reaches beyond the time it plays) drifts: 50 ppm would use up a 25 ms delay in about 8
+    minutes and brake the robot. The driver reports its mean lead every 0.6 s
+    (`rsi_driver.LEAD_REPORT`); this servo trims the pacer's rate (`RealTimePacer.rate_trim`,
+    at most `max_trim`) with a proportional-integral law that holds the lead, less the
+    phase lock's own shifts of the loop (`pacer.phase_s`, which move the lead by design),
+    where it was at the first report. Trimming the rate moves no trajectory: the plant and
+    the driver integrate the same segments; only their wall-clock times change.
+
+    Args:
+        loop_end: the loop's end of the segment socket (the driver's reports arrive there).
+        pacer: the live loop's `RealTimePacer`.
+        time_constant_s: how fast the lead is brought back (s; damping 0.7).
+        max_trim: the largest rate trim, dimensionless (1e-3: 1000 ppm).
+        clock: the monotonic clock the reports are timed with (s).
+    """
+
+    def __init__(
+        self,
+        loop_end: socket.socket,
+        pacer,
+        time_constant_s: float = 5.0,
+        max_trim: float = 1e-3,
+        clock=time.monotonic,
+    ):
+        if not (time_constant_s > 0 and 0 < max_trim < 0.1):
+            raise ValueError("RobotClockServo needs time_constant_s > 0 and 0 < max_trim < 0.1")
+        self._socket, self._pacer = loop_end, pacer
+        omega = 1.0 / time_constant_s
+        self._kp, self._ki = 1.4 * omega, omega * omega  # damping 0.7
+        self._max_trim = max_trim
+        self._clock = clock
+        self._target: float | None = None
+        self._integral = 0.0
+        self._last: float | None = None  # monotonic time of the last report used
+        self.reports: list[tuple[float, float, float]] = []  # (time, lead error s, trim)
+
+    def update(self) -> None:
+        """Reads the driver's reports that came since the last call and trims the rate."""
+        lead = None
+        while True:
+            try:
+                message = self._socket.recv(256)
+            except (BlockingIOError, OSError):
+                break
+            report = read_lead_report(message)
+            if report is not None:
+                lead = report  # the newest counts
+        if lead is None or not math.isfinite(lead):
+            return
+        now = self._clock()
+        corrected = lead - self._pacer.phase_s
+        if self._target is None:
+            self._target, self._last = corrected, now
+            return
+        error = corrected - self._target  # > 0: the robot runs slow against the loop
+        dt = now - self._last
+        self._last = now
+        # the loop slows (trim > 0) when the lead grows: its segments come later
+        self._integral = min(
+            max(self._integral + self._ki * error * dt, -self._max_trim), self._max_trim
+        )
+        trim = min(max(self._kp * error + self._integral, -self._max_trim), self._max_trim)
+        self._pacer.rate_trim = trim
+        self.reports.append((now, error, trim))
+
+
 def wait_for_robot(loop_end: socket.socket, link: RsiLink, timeout_s: float) -> None:
     """Waits until the driver reports the robot's first state at the home pose
     (`rsi_driver.ROBOT_READY` on the segment socket): the loop starts only then, so the
@@ -174,6 +247,9 @@ def start_rsi_driver(
         pass_fds=(theirs.fileno(),),
         stdout=subprocess.PIPE,
         text=True,
+        # its own session: a Ctrl-C at the terminal reaches the loop, whose `stop` then
+        # asks the driver to brake; a killed loop leaves the driver braking on its own
+        start_new_session=True,
     )
     theirs.close()
     line = process.stdout.readline() if process.stdout else ""  # "" when it ended
