@@ -35,6 +35,7 @@ import numpy as np
 from mca_drake.atomic_io import atomic_write_bytes, atomic_write_json
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.realtime import request_realtime_priority
+from mca_drake.live.receiver import arrival_time, enable_kernel_timestamps
 from mca_drake.live.rsi_xml import (
     MAX_RSI_BYTES,
     RSI_RESOLUTION_DEG,
@@ -130,6 +131,7 @@ class RsiEmulator:
         self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._socket.bind(("127.0.0.1", 0))
         self._socket.setblocking(False)
+        enable_kernel_timestamps(self._socket)  # replies judged by when they arrived
         self.counters = dict.fromkeys(EMULATOR_COUNTERS, 0)
         self.stop_reason = ""
         self.final_missed = 0  # the run of missed cycles that stopped it (the driver's end)
@@ -240,23 +242,27 @@ class RsiEmulator:
         rows["axes_deg"].append(list(axes))
 
     def _reply_for(self, ipoc: int, deadline: float) -> tuple[float, list[float]] | None:
-        """(arrival time, corrections) of this cycle's reply if it comes before `deadline`;
-        late replies to earlier cycles and malformed ones are counted on the way."""
+        """(arrival time, corrections) of this cycle's reply if it reached the socket by
+        `deadline` (the kernel's stamp: a reply that came in time is on time even when this
+        process reads it late, as a controller's network stack would have it); late replies
+        (to earlier cycles, or this one's after the deadline) and malformed ones are counted
+        on the way."""
         while True:
             left = deadline - time.perf_counter()
-            if left <= 0 or not select.select([self._socket], [], [], left)[0]:
+            # past the deadline, only what has already arrived is read
+            if not select.select([self._socket], [], [], max(left, 0.0))[0]:
                 return None
             try:
-                datagram = self._socket.recv(MAX_RSI_BYTES + 1)
+                datagram, ancillary, _, _ = self._socket.recvmsg(MAX_RSI_BYTES + 1, 64)
             except BlockingIOError:
                 continue
-            arrived = time.perf_counter()
+            arrived = arrival_time(ancillary)
             try:
                 reply = parse_reply(datagram, self.tags)
             except BadRsiPacket:
                 self.counters["bad_replies"] += 1
                 continue
-            if reply.ipoc == ipoc:
+            if reply.ipoc == ipoc and arrived <= deadline:
                 return arrived, list(reply.axes_deg)
             self.counters["late"] += 1
 
