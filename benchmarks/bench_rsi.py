@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import socket
 import subprocess
 import sys
 import tempfile
@@ -35,16 +34,9 @@ from mca_drake.live.rsi_driver import RsiDriverConfig
 from mca_drake.live.rsi_motion import RsiMotionConfig
 
 
-def free_udp_port() -> int:
-    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    probe.bind(("127.0.0.1", 0))
-    port = probe.getsockname()[1]
-    probe.close()
-    return port
-
-
 def ms(figures: dict) -> dict:
-    return {k: f"{v * 1e3:.3f}" for k, v in figures.items()}
+    # None: a figure of nothing (JSON's null for NaN)
+    return {k: "-" if v is None else f"{v * 1e3:.3f}" for k, v in figures.items()}
 
 
 def main() -> None:
@@ -57,18 +49,18 @@ def main() -> None:
     report = {"calibration": print_calibration(), "runs": {}}
     folder = Path(tempfile.mkdtemp(prefix="bench_rsi_"))
     for cycle_ms in (int(c) for c in args.cycles_ms.split(",")):
-        port = free_udp_port()
+        # port 0: the driver takes a free one, written back into rsi.port before start()
+        rsi = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=cycle_ms * 1e-3))
         processes = []
         emulator_report = folder / f"emulator_{cycle_ms}.json"
 
-        def start(address, processes=processes, port=port, out=emulator_report, c=cycle_ms):
+        def start(address, processes=processes, rsi=rsi, out=emulator_report, c=cycle_ms):
             processes.append(start_demo_sender(address[1], args.duration + 3.0))
             command = [sys.executable, "-m", "mca_drake.live.rsi_emulator"]
-            command += ["--driver", f"127.0.0.1:{port}", "--cycle-ms", str(c)]
+            command += ["--driver", f"127.0.0.1:{rsi.port}", "--cycle-ms", str(c)]
             command += ["--duration", repr(args.duration + 2.0), "--report", str(out)]
             processes.append(subprocess.Popen(command, stdout=subprocess.DEVNULL))
 
-        rsi = RsiDriverConfig(port=port, motion=RsiMotionConfig(cycle_s=cycle_ms * 1e-3))
         summary = run_live(
             make_decoder("fgnetfdm", fgnetfdm_time_resolution_s=DEMO_TIME_RESOLUTION_S),
             mca_config_from_name(args.mca),

@@ -66,6 +66,25 @@ def best_offset_error(recording, segments, robot_start_deg) -> tuple[int, float]
     return best
 
 
+def drive_emulator(robot, segments, duration_s, stop_after=None, emulator_class=RsiEmulator):
+    """The driver in its own process (as the loop starts it) fed `segments` in real time
+    from a thread, the emulator (`emulator_class`) here for `duration_s`; returns the
+    emulator's report, the driver's status and the emulator's recording."""
+    config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
+    ours, theirs = segment_socket_pair()
+    link = start_rsi_driver(config, robot, np.zeros(6), theirs)
+    emulator = emulator_class(link.address, RsiEmulatorConfig(cycle_s=CYCLE))
+    try:
+        feeder = feed(ours, segments, stop_after=stop_after)
+        report = emulator.run(duration_s)
+        feeder.join()
+    finally:
+        emulator.close()
+        status = link.stop()
+        ours.close()
+    return report, status, emulator.recording()
+
+
 @pytest.fixture
 def moving_run(robot):
     return mca_like_segments(robot, np.random.default_rng(11), 150, gain=1.5)
@@ -76,25 +95,13 @@ def test_a_killed_loop_ends_in_a_controlled_stop_along_the_commanded_trajectory(
     trajectory of the segments (to the replies' rounding), every reply echoes its IPOC on
     time, and when the segments stop coming mid-motion (the loop killed) the driver brakes
     to rest inside every limit; the emulator never sees a limit exceeded."""
-    config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
-    ours, theirs = segment_socket_pair()
-    link = start_rsi_driver(config, robot, np.zeros(6), theirs)
-    emulator = RsiEmulator(link.address, RsiEmulatorConfig(cycle_s=CYCLE))
-    try:
-        feeder = feed(ours, moving_run, stop_after=120)
-        report = emulator.run(2.0)
-        feeder.join()
-    finally:
-        emulator.close()
-        status = link.stop()
-        ours.close()
+    report, status, recording = drive_emulator(robot, moving_run, 2.0, stop_after=120)
     assert report["stop_reason"] == "", report
     assert report["bad_replies"] == 0
     # replies with the right IPOC within the cycle (a loaded CI machine may miss a few)
     assert report["on_time"] >= 0.97 * report["cycles"], report
     assert status["bad_state"] == 0 and status["segments"] == 120
     assert status["mode"] == "stopped" and "no command" in status["reason"], status
-    recording = emulator.recording()
     _, error = best_offset_error(recording, moving_run[:120], 0.0)
     assert error < 1e-5  # deg: the six decimals of the replies
     # it was moving when the segments stopped, and it came to rest
@@ -115,22 +122,13 @@ class CorruptingEmulator(RsiEmulator):
 
 
 def test_a_malformed_state_packet_brakes_the_robot_to_rest(robot, moving_run):
-    config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
-    ours, theirs = segment_socket_pair()
-    link = start_rsi_driver(config, robot, np.zeros(6), theirs)
-    emulator = CorruptingEmulator(link.address, RsiEmulatorConfig(cycle_s=CYCLE))
-    try:
-        feeder = feed(ours, moving_run)
-        report = emulator.run(1.6)
-        feeder.join()
-    finally:
-        emulator.close()
-        status = link.stop()
-        ours.close()
+    report, status, recording = drive_emulator(
+        robot, moving_run, 1.6, emulator_class=CorruptingEmulator
+    )
     assert report["stop_reason"] == "", report  # no limit exceeded on the way to rest
     assert status["bad_state"] == 1
     assert status["mode"] == "stopped" and "malformed state packet" in status["reason"]
-    axes = emulator.recording()["axes_deg"]
+    axes = recording["axes_deg"]
     np.testing.assert_array_equal(axes[-1], axes[-20])
 
 
@@ -200,7 +198,7 @@ def test_a_live_run_drives_the_emulated_robot_through_a_telemetry_stop(tmp_path)
     out through the stop (the supervisor's), never meets a limit, and after the run the
     driver brakes it to rest; only then do the replies end."""
 
-    port = free_udp_port()
+    rsi = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
     home_deg = np.degrees([0.0, 0.0, 0.5, 0.0, -0.5, 0.0])
     processes, threads = [], []
 
@@ -208,13 +206,12 @@ def test_a_live_run_drives_the_emulated_robot_through_a_telemetry_stop(tmp_path)
         threads.append(threading.Thread(target=stream, args=(address, 3.2), daemon=True))
         threads[0].start()
         command = [sys.executable, "-m", "mca_drake.live.rsi_emulator"]
-        command += ["--driver", f"127.0.0.1:{port}", "--duration", "8"]
+        command += ["--driver", f"127.0.0.1:{rsi.port}", "--duration", "8"]  # its port now
         command += ["--start-deg", ",".join(repr(float(v)) for v in home_deg)]
         command += ["--report", str(tmp_path / "report.json")]
         command += ["--recording", str(tmp_path / "recording.npz")]
         processes.append(subprocess.Popen(command, stdout=subprocess.DEVNULL))
 
-    rsi = RsiDriverConfig(port=port, motion=RsiMotionConfig(cycle_s=CYCLE))
     summary = run_live(
         CsvDecoder(), "washout", 3.0, receiver=ReceiverConfig(port=0), on_listening=start, rsi=rsi
     )
@@ -324,22 +321,10 @@ def test_a_replayed_flight_drives_the_emulated_axes_along_the_mcas_trajectory(ro
     ]
     last = result.states[-1]
     segments.append(CommandSegment(len(segments), last[:6], last[6:], [0.0] * 6, end=True))
-    config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
-    ours, theirs = segment_socket_pair()
-    link = start_rsi_driver(config, robot, np.zeros(6), theirs)
-    emulator = RsiEmulator(link.address, RsiEmulatorConfig(cycle_s=CYCLE))
-    try:
-        feeder = feed(ours, segments)
-        report = emulator.run(len(segments) * H + 3.0)
-        feeder.join()
-    finally:
-        emulator.close()
-        status = link.stop()
-        ours.close()
+    report, status, recording = drive_emulator(robot, segments, len(segments) * H + 3.0)
     assert status["mode"] == "stopped" and status["reason"] == "the loop ended", status
     assert report["stop_reason"] == "" and report["bad_replies"] == 0, report
     assert report["late"] + report["missed"] <= 0.03 * report["cycles"], report
-    recording = emulator.recording()
     _, error = best_offset_error(recording, segments[:-1], 0.0)
     assert error < 1e-5  # deg
     assert np.abs(recording["axes_deg"]).max() > 0.5  # the flight moved it

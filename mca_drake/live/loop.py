@@ -305,8 +305,9 @@ def run_live(
         phase_lock: how the loop follows a periodic sender's phase (`live.phase_lock`;
             default on), so that samples wait little for their poll; at real-time rates only.
         rsi: drive a KUKA robot over RSI (`live.rsi_driver`; analytical plant, real time):
-            the driver starts in its own process before the loop and brakes the robot to
-            rest after it; its counters are the summary's `rsi` block. The driver refuses
+            the driver starts in its own process before the loop (with port 0 it takes a
+            free port, written back into `rsi.port` before `on_listening`) and brakes the
+            robot to rest after it; its counters are the summary's `rsi` block. The driver refuses
             (and the run ends with RuntimeError) if the robot is not at the MCA's home pose.
     """
     if not 0 < duration_s <= 24 * 3600:
@@ -341,6 +342,7 @@ def run_live(
     try:
         if rsi is not None:
             link = start_rsi_driver(rsi, robot, handles["home"], driver_end)
+            rsi.port = link.address[1]  # the port it got (port 0: any free one)
         simulator = Simulator(diagram)
         # the loop paces itself (`live.pacing`): the poll on time, the MCA right after it
         pacer = None
@@ -494,9 +496,7 @@ def _check_driver(link) -> None:
     """Raises RuntimeError if the RSI driver process has ended (it refused the robot, or
     died): the loop must not go on cueing a robot nobody drives."""
     if link is not None and link.process.poll() is not None:
-        status = link.stop()
-        why = status.get("refused") or status.get("error") or status
-        raise RuntimeError(f"the RSI driver ended during the run: {why}")
+        raise RuntimeError(f"the RSI driver ended during the run: {link.stop_and_say_why()}")
 
 
 def _advance_phase_locked(

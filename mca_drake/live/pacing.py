@@ -96,9 +96,9 @@ class RealTimePacer:
             self.late_polls += 1
             return EventStatus.Succeeded()
         if self._wake_socket is None:
-            _wait_until(due)
+            wait_until(due)
             return EventStatus.Succeeded()
-        _wait_until(due - self._wake_window)
+        wait_until(due - self._wake_window)
         if self._datagram_by(due):
             self.early_polls += 1
         return EventStatus.Succeeded()
@@ -113,7 +113,7 @@ class RealTimePacer:
         sock = self._wake_socket
         try:
             if select.select([sock], [], [], 0)[0]:
-                _wait_until(due)
+                wait_until(due)
                 return False
             left = due - SPIN_S - time.perf_counter()
             if left > 0 and select.select([sock], [], [], left)[0]:
@@ -122,11 +122,11 @@ class RealTimePacer:
                 if select.select([sock], [], [], 0)[0]:
                     return True
         except (OSError, ValueError):  # the socket closed: just keep the time
-            _wait_until(due)
+            wait_until(due)
         return False
 
 
-def _wait_until(wall_s: float) -> None:
+def wait_until(wall_s: float) -> None:
     """Sleeps until SPIN_S before `wall_s` (time.perf_counter()), then spins to it."""
     left = wall_s - time.perf_counter()
     if left > SPIN_S:

@@ -58,6 +58,7 @@ from mca_drake.live.rsi_motion import (
 )
 from mca_drake.live.rsi_xml import MAX_RSI_BYTES, BadRsiPacket, RsiTags, format_reply, parse_state
 from mca_drake.robot import NUM_JOINTS
+from mca_drake.simulation.closed_loop import step_time_summary
 
 # Counters the driver reports, in this order.
 DRIVER_COUNTERS = (
@@ -297,19 +298,10 @@ class RsiDriver:
         return self.summary()
 
     def summary(self) -> dict:
-        """Counters, reply latency (median, p99, max, s), trajectory lead (min, median, s),
-        the follower's mode and why it left "following"."""
+        """Counters, reply latency (median, p99, max, s; NaN before a cycle), trajectory
+        lead (min, median, s), the follower's mode and why it left "following"."""
         out: dict = dict(self.counters)
-        latencies = np.asarray(self.latencies_s)
-        out["reply_latency_s"] = (
-            {
-                "median": float(np.median(latencies)),
-                "p99": float(np.percentile(latencies, 99)),
-                "max": float(latencies.max()),
-            }
-            if latencies.size
-            else {}
-        )
+        out["reply_latency_s"] = step_time_summary(np.asarray(self.latencies_s))
         leads = np.asarray(self.leads_s)
         out["lead_s"] = (
             {"min": float(leads.min()), "median": float(np.median(leads))} if leads.size else {}

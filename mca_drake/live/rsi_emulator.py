@@ -34,6 +34,7 @@ import numpy as np
 
 from mca_drake.atomic_io import atomic_write_bytes, atomic_write_json
 from mca_drake.input_checks import check_config_numbers
+from mca_drake.live.pacing import wait_until
 from mca_drake.live.realtime import request_realtime_priority
 from mca_drake.live.receiver import arrival_time, enable_kernel_timestamps
 from mca_drake.live.rsi_xml import (
@@ -45,6 +46,7 @@ from mca_drake.live.rsi_xml import (
     parse_reply,
 )
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.simulation.closed_loop import step_time_summary
 
 # Counters the emulator reports, in this order.
 EMULATOR_COUNTERS = (
@@ -160,7 +162,7 @@ class RsiEmulator:
         n = -1
         while (n := n + 1) < n_cycles:
             due = t0 + n * cycle
-            _wait_until(due)
+            wait_until(due)
             behind = math.floor((time.perf_counter() - due) / cycle)
             if behind > 0:
                 # this process overslept whole cycles, which a controller never does: skip
@@ -206,16 +208,7 @@ class RsiEmulator:
         it ran its time)."""
         out: dict = dict(self.counters)
         latencies = np.asarray(self.rows["latency_s"], float)
-        latencies = latencies[np.isfinite(latencies)]
-        out["reply_latency_s"] = (
-            {
-                "median": float(np.median(latencies)),
-                "p99": float(np.percentile(latencies, 99)),
-                "max": float(latencies.max()),
-            }
-            if latencies.size
-            else {}
-        )
+        out["reply_latency_s"] = step_time_summary(latencies[np.isfinite(latencies)])
         out["stop_reason"] = self.stop_reason
         # missed cycles before the run of them that stopped the emulator
         out["missed_before_stop"] = self.counters["missed"] - self.final_missed
@@ -291,15 +284,6 @@ class RsiEmulator:
             if abs(a) > lim.acceleration_deg_s2[j] * (1 + tol) + acceleration_slack:
                 return f"{names[j]} acceleration {a:.2f} deg/s^2 over its limit"
         return ""
-
-
-def _wait_until(wall_s: float) -> None:
-    """Sleeps until 0.3 ms before `wall_s` (time.perf_counter()), then spins to it."""
-    left = wall_s - time.perf_counter()
-    if left > 3e-4:
-        time.sleep(left - 3e-4)
-    while time.perf_counter() < wall_s:
-        pass
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -115,6 +115,11 @@ class RsiLink:
             return json.loads(self.status_path.read_text())
         return {"error": f"the RSI driver ended with code {self.process.returncode}, no status"}
 
+    def stop_and_say_why(self) -> str:
+        """`stop`, and why the driver ended: its refusal, its error, or its counters."""
+        status = self.stop()
+        return str(status.get("refused") or status.get("error") or status)
+
 
 class RobotClockServo:
     """Makes the live loop's clock follow the robot controller's.
@@ -199,9 +204,9 @@ def wait_for_robot(loop_end: socket.socket, link: RsiLink, timeout_s: float) -> 
             if loop_end.recv(256) == ROBOT_READY:
                 return
         if link.process.poll() is not None:
-            status = link.stop()
-            why = status.get("refused") or status.get("error") or status
-            raise RuntimeError(f"the RSI driver ended before the robot was ready: {why}")
+            raise RuntimeError(
+                f"the RSI driver ended before the robot was ready: {link.stop_and_say_why()}"
+            )
     raise RuntimeError(
         f"no RSI robot at rsi://{link.address[0]}:{link.address[1]} within {timeout_s:g} s: "
         "start the RSI program on the controller (its state packets must reach this address)"

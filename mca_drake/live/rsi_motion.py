@@ -223,7 +223,7 @@ class MotionFollower:
     def step(self, s: float, dt: float, buffer: SegmentBuffer) -> list[float]:
         """Advances the commanded state by one cycle of dt seconds (the robot's clock) to the
         trajectory at simulated time s; returns the commanded positions q (rad, 6)."""
-        sent_before = self.q
+        sent_before = self.q  # what the controller holds now; _check differences against it
         if self.mode in ("waiting", "following"):
             target = buffer.state_at(s)
             if target is None:
@@ -232,16 +232,15 @@ class MotionFollower:
             else:
                 q, qd, end = target
                 problem = self._check(q, qd, dt)
-                if problem:
-                    self._brake(problem)
-                else:
+                if not problem:
                     self.q, self.qd, self.mode = q, qd, "following"
                     if end:
-                        self._brake("the loop ended")
-        elif self.mode == "braking":
+                        self._brake("the loop ended")  # braking from the next cycle
+                    self._previous = (sent_before, dt)
+                    return self.q
+                self._brake(problem)
+        if self.mode == "braking":  # the cycle that switched to braking brakes already
             self._braking_step(dt)
-        if self.mode == "braking" and self.q is sent_before:
-            self._braking_step(dt)  # the cycle that switched to braking brakes already
         self._previous = (sent_before, dt)
         return self.q
 
