@@ -12,17 +12,27 @@ reply latency as the robot sees it (state sent -> reply received: median, p99, m
 driver's own (state packet's kernel arrival -> reply sent), late and missed replies, the
 emulator's verdict, and the loop's telemetry latency beside them. The machine's calibration
 first.
+
+Where a reply's time goes: the driver logs each cycle's state arrival
+(`RsiDriverConfig.timing_path`), the emulator its sends and every reply's arrival, on the
+clock both share, so each reply splits into the way there and the answer (the driver's own
+time and the way back: `rsi_emulator.split_reply_latency`; median, p99, max); and a stall
+probe per CPU (`machine_stalls.py`: when that CPU was not there for a SCHED_FIFO 40 process,
+and its steal time) says for each cycle left without a reply on time whether the machine
+stalled in it.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
 from common import print_calibration
 
 from mca_drake.atomic_io import atomic_write_json
@@ -31,12 +41,50 @@ from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S, start_demo_sender
 from mca_drake.live.loop import make_decoder, run_live
 from mca_drake.live.receiver import ReceiverConfig
 from mca_drake.live.rsi_driver import RsiDriverConfig
+from mca_drake.live.rsi_emulator import split_reply_latency
 from mca_drake.live.rsi_motion import RsiMotionConfig
+from mca_drake.simulation.closed_loop import step_time_summary
+
+STALL_PROBE = Path(__file__).with_name("machine_stalls.py")
 
 
 def ms(figures: dict) -> dict:
     # None: a figure of nothing (JSON's null for NaN)
     return {k: "-" if v is None else f"{v * 1e3:.3f}" for k, v in figures.items()}
+
+
+def start_stall_probes(duration_s: float, folder: Path, tag: str) -> list:
+    """One `machine_stalls.py` per CPU this process may use: (process, its JSON file)."""
+    probes = []
+    for cpu in sorted(os.sched_getaffinity(0)):
+        out = folder / f"stalls_{tag}_cpu{cpu}.json"
+        command = [sys.executable, str(STALL_PROBE), "--cpu", str(cpu)]
+        command += ["--duration", repr(duration_s), "--out", str(out)]
+        probes.append((subprocess.Popen(command), out))
+    return probes
+
+
+def where_replies_went(recording: dict, timing: dict, stalls: list, cycle_s: float) -> dict:
+    """The split of each reply's time (ms: p99 and max of each part) and, per cycle left
+    without a reply on time while the driver ran, its parts (ms) and the machine's stalls
+    (ms, on any CPU) that overlapped its cycle."""
+    split = split_reply_latency(recording, timing)
+    parts = {
+        part: ms(step_time_summary(values[np.isfinite(values)]))
+        for part, values in ((p, split[p]) for p in ("there_s", "answer_s"))
+    }
+    unanswered = []
+    for cycle in split["unanswered"]:
+        start, end = cycle["sent_s"], cycle["sent_s"] + cycle_s
+        overlapping = [late for at, late in stalls if at < end and at + late > start]
+        unanswered.append(
+            {
+                "ipoc": cycle["ipoc"],
+                **{p: f"{cycle[p] * 1e3:.3f}" for p in ("there_s", "answer_s")},
+                "machine_stalls_ms": [f"{late * 1e3:.2f}" for late in overlapping],
+            }
+        )
+    return {"parts_ms": parts, "unanswered": unanswered}
 
 
 def main() -> None:
@@ -50,15 +98,28 @@ def main() -> None:
     folder = Path(tempfile.mkdtemp(prefix="bench_rsi_"))
     for cycle_ms in (int(c) for c in args.cycles_ms.split(",")):
         # port 0: the driver takes a free one, written back into rsi.port before start()
-        rsi = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=cycle_ms * 1e-3))
+        rsi = RsiDriverConfig(
+            port=0,
+            motion=RsiMotionConfig(cycle_s=cycle_ms * 1e-3),
+            timing_path=str(folder / f"driver_timing_{cycle_ms}.npz"),
+        )
         processes = []
         emulator_report = folder / f"emulator_{cycle_ms}.json"
+        emulator_recording = folder / f"emulator_{cycle_ms}.npz"
+        probes = start_stall_probes(args.duration + 6.0, folder, str(cycle_ms))
 
-        def start(address, processes=processes, rsi=rsi, out=emulator_report, c=cycle_ms):
+        def start(
+            address,
+            processes=processes,
+            rsi=rsi,
+            c=cycle_ms,
+            files=(emulator_report, emulator_recording),
+        ):
             processes.append(start_demo_sender(address[1], args.duration + 3.0))
             command = [sys.executable, "-m", "mca_drake.live.rsi_emulator"]
             command += ["--driver", f"127.0.0.1:{rsi.port}", "--cycle-ms", str(c)]
-            command += ["--duration", repr(args.duration + 2.0), "--report", str(out)]
+            command += ["--duration", repr(args.duration + 2.0)]
+            command += ["--report", str(files[0]), "--recording", str(files[1])]
             processes.append(subprocess.Popen(command, stdout=subprocess.DEVNULL))
 
         summary = run_live(
@@ -76,10 +137,19 @@ def main() -> None:
         robot = json.loads(emulator_report.read_text())
         driver = summary["rsi"]
         live = summary["live"]
+        for probe, _ in probes:
+            probe.wait(timeout=60)
+        machine = [json.loads(out.read_text()) for _, out in probes]
+        stalls = [stall for cpu in machine for stall in cpu["stalls"]]
+        recording, timing = dict(np.load(emulator_recording)), dict(np.load(rsi.timing_path))
+        replies = where_replies_went(recording, timing, stalls, cycle_ms * 1e-3)
         label = f"{args.mca}, RSI cycle {cycle_ms} ms"
         report["runs"][label] = {
             "emulator": robot,
             "driver": driver,
+            "replies": replies,
+            "machine": [{k: v for k, v in cpu.items() if k != "stalls"} for cpu in machine],
+            "machine_stalls": stalls,
             "live_latency_s": live["latency_s"],
             "cpu_load": live["cpu_load"],
             "violations": summary["violations"],
@@ -102,6 +172,16 @@ def main() -> None:
             f"{summary['pi']:.3f}",
             flush=True,
         )
+        worst = sorted(late for _, late in stalls)[-3:]
+        print(
+            f"  where the replies' time went (ms): {replies['parts_ms']}; machine: "
+            f"{len(stalls)} stalls over 1 ms on its CPUs (longest "
+            f"{', '.join(f'{late * 1e3:.1f}' for late in worst) or '-'}), steal "
+            f"{sum(cpu['steal_s'] for cpu in machine):.2f} s",
+            flush=True,
+        )
+        for cycle in replies["unanswered"]:
+            print(f"  no reply on time: {cycle}", flush=True)
     if args.json:
         atomic_write_json(args.json, report)
 

@@ -14,6 +14,7 @@ pickle) with one clear error for every way such a file can be damaged.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import math
 import os
@@ -80,6 +81,14 @@ def atomic_write_json(path: str | os.PathLike, obj) -> Path:
     which JSON cannot hold, are written as null rather than as invalid `NaN`/`Infinity`."""
     text = json.dumps(_finite_or_none(obj), indent=2, sort_keys=False, allow_nan=False)
     return atomic_write_text(path, text + "\n")
+
+
+def atomic_write_npz(path: str | os.PathLike, arrays: dict) -> Path:
+    """Writes `arrays` (name -> numpy array, none of dtype object) as an .npz file to `path`
+    atomically; `np.load(path)` reads it back without pickle."""
+    buffer = io.BytesIO()
+    np.savez(buffer, **arrays)
+    return atomic_write_bytes(path, buffer.getvalue())
 
 
 def _finite_or_none(obj):

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.metadata
-import io
 import itertools
 import json
 import os
@@ -27,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mca_drake.atomic_io import atomic_write_bytes, load_npz_with_metadata
+from mca_drake.atomic_io import atomic_write_npz, load_npz_with_metadata
 
 # Columns of `SegmentDataset.source` in the closed-loop datasets, and the split labels of
 # the "split" column (`mca_drake.studies.closed_loop_dataset.merge`).
@@ -116,10 +115,9 @@ class SegmentDataset:
 
     def save(self, path: str | os.PathLike) -> Path:
         """Writes an .npz file atomically (no pickled objects inside)."""
-        buffer = io.BytesIO()
         meta = json.dumps({"format": FORMAT, **self.metadata})
-        np.savez(buffer, source=self.source, metadata_json=np.array(meta), **self.arrays)
-        return atomic_write_bytes(path, buffer.getvalue())
+        arrays = {"source": self.source, "metadata_json": np.array(meta), **self.arrays}
+        return atomic_write_npz(path, arrays)
 
     @staticmethod
     def load(path: str | os.PathLike) -> SegmentDataset:

@@ -20,7 +20,12 @@ from mca_drake.live.csv_udp import CsvDecoder
 from mca_drake.live.loop import run_live
 from mca_drake.live.receiver import ReceiverConfig
 from mca_drake.live.rsi_driver import RsiDriver, RsiDriverConfig, RsiRefused, lead_report
-from mca_drake.live.rsi_emulator import AxisLimits, RsiEmulator, RsiEmulatorConfig
+from mca_drake.live.rsi_emulator import (
+    AxisLimits,
+    RsiEmulator,
+    RsiEmulatorConfig,
+    split_reply_latency,
+)
 from mca_drake.live.rsi_link import RobotClockServo, segment_socket_pair, start_rsi_driver
 from mca_drake.live.rsi_motion import CommandSegment, RsiMotionConfig, SegmentBuffer
 from mca_drake.references.flights import FlightSpec, flight_reference
@@ -66,11 +71,15 @@ def best_offset_error(recording, segments, robot_start_deg) -> tuple[int, float]
     return best
 
 
-def drive_emulator(robot, segments, duration_s, stop_after=None, emulator_class=RsiEmulator):
+def drive_emulator(
+    robot, segments, duration_s, stop_after=None, emulator_class=RsiEmulator, timing_path=""
+):
     """The driver in its own process (as the loop starts it) fed `segments` in real time
     from a thread, the emulator (`emulator_class`) here for `duration_s`; returns the
     emulator's report, the driver's status and the emulator's recording."""
-    config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
+    config = RsiDriverConfig(
+        port=0, motion=RsiMotionConfig(cycle_s=CYCLE), timing_path=str(timing_path)
+    )
     ours, theirs = segment_socket_pair()
     link = start_rsi_driver(config, robot, np.zeros(6), theirs)
     emulator = emulator_class(link.address, RsiEmulatorConfig(cycle_s=CYCLE))
@@ -108,6 +117,45 @@ def test_a_killed_loop_ends_in_a_controlled_stop_along_the_commanded_trajectory(
     speed = np.abs(np.diff(recording["axes_deg"], axis=0)) / CYCLE
     assert speed[len(speed) // 2].max() > 1.0
     np.testing.assert_array_equal(recording["axes_deg"][-1], recording["axes_deg"][-10])
+
+
+def test_reply_latency_splits_into_the_way_there_and_the_answer():
+    """Closed-form timeline: four 4 ms cycles; the driver answers 0 and 12 on time, 4 only
+    after the cycle (the reply late), never sees 8."""
+    recording = {
+        "ipoc": np.array([0, 4, 8, 12]),
+        "sent_s": np.array([10.000, 10.004, 10.008, 10.012]),
+        "latency_s": np.array([0.0005, np.nan, np.nan, 0.0004]),
+        "late_ipoc": np.array([4]),
+        "late_arrival_s": np.array([10.0095]),
+    }
+    driver = {"ipoc": np.array([0, 4, 12]), "arrival_s": np.array([10.0001, 10.0090, 10.0121])}
+    split = split_reply_latency(recording, driver)
+    np.testing.assert_allclose(split["there_s"], [1e-4, 5e-3, np.nan, 1e-4], atol=1e-12)
+    np.testing.assert_allclose(split["answer_s"], [4e-4, 5e-4, np.nan, 3e-4], atol=1e-12)
+    late, lost = split["unanswered"]
+    assert late["ipoc"] == 4 and late["sent_s"] == 10.004
+    assert abs(late["there_s"] - 5e-3) < 1e-12 and abs(late["answer_s"] - 5e-4) < 1e-12
+    assert lost["ipoc"] == 8 and np.isnan(lost["there_s"]) and np.isnan(lost["answer_s"])
+
+
+def test_the_driver_and_the_emulator_time_their_cycles_on_one_clock(robot, moving_run, tmp_path):
+    """The driver's per-cycle timing file against the emulator's recording: every cycle
+    answered, and the parts of each reply's time are what two processes on one monotonic
+    clock see: the way there short and never negative, the answer within 50 us of the
+    driver's own measure (its clock read after `sendto`), together the emulator's latency."""
+    timing_path = tmp_path / "timing.npz"
+    report, status, recording = drive_emulator(robot, moving_run, 1.0, timing_path=timing_path)
+    timing = dict(np.load(timing_path))
+    assert report["stop_reason"] == "" and report["bad_replies"] == 0, report
+    assert timing["ipoc"].size == status["cycles"] > 0.9 * 1.0 / CYCLE
+    split = split_reply_latency(recording, timing)
+    on_time = np.isfinite(recording["latency_s"])
+    there, answer = split["there_s"][on_time], split["answer_s"][on_time]
+    assert np.isfinite(there).all() and there.min() > -20e-6 and np.median(there) < 1e-3
+    driver_median = status["reply_latency_s"]["median"]
+    assert abs(np.median(answer) - driver_median) < 50e-6, (np.median(answer), driver_median)
+    np.testing.assert_allclose(there + answer, recording["latency_s"][on_time], atol=1e-9)
 
 
 class CorruptingEmulator(RsiEmulator):

@@ -18,14 +18,13 @@ v5 and v6 were trained with `OUTPUT_SCALE_V6`).
 
 from __future__ import annotations
 
-import io
 import json
 
 import numpy as np
 import torch
 from torch import nn
 
-from mca_drake.atomic_io import atomic_write_bytes
+from mca_drake.atomic_io import atomic_write_npz
 from mca_drake.cueing.dpc import (
     INPUT_SIZE,
     OUTPUT_SIZE,
@@ -112,10 +111,8 @@ def save_policy(path, policy: PolicyNetwork, metadata: dict) -> None:
     in the format that `mca_drake.cueing.dpc.load_policy_arrays` reads.
 
     `metadata` should say how the policy was made (command, config, dataset, versions)."""
-    buffer = io.BytesIO()
     meta = {**metadata, "format": POLICY_FORMAT, "hidden": policy.hidden}
-    np.savez(buffer, metadata_json=np.array(json.dumps(meta)), **policy.export())
-    atomic_write_bytes(path, buffer.getvalue())
+    atomic_write_npz(path, {"metadata_json": np.array(json.dumps(meta)), **policy.export()})
 
 
 def load_policy_network(path, robot: KR500 | None = None) -> PolicyNetwork:

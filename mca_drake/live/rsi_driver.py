@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mca_drake.atomic_io import atomic_write_json
+from mca_drake.atomic_io import atomic_write_json, atomic_write_npz
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.realtime import request_realtime_priority
@@ -130,6 +130,10 @@ class RsiDriverConfig:
     # SCHED_FIFO priority the driver asks for (`live.realtime`; 0: none): it must answer
     # within the cycle while the flight simulator and the loop share the machine.
     realtime_priority: int = 50
+    # Where the driver writes each cycle's timing at its end (npz, `RsiDriver.timing`), to
+    # tell a late reply's way there from the driver's own time; "": not kept (24 bytes a
+    # cycle: 22 MB an hour at 4 ms).
+    timing_path: str = ""
     # The RSI object configuration's XML names.
     tags: RsiTags = dataclasses.field(default_factory=RsiTags)
 
@@ -215,6 +219,11 @@ class RsiDriver:
         # and the held trajectory's reach beyond the time played, s
         self.latencies_s = array.array("d")
         self.leads_s = array.array("d")
+        # per cycle where config.timing_path asks for them: the IPOC answered and when its
+        # state packet reached the socket (time.perf_counter(), s)
+        self._timed = bool(config.timing_path)
+        self.ipocs = array.array("q")
+        self.arrivals_s = array.array("d")
         self._ipoc: int | None = None  # the last state packet's IPOC
         self._anchor: tuple[int, int] | None = None  # (IPOC, k) at the first segment
         self._stop_requested = False
@@ -292,6 +301,9 @@ class RsiDriver:
             self._rsi.sendto(format_reply(state.ipoc, corrections, tags), robot)
             latency = time.perf_counter() - arrival
             self.latencies_s.append(latency)
+            if self._timed:
+                self.ipocs.append(state.ipoc)
+                self.arrivals_s.append(arrival)
             self.counters["cycles"] += 1
             if latency > self.config.motion.cycle_s:
                 self.counters["late_replies"] += 1
@@ -309,6 +321,13 @@ class RsiDriver:
         out["mode"] = self.follower.mode
         out["reason"] = self.follower.reason
         return out
+
+    def timing(self) -> dict[str, np.ndarray]:
+        """Each answered cycle's timing (with `config.timing_path`; else empty arrays):
+        ipoc (n,) and arrival_s (n,), when its state packet reached the socket, on the
+        time.perf_counter() clock (s; Linux: the monotonic clock every process shares, so a
+        robot's send times compare)."""
+        return {"ipoc": np.asarray(self.ipocs, np.int64), "arrival_s": np.asarray(self.arrivals_s)}
 
     def _check_home(self, axes_deg) -> None:
         worst = max(range(NUM_JOINTS), key=lambda j: abs(axes_deg[j] - self._home_deg[j]))
@@ -386,6 +405,8 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         driver.close()
     summary["realtime_priority"] = config.realtime_priority if realtime else 0
+    if config.timing_path:
+        atomic_write_npz(config.timing_path, driver.timing())
     if args.status:
         atomic_write_json(args.status, summary)
     return 2 if "refused" in summary else 0

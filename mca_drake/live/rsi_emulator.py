@@ -15,15 +15,15 @@ robot's values (`mca_drake.robot.KR500`, in degrees). After a missed cycle the d
 are taken over the time since the last correction applied, as an interpolating controller
 moves its set point from one correction to the next.
 
-It records what it received, per cycle: IPOC, the reply's latency from the state packet's
-sending (NaN: none on time), the corrections and the axis positions.
+It records what it received, per cycle: IPOC, when the state packet was sent, the reply's
+latency from then (NaN: none on time), the corrections and the axis positions; and every late
+reply's IPOC and arrival.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import io
 import math
 import select
 import socket
@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from mca_drake.atomic_io import atomic_write_bytes, atomic_write_json
+from mca_drake.atomic_io import atomic_write_json, atomic_write_npz
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.pacing import wait_until
 from mca_drake.live.realtime import request_realtime_priority
@@ -137,8 +137,10 @@ class RsiEmulator:
         self.counters = dict.fromkeys(EMULATOR_COUNTERS, 0)
         self.stop_reason = ""
         self.final_missed = 0  # the run of missed cycles that stopped it (the driver's end)
+        self.late_replies: list[tuple[int, float]] = []  # (IPOC, arrival, perf_counter s)
         self.rows: dict[str, list] = {
             "ipoc": [],
+            "sent_s": [],
             "latency_s": [],
             "corrections_deg": [],
             "axes_deg": [],
@@ -194,7 +196,7 @@ class RsiEmulator:
                 else:
                     velocity = [(b - a) / step for a, b in zip(axes, new_axes, strict=True)]
                     axes, last_applied, last_step = new_axes, n, step
-            self._record(ipoc, latency, corrections, axes)
+            self._record(ipoc, sent, latency, corrections, axes)
             if self.stop_reason:
                 break
             if missed_in_a_row >= cfg.max_missed:
@@ -215,9 +217,15 @@ class RsiEmulator:
         return out
 
     def recording(self) -> dict[str, np.ndarray]:
-        """The recording: ipoc (n,), latency_s (n,), corrections_deg (n, 6), axes_deg (n, 6)."""
+        """The recording: per cycle ipoc (n,), sent_s (n,) when its state packet was sent
+        (time.perf_counter(), s), latency_s (n,), corrections_deg (n, 6), axes_deg (n, 6); per
+        late reply late_ipoc (m,) and late_arrival_s (m,) (perf_counter, s)."""
+        late = np.asarray(self.late_replies, float).reshape(-1, 2)
         return {
             "ipoc": np.asarray(self.rows["ipoc"], np.int64),
+            "sent_s": np.asarray(self.rows["sent_s"], float),
+            "late_ipoc": late[:, 0].astype(np.int64),
+            "late_arrival_s": late[:, 1],
             "latency_s": np.asarray(self.rows["latency_s"], float),
             "corrections_deg": np.asarray(self.rows["corrections_deg"], float).reshape(-1, 6),
             "axes_deg": np.asarray(self.rows["axes_deg"], float).reshape(-1, 6),
@@ -227,9 +235,10 @@ class RsiEmulator:
         """Cycle n's state message (a test's subclass may corrupt it)."""
         return format_state(ipoc, axes, self.tags)
 
-    def _record(self, ipoc, latency, corrections, axes) -> None:
+    def _record(self, ipoc, sent, latency, corrections, axes) -> None:
         rows = self.rows
         rows["ipoc"].append(ipoc)
+        rows["sent_s"].append(sent)
         rows["latency_s"].append(latency)
         rows["corrections_deg"].append(list(corrections))
         rows["axes_deg"].append(list(axes))
@@ -258,6 +267,7 @@ class RsiEmulator:
             if reply.ipoc == ipoc and arrived <= deadline:
                 return arrived, list(reply.axes_deg)
             self.counters["late"] += 1
+            self.late_replies.append((reply.ipoc, arrived))
 
     def _check(self, axes, velocity, new_axes, step: float, last_step: float) -> str:
         """Why `new_axes`, `step` s after the last correction applied (`axes`, reached at
@@ -284,6 +294,48 @@ class RsiEmulator:
             if abs(a) > lim.acceleration_deg_s2[j] * (1 + tol) + acceleration_slack:
                 return f"{names[j]} acceleration {a:.2f} deg/s^2 over its limit"
         return ""
+
+
+def split_reply_latency(recording: dict, driver_timing: dict) -> dict:
+    """Where each cycle's reply time went, from the emulator's `recording()` and the driver's
+    `RsiDriver.timing()` of one run on one machine (both on the shared perf_counter clock):
+
+    - there_s (n,): state packet sent -> in the driver's socket (the kernel's stamp);
+    - answer_s (n,): in the driver's socket -> the reply in the emulator's socket, on time
+      or late (the driver's own time; over loopback the reply reaches the emulator's socket
+      within the driver's `sendto`, so the way back is part of it);
+
+    NaN where the driver did not answer that cycle or its reply never came. And "unanswered":
+    per cycle without an on-time reply while the driver ran (IPOC up to its last answer), a
+    dict of ipoc, sent_s and the two parts (s, NaN where unknown)."""
+    ipoc = np.asarray(recording["ipoc"], np.int64)
+    sent = np.asarray(recording["sent_s"], float)
+    latency = np.asarray(recording["latency_s"], float)
+    robot_arrival = sent + latency
+    # a late reply's arrival stands in where none came on time (the first, if several)
+    late_ipoc = np.asarray(recording["late_ipoc"], np.int64)
+    late_arrival = np.asarray(recording["late_arrival_s"], float)
+    for m in np.unique(late_ipoc):
+        rows = np.flatnonzero(ipoc == m)
+        if rows.size and not np.isfinite(robot_arrival[rows[0]]):
+            robot_arrival[rows[0]] = late_arrival[late_ipoc == m].min()
+    # the driver answers each IPOC at most once: its rows by IPOC
+    row_of = {int(m): j for j, m in enumerate(driver_timing["ipoc"])}
+    rows = np.array([row_of.get(int(m), -1) for m in ipoc], np.int64)
+    arrival = np.full(ipoc.shape, np.nan)
+    arrival[rows >= 0] = np.asarray(driver_timing["arrival_s"], float)[rows[rows >= 0]]
+    there, answer = arrival - sent, robot_arrival - arrival
+    last_answered = max(row_of, default=-1)
+    unanswered = [
+        {
+            "ipoc": int(ipoc[i]),
+            "sent_s": float(sent[i]),
+            "there_s": float(there[i]),
+            "answer_s": float(answer[i]),
+        }
+        for i in np.flatnonzero(~np.isfinite(latency) & (ipoc <= last_answered))
+    ]
+    return {"there_s": there, "answer_s": answer, "unanswered": unanswered}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -313,9 +365,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.report:
         atomic_write_json(args.report, report)
     if args.recording:
-        buffer = io.BytesIO()
-        np.savez(buffer, **emulator.recording())
-        atomic_write_bytes(args.recording, buffer.getvalue())
+        atomic_write_npz(args.recording, emulator.recording())
     print(report, flush=True)
     return 0 if not report["stop_reason"] else 1
 
