@@ -65,16 +65,19 @@ def start_stall_probes(duration_s: float, folder: Path, tag: str) -> list:
 
 
 def where_replies_went(recording: dict, timing: dict, stalls: list, cycle_s: float) -> dict:
-    """The split of each reply's time (ms: p99 and max of each part) and, per cycle left
-    without a reply on time while the driver ran, its parts (ms) and the machine's stalls
-    (ms, on any CPU) that overlapped its cycle."""
+    """The split of each reply's time (ms: median, p99, max of each part); the cycles left
+    without a reply on time while the driver ran, counted by where the cycle went (the state
+    reached the driver after the cycle had passed, or else the answer came late or never: a
+    state the driver has no record of counts there too), each with its parts (ms) and the
+    machine's stalls (ms, on any CPU) that overlapped it."""
     split = split_reply_latency(recording, timing)
     parts = {
         part: ms(step_time_summary(values[np.isfinite(values)]))
         for part, values in ((p, split[p]) for p in ("there_s", "answer_s"))
     }
-    unanswered = []
+    unanswered, state_too_late = [], 0
     for cycle in split["unanswered"]:
+        state_too_late += cycle["there_s"] > cycle_s
         start, end = cycle["sent_s"], cycle["sent_s"] + cycle_s
         overlapping = [late for at, late in stalls if at < end and at + late > start]
         unanswered.append(
@@ -84,7 +87,12 @@ def where_replies_went(recording: dict, timing: dict, stalls: list, cycle_s: flo
                 "machine_stalls_ms": [f"{late * 1e3:.2f}" for late in overlapping],
             }
         )
-    return {"parts_ms": parts, "unanswered": unanswered}
+    return {
+        "parts_ms": parts,
+        "state_reached_the_driver_after_its_cycle": state_too_late,
+        "answer_late_or_lost": len(unanswered) - state_too_late,
+        "unanswered": unanswered,
+    }
 
 
 def main() -> None:
@@ -174,7 +182,10 @@ def main() -> None:
         )
         worst = sorted(late for _, late in stalls)[-3:]
         print(
-            f"  where the replies' time went (ms): {replies['parts_ms']}; machine: "
+            f"  where the replies' time went (ms): {replies['parts_ms']}; cycles without a "
+            f"reply on time: the state reached the driver after its cycle "
+            f"{replies['state_reached_the_driver_after_its_cycle']}, the answer late or lost "
+            f"{replies['answer_late_or_lost']}; machine: "
             f"{len(stalls)} stalls over 1 ms on its CPUs (longest "
             f"{', '.join(f'{late * 1e3:.1f}' for late in worst) or '-'}), steal "
             f"{sum(cpu['steal_s'] for cpu in machine):.2f} s",
