@@ -168,6 +168,7 @@ def main() -> None:
             f"{robot['on_time']} replies on time, {robot['late']} late, "
             f"{robot['missed_before_stop']} missed before the driver's end, "
             f"{robot['bad_replies']} bad, {robot['overruns']} of its own overruns, "
+            f"{robot['late_sends']} of its own late sends, "
             f"SCHED_FIFO {robot['realtime_priority']}, reply latency ms "
             f"{ms(robot['reply_latency_s'])}, stopped: {robot['stop_reason'] or 'no'}; the "
             f"driver's: {driver['cycles']} cycles, {driver['late_replies']} late, "

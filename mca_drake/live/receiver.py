@@ -22,7 +22,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import socket
-import struct
 import time
 
 import numpy as np
@@ -30,40 +29,9 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import check_config_numbers
+from mca_drake.live.socket_stamps import arrival_time, enable_kernel_timestamps
 from mca_drake.live.telemetry import BadPacket, Decoder
 from mca_drake.references.reference import ReferenceScaling, scaled_reference_sample
-
-# Linux's SO_TIMESTAMPNS (and SCM_TIMESTAMPNS): the kernel's receive time of a datagram, as a
-# struct timespec of CLOCK_REALTIME (Python's socket module does not name it).
-SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
-# The struct timespec it carries: seconds and nanoseconds.
-_TIMESPEC = struct.Struct("qq")
-
-
-def enable_kernel_timestamps(sock: socket.socket) -> bool:
-    """Asks the kernel to stamp every datagram `sock` receives (Linux's SO_TIMESTAMPNS), so
-    that the time a datagram waited in the socket counts in its latency; False where the
-    platform has no such stamps (`arrival_time` then takes the time it is read)."""
-    try:
-        sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
-    except OSError:
-        return False
-    return True
-
-
-def arrival_time(ancillary) -> float:
-    """When a datagram read by `recvmsg(..., 64)` reached its socket, on the
-    time.perf_counter() clock: the kernel's stamp in `ancillary` where there is one
-    (`enable_kernel_timestamps`), else now."""
-    now = time.perf_counter()
-    for level, kind, data in ancillary:
-        if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(data) >= 16:
-            seconds, nanoseconds = _TIMESPEC.unpack_from(data)
-            waited = time.time() - (seconds + 1e-9 * nanoseconds)
-            if 0.0 <= waited < 1.0:  # a sane stamp (the clock may step)
-                return now - waited
-    return now
-
 
 # The `telemetry` output port, in this order.
 TELEMETRY_FIELDS = (

@@ -48,7 +48,6 @@ from mca_drake.atomic_io import atomic_write_json, atomic_write_npz
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.realtime import request_realtime_priority
-from mca_drake.live.receiver import arrival_time, enable_kernel_timestamps
 from mca_drake.live.rsi_motion import (
     BadSegment,
     CommandSegment,
@@ -57,6 +56,7 @@ from mca_drake.live.rsi_motion import (
     SegmentBuffer,
 )
 from mca_drake.live.rsi_xml import MAX_RSI_BYTES, BadRsiPacket, RsiTags, format_reply, parse_state
+from mca_drake.live.socket_stamps import arrival_time, enable_kernel_timestamps
 from mca_drake.robot import NUM_JOINTS
 from mca_drake.simulation.closed_loop import step_time_summary
 

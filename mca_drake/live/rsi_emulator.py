@@ -5,9 +5,13 @@
 
 Every cycle (4 or 12 ms, on the wall clock) it sends the driver a state packet
 (`rsi_xml.format_state`: the axis positions, deg, and the IPOC, ms) and waits for the reply
-until the next cycle is due. A reply with this cycle's IPOC is on time and its corrections
-(deg, relative to the start pose) become the axes' new positions; a reply for an earlier
-cycle is late and ignored; none by the next cycle is a missed cycle (the axes hold). Like a
+for a cycle. A reply with this cycle's IPOC that reaches its socket within a cycle of the
+state's leaving (both the kernel's stamps: a controller's cycle runs from when its state
+goes out, and a stall of this process before it does is this process's own, counted as a
+late send, as its oversleeping a whole cycle is counted as an overrun and skipped) is on
+time, and its corrections (deg, relative to the start pose) become the axes' new positions;
+a reply for an earlier cycle is late and ignored; none by then is a missed cycle (the axes
+hold). Like a
 controller, it stops (and sends nothing more) when `max_missed` cycles in a row go without
 an on-time reply, and when a correction would take an axis beyond its limits: position,
 velocity (per-cycle difference) or acceleration (second difference), each with the real
@@ -15,7 +19,7 @@ robot's values (`mca_drake.robot.KR500`, in degrees). After a missed cycle the d
 are taken over the time since the last correction applied, as an interpolating controller
 moves its set point from one correction to the next.
 
-It records what it received, per cycle: IPOC, when the state packet was sent, the reply's
+It records what it received, per cycle: IPOC, when the state packet left, the reply's
 latency from then (NaN: none on time), the corrections and the axis positions; and every late
 reply's IPOC and arrival.
 """
@@ -36,7 +40,6 @@ from mca_drake.atomic_io import atomic_write_json, atomic_write_npz
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.pacing import wait_until
 from mca_drake.live.realtime import request_realtime_priority
-from mca_drake.live.receiver import arrival_time, enable_kernel_timestamps
 from mca_drake.live.rsi_xml import (
     MAX_RSI_BYTES,
     RSI_RESOLUTION_DEG,
@@ -44,6 +47,12 @@ from mca_drake.live.rsi_xml import (
     RsiTags,
     format_state,
     parse_reply,
+)
+from mca_drake.live.socket_stamps import (
+    arrival_time,
+    departure_time,
+    enable_kernel_timestamps,
+    enable_send_timestamps,
 )
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.simulation.closed_loop import step_time_summary
@@ -56,6 +65,7 @@ EMULATOR_COUNTERS = (
     "missed",  # cycles without an on-time reply
     "bad_replies",  # replies that did not parse
     "overruns",  # cycles this process could not send on time (its own stall: skipped)
+    "late_sends",  # states that left more than a cycle after they were due (its own stall)
 )
 
 
@@ -134,6 +144,9 @@ class RsiEmulator:
         self._socket.bind(("127.0.0.1", 0))
         self._socket.setblocking(False)
         enable_kernel_timestamps(self._socket)  # replies judged by when they arrived
+        # and from when the state left: the kernel's stamp, not this process's clock before
+        # sendto (a stall in between is this process's, as its oversleeping is)
+        self._departures = enable_send_timestamps(self._socket)
         self.counters = dict.fromkeys(EMULATOR_COUNTERS, 0)
         self.stop_reason = ""
         self.final_missed = 0  # the run of missed cycles that stopped it (the driver's end)
@@ -176,7 +189,10 @@ class RsiEmulator:
             ipoc = cfg.first_ipoc + n * cycle_ms
             sent = time.perf_counter()
             self._socket.sendto(self._state_packet(n, ipoc, axes), self._driver)
+            if self._departures:
+                sent = departure_time(self._socket) or sent
             self.counters["cycles"] += 1
+            self.counters["late_sends"] += sent - due > cycle
             # a reply is on time within a cycle of the state's sending
             reply = self._reply_for(ipoc, sent + cycle)
             corrections = [math.nan] * NUM_JOINTS
@@ -217,9 +233,10 @@ class RsiEmulator:
         return out
 
     def recording(self) -> dict[str, np.ndarray]:
-        """The recording: per cycle ipoc (n,), sent_s (n,) when its state packet was sent
-        (time.perf_counter(), s), latency_s (n,), corrections_deg (n, 6), axes_deg (n, 6); per
-        late reply late_ipoc (m,) and late_arrival_s (m,) (perf_counter, s)."""
+        """The recording: per cycle ipoc (n,), sent_s (n,) when its state packet left (the
+        kernel's stamp where there is one; time.perf_counter(), s), latency_s (n,),
+        corrections_deg (n, 6), axes_deg (n, 6); per late reply late_ipoc (m,) and
+        late_arrival_s (m,) (perf_counter, s)."""
         late = np.asarray(self.late_replies, float).reshape(-1, 2)
         return {
             "ipoc": np.asarray(self.rows["ipoc"], np.int64),
@@ -256,7 +273,8 @@ class RsiEmulator:
                 return None
             try:
                 datagram, ancillary, _, _ = self._socket.recvmsg(MAX_RSI_BYTES + 1, 64)
-            except BlockingIOError:
+            except BlockingIOError:  # a send's stamp made the socket look readable
+                departure_time(self._socket)
                 continue
             arrived = arrival_time(ancillary)
             try:
@@ -300,7 +318,7 @@ def split_reply_latency(recording: dict, driver_timing: dict) -> dict:
     """Where each cycle's reply time went, from the emulator's `recording()` and the driver's
     `RsiDriver.timing()` of one run on one machine (both on the shared perf_counter clock):
 
-    - there_s (n,): state packet sent -> in the driver's socket (the kernel's stamp);
+    - there_s (n,): state packet sent (left) -> in the driver's socket (the kernel's stamps);
     - answer_s (n,): in the driver's socket -> the reply in the emulator's socket, on time
       or late (the driver's own time; over loopback the reply reaches the emulator's socket
       within the driver's `sendto`, so the way back is part of it);
