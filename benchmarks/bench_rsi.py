@@ -8,18 +8,18 @@ real time and streams FGNetFDM packets over loopback; the MCA on the analytical 
 real-time rate 1) drives a robot over RSI (`mca-drake live --robot`): the driver in its own
 process, the loopback RSI robot emulator (`mca_drake.live.rsi_emulator`) in another, started
 at the home pose, sending its state every cycle for the whole run. Prints, per cycle, the
-reply latency as the robot sees it (state sent -> reply received: median, p99, max), the
-driver's own (state packet's kernel arrival -> reply sent), late and missed replies, the
-emulator's verdict, and the loop's telemetry latency beside them. The machine's calibration
-first.
+reply latency as the robot sees it (its state left -> the reply in its socket, both the
+kernel's stamps: median, p99, max), the driver's own (the state's kernel arrival -> reply
+sent), late and missed replies, the emulator's own stalls (overruns, late sends), and the
+loop's telemetry latency beside them. The machine's calibration first.
 
 Where a reply's time goes: the driver logs each cycle's state arrival
-(`RsiDriverConfig.timing_path`), the emulator its sends and every reply's arrival, on the
-clock both share, so each reply splits into the way there and the answer (the driver's own
-time and the way back: `rsi_emulator.split_reply_latency`; median, p99, max); and a stall
-probe per CPU (`machine_stalls.py`: when that CPU was not there for a SCHED_FIFO 40 process,
-and its steal time) says for each cycle left without a reply on time whether the machine
-stalled in it.
+(`RsiDriverConfig.timing_path`), the emulator its states' departures and the late replies'
+arrivals, on the clock both share, so each reply splits into the way there and the answer
+(`rsi_emulator.split_reply_latency`; median, p99, max); and a stall probe per CPU
+(`machine_stalls.py`: when that CPU was not there for a SCHED_FIFO 40 process, and its steal
+time; it wakes every 5 ms, a few microseconds each, above the live loop) says for each cycle
+left without a reply on time whether the machine stalled in it.
 """
 
 from __future__ import annotations

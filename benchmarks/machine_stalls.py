@@ -1,14 +1,14 @@
 """A machine-stall probe for the live benchmarks: when was a CPU unavailable?
 
     python benchmarks/machine_stalls.py --cpu 0 --duration 600 --out stalls_cpu0.json
-        [--period-ms 2] [--threshold-ms 1] [--priority 40]
+        [--period-ms 5] [--threshold-ms 1] [--priority 40]
 
 Pinned to one CPU under SCHED_FIFO (below the RSI driver's 50 and the loopback robot's 60,
 above every ordinary process), it sleeps to every period's instant and notes each wake-up
 later than the threshold: a time when nothing below those two could run on that CPU, which
 on a virtual machine means the hypervisor or the kernel took it (the process under test
 needs far less than the threshold per wake). The way `cyclictest` measures a machine, in
-Python and at a 2 ms period (1-2 % of a core). Also the CPU's steal time over the run
+Python and at a 5 ms period (under 1 % of a core). Also the CPU's steal time over the run
 (/proc/stat: time the hypervisor gave to others). Writes JSON: the stalls as [start, late]
 on the time.perf_counter() clock (s), which the other processes' records share.
 """
@@ -42,7 +42,7 @@ def main() -> None:
     parser.add_argument("--cpu", type=int, required=True)
     parser.add_argument("--duration", type=float, required=True, help="s")
     parser.add_argument("--out", required=True, help="JSON file")
-    parser.add_argument("--period-ms", type=float, default=2.0)
+    parser.add_argument("--period-ms", type=float, default=5.0)
     parser.add_argument("--threshold-ms", type=float, default=1.0)
     parser.add_argument("--priority", type=int, default=40, help="SCHED_FIFO (0: none)")
     args = parser.parse_args()

@@ -140,11 +140,11 @@ def test_reply_latency_splits_into_the_way_there_and_the_answer():
 
 
 def test_the_driver_and_the_emulator_time_their_cycles_on_one_clock(robot, moving_run, tmp_path):
-    """The driver's per-cycle timing file against the emulator's recording: every cycle
-    answered, and the parts of each reply's time are what two processes on one monotonic
-    clock see: the way there short and never negative (to the stamps' conversion), the
-    answer within 50 us of the driver's own measure (its clock read after `sendto`),
-    together the emulator's latency."""
+    """The driver's per-cycle timing file against the emulator's recording, two processes'
+    kernel stamps on one monotonic clock: every answered cycle in the file, each state's
+    arrival at the driver after it left the emulator (to the stamps' conversion, 50 us) and
+    the answer, from that arrival to the reply in the emulator's socket, within 50 us of
+    the driver's own measure (its clock read after `sendto`)."""
     timing_path = tmp_path / "timing.npz"
     report, status, recording = drive_emulator(robot, moving_run, 1.0, timing_path=timing_path)
     timing = dict(np.load(timing_path))
@@ -153,10 +153,9 @@ def test_the_driver_and_the_emulator_time_their_cycles_on_one_clock(robot, movin
     split = split_reply_latency(recording, timing)
     on_time = np.isfinite(recording["latency_s"])
     there, answer = split["there_s"][on_time], split["answer_s"][on_time]
-    assert np.isfinite(there).all() and there.min() > -50e-6 and np.median(there) < 1e-3
+    assert np.isfinite(there).all() and there.min() > -50e-6, there.min()
     driver_median = status["reply_latency_s"]["median"]
     assert abs(np.median(answer) - driver_median) < 50e-6, (np.median(answer), driver_median)
-    np.testing.assert_allclose(there + answer, recording["latency_s"][on_time], atol=1e-9)
 
 
 class CorruptingEmulator(RsiEmulator):

@@ -40,7 +40,7 @@ def test_a_datagram_leaves_within_its_send_and_arrives_after_it_left(pair):
         before = time.perf_counter()
         sender.sendto(b"state", receiver.getsockname())
         after = time.perf_counter()
-        left = departure_time(sender)
+        left = departure_time(sender, before)
         assert left is not None and before - 50e-6 <= left <= after + 50e-6, (before, left, after)
         assert not select.select([sender], [], [], 0.0)[0]  # the stamp was taken off
         _, ancillary, _, _ = receiver.recvmsg(64, 64)
@@ -49,10 +49,23 @@ def test_a_datagram_leaves_within_its_send_and_arrives_after_it_left(pair):
         assert left - 50e-6 <= arrived <= looked, (left, arrived, looked)
 
 
+def test_an_earlier_sends_stamp_is_skipped(pair):
+    sender, receiver = pair
+    assert enable_send_timestamps(sender)
+    sender.sendto(b"first", receiver.getsockname())
+    time.sleep(0.002)
+    before = time.perf_counter()
+    sender.sendto(b"second", receiver.getsockname())
+    after = time.perf_counter()
+    left = departure_time(sender, before)
+    assert left is not None and before - 50e-6 <= left <= after + 50e-6
+    assert departure_time(sender, before) is None  # each stamp is read once
+
+
 def test_without_send_stamps_there_is_no_departure_time(pair):
     sender, receiver = pair
     sender.sendto(b"state", receiver.getsockname())
-    assert departure_time(sender) is None
+    assert departure_time(sender, 0.0) is None
     # and a datagram without a kernel stamp arrives when it is read
     _, ancillary, _, _ = receiver.recvmsg(64, 64)
     before = time.perf_counter()

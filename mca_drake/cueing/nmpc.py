@@ -45,7 +45,6 @@ once the KKT residual is below `kkt_tolerance` (relative to the cost), the step 
 """
 
 import dataclasses
-import itertools
 import time
 
 import numpy as np
@@ -860,10 +859,17 @@ class MotionCueingOcp:
           4. H, Gauss-Newton's.
         After a full step the line search rejected, each with Marquardt's damping (the model
         overshot: shorter steps, scaled per variable)."""
-        if hessians is None:
-            return _first_positive_definite([model.H], damping, model.H)
-        S = self._condensing.assemble(residual_curvature(hessians, model.weighted_residual))
-        return _first_convex_model(model.H, S, self._C[active != 0], damping)
+        candidates = [model.H]
+        if hessians is not None:
+            S = self._condensing.assemble(residual_curvature(hessians, model.weighted_residual))
+            candidates = _convex_candidates(model.H, S, self._C[active != 0])
+        for M in candidates:
+            if damping > 0.0:
+                M = M + damping * np.diag(np.diag(M))
+            factor = cholesky(M)
+            if factor is not None:
+                return M, factor
+        return model.H, None
 
     def _qp_step(self, model, gauss_newton, g, d_lo, d_hi, active, linearisation):
         """The step d (N, 6) of the QP min 1/2 d'Hd + g'd, d_lo <= C d <= d_hi: (d, verified
@@ -959,7 +965,7 @@ class MotionCueingOcp:
 
 # `_convex_model`'s multiples of N_A^T N_A (the guessed active rows' normals; H's entries are
 # of order 1e-2 to 1) and fractions of the residual curvature, in the order tried.
-# Convexification weights of the guessed active rows (`_first_convex_model`). On a 3 g heave
+# Convexification weights of the guessed active rows (`_convex_candidates`). On a 3 g heave
 # step the reduced Newton model's smallest eigenvalue was 0.007 against couplings of order 1
 # to the constrained directions: rho must reach about 1e4 there, or the iteration fell back
 # to Gauss-Newton and converged linearly (18-40 iterations instead of 6-10).
@@ -976,43 +982,18 @@ EXPANSION_RATIO, EXPANSION_MAX = 1.5, 2.0
 EXACT_QP_ALLOWANCE = 1e-12
 
 
-def _damped(M: np.ndarray, damping: float) -> np.ndarray:
-    """Marquardt's M + mu diag(M) (M itself for mu = 0)."""
-    return M + damping * np.diag(np.diag(M)) if damping > 0.0 else M
-
-
-def _first_positive_definite(candidates, damping: float, fallback: np.ndarray):
-    """(M, its Cholesky factor) of the first of `candidates` that is positive definite once
-    damped, else (fallback, None)."""
-    for M in candidates:
-        M = _damped(M, damping)
-        factor = cholesky(M)
-        if factor is not None:
-            return M, factor
-    return fallback, None
-
-
-def _first_convex_model(H: np.ndarray, S: np.ndarray, active_normals: np.ndarray, damping):
-    """`MotionCueingOcp._convex_model`'s choice, the first positive definite (damped) of
-    H + S, H + S + rho P (CONVEXIFY_RHO; P = N_A^T N_A), H + theta S (SHRINK_THETA), H.
-
-    Adding rho P (positive semidefinite, and so is P's damped part) only raises the matrix
-    in the Loewner order, so where the largest rho's model is not positive definite no
-    smaller one is: that one is tried first, and the smaller ones only when it is (on a 3 g
-    surge step's worst solve, 27 of 42 iterations tried all three in vain)."""
+def _convex_candidates(H: np.ndarray, S: np.ndarray, active_normals: np.ndarray):
+    """The models `MotionCueingOcp._convex_model` tries, in order, formed as needed: H + S,
+    H + S + rho P (CONVEXIFY_RHO; P = N_A^T N_A), H + theta S (SHRINK_THETA), H."""
     newton = H + S
-    model = _first_positive_definite([newton], damping, None)
-    if model[1] is not None:
-        return model
+    yield newton
     if active_normals.shape[0]:
         P = active_normals.T @ active_normals
-        strongest = _first_positive_definite([newton + CONVEXIFY_RHO[-1] * P], damping, None)
-        if strongest[1] is not None:
-            weaker = (newton + rho * P for rho in CONVEXIFY_RHO[:-1])
-            model = _first_positive_definite(weaker, damping, None)
-            return model if model[1] is not None else strongest
-    shrunk = (H + theta * S for theta in SHRINK_THETA)
-    return _first_positive_definite(itertools.chain(shrunk, [H]), damping, H)
+        for rho in CONVEXIFY_RHO:
+            yield newton + rho * P
+    for theta in SHRINK_THETA:
+        yield H + theta * S
+    yield H
 
 
 # Marquardt's damping mu of the converged iterations: it starts at DAMPING_START after a

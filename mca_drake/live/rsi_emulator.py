@@ -3,19 +3,19 @@
     python -m mca_drake.live.rsi_emulator --driver 127.0.0.1:49152 --duration 60
         [--cycle-ms 4] [--report report.json] [--recording recording.npz]
 
-Every cycle (4 or 12 ms, on the wall clock) it sends the driver a state packet
+Every cycle (4 or 12 ms, on the monotonic clock) it sends the driver a state packet
 (`rsi_xml.format_state`: the axis positions, deg, and the IPOC, ms) and waits for the reply
 for a cycle. A reply with this cycle's IPOC that reaches its socket within a cycle of the
 state's leaving (both the kernel's stamps: a controller's cycle runs from when its state
-goes out, and a stall of this process before it does is this process's own, counted as a
-late send, as its oversleeping a whole cycle is counted as an overrun and skipped) is on
-time, and its corrections (deg, relative to the start pose) become the axes' new positions;
-a reply for an earlier cycle is late and ignored; none by then is a missed cycle (the axes
-hold). Like a
-controller, it stops (and sends nothing more) when `max_missed` cycles in a row go without
-an on-time reply, and when a correction would take an axis beyond its limits: position,
-velocity (per-cycle difference) or acceleration (second difference), each with the real
-robot's values (`mca_drake.robot.KR500`, in degrees). After a missed cycle the differences
+goes out; a stall of this process before it does is this process's own, as its
+oversleeping is: one of over a cycle is counted as a late send, a whole cycle overslept as
+an overrun, skipped) is on time, and its corrections (deg, relative to the start pose)
+become the axes' new positions; a reply for an earlier cycle is late and ignored; none by
+then is a missed cycle (the axes hold). Like a controller, it stops (and sends nothing
+more) when `max_missed` cycles in a row go without an on-time reply, and when a correction
+would take an axis beyond its limits: position, velocity (per-cycle difference) or
+acceleration (second difference), each with the real robot's values
+(`mca_drake.robot.KR500`, in degrees). After a missed cycle the differences
 are taken over the time since the last correction applied, as an interpolating controller
 moves its set point from one correction to the next.
 
@@ -27,7 +27,9 @@ reply's IPOC and arrival.
 from __future__ import annotations
 
 import argparse
+import array
 import dataclasses
+import gc
 import math
 import select
 import socket
@@ -150,13 +152,17 @@ class RsiEmulator:
         self.counters = dict.fromkeys(EMULATOR_COUNTERS, 0)
         self.stop_reason = ""
         self.final_missed = 0  # the run of missed cycles that stopped it (the driver's end)
-        self.late_replies: list[tuple[int, float]] = []  # (IPOC, arrival, perf_counter s)
-        self.rows: dict[str, list] = {
-            "ipoc": [],
-            "sent_s": [],
-            "latency_s": [],
-            "corrections_deg": [],
-            "axes_deg": [],
+        # (IPOC, arrival: time.perf_counter(), s) of every late reply
+        self.late_replies: list[tuple[int, float]] = []
+        # per cycle, in flat arrays of numbers: no object the garbage collector must visit
+        # piles up (rows of lists did: a full collection came due about every 46000 cycles
+        # and held this SCHED_FIFO process 60-145 ms, a cycle's send among them)
+        self.rows: dict[str, array.array] = {
+            "ipoc": array.array("q"),
+            "sent_s": array.array("d"),
+            "latency_s": array.array("d"),
+            "corrections_deg": array.array("d"),  # 6 a cycle
+            "axes_deg": array.array("d"),  # 6 a cycle
         }
 
     def close(self) -> None:
@@ -184,13 +190,14 @@ class RsiEmulator:
                 # them (the IPOC jumps, as after missed cycles) and do not blame the driver
                 self.counters["overruns"] += behind
                 n += behind
+                due += behind * cycle
                 if n >= n_cycles:
                     break
             ipoc = cfg.first_ipoc + n * cycle_ms
             sent = time.perf_counter()
             self._socket.sendto(self._state_packet(n, ipoc, axes), self._driver)
             if self._departures:
-                sent = departure_time(self._socket) or sent
+                sent = departure_time(self._socket, sent) or sent
             self.counters["cycles"] += 1
             self.counters["late_sends"] += sent - due > cycle
             # a reply is on time within a cycle of the state's sending
@@ -257,8 +264,8 @@ class RsiEmulator:
         rows["ipoc"].append(ipoc)
         rows["sent_s"].append(sent)
         rows["latency_s"].append(latency)
-        rows["corrections_deg"].append(list(corrections))
-        rows["axes_deg"].append(list(axes))
+        rows["corrections_deg"].extend(corrections)
+        rows["axes_deg"].extend(axes)
 
     def _reply_for(self, ipoc: int, deadline: float) -> tuple[float, list[float]] | None:
         """(arrival time, corrections) of this cycle's reply if it reached the socket by
@@ -274,7 +281,9 @@ class RsiEmulator:
             try:
                 datagram, ancillary, _, _ = self._socket.recvmsg(MAX_RSI_BYTES + 1, 64)
             except BlockingIOError:  # a send's stamp made the socket look readable
-                departure_time(self._socket)
+                departure_time(self._socket, math.inf)  # takes every stamp off
+                if left <= 0.0:
+                    return None  # past the deadline: no spinning on a stamp that stays
                 continue
             arrived = arrival_time(ancillary)
             try:
@@ -318,10 +327,13 @@ def split_reply_latency(recording: dict, driver_timing: dict) -> dict:
     """Where each cycle's reply time went, from the emulator's `recording()` and the driver's
     `RsiDriver.timing()` of one run on one machine (both on the shared perf_counter clock):
 
-    - there_s (n,): state packet sent (left) -> in the driver's socket (the kernel's stamps);
-    - answer_s (n,): in the driver's socket -> the reply in the emulator's socket, on time
-      or late (the driver's own time; over loopback the reply reaches the emulator's socket
-      within the driver's `sendto`, so the way back is part of it);
+    - there_s (n,): the state packet left -> the kernel's receive stamp for the driver (on
+      loopback both stamps are taken as the packet passes the loopback device, so this is
+      about 0 with the emulator's transmit stamps; without them it holds the emulator's
+      own delay between its clock and the send);
+    - answer_s (n,): that receive stamp -> the reply in the emulator's socket, on time or
+      late: the packet's delivery to the driver's socket, the driver's own time and the way
+      back (over loopback the reply reaches the emulator within the driver's `sendto`);
 
     NaN where the driver did not answer that cycle or its reply never came. And "unanswered":
     per cycle without an on-time reply while the driver ran (IPOC up to its last answer), a
@@ -368,13 +380,18 @@ def main(argv: list[str] | None = None) -> int:
         "--realtime-priority", type=int, default=60, help="SCHED_FIFO priority (0: none)"
     )
     args = parser.parse_args(argv)
-    # a controller is hard real time: the emulator asks for it where it may
-    realtime = request_realtime_priority(args.realtime_priority)
     host, _, port = args.driver.rpartition(":")
     config = RsiEmulatorConfig(cycle_s=args.cycle_ms * 1e-3)
     if args.start_deg:
         config.start_deg = [float(v) for v in args.start_deg.split(",")]
     emulator = RsiEmulator((host, int(port)), config)
+    # what was built (numpy, the robot model) leaves the garbage collector's view: a full
+    # collection of it would hold this SCHED_FIFO process for tens of milliseconds
+    gc.collect()
+    gc.freeze()
+    # a controller is hard real time: the emulator asks for it where it may, once built
+    # (loading the model is no real-time work and would hold a core at that priority)
+    realtime = request_realtime_priority(args.realtime_priority)
     try:
         report = emulator.run(args.duration)
     finally:

@@ -27,17 +27,17 @@ _TIMESPEC = struct.Struct("qq")
 
 def _perf_counter_time(stamp: bytes) -> float | None:
     """A timespec of CLOCK_REALTIME on the perf_counter clock; None for an implausible one
-    (more than 1 s old or in the future: the clock stepped)."""
+    (more than 1 s old or 1 ms in the future: the clock stepped)."""
     seconds, nanoseconds = _TIMESPEC.unpack_from(stamp)
     # the two clocks' offset, read between two perf_counter reads close together (a process
     # preempted between the reads would be off by the preemption)
     for _ in range(3):
         before = time.perf_counter()
-        wall = time.time()
+        wall_ns = time.time_ns()
         after = time.perf_counter()
         if after - before < 20e-6:
             break
-    ago = wall - (seconds + 1e-9 * nanoseconds)
+    ago = 1e-9 * (wall_ns - (seconds * 1_000_000_000 + nanoseconds))
     return 0.5 * (before + after) - ago if -1e-3 <= ago < 1.0 else None
 
 
@@ -77,18 +77,19 @@ def enable_send_timestamps(sock: socket.socket) -> bool:
     return True
 
 
-def departure_time(sock: socket.socket) -> float | None:
-    """When the newest datagram sent on `sock` left, on the time.perf_counter() clock, from
-    the stamps on its error queue (`enable_send_timestamps`), which this empties; None where
-    there is none."""
-    newest = None
+def departure_time(sock: socket.socket, not_before: float) -> float | None:
+    """When the datagram just sent on `sock` left, on the time.perf_counter() clock: the first
+    stamp on its error queue (`enable_send_timestamps`) from `not_before` (perf_counter, s,
+    read before the send; older stamps, of earlier sends, are taken off and skipped); None
+    where there is none."""
     while True:
         try:
             _, ancillary, _, _ = sock.recvmsg(1, 256, socket.MSG_ERRQUEUE | socket.MSG_DONTWAIT)
         except OSError:  # BlockingIOError included: the queue is empty
-            return newest
+            return None
         for level, kind, data in ancillary:
             if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPING and len(data) >= 16:
                 stamped = _perf_counter_time(data)
-                if stamped is not None:
-                    newest = stamped if newest is None else max(newest, stamped)
+                # the conversion is good to microseconds
+                if stamped is not None and stamped >= not_before - 50e-6:
+                    return stamped
