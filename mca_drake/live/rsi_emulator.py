@@ -200,7 +200,7 @@ class RsiEmulator:
                 sent = departure_time(self._socket, sent) or sent
             self.counters["cycles"] += 1
             self.counters["late_sends"] += sent - due > cycle
-            # a reply is on time within a cycle of the state's sending
+            # a reply is on time within a cycle of the state's leaving
             reply = self._reply_for(ipoc, sent + cycle)
             corrections = [math.nan] * NUM_JOINTS
             latency = math.nan
