@@ -19,7 +19,7 @@ from __future__ import annotations
 import argparse
 import resource
 
-from common import print_calibration
+from common import in_ms, print_calibration
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import mca_config_from_name
@@ -73,9 +73,9 @@ def main() -> None:
             "violations": summary["violations"],
             "step_time_s": summary["step_time_s"],
         }
-        ms = {k: f"{v * 1e3:.3f}" for k, v in live["latency_s"].items()}
-        wait = {k: f"{v * 1e3:.3f}" for k, v in live["wait_s"].items()}
-        jitter = {k: f"{v * 1e3:.3f}" for k, v in live["loop_jitter_s"].items()}
+        ms = in_ms(live["latency_s"])
+        wait = in_ms(live["wait_s"])
+        jitter = in_ms(live["loop_jitter_s"])
         print(
             f"{label}: {args.duration:g} s, latency ms {ms} (waiting for the poll {wait}; "
             f"{len(live['phase_shifts_s'])} phase shifts, {live['early_polls']} polls brought "

@@ -33,7 +33,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from common import print_calibration
+from common import in_ms, print_calibration
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import mca_config_from_name
@@ -46,11 +46,6 @@ from mca_drake.live.rsi_motion import RsiMotionConfig
 from mca_drake.simulation.closed_loop import step_time_summary
 
 STALL_PROBE = Path(__file__).with_name("machine_stalls.py")
-
-
-def ms(figures: dict) -> dict:
-    # None: a figure of nothing (JSON's null for NaN)
-    return {k: "-" if v is None else f"{v * 1e3:.3f}" for k, v in figures.items()}
 
 
 def start_stall_probes(duration_s: float, folder: Path, tag: str) -> list:
@@ -72,7 +67,7 @@ def where_replies_went(recording: dict, timing: dict, stalls: list, cycle_s: flo
     machine's stalls (ms, on any CPU) that overlapped it."""
     split = split_reply_latency(recording, timing)
     parts = {
-        part: ms(step_time_summary(values[np.isfinite(values)]))
+        part: in_ms(step_time_summary(values[np.isfinite(values)]))
         for part, values in ((p, split[p]) for p in ("there_s", "answer_s"))
     }
     unanswered, state_too_late = [], 0
@@ -83,7 +78,7 @@ def where_replies_went(recording: dict, timing: dict, stalls: list, cycle_s: flo
         unanswered.append(
             {
                 "ipoc": cycle["ipoc"],
-                **{p: f"{cycle[p] * 1e3:.3f}" for p in ("there_s", "answer_s")},
+                **in_ms({p: cycle[p] for p in ("there_s", "answer_s")}),
                 "machine_stalls_ms": [f"{late * 1e3:.2f}" for late in overlapping],
             }
         )
@@ -170,13 +165,13 @@ def main() -> None:
             f"{robot['bad_replies']} bad, {robot['overruns']} of its own overruns, "
             f"{robot['late_sends']} of its own late sends, "
             f"SCHED_FIFO {robot['realtime_priority']}, reply latency ms "
-            f"{ms(robot['reply_latency_s'])}, stopped: {robot['stop_reason'] or 'no'}; the "
+            f"{in_ms(robot['reply_latency_s'])}, stopped: {robot['stop_reason'] or 'no'}; the "
             f"driver's: {driver['cycles']} cycles, {driver['late_replies']} late, "
-            f"{driver['missed_cycles']} missed, latency ms {ms(driver['reply_latency_s'])}, "
-            f"trajectory lead ms {ms(driver['lead_s'])}, SCHED_FIFO "
+            f"{driver['missed_cycles']} missed, latency ms {in_ms(driver['reply_latency_s'])}, "
+            f"trajectory lead ms {in_ms(driver['lead_s'])}, SCHED_FIFO "
             f"{driver['realtime_priority']}, rate trim {driver['rate_trim_ppm']:.0f} ppm, "
             f"ended {driver['mode']} "
-            f"({driver['reason']}); loop latency ms {ms(live['latency_s'])}, CPU load "
+            f"({driver['reason']}); loop latency ms {in_ms(live['latency_s'])}, CPU load "
             f"{live['cpu_load']:.2f}; violations {summary['violations']}; PI "
             f"{summary['pi']:.3f}",
             flush=True,

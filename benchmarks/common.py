@@ -35,6 +35,12 @@ def describe(samples: list[float], unit: str = "ms") -> str:
     )
 
 
+def in_ms(figures: dict) -> dict:
+    """Figures in seconds (a summary such as {median, p99, max}) as strings in ms, three
+    decimals; None (JSON's null for NaN) as "-"."""
+    return {k: "-" if v is None else f"{v * 1e3:.3f}" for k, v in figures.items()}
+
+
 def calibration_s() -> dict[str, float]:
     """Wall time of a fixed numpy workload (200 products of 200 x 200 matrices) and a fixed
     pure-Python loop (2e6 additions), the best of three each, s."""
