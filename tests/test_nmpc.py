@@ -268,3 +268,28 @@ def test_an_overperforming_step_is_lengthened_only_within_the_bounds(small_ocp):
     k = int(np.argmax(Cd))
     hi[k] = Cd[k]
     assert small_ocp._expanded_step(U, step, lo, hi, CU) is None
+
+
+def test_damping_restarts_from_the_last_that_was_in_use():
+    """`_next_damping`: the first rejection starts mu at DAMPING_START; accepted full steps
+    shrink it by DAMPING_GROWTH until it is dropped; a rejection after that restarts from
+    DAMPING_GROWTH times the last mu in use, not from DAMPING_START."""
+    from mca_drake.cueing.nmpc import (
+        DAMPING_FLOOR,
+        DAMPING_GROWTH,
+        DAMPING_START,
+        _next_damping,
+    )
+
+    mu, shed = _next_damping(0.0, False, 0.0)
+    assert (mu, shed) == (DAMPING_START, 0.0)
+    used = []
+    while mu > 0.0:
+        used.append(mu)
+        mu, shed = _next_damping(mu, True, shed)
+    assert used[-1] / DAMPING_GROWTH <= DAMPING_FLOOR < used[-2] / DAMPING_GROWTH
+    assert shed == used[-1] and np.allclose(np.diff(np.log(used)), -np.log(DAMPING_GROWTH))
+    mu, shed = _next_damping(0.0, False, shed)
+    assert mu == pytest.approx(DAMPING_GROWTH * used[-1]) and mu < DAMPING_START
+    # a rejection while damped grows it, at least to DAMPING_START
+    assert _next_damping(mu, False, shed)[0] == max(DAMPING_GROWTH * mu, DAMPING_START)
