@@ -22,14 +22,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
-import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
-from common import print_calibration
+from common import print_calibration, run_with_checkout
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import NmpcConfig
@@ -175,22 +171,18 @@ def profile_modes(vehicle: str, seed: int, seconds: float) -> dict:
 
 def run_baseline(directory: str, args) -> dict:
     """measure_flight with the mca_drake of `directory`, in a subprocess."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "baseline.json"
-        env = dict(os.environ, PYTHONPATH=str(Path(directory).resolve()))
-        command = [
-            sys.executable,
-            __file__,
-            "--measure-flight-only",
-            str(out),
+    return run_with_checkout(
+        directory,
+        __file__,
+        lambda out: [
+            *("--measure-flight-only", out),
             *("--vehicle", args.vehicle, "--seed", str(args.seed)),
             *("--duration", str(args.duration)),
             *("--converged-duration", str(args.baseline_converged_duration)),
             *("--adversarial-duration", str(args.adversarial_duration)),
             *("--weights", json.dumps(shipped_weights())),
-        ]
-        subprocess.run(command, env=env, check=True)
-        return json.loads(out.read_text())
+        ],
+    )
 
 
 def main() -> None:

@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -39,6 +44,18 @@ def in_ms(figures: dict) -> dict:
     """Figures in seconds (a summary such as {median, p99, max}) as strings in ms, three
     decimals; None (JSON's null for NaN) as "-"."""
     return {k: "-" if v is None else f"{v * 1e3:.3f}" for k, v in figures.items()}
+
+
+def run_with_checkout(checkout: str, script: str, args_for: Callable[[str], list[str]]) -> dict:
+    """Runs the benchmark `script` with the mca_drake of another `checkout` (e.g. a `git
+    worktree` of an older commit) in a subprocess, and returns the JSON it writes to the path
+    that `args_for(path)` passes it (its command-line arguments): a before-and-after in one
+    run, on the same machine under the same load."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = str(Path(tmp) / "figures.json")
+        env = dict(os.environ, PYTHONPATH=str(Path(checkout).resolve()))
+        subprocess.run([sys.executable, script, *args_for(out)], env=env, check=True)
+        return json.loads(Path(out).read_text())
 
 
 def calibration_s() -> dict[str, float]:

@@ -25,16 +25,11 @@ import collections
 import copy
 import heapq
 import itertools
-import json
-import os
-import subprocess
-import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-from common import print_calibration
+from common import print_calibration, run_with_checkout
 
 from mca_drake.atomic_io import atomic_write_json, atomic_write_npz
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
@@ -58,10 +53,10 @@ class SlowestSolves:
         record = self._record
 
         def timed(ocp, x0, refs, U_guess=None, mode=None, active_guess=None, output_hessians=None):
-            inputs = copy.deepcopy((x0, refs, U_guess, active_guess, output_hessians))
             start = time.perf_counter()
             result = solve(ocp, x0, refs, U_guess, mode, active_guess, output_hessians)
-            record(time.perf_counter() - start, inputs)
+            # solve leaves its inputs as they were: copied only when kept
+            record(time.perf_counter() - start, (x0, refs, U_guess, active_guess, output_hessians))
             return result
 
         MotionCueingOcp.solve = timed
@@ -71,10 +66,12 @@ class SlowestSolves:
         MotionCueingOcp.solve = self._solve
 
     def _record(self, seconds: float, inputs: tuple) -> None:
-        item = (seconds, next(self._calls), inputs)
+        if len(self.heap) == self.keep and seconds <= self.heap[0][0]:
+            return
+        item = (seconds, next(self._calls), copy.deepcopy(inputs))
         if len(self.heap) < self.keep:
             heapq.heappush(self.heap, item)
-        elif seconds > self.heap[0][0]:
+        else:
             heapq.heapreplace(self.heap, item)
 
     def slowest_first(self) -> list[tuple[float, tuple]]:
@@ -153,12 +150,11 @@ def totals(steps: dict) -> str:
 
 def replay_elsewhere(checkout: str, directory: Path, repeats: int) -> dict:
     """`replay` with the mca_drake of another checkout, in a subprocess."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "steps.json"
-        env = dict(os.environ, PYTHONPATH=str(Path(checkout).resolve()))
-        command = [sys.executable, __file__, "replay", str(directory), "--repeats", str(repeats)]
-        subprocess.run([*command, "--json", str(out), "--quiet"], env=env, check=True)
-        return json.loads(out.read_text())
+    return run_with_checkout(
+        checkout,
+        __file__,
+        lambda out: ["replay", str(directory), "--repeats", str(repeats), "--json", out, "--quiet"],
+    )
 
 
 def main() -> None:
