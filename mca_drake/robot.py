@@ -22,6 +22,11 @@ import numpy as np
 
 NUM_JOINTS = 6
 JOINT_NAMES = tuple(f"joint_{i}" for i in range(1, NUM_JOINTS + 1))
+# The KR500's left-right symmetry: with joints 1, 4 and 6 (the vertical and the two roll
+# axes) turned the other way, the cabin moves as the mirror image of itself about the base's
+# x-z plane, and its outputs are those of `conventions.MIRROR_CHANNEL_SIGNS` (the limits of
+# those joints are symmetric).
+MIRROR_JOINT_SIGNS = (-1.0, 1.0, 1.0, -1.0, 1.0, -1.0)
 # Tolerance for "this URDF has DH structure" checks; URDF rpy round trips are ~1e-16.
 _STRUCTURE_TOL = 1e-9
 

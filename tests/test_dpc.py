@@ -513,3 +513,34 @@ def test_near_neutral_windows_keep_the_starts_inside_the_bound(tmp_path):
     with pytest.raises(ValueError, match="start within max_start_position_rad"):
         train_policy(config, far, tmp_path / "out", progress=False)
     assert path.is_file()
+
+
+def test_terminal_weights_are_scaled_to_their_horizon():
+    """With only the terminal position cost on, a rollout of T steps whose terminal weights
+    belong to a horizon of 2T carries twice the cost of unscaled weights, and one of T the
+    same."""
+    from mca_drake.learning.dpc import dpc_objective
+
+    torch.manual_seed(2)
+    T = 12
+    only_terminal = dict(
+        tracking_weight=0.0,
+        state_estimate_weight=0.0,
+        input_weight=0.0,
+        washout_weight=0.0,
+        limit_weight=0.0,
+        terminal_position_weight=1.0,
+        terminal_velocity_weight=0.0,
+        compile=False,
+    )
+    batch = {"X": torch.randn(4, T, 12) * 0.3, "Y": torch.zeros(4, T, 6), "R": torch.randn(4, T, 6)}
+    policy = PolicyNetwork().eval()
+    cost = {}
+    for horizon in (0, T, 2 * T):
+        config = DpcTrainingConfig(terminal_weight_horizon=horizon, **only_terminal)
+        with torch.no_grad():
+            cost[horizon] = float(dpc_objective(config, RolloutPlant(config))(policy, batch))
+    assert cost[0] > 0
+    np.testing.assert_allclose([cost[T], cost[2 * T]], [cost[0], 2 * cost[0]], rtol=1e-6)
+    with pytest.raises(ValueError, match="terminal_weight_horizon"):
+        DpcTrainingConfig(terminal_weight_horizon=-1).validate()

@@ -208,3 +208,19 @@ def test_output_from_motion_equals_plant_output(robot, rng):
         kinematics.plant_output(q, qd, qdd, robot),
         atol=1e-12,
     )
+
+
+def test_turning_joint_1_changes_no_cue(robot, drake_plant, rng):
+    """Joint 1's axis is vertical: turning it turns the whole robot about gravity, and the
+    head-frame outputs (Drake's) stay as they were; only limits and washout see joint 1."""
+    context = drake_plant.CreateDefaultContext()
+    for _ in range(50):
+        q = rng.uniform(robot.q_min, robot.q_max) * 0.9
+        qd, qdd = rng.uniform(-1, 1, 6), rng.uniform(-1, 1, 6)
+        turned = q.copy()
+        turned[0] = rng.uniform(robot.q_min[0], robot.q_max[0])
+        np.testing.assert_allclose(
+            drake_plant_output(drake_plant, context, turned, qd, qdd),
+            drake_plant_output(drake_plant, context, q, qd, qdd),
+            atol=1e-9,
+        )

@@ -458,6 +458,8 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             input_weight="input_weight",
             perturbed_fraction="perturbed_fraction",
             max_start_position="max_start_position_rad",
+            mirror_fraction="mirror_fraction",
+            terminal_weight_horizon="terminal_weight_horizon",
             hidden="hidden",
         ),
     )
@@ -829,6 +831,17 @@ def build_parser() -> argparse.ArgumentParser:
         "--perturbed-fraction",
         type=float,
         help="fraction of training rollouts from perturbed initial positions (default 0)",
+    )
+    policy.add_argument(
+        "--mirror-fraction",
+        type=float,
+        help="fraction of training rollouts that fly their window's mirror image (default 0)",
+    )
+    policy.add_argument(
+        "--terminal-weight-horizon",
+        type=int,
+        help="rollouts of n_c steps carry the terminal weights times this / n_c (default 0: "
+        "unscaled)",
     )
     policy.add_argument("--max-epochs", type=int, help="epochs per curriculum step")
     policy.add_argument("--patience", type=int, help="early stopping, epochs")

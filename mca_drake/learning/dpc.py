@@ -38,7 +38,7 @@ import torch
 from torch import nn
 
 from mca_drake.atomic_io import check_writable, file_sha256
-from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.conventions import CONTROL_PERIOD_S, MIRROR_CHANNEL_SIGNS
 from mca_drake.cueing import NmpcConfig
 from mca_drake.cueing.dpc import load_policy_arrays
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
@@ -52,7 +52,7 @@ from mca_drake.learning.policy import (
 )
 from mca_drake.learning.state_models import Node2State
 from mca_drake.learning.trainer import CurriculumTrainer, TrainConfig
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.robot import KR500, MIRROR_JOINT_SIGNS, NUM_JOINTS, load_kr500
 from mca_drake.segments import SegmentDataset, long_windows, package_versions, split_of
 from mca_drake.torch_plant import TorchPlant, viable_acceleration_bounds_torch
 
@@ -106,6 +106,12 @@ class DpcTrainingConfig:
     # ||qd_N||^2): an addition to the paper's loss that teaches washout beyond n_c.
     terminal_position_weight: float = _NMPC.terminal_position_weight
     terminal_velocity_weight: float = _NMPC.terminal_velocity_weight
+    # The horizon (steps) the terminal weights belong to; a rollout of n_c steps carries them
+    # times this / n_c (0: as they are, v9). The loss averages the stage costs over the
+    # rollout but adds the terminal cost once, so the drift back to neutral that minimises it
+    # grows with n_c: with the NMPC's weights, a 10.24 s rollout is best served by washing a
+    # sustained turn out four times as fast as the NMPC's 2.56 s horizon does.
+    terminal_weight_horizon: int = 0
     # Run the rollouts behind the viability clamp, as the policy runs when deployed
     # (`mca_drake.safety`); gradients pass through the clamp.
     safety_filter: bool = True
@@ -126,6 +132,12 @@ class DpcTrainingConfig:
     # airliner's yaw).
     perturbed_fraction: float = 0.0
     initial_state_noise: float = 0.1
+    # Training rollouts of this fraction of each batch fly the mirror image of their window
+    # (left and right swapped: `conventions.MIRROR_CHANNEL_SIGNS` on the targets and the
+    # first output, `robot.MIRROR_JOINT_SIGNS` on the first state). The robot and the loss
+    # are symmetric, so a mirrored window is as real as the one flown; it teaches the policy
+    # turns and slips the other way round.
+    mirror_fraction: float = 0.0
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
     # tilted far out (|q| up to 2.6 rad) in states the policy never visits in its own closed
@@ -216,14 +228,19 @@ class DpcTrainingConfig:
                 raise ValueError(f"{name} must be a finite number >= 0; got {value}")
         if len(self.output_scale) != 6 or not all(0 < v < float("inf") for v in self.output_scale):
             raise ValueError(f"output_scale needs six positive numbers; got {self.output_scale}")
+        if self.terminal_weight_horizon < 0:
+            raise ValueError(
+                f"terminal_weight_horizon must be >= 0 steps; got {self.terminal_weight_horizon}"
+            )
         if self.hidden < 1:
             raise ValueError(f"hidden must be at least 1 neuron; got {self.hidden}")
         if not self.max_start_position_rad > 0:
             raise ValueError(
                 f"max_start_position_rad must be > 0; got {self.max_start_position_rad}"
             )
-        if not 0.0 <= self.perturbed_fraction <= 1.0:
-            raise ValueError(f"perturbed_fraction must be in [0, 1]; got {self.perturbed_fraction}")
+        for name in ("perturbed_fraction", "mirror_fraction"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} must be in [0, 1]; got {getattr(self, name)}")
         if self.plant == "learned" and not Path(self.learned_output_weights).is_file():
             raise ValueError(
                 "plant='learned' needs learned_output_weights, the mixed analytical model's "
@@ -365,6 +382,39 @@ def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcT
     return torch.clamp(x0 + chosen * noise, 0.9 * lower, 0.9 * upper)
 
 
+def mirror_some_windows(
+    x0: torch.Tensor, y0: torch.Tensor, targets: torch.Tensor, fraction: float
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(x0 (B, 12), y0 (B, 6), targets (B, T, 6)) with a random `fraction` of the windows
+    replaced by their mirror images (torch's global generator; see `mirror_fraction`)."""
+    chosen = torch.rand(x0.shape[0], 1, device=x0.device) < fraction
+    joints = torch.tensor(MIRROR_JOINT_SIGNS, dtype=x0.dtype, device=x0.device)
+    channels = torch.tensor(MIRROR_CHANNEL_SIGNS, dtype=y0.dtype, device=y0.device)
+    x_signs = torch.where(chosen, torch.cat((joints, joints)), torch.ones_like(x0[:1]))
+    y_signs = torch.where(chosen, channels, torch.ones_like(y0[:1]))
+    return x0 * x_signs, y0 * y_signs, targets * y_signs[:, None]
+
+
+def check_mirror_symmetry(plant: RolloutPlant, samples: int = 64) -> None:
+    """Raises ValueError unless the rollout plant is left-right symmetric, as mirrored
+    training windows assume: outputs and steps of mirrored random states and commands are the
+    mirrored outputs and steps (a robot description with a lateral offset is not)."""
+    generator = torch.Generator().manual_seed(0)
+    x = 0.5 * torch.randn(samples, 2 * NUM_JOINTS, generator=generator)
+    u = torch.randn(samples, NUM_JOINTS, generator=generator)
+    joints = torch.tensor(MIRROR_JOINT_SIGNS)
+    x_signs, y_signs = torch.cat((joints, joints)), torch.tensor(MIRROR_CHANNEL_SIGNS)
+    with torch.no_grad():
+        output_error = plant.output(x * x_signs, u * joints) - plant.output(x, u) * y_signs
+        step_error = plant.step(x * x_signs, u * joints) - plant.step(x, u) * x_signs
+    worst = max(float(output_error.abs().max()), float(step_error.abs().max()))
+    if not worst <= 1e-4:
+        raise ValueError(
+            f"mirror_fraction > 0 needs a left-right symmetric plant; mirrored states are off "
+            f"by up to {worst:.3g}: set mirror_fraction to 0 for this robot"
+        )
+
+
 def target_array(config: DpcTrainingConfig) -> str:
     """The dataset array the policy tracks: "Y" (NMPC-achieved outputs) or "R" (references)."""
     return "Y" if config.targets == "achieved" else "R"
@@ -404,15 +454,18 @@ def dpc_objective(
         if id(policy) not in cells:
             cell = rollout_cell(policy, plant)
             cells[id(policy)] = torch.compile(cell) if config.compile else cell
-        targets = batch[key]
-        x0 = batch["X"][:, 0]
+        targets, x0, y0 = batch[key], batch["X"][:, 0], batch["Y"][:, 0]
+        if policy.training and config.mirror_fraction > 0:
+            x0, y0, targets = mirror_some_windows(x0, y0, targets, config.mirror_fraction)
         if policy.training and config.perturbed_fraction > 0:
             x0 = perturb_initial_states(x0, policy, config)
-        rollout = closed_loop_rollout(
-            policy, plant, x0, batch["Y"][:, 0], targets, cells[id(policy)]
-        )
+        rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)])
         weights_here = None if channel_weights is None else channel_weights.to(targets)
         terms = dpc_loss_terms(rollout, targets, policy, weights_here)
+        if config.terminal_weight_horizon > 0:
+            scale = config.terminal_weight_horizon / targets.shape[1]
+            terms["terminal_position"] = scale * terms["terminal_position"]
+            terms["terminal_velocity"] = scale * terms["terminal_velocity"]
         return sum(weights[k] * v for k, v in terms.items())
 
     return objective
@@ -474,6 +527,8 @@ def train_policy(
     else:
         policy = PolicyNetwork(hidden=config.hidden, output_scale=config.output_scale)
     plant = RolloutPlant(config)
+    if config.mirror_fraction > 0:
+        check_mirror_symmetry(plant)
     train_targets = splits["train"].arrays[target_array(config)]
     channel_weights = tracking_channel_weights(config, train_targets)
     metadata = {
