@@ -432,8 +432,10 @@ def test_default_loss_is_the_shipped_nmpc_objective_and_paper_is_v6s():
     assert (config.input_weight, config.washout_weight) == (nmpc.input_weight, nmpc.washout_weight)
     assert config.terminal_position_weight == nmpc.terminal_position_weight
     assert config.terminal_velocity_weight == nmpc.terminal_velocity_weight
-    other = NmpcConfig(input_weight=0.5, output_weights=[2.0] * 6)
+    assert config.terminal_weight_horizon == nmpc.horizon_steps
+    other = NmpcConfig(input_weight=0.5, output_weights=[2.0] * 6, horizon_steps=128)
     assert DpcTrainingConfig.matching(other).input_weight == 0.5
+    assert DpcTrainingConfig.matching(other).terminal_weight_horizon == 128
     _, meta = load_policy_arrays(shipped_policy_path("policy_v6"))
     recorded = meta["dpc_config"]
     if isinstance(recorded, str):
@@ -450,6 +452,8 @@ def test_default_loss_is_the_shipped_nmpc_objective_and_paper_is_v6s():
     ):
         assert getattr(paper, name) == recorded[name], name
     assert set(paper.tracking_channel_weights) == {1.0}
+    # v5 and v6 predate the terminal scaling and the mirrored windows
+    assert (paper.terminal_weight_horizon, paper.mirror_fraction) == (0, 0.0)
 
 
 def test_bad_loss_weights_are_refused():

@@ -835,13 +835,14 @@ def build_parser() -> argparse.ArgumentParser:
     policy.add_argument(
         "--mirror-fraction",
         type=float,
-        help="fraction of training rollouts that fly their window's mirror image (default 0)",
+        help="fraction of training rollouts that fly their window's mirror image (default 0.5; "
+        "0: v9)",
     )
     policy.add_argument(
         "--terminal-weight-horizon",
         type=int,
-        help="rollouts of n_c steps carry the terminal weights times this / n_c (default 0: "
-        "unscaled)",
+        help="rollouts of n_c steps carry the terminal weights times this / n_c (default the "
+        "NMPC's horizon, 256; 0: unscaled, v9)",
     )
     policy.add_argument("--max-epochs", type=int, help="epochs per curriculum step")
     policy.add_argument("--patience", type=int, help="early stopping, epochs")

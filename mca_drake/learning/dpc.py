@@ -15,8 +15,10 @@ segments (the NMPC's cost terms, `mca_drake.cueing.nmpc`):
 
 plus, beyond the paper, the NMPC's terminal cost ||q_n||^2 + ||qd_n||^2 on the last state
 (without it a policy trained on 2.56 s rollouts drifts to the limits within seconds of a
-long flight), and the rollout runs behind the viability clamp the deployed policy runs
-behind (`safety_filter`), so that training and deployment see the same closed loop.
+long flight), its weights scaled by the NMPC's horizon / n_c (`terminal_weight_horizon`),
+and the rollout runs behind the viability clamp the deployed policy runs behind
+(`safety_filter`), so that training and deployment see the same closed loop. Half of each
+training batch flies its window's mirror image (`mirror_fraction`).
 
 The weights default to the shipped NMPC's (`NmpcConfig`'s tuned defaults, carried over by
 `DpcTrainingConfig.matching`): the policy learns the objective the tuned NMPC minimises,
@@ -106,12 +108,13 @@ class DpcTrainingConfig:
     # ||qd_N||^2): an addition to the paper's loss that teaches washout beyond n_c.
     terminal_position_weight: float = _NMPC.terminal_position_weight
     terminal_velocity_weight: float = _NMPC.terminal_velocity_weight
-    # The horizon (steps) the terminal weights belong to; a rollout of n_c steps carries them
-    # times this / n_c (0: as they are, v9). The loss averages the stage costs over the
-    # rollout but adds the terminal cost once, so the drift back to neutral that minimises it
-    # grows with n_c: with the NMPC's weights, a 10.24 s rollout is best served by washing a
-    # sustained turn out four times as fast as the NMPC's 2.56 s horizon does.
-    terminal_weight_horizon: int = 0
+    # The horizon (steps) the terminal weights belong to (the NMPC's horizon_steps); a
+    # rollout of n_c steps carries them times this / n_c (0: as they are, v9 and earlier).
+    # The loss averages the stage costs over the rollout but adds the terminal cost once, so
+    # the drift back to neutral that minimises it grows with n_c: unscaled, a 10.24 s rollout
+    # is best served by washing a sustained turn out four times as fast as the NMPC's 2.56 s
+    # horizon does (v9 lost an unseen airliner's 45 s turn so; benchmarks/results/dpc_mixed.md).
+    terminal_weight_horizon: int = _NMPC.horizon_steps
     # Run the rollouts behind the viability clamp, as the policy runs when deployed
     # (`mca_drake.safety`); gradients pass through the clamp.
     safety_filter: bool = True
@@ -136,8 +139,8 @@ class DpcTrainingConfig:
     # (left and right swapped: `conventions.MIRROR_CHANNEL_SIGNS` on the targets and the
     # first output, `robot.MIRROR_JOINT_SIGNS` on the first state). The robot and the loss
     # are symmetric, so a mirrored window is as real as the one flown; it teaches the policy
-    # turns and slips the other way round.
-    mirror_fraction: float = 0.0
+    # turns and slips the other way round. 0.5 (v10); 0 before.
+    mirror_fraction: float = 0.5
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
     # tilted far out (|q| up to 2.6 rad) in states the policy never visits in its own closed
@@ -177,6 +180,7 @@ class DpcTrainingConfig:
             washout_weight=nmpc.washout_weight,
             terminal_position_weight=nmpc.terminal_position_weight,
             terminal_velocity_weight=nmpc.terminal_velocity_weight,
+            terminal_weight_horizon=nmpc.horizon_steps,
         )
         return cls(**{**weights, **changes})
 
@@ -193,6 +197,8 @@ class DpcTrainingConfig:
                 "output_scale": OUTPUT_SCALE_V6,
                 "perturbed_fraction": 0.5,
                 "max_start_position_rad": math.inf,
+                "terminal_weight_horizon": 0,
+                "mirror_fraction": 0.0,
                 **changes,
             },
         )
