@@ -417,7 +417,8 @@ def check_mirror_symmetry(plant: RolloutPlant, samples: int = 64) -> None:
     if not worst <= 1e-4:
         raise ValueError(
             f"mirror_fraction > 0 needs a left-right symmetric plant; mirrored states are off "
-            f"by up to {worst:.3g}: set mirror_fraction to 0 for this robot"
+            f"by up to {worst:.3g} (a robot with a lateral offset, or a learned plant): train "
+            f"with mirror_fraction 0 (--mirror-fraction 0)"
         )
 
 
