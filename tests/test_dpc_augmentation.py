@@ -14,8 +14,11 @@ from mca_drake.learning.dpc import (
     DpcTrainingConfig,
     RolloutPlant,
     check_mirror_symmetry,
+    dpc_objective,
+    mirror_signs,
     mirror_some_windows,
 )
+from mca_drake.learning.policy import PolicyNetwork
 from mca_drake.robot import MIRROR_JOINT_SIGNS
 
 
@@ -67,3 +70,25 @@ def test_the_symmetry_check_passes_the_kr500_and_refuses_a_lopsided_plant():
         check_mirror_symmetry(Lopsided())
     with pytest.raises(ValueError, match="mirror_fraction"):
         DpcTrainingConfig(mirror_fraction=1.5).validate()
+
+
+def test_the_training_objective_flies_the_mirrored_window():
+    """With every window mirrored, the training loss is the loss of the same batch mirrored
+    by hand (x0, y0 and targets alike) and flown without mirroring: the objective mirrors
+    the whole window, not part of it. The policy is not symmetric, so the two batches differ."""
+    torch.manual_seed(3)
+    T = 16
+    batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
+    _, x_signs, y_signs = mirror_signs()
+    by_hand = {"X": batch["X"] * x_signs, "Y": batch["Y"] * y_signs, "R": batch["R"] * y_signs}
+    policy = PolicyNetwork().train()
+    loss = {}
+    for fraction, data in ((1.0, batch), (0.0, by_hand), (0.0, batch)):
+        config = DpcTrainingConfig(mirror_fraction=fraction, compile=False)
+        with torch.no_grad():
+            loss[fraction, id(data)] = float(
+                dpc_objective(config, RolloutPlant(config))(policy, data)
+            )
+    mirrored = loss[1.0, id(batch)]
+    np.testing.assert_allclose(mirrored, loss[0.0, id(by_hand)], rtol=1e-5)
+    assert abs(mirrored - loss[0.0, id(batch)]) > 1e-3 * abs(mirrored)

@@ -1009,12 +1009,13 @@ def _next_damping(damping: float, accepted_full_step: bool, shed: float) -> tupl
     """(mu for the next iteration, the last non-zero mu) after an iteration with `damping`;
     `shed`: the last non-zero mu before it (0.0: none yet).
 
-    An undamped step that overshoots soon after the damping was dropped restarts it from
-    DAMPING_GROWTH times the last mu in use, not from DAMPING_START: that mu had just been
-    enough. At the worst steps the damping otherwise cycled (restart at 1e-2, five accepted
-    steps that gained twice their promise while it shrank, an overshoot once dropped): on
-    the 54 slowest converged steps of the seven adversarial references and two development
-    flights, 822 -> 774 Gauss-Newton iterations, the 3 g surge's onset 42 -> 37."""
+    An undamped step that overshoots after the damping was dropped restarts it from
+    DAMPING_GROWTH times the last mu in use (whenever in the solve that was), not from
+    DAMPING_START: that mu had been enough. At the worst steps the damping otherwise cycled
+    (restart at 1e-2, five accepted steps that gained twice their promise while it shrank, an
+    overshoot once dropped): on the 54 slowest converged steps of the seven adversarial
+    references and two development flights, 822 -> 774 Gauss-Newton iterations, the 3 g
+    surge's onset 42 -> 37."""
     if not accepted_full_step:
         if damping == 0.0 and shed > 0.0:
             return DAMPING_GROWTH * shed, shed

@@ -388,16 +388,25 @@ def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcT
     return torch.clamp(x0 + chosen * noise, 0.9 * lower, 0.9 * upper)
 
 
+def mirror_signs(
+    dtype: torch.dtype = torch.float32, device: torch.device | str = "cpu"
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The mirror image's signs of a command u (6), a state x = [q, qd] (12) and an output y
+    (6): `robot.MIRROR_JOINT_SIGNS` on joints, `conventions.MIRROR_CHANNEL_SIGNS` on outputs."""
+    joints = torch.tensor(MIRROR_JOINT_SIGNS, dtype=dtype, device=device)
+    channels = torch.tensor(MIRROR_CHANNEL_SIGNS, dtype=dtype, device=device)
+    return joints, torch.cat((joints, joints)), channels
+
+
 def mirror_some_windows(
     x0: torch.Tensor, y0: torch.Tensor, targets: torch.Tensor, fraction: float
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """(x0 (B, 12), y0 (B, 6), targets (B, T, 6)) with a random `fraction` of the windows
     replaced by their mirror images (torch's global generator; see `mirror_fraction`)."""
     chosen = torch.rand(x0.shape[0], 1, device=x0.device) < fraction
-    joints = torch.tensor(MIRROR_JOINT_SIGNS, dtype=x0.dtype, device=x0.device)
-    channels = torch.tensor(MIRROR_CHANNEL_SIGNS, dtype=y0.dtype, device=y0.device)
-    x_signs = torch.where(chosen, torch.cat((joints, joints)), torch.ones_like(x0[:1]))
-    y_signs = torch.where(chosen, channels, torch.ones_like(y0[:1]))
+    _, state_signs, channel_signs = mirror_signs(x0.dtype, x0.device)
+    x_signs = torch.where(chosen, state_signs, torch.ones_like(state_signs))
+    y_signs = torch.where(chosen, channel_signs, torch.ones_like(channel_signs))
     return x0 * x_signs, y0 * y_signs, targets * y_signs[:, None]
 
 
@@ -408,11 +417,10 @@ def check_mirror_symmetry(plant: RolloutPlant, samples: int = 64) -> None:
     generator = torch.Generator().manual_seed(0)
     x = 0.5 * torch.randn(samples, 2 * NUM_JOINTS, generator=generator)
     u = torch.randn(samples, NUM_JOINTS, generator=generator)
-    joints = torch.tensor(MIRROR_JOINT_SIGNS)
-    x_signs, y_signs = torch.cat((joints, joints)), torch.tensor(MIRROR_CHANNEL_SIGNS)
+    u_signs, x_signs, y_signs = mirror_signs()
     with torch.no_grad():
-        output_error = plant.output(x * x_signs, u * joints) - plant.output(x, u) * y_signs
-        step_error = plant.step(x * x_signs, u * joints) - plant.step(x, u) * x_signs
+        output_error = plant.output(x * x_signs, u * u_signs) - plant.output(x, u) * y_signs
+        step_error = plant.step(x * x_signs, u * u_signs) - plant.step(x, u) * x_signs
     worst = max(float(output_error.abs().max()), float(step_error.abs().max()))
     if not worst <= 1e-4:
         raise ValueError(
