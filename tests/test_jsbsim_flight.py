@@ -20,6 +20,7 @@ from mca_drake.references.jsbsim import (
     JSBSIM_MODELS,
     TRAINING_VEHICLES,
     UNSEEN_VEHICLES,
+    VALIDATION_VEHICLES,
     VEHICLES,
     AltitudeChange,
     BankReversals,
@@ -30,6 +31,7 @@ from mca_drake.references.jsbsim import (
     Stall,
     Takeoff,
     Turn,
+    check_training_vehicle,
     default_config,
     fly,
     fly_with_log,
@@ -301,6 +303,10 @@ def test_every_other_vehicle_trims_level_and_reads_gravity(vehicle):
 
 def test_training_and_unseen_vehicles_are_apart():
     assert not set(TRAINING_VEHICLES) & set(UNSEEN_VEHICLES)
+    assert not set(VALIDATION_VEHICLES) & (set(TRAINING_VEHICLES) | set(UNSEEN_VEHICLES))
+    for vehicle in UNSEEN_VEHICLES + VALIDATION_VEHICLES:
+        with pytest.raises(ValueError, match="kept for"):
+            check_training_vehicle(vehicle)
     assert {"light", "jet"} <= set(TRAINING_VEHICLES)
     assert not {"737", "pa28"} & set(VEHICLES)
 

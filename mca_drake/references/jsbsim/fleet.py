@@ -14,12 +14,19 @@ by its JSBSim model. `VEHICLE_CLASSES` says what each is.
     T38        T38         supersonic jet trainer          airborne
     MD11       MD11        three-engine wide-body          airborne
     B747       B747        four-engine jumbo               airborne
+    A4         A4          attack jet                      airborne
+    F4N        F4N         fighter-bomber                  airborne
 
 "airborne": the pilot's ground constants (taxi, rotation, flare) were flown only for the
 first two; the others' flights start trimmed at the maneuver altitude and fly maneuvers.
 JSBSim's piston twins and singles other than the c172p (c310, c182, p51d) and its turboprop
 transports (L410, C130) do not trim with their engines as `propulsion/set-running` leaves
 them, and the fokker100 reads a FlightGear-only property: they are not in the fleet.
+
+Three groups: TRAINING_VEHICLES (datasets and tuning), UNSEEN_VEHICLES (evaluation case C)
+and VALIDATION_VEHICLES, flown to choose between training recipes on aircraft that training
+never saw without choosing on case C's (so they are not unseen for evaluation either).
+JSBSim's OV10 and Concorde crashed in their first flights with these constants.
 
 JSBSim's `737` and `pa28` are reserved for unseen-vehicle checks: they are not vehicles here,
 and `check_vehicle` refuses them by name.
@@ -45,6 +52,8 @@ VEHICLE_CLASSES = {
     "T38": "supersonic jet trainer",
     "MD11": "three-engine wide-body",
     "B747": "four-engine jumbo",
+    "A4": "attack jet",
+    "F4N": "fighter-bomber",
 }
 VEHICLES = tuple(VEHICLE_CLASSES)
 # The shipped policy's training flights fly these (the shipped MCA weights were tuned on
@@ -52,6 +61,9 @@ VEHICLES = tuple(VEHICLE_CLASSES)
 # may fly: an aerobatic turboprop trainer, a supersonic jet trainer, a trijet and a jumbo.
 TRAINING_VEHICLES = ("light", "jet", "f16", "DHC6", "A320", "787-8")
 UNSEEN_VEHICLES = ("t6texan2", "T38", "MD11", "B747")
+# Flown to compare DPC training recipes (development flights of aircraft no training saw);
+# neither training nor tuning nor the evaluation suite flies them.
+VALIDATION_VEHICLES = ("A4", "F4N")
 
 
 def _airborne(
@@ -317,6 +329,38 @@ AIRFRAMES = {
         climb_rate=10.0,
         max_load_factor=3.8,
     ),
+    "A4": _airborne(
+        "A4",
+        1,
+        stall_kt=120,
+        never_exceed_kt=580,
+        climb_rate=20.0,
+        pitch_deg=(30, -20),
+        heading_bank_deg=30,
+        stall_alpha=0.3,
+        qbar_ref_psf=300.0,
+        gains=(0.8, 1.2, 2.0),
+        rates_deg=(40, 80, 12),
+        max_load_factor=7.0,
+        retractable_gear=True,
+        agile=True,
+    ),
+    "F4N": _airborne(
+        "F4N",
+        2,
+        stall_kt=140,
+        never_exceed_kt=700,
+        climb_rate=20.0,
+        pitch_deg=(30, -20),
+        heading_bank_deg=30,
+        stall_alpha=0.3,
+        qbar_ref_psf=340.0,
+        gains=(0.8, 1.2, 2.0),
+        rates_deg=(40, 80, 12),
+        max_load_factor=7.0,
+        retractable_gear=True,
+        agile=True,
+    ),
 }
 
 
@@ -351,6 +395,8 @@ VEHICLE_DEFAULTS = {
     "T38": _defaults(55, (2000.0, 1500.0, 4000.0), 350),
     "MD11": _TRANSPORT,
     "B747": _TRANSPORT,
+    "A4": _defaults(60, (2000.0, 1500.0, 4000.0), 300),
+    "F4N": _defaults(60, (2000.0, 1500.0, 4000.0), 350),
 }
 
 JSBSIM_MODELS = {vehicle: air.model for vehicle, air in AIRFRAMES.items()}
@@ -366,6 +412,7 @@ FULL_FLIGHT_MIN_DURATION_S = {
 assert set(AIRFRAMES) == set(VEHICLES) == set(VEHICLE_DEFAULTS)
 assert set(TRAINING_VEHICLES) | set(UNSEEN_VEHICLES) <= set(VEHICLES)
 assert not set(TRAINING_VEHICLES) & set(UNSEEN_VEHICLES)
+assert not set(VALIDATION_VEHICLES) & (set(TRAINING_VEHICLES) | set(UNSEEN_VEHICLES))
 
 
 def check_vehicle(vehicle: str) -> str:
@@ -383,11 +430,14 @@ def check_vehicle(vehicle: str) -> str:
 
 def check_training_vehicle(vehicle: str) -> str:
     """`check_vehicle`, and ValueError for the aircraft kept for evaluation case C
-    (UNSEEN_VEHICLES): tuning and training data never fly them."""
+    (UNSEEN_VEHICLES) or for choosing between recipes (VALIDATION_VEHICLES): tuning and
+    training data never fly them."""
     check_vehicle(vehicle)
-    if vehicle in UNSEEN_VEHICLES:
+    kept_for = {v: "evaluation case C" for v in UNSEEN_VEHICLES}
+    kept_for.update({v: "choosing between training recipes" for v in VALIDATION_VEHICLES})
+    if vehicle in kept_for:
         raise ValueError(
-            f"'{vehicle}' is kept for evaluation case C (aircraft never trained or tuned on); "
-            f"training and tuning fly: {', '.join(TRAINING_VEHICLES)}"
+            f"'{vehicle}' is kept for {kept_for[vehicle]} (aircraft never trained or tuned "
+            f"on); training and tuning fly: {', '.join(TRAINING_VEHICLES)}"
         )
     return vehicle
