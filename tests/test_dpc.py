@@ -211,31 +211,37 @@ def test_dpc_policy_system_matches_torch_and_clamps(tmp_path, robot, rng):
         np.testing.assert_allclose(command, expected, rtol=0, atol=1e-5)
 
 
-def test_dpc_policy_system_feeds_its_last_command_back(tmp_path, robot, rng):
+@pytest.mark.parametrize("update_event", ["unrestricted", "discrete"])
+def test_dpc_policy_system_feeds_its_last_command_back(tmp_path, robot, rng, update_event):
     """A policy of the previous command gets, at each update, the command the system stored
     at the update before (zero at the first), after the clamp: five updates against the torch
-    network and the clamp stepped by hand."""
+    network and the clamp stepped by hand, in either update phase."""
     policy = _random_policy(6, gain=1.0, previous_command=True)
     path = tmp_path / "p.npz"
     save_policy(path, policy, {})
-    system = DpcPolicy(path, robot)
+    system = DpcPolicy(path, robot, update_event=update_event)
     context = system.CreateDefaultContext()
     clamp = ViabilityClamp.for_robot(robot, 0.01)
+    # near joint 2's upper limit, moving up: the clamp brakes some of the commands
     x = np.concatenate([0.3 * rng.uniform(robot.q_min, robot.q_max), np.zeros(6)])
+    x[1], x[7] = robot.q_max[1] - 0.01, 0.5 * robot.qd_max[1]
     y, r = 0.5 * rng.normal(size=6), 0.5 * rng.normal(size=6)
     for port, value in (("state", x), ("inertial_output", y), ("reference", r)):
         system.GetInputPort(port).FixValue(context, value)
     simulator = Simulator(system, context)
-    u_prev, commands = np.zeros(6), []
+    u_prev, commands, hits = np.zeros(6), [], 0
     for k in range(5):
         simulator.AdvanceTo(0.01 * k + 0.005)  # runs the update at t = 0.01 k
         commands.append(system.GetOutputPort("joint_acceleration").Eval(context).copy())
         with torch.no_grad():
             inputs = (torch.tensor(v, dtype=torch.float32)[None] for v in (y, x, r, u_prev))
             u = policy(*inputs)[0][0].double().numpy()
-        u_prev, _ = clamp(x, u)
+        u_prev, hit = clamp(x, u)
         np.testing.assert_allclose(commands[-1], u_prev, rtol=0, atol=1e-4)
+        hits += hit
     assert np.abs(commands[1] - commands[0]).max() > 1e-3  # the feedback is seen
+    # the count goes on from the value the update found (read from `discrete`)
+    assert system.statistics(context)["safety_interventions"] == hits > 0
 
 
 def test_dpc_policy_system_rejects_non_finite_state_and_bridges_a_dropped_imu(tmp_path, robot):

@@ -81,9 +81,11 @@ class DpcPolicy(LeafSystem):
         # Timed from here: evaluating the inputs computes upstream systems (the plant's
         # output), which is simulation, not this MCA's work.
         start = time.perf_counter()
-        # the last command (its discrete state), read only for a policy that takes it
+        # the last command, read only for a policy that takes it; from `discrete`, which
+        # holds the current values on entry (DeclareMcaUpdate) and is read faster than the
+        # context (about 1 us of the 25 us budget)
         u_prev = (
-            context.get_discrete_state(self._command_index).value()
+            discrete.get_value(self._command_index)
             if self._inference.uses_previous_command
             else None
         )
@@ -100,7 +102,7 @@ class DpcPolicy(LeafSystem):
                 u = self._inference.command(np.zeros(6), x, reference, u_prev)
             # else the network overflowed on huge inputs: the clamp brakes on NaN
         command, intervened = self._clamp(x, u)
-        stats = context.get_discrete_state(self._statistics_index).value()
+        stats = discrete.get_value(self._statistics_index)
         discrete.set_value(self._command_index, command)
         # an array, not a list: pybind's conversion of a list costs 1-2 us of the budget
         discrete.set_value(

@@ -1,0 +1,117 @@
+"""DPC policies and MCAs on the validation flights: aircraft no training saw, kept apart from
+evaluation case C so that choosing between training recipes does not choose on it.
+
+    python benchmarks/bench_validation.py --mca v10=mca_drake/data/default_policy.npz \
+        --mca pc=results/policy_pc/policy.npz --mca nmpc-rti --out-dir results/validation
+
+Flies `VALIDATION_VEHICLES` (A4, F4N) over seeds 700 on (below the evaluation seeds, never
+training seeds), 300 s each on the analytical plant, every MCA on every flight. One JSON per
+run under out-dir/runs (atomic; a finished run is not flown again, so a killed study
+resumes). Prints per MCA the median PI per vehicle and over all flights, clamp interventions,
+and for each MCA after the first the paired difference to the first (median, better on how
+many flights, signed-rank p). An MCA is `label=policy.npz` (DPC) or an MCA name.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from mca_drake.atomic_io import atomic_write_json
+from mca_drake.cueing.dpc import DpcConfig
+from mca_drake.metrics import wilcoxon_signed_rank
+from mca_drake.references.flights import FlightSpec, flight_reference
+from mca_drake.references.jsbsim import VALIDATION_VEHICLES
+from mca_drake.simulation.closed_loop import run_closed_loop
+
+FIRST_VALIDATION_SEED = 700
+
+
+def parse_mca(text: str) -> tuple[str, DpcConfig | str]:
+    """("label", config) of `label=policy.npz` or an MCA name (its own label)."""
+    if "=" in text:
+        label, policy = text.split("=", 1)
+        if not Path(policy).is_file():
+            raise SystemExit(f"--mca {text}: policy file {policy!r} not found")
+        return label, DpcConfig(policy=policy)
+    return text, text
+
+
+def run_flights(mcas, flights, out_dir: Path, duration_s: float, cache_dir: Path) -> dict:
+    """{label: {(vehicle, seed): summary}}, flying what is not in out_dir/runs yet."""
+    results: dict[str, dict] = {label: {} for label, _ in mcas}
+    for vehicle, seed in flights:
+        reference = None
+        for label, config in mcas:
+            path = out_dir / "runs" / f"{label}_{vehicle}_{seed}.json"
+            if not path.is_file():
+                if reference is None:
+                    spec = FlightSpec(vehicle=vehicle, seed=seed)
+                    reference = flight_reference(spec, duration_s, cache_dir=cache_dir)
+                result = run_closed_loop(mca=config, reference=reference, progress=False)
+                keep = ("pi", "rmse", "cc", "safety_interventions", "violations", "step_time_s")
+                atomic_write_json(path, {k: result.summary[k] for k in keep})
+                print(f"{label} {vehicle} {seed}: PI {result.summary['pi']:.3f}", flush=True)
+            results[label][vehicle, seed] = json.loads(path.read_text())
+    return results
+
+
+def report(results: dict, flights) -> dict:
+    """Prints and returns the medians and the paired differences to the first MCA."""
+    labels = list(results)
+    figures = {}
+    for label in labels:
+        pis = {key: results[label][key]["pi"] for key in flights}
+        row = {
+            vehicle: float(np.median([pi for (v, _), pi in pis.items() if v == vehicle]))
+            for vehicle in dict.fromkeys(v for v, _ in flights)
+        }
+        row["all"] = float(np.median(list(pis.values())))
+        row["interventions"] = int(
+            sum(results[label][key]["safety_interventions"] for key in flights)
+        )
+        figures[label] = row
+        print(label.ljust(12), "  ".join(f"{k} {v:.3f}" for k, v in row.items()))
+    first = labels[0]
+    for label in labels[1:]:
+        a = np.array([results[label][key]["pi"] for key in flights])
+        b = np.array([results[first][key]["pi"] for key in flights])
+        test = wilcoxon_signed_rank(a, b)
+        figures[label]["paired_vs_" + first] = {
+            "median_difference": float(test.median_difference),
+            "better_on": int(test.a_better),
+            "flights": int(test.n),
+            "signed_rank_p": float(test.p),
+        }
+        print(
+            f"{label} - {first}: median {test.median_difference:+.3f}, better on "
+            f"{test.a_better} of {test.n}, signed-rank p {test.p:.3f}"
+        )
+    return figures
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--mca", action="append", required=True, help="label=policy.npz or name")
+    parser.add_argument("--seeds", type=int, default=4, help="flights per vehicle (default 4)")
+    parser.add_argument("--duration", type=float, default=300.0, help="s per flight")
+    parser.add_argument("--out-dir", default="results/validation")
+    parser.add_argument("--json", help="write the figures here too")
+    args = parser.parse_args()
+    mcas = [parse_mca(text) for text in args.mca]
+    if len({label for label, _ in mcas}) != len(mcas):
+        raise SystemExit("two --mca share a label")
+    out_dir = Path(args.out_dir)
+    seeds = range(FIRST_VALIDATION_SEED, FIRST_VALIDATION_SEED + args.seeds)
+    flights = [(vehicle, seed) for vehicle in VALIDATION_VEHICLES for seed in seeds]
+    results = run_flights(mcas, flights, out_dir, args.duration, out_dir / "flights")
+    figures = report(results, flights)
+    if args.json:
+        atomic_write_json(args.json, figures)
+
+
+if __name__ == "__main__":
+    main()
