@@ -74,7 +74,8 @@ def report(results: dict, flights) -> dict:
             sum(results[label][key]["safety_interventions"] for key in flights)
         )
         figures[label] = row
-        print(label.ljust(12), "  ".join(f"{k} {v:.3f}" for k, v in row.items()))
+        medians = "  ".join(f"{k} {v:.3f}" for k, v in row.items() if k != "interventions")
+        print(f"{label:12s} {medians}  interventions {row['interventions']}")
     first = labels[0]
     for label in labels[1:]:
         a = np.array([results[label][key]["pi"] for key in flights])

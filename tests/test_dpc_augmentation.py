@@ -17,7 +17,6 @@ from mca_drake.learning.dpc import (
     dpc_objective,
     mirror_signs,
     mirror_some_windows,
-    scale_targets,
 )
 from mca_drake.learning.policy import PolicyNetwork
 from mca_drake.robot import MIRROR_JOINT_SIGNS
@@ -101,45 +100,3 @@ def test_the_training_objective_flies_the_mirrored_window():
     mirrored = loss[1.0, id(batch)]
     np.testing.assert_allclose(mirrored, loss[0.0, id(by_hand)], rtol=1e-5)
     assert abs(mirrored - loss[0.0, id(batch)]) > 1e-3 * abs(mirrored)
-
-
-def test_target_gains_are_drawn_per_window_or_channel_within_the_spread():
-    """Each window's targets are scaled by one gain in [e^-s, e^s], constant over the window;
-    with per_channel each channel draws its own; log-gains spread over the whole interval."""
-    torch.manual_seed(0)
-    targets = torch.ones(4000, 5, 6)
-    for per_channel in (False, True):
-        gains = scale_targets(targets, 0.4, per_channel)
-        assert torch.all(gains == gains[:, :1])  # constant in time
-        log_gain = torch.log(gains[:, 0])
-        assert float(log_gain.abs().max()) <= 0.4 + 1e-6
-        assert float(log_gain.min()) < -0.39 and float(log_gain.max()) > 0.39
-        assert abs(float(log_gain.mean())) < 0.02
-        spread_across_channels = float((log_gain.max(1).values - log_gain.min(1).values).max())
-        assert (spread_across_channels > 0.5) == per_channel
-
-
-def test_the_training_objective_scales_only_while_training():
-    """With a gain spread the training loss is the loss of targets scaled by a gain drawn from
-    the same generator, and evaluation (validation) tracks the targets as they are."""
-    torch.manual_seed(3)
-    T = 16
-    batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
-    policy = PolicyNetwork()
-    plain = DpcTrainingConfig(mirror_fraction=0.0, compile=False)
-    scaled = DpcTrainingConfig(mirror_fraction=0.0, target_gain_spread=0.5, compile=False)
-    with torch.no_grad():
-        torch.manual_seed(11)
-        gain = torch.exp((2 * torch.rand(8, 1, 1) - 1) * 0.5)
-        by_hand = dpc_objective(plain, RolloutPlant(plain))(
-            policy.train(), {**batch, "R": batch["R"] * gain}
-        )
-        torch.manual_seed(11)
-        trained = dpc_objective(scaled, RolloutPlant(scaled))(policy.train(), batch)
-        validated = dpc_objective(scaled, RolloutPlant(scaled))(policy.eval(), batch)
-        unscaled = dpc_objective(plain, RolloutPlant(plain))(policy.eval(), batch)
-    np.testing.assert_allclose(float(trained), float(by_hand), rtol=1e-5)
-    np.testing.assert_allclose(float(validated), float(unscaled), rtol=1e-6)
-    assert abs(float(trained) - float(unscaled)) > 1e-3 * abs(float(unscaled))
-    with pytest.raises(ValueError, match="target_gain_spread"):
-        DpcTrainingConfig(target_gain_spread=-0.1).validate()

@@ -459,15 +459,12 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             perturbed_fraction="perturbed_fraction",
             max_start_position="max_start_position_rad",
             mirror_fraction="mirror_fraction",
-            target_gain_spread="target_gain_spread",
             terminal_weight_horizon="terminal_weight_horizon",
             hidden="hidden",
         ),
     )
     if args.no_compile:
         config.compile = False
-    if args.target_gain_per_channel:
-        config.target_gain_per_channel = True
     if args.previous_command:
         config.previous_command = True
     if args.channel_weights is not None:
@@ -847,16 +844,6 @@ def build_parser() -> argparse.ArgumentParser:
         "--previous-command",
         action="store_true",
         help="the policy also takes its previous command u_(t-1) as an input (v11 on)",
-    )
-    policy.add_argument(
-        "--target-gain-spread",
-        type=float,
-        help="training rollouts track their targets times exp(U(-s, s)) (default 0: off)",
-    )
-    policy.add_argument(
-        "--target-gain-per-channel",
-        action="store_true",
-        help="with --target-gain-spread: a gain for each channel, not one per window",
     )
     policy.add_argument(
         "--terminal-weight-horizon",

@@ -141,13 +141,6 @@ class DpcTrainingConfig:
     # are symmetric, so a mirrored window is as real as the one flown; it teaches the policy
     # turns and slips the other way round. 0.5 (v10); 0 before.
     mirror_fraction: float = 0.5
-    # Training rollouts track their window's targets times a random gain exp(U(-s, s)) with
-    # s this spread (0: off, v10 and earlier): the references of other aircraft and other
-    # scale factors (`ReferenceScaling`) are larger or smaller than the training flights'.
-    # With `target_gain_per_channel` each of the six channels draws its own gain, so the
-    # policy also meets combinations of cues (a roll with more yaw) the set never flew.
-    target_gain_spread: float = 0.0
-    target_gain_per_channel: bool = False
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
     # tilted far out (|q| up to 2.6 rad) in states the policy never visits in its own closed
@@ -211,7 +204,6 @@ class DpcTrainingConfig:
                 "max_start_position_rad": math.inf,
                 "terminal_weight_horizon": 0,
                 "mirror_fraction": 0.0,
-                "target_gain_spread": 0.0,
                 **changes,
             },
         )
@@ -241,7 +233,6 @@ class DpcTrainingConfig:
             "terminal_position_weight",
             "terminal_velocity_weight",
             "initial_state_noise",
-            "target_gain_spread",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -429,15 +420,6 @@ def mirror_some_windows(
     return x0 * x_signs, y0 * y_signs, u0 * flip(joint_signs), targets * y_signs[:, None]
 
 
-def scale_targets(targets: torch.Tensor, spread: float, per_channel: bool) -> torch.Tensor:
-    """targets (B, T, 6) of each window times a random gain exp(U(-spread, spread)), one per
-    window or, with `per_channel`, one per window and channel (torch's global generator; see
-    `target_gain_spread`)."""
-    shape = (targets.shape[0], 1, targets.shape[2] if per_channel else 1)
-    log_gain = (2 * torch.rand(shape, device=targets.device, dtype=targets.dtype) - 1) * spread
-    return targets * torch.exp(log_gain)
-
-
 def check_mirror_symmetry(plant: RolloutPlant, samples: int = 64) -> None:
     """Raises ValueError unless the rollout plant is left-right symmetric, as mirrored
     training windows assume: outputs and steps of mirrored random states and commands are the
@@ -502,10 +484,6 @@ def dpc_objective(
         u0 = batch["U"][:, 0] if policy.previous_command else torch.zeros_like(y0)
         if policy.training and config.mirror_fraction > 0:
             x0, y0, u0, targets = mirror_some_windows(x0, y0, u0, targets, config.mirror_fraction)
-        if policy.training and config.target_gain_spread > 0:
-            targets = scale_targets(
-                targets, config.target_gain_spread, config.target_gain_per_channel
-            )
         if policy.training and config.perturbed_fraction > 0:
             x0 = perturb_initial_states(x0, policy, config)
         rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)], u0)
