@@ -459,6 +459,7 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             perturbed_fraction="perturbed_fraction",
             max_start_position="max_start_position_rad",
             mirror_fraction="mirror_fraction",
+            channel_dropout="channel_dropout",
             terminal_weight_horizon="terminal_weight_horizon",
             hidden="hidden",
         ),
@@ -844,6 +845,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--previous-command",
         action="store_true",
         help="the policy also takes its previous command u_(t-1) as an input (v11 on)",
+    )
+    policy.add_argument(
+        "--channel-dropout",
+        type=float,
+        help="probability that a training window's target channel is zeroed (default 0)",
     )
     policy.add_argument(
         "--terminal-weight-horizon",
