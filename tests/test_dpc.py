@@ -29,9 +29,9 @@ from mca_drake.segments import SegmentDataset
 from mca_drake.systems.dpc_policy import DpcPolicy
 
 
-def _random_policy(seed: int, gain: float = 3.0, previous_command=False) -> PolicyNetwork:
+def _random_policy(seed: int, gain: float = 3.0) -> PolicyNetwork:
     torch.manual_seed(seed)
-    policy = PolicyNetwork(previous_command=previous_command)
+    policy = PolicyNetwork()
     with torch.no_grad():
         for p in policy.parameters():
             p.mul_(gain)  # large weights: outputs reach the saturation often
@@ -76,19 +76,16 @@ def test_a_policy_file_keeps_its_own_input_scales(tmp_path, rng):
         DpcTrainingConfig(output_scale=(1.0,) * 5).validate()
 
 
-@pytest.mark.parametrize("previous_command", [False, True])
-def test_numpy_inference_equals_torch(rng, previous_command):
-    policy = _random_policy(1, gain=2.0, previous_command=previous_command).double()
+def test_numpy_inference_equals_torch(rng):
+    policy = _random_policy(1, gain=2.0).double()
     inference = PolicyInference(policy.export())
-    assert inference.uses_previous_command == previous_command
     for _ in range(200):
         y, x, r = rng.normal(size=6) * 3, rng.normal(size=12), rng.normal(size=6) * 3
-        u_prev = rng.normal(size=6) * 5
-        u_t, xh_t = policy(*(torch.tensor(v)[None] for v in (y, x, r, u_prev)))
-        u, xh = inference(y, x, r, u_prev)
+        u_t, xh_t = policy(*(torch.tensor(v)[None] for v in (y, x, r)))
+        u, xh = inference(y, x, r)
         np.testing.assert_allclose(u, u_t[0].detach().numpy(), rtol=0, atol=1e-6)
         np.testing.assert_allclose(xh, xh_t[0].detach().numpy(), rtol=0, atol=1e-6)
-        command = inference.command(y, x, r, u_prev)  # the live loop's u alone, in floats
+        command = inference.command(y, x, r)  # the live loop's u alone, in floats
         assert all(type(v) is float for v in command)
         np.testing.assert_allclose(command, u, rtol=0, atol=1e-12)
 
@@ -125,27 +122,6 @@ def test_policy_file_round_trip_and_bad_files(tmp_path, rng):
         load_policy_arrays(tmp_path / "junk.npz")
     with pytest.raises(FileNotFoundError):
         DpcPolicy(tmp_path / "missing.npz")
-
-
-def test_a_policy_that_takes_its_previous_command_round_trips(tmp_path):
-    """A first layer 30 wide is a policy of the previous command: its file says so by its
-    shape alone, loads back into such a network, and a width of neither kind is refused."""
-    policy = _random_policy(2, previous_command=True)
-    path = tmp_path / "p.npz"
-    save_policy(path, policy, {})
-    arrays, _ = load_policy_arrays(path)
-    assert arrays["W1"].shape == (128, 30) and arrays["input_scale"].shape == (30,)
-    back = load_policy_network(path)
-    assert back.previous_command
-    y, x, r, u = (torch.randn(5, n) for n in (6, 12, 6, 6))
-    torch.testing.assert_close(back(y, x, r, u)[0], policy(y, x, r, u)[0])
-    assert not torch.allclose(policy(y, x, r, u)[0], policy(y, x, r, 0 * u)[0])
-    bad = {**arrays, "W1": arrays["W1"][:, :27], "input_scale": arrays["input_scale"][:27]}
-    np.savez(
-        tmp_path / "bad.npz", metadata_json=np.array('{"format": "mca-drake-policy-1"}'), **bad
-    )
-    with pytest.raises(ValueError, match="W1 has shape"):
-        load_policy_arrays(tmp_path / "bad.npz")
 
 
 def _simulate_with_clamp(robot, x0, commands, h=0.01):
@@ -212,35 +188,31 @@ def test_dpc_policy_system_matches_torch_and_clamps(tmp_path, robot, rng):
 
 
 @pytest.mark.parametrize("update_event", ["unrestricted", "discrete"])
-def test_dpc_policy_system_feeds_its_last_command_back(tmp_path, robot, rng, update_event):
-    """A policy of the previous command gets, at each update, the command the system stored
-    at the update before (zero at the first), after the clamp: five updates against the torch
-    network and the clamp stepped by hand, in either update phase."""
-    policy = _random_policy(6, gain=1.0, previous_command=True)
+def test_dpc_policy_system_counts_the_clamps_interventions(tmp_path, robot, rng, update_event):
+    """The statistics' intervention count goes on from the value each update finds: over
+    five updates near joint 2's upper limit it equals the clamp's hits counted by hand on the
+    torch network's commands, in either update phase."""
+    policy = _random_policy(6, gain=1.0)
     path = tmp_path / "p.npz"
     save_policy(path, policy, {})
     system = DpcPolicy(path, robot, update_event=update_event)
     context = system.CreateDefaultContext()
     clamp = ViabilityClamp.for_robot(robot, 0.01)
-    # near joint 2's upper limit, moving up: the clamp brakes some of the commands
     x = np.concatenate([0.3 * rng.uniform(robot.q_min, robot.q_max), np.zeros(6)])
-    x[1], x[7] = robot.q_max[1] - 0.01, 0.5 * robot.qd_max[1]
-    y, r = 0.5 * rng.normal(size=6), 0.5 * rng.normal(size=6)
-    for port, value in (("state", x), ("inertial_output", y), ("reference", r)):
-        system.GetInputPort(port).FixValue(context, value)
+    x[1], x[7] = robot.q_max[1] - 0.01, 0.5 * robot.qd_max[1]  # moving up to the limit
     simulator = Simulator(system, context)
-    u_prev, commands, hits = np.zeros(6), [], 0
+    hits = 0
     for k in range(5):
+        y, r = 2.0 * rng.normal(size=6), 2.0 * rng.normal(size=6)
+        for port, value in (("state", x), ("inertial_output", y), ("reference", r)):
+            system.GetInputPort(port).FixValue(context, value)
         simulator.AdvanceTo(0.01 * k + 0.005)  # runs the update at t = 0.01 k
-        commands.append(system.GetOutputPort("joint_acceleration").Eval(context).copy())
         with torch.no_grad():
-            inputs = (torch.tensor(v, dtype=torch.float32)[None] for v in (y, x, r, u_prev))
-            u = policy(*inputs)[0][0].double().numpy()
-        u_prev, hit = clamp(x, u)
-        np.testing.assert_allclose(commands[-1], u_prev, rtol=0, atol=1e-4)
+            u = policy(*(torch.tensor(v, dtype=torch.float32)[None] for v in (y, x, r)))[0]
+        expected, hit = clamp(x, u[0].double().numpy())
+        command = system.GetOutputPort("joint_acceleration").Eval(context)
+        np.testing.assert_allclose(command, expected, rtol=0, atol=1e-4)
         hits += hit
-    assert np.abs(commands[1] - commands[0]).max() > 1e-3  # the feedback is seen
-    # the count goes on from the value the update found (read from `discrete`)
     assert system.statistics(context)["safety_interventions"] == hits > 0
 
 
@@ -370,24 +342,6 @@ def test_rollout_on_exact_plant_is_the_plant(robot):
     X, U = roll.X.double().numpy(), roll.U.double().numpy()
     y = plant_output(X[:, :-1, :6], X[:, :-1, 6:], U, robot)
     np.testing.assert_allclose(roll.Y.numpy(), y, rtol=0, atol=2e-4)
-
-
-def test_rollout_feeds_the_previous_command_from_the_given_first_one():
-    """A policy of the previous command gets u0 at the first step and its own last (clamped)
-    command at every step after it."""
-    torch.manual_seed(7)
-    policy = PolicyNetwork(previous_command=True)
-    plant = RolloutPlant(DpcTrainingConfig(compile=False))
-    targets, u0 = torch.randn(3, 6, 6), torch.randn(3, 6)
-    with torch.no_grad():
-        roll = closed_loop_rollout(
-            policy, plant, torch.zeros(3, 12), torch.zeros(3, 6), targets, u0=u0
-        )
-        previous = torch.cat([u0[:, None], roll.U[:, :-1]], dim=1)
-        outputs = torch.cat([torch.zeros(3, 1, 6), roll.Y[:, :-1]], dim=1)
-        for t in range(6):
-            u, _ = policy(outputs[:, t], roll.X[:, t], targets[:, t], previous[:, t])
-            torch.testing.assert_close(roll.U[:, t], plant.clamp(roll.X[:, t], u))
 
 
 def test_export_checkpoint_policy_gives_the_best_weights(trained, tmp_path):

@@ -1,4 +1,4 @@
-"""Mirrored training windows: the KR500's left-right symmetry (checked against Drake's
+"""Augmented training windows (mirror images, dropped channels): the KR500's left-right symmetry (checked against Drake's
 MultibodyPlant), the mirroring of a share of each batch, and the check that refuses a robot
 without the symmetry."""
 
@@ -15,6 +15,7 @@ from mca_drake.learning.dpc import (
     RolloutPlant,
     check_mirror_symmetry,
     dpc_objective,
+    drop_some_channels,
     mirror_signs,
     mirror_some_windows,
 )
@@ -41,16 +42,15 @@ def test_mirrored_joint_motion_is_the_mirrored_cue_in_drake(robot, drake_plant, 
 def test_mirrored_windows_are_a_random_share_flipped_whole():
     torch.manual_seed(0)
     x0, y0 = torch.rand(4000, 12) + 0.5, torch.rand(4000, 6) + 0.5  # all positive
-    u0, targets = torch.rand(4000, 6) + 0.5, torch.rand(4000, 7, 6) + 0.5
-    x, y, u, r = mirror_some_windows(x0, y0, u0, targets, 0.3)
+    targets = torch.rand(4000, 7, 6) + 0.5
+    x, y, r = mirror_some_windows(x0, y0, targets, 0.3)
     flipped = x[:, 0] < 0
     assert 0.27 < flipped.float().mean() < 0.33
     joints, channels = torch.tensor(MIRROR_JOINT_SIGNS), torch.tensor(MIRROR_CHANNEL_SIGNS)
     torch.testing.assert_close(x[flipped], x0[flipped] * torch.cat((joints, joints)))
     torch.testing.assert_close(y[flipped], y0[flipped] * channels)
-    torch.testing.assert_close(u[flipped], u0[flipped] * joints)
     torch.testing.assert_close(r[flipped], targets[flipped] * channels)
-    for new, old in ((x, x0), (y, y0), (u, u0), (r, targets)):
+    for new, old in ((x, x0), (y, y0), (r, targets)):
         torch.testing.assert_close(new[~flipped], old[~flipped])
 
 
@@ -75,21 +75,14 @@ def test_the_symmetry_check_passes_the_kr500_and_refuses_a_lopsided_plant():
 
 def test_the_training_objective_flies_the_mirrored_window():
     """With every window mirrored, the training loss is the loss of the same batch mirrored
-    by hand (x0, y0, u0 and targets alike) and flown without mirroring: the objective mirrors
+    by hand (x0, y0 and targets alike) and flown without mirroring: the objective mirrors
     the whole window, not part of it. The policy is not symmetric, so the two batches differ."""
     torch.manual_seed(3)
     T = 16
-    batch = {
-        "X": 0.3 * torch.randn(8, T, 12),
-        "Y": torch.randn(8, T, 6),
-        "R": torch.randn(8, T, 6),
-        "U": torch.randn(8, T, 6),
-    }
-    u_signs, x_signs, y_signs = mirror_signs()
-    signs = {"X": x_signs, "Y": y_signs, "R": y_signs, "U": u_signs}
-    by_hand = {k: v * signs[k] for k, v in batch.items()}
-    # the previous command's policy reads u0 too: it must be mirrored with the rest
-    policy = PolicyNetwork(previous_command=True).train()
+    batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
+    _, x_signs, y_signs = mirror_signs()
+    by_hand = {"X": batch["X"] * x_signs, "Y": batch["Y"] * y_signs, "R": batch["R"] * y_signs}
+    policy = PolicyNetwork().train()
     loss = {}
     for fraction, data in ((1.0, batch), (0.0, by_hand), (0.0, batch)):
         config = DpcTrainingConfig(mirror_fraction=fraction, compile=False)
@@ -100,3 +93,42 @@ def test_the_training_objective_flies_the_mirrored_window():
     mirrored = loss[1.0, id(batch)]
     np.testing.assert_allclose(mirrored, loss[0.0, id(by_hand)], rtol=1e-5)
     assert abs(mirrored - loss[0.0, id(batch)]) > 1e-3 * abs(mirrored)
+
+
+def test_dropped_channels_are_zero_for_the_whole_window_at_the_given_rate():
+    """Each (window, channel) is zeroed with the given probability, for every step of the
+    window; the kept ones are untouched."""
+    torch.manual_seed(0)
+    targets = torch.rand(4000, 9, 6) + 0.5  # no zeros of their own
+    dropped = drop_some_channels(targets, 0.25)
+    zero = dropped == 0
+    assert torch.all(zero == zero[:, :1])  # whole windows
+    assert 0.23 < zero[:, 0].float().mean() < 0.27
+    assert 0.2 < zero[:, 0].float().mean(0).min() and zero[:, 0].float().mean(0).max() < 0.3
+    torch.testing.assert_close(dropped[~zero], targets[~zero])
+
+
+def test_the_training_objective_drops_channels_only_while_training():
+    """With channel dropout the training loss is the loss of the batch with those channels
+    zeroed by hand (the same generator's draw), and validation tracks every channel."""
+    torch.manual_seed(3)
+    T = 16
+    batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
+    policy = PolicyNetwork()
+    plain = DpcTrainingConfig(mirror_fraction=0.0, compile=False)
+    dropping = DpcTrainingConfig(mirror_fraction=0.0, channel_dropout=0.5, compile=False)
+    with torch.no_grad():
+        torch.manual_seed(11)
+        kept = (torch.rand(8, 1, 6) >= 0.5).float()
+        by_hand = dpc_objective(plain, RolloutPlant(plain))(
+            policy.train(), {**batch, "R": batch["R"] * kept}
+        )
+        torch.manual_seed(11)
+        trained = dpc_objective(dropping, RolloutPlant(dropping))(policy.train(), batch)
+        validated = dpc_objective(dropping, RolloutPlant(dropping))(policy.eval(), batch)
+        unchanged = dpc_objective(plain, RolloutPlant(plain))(policy.eval(), batch)
+    np.testing.assert_allclose(float(trained), float(by_hand), rtol=1e-5)
+    np.testing.assert_allclose(float(validated), float(unchanged), rtol=1e-6)
+    assert abs(float(trained) - float(unchanged)) > 1e-3 * abs(float(unchanged))
+    with pytest.raises(ValueError, match="channel_dropout"):
+        DpcTrainingConfig(channel_dropout=1.5).validate()

@@ -466,8 +466,6 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
     )
     if args.no_compile:
         config.compile = False
-    if args.previous_command:
-        config.previous_command = True
     if args.channel_weights is not None:
         config.tracking_channel_weights = _channel_weights(args.channel_weights)
     train = _given(
@@ -840,11 +838,6 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         help="fraction of training rollouts that fly their window's mirror image (default 0.5; "
         "0: v9)",
-    )
-    policy.add_argument(
-        "--previous-command",
-        action="store_true",
-        help="the policy also takes its previous command u_(t-1) as an input (v11 on)",
     )
     policy.add_argument(
         "--channel-dropout",

@@ -1,12 +1,10 @@
 """DPC inference: the policy-file format, its reader and the numpy policy (no torch).
 
 A policy file (.npz, no pickle) holds the exported weights of
-`mca_drake.learning.policy.PolicyNetwork` and a JSON metadata string: W1 (hidden, 24 or 30),
-W2 (18, hidden), input_scale (24 or 30), lower, upper (18). A first layer 30 wide takes the
-previous command u_(t-1) as six more inputs (`PREVIOUS_COMMAND_INPUT_SIZE`).
-`PolicyInference` evaluates it in numpy, equal to the torch network (tested to 1e-6): the
-same scaled inputs, two bias-free layers with the exact (erf) GELU between, and the
-saturation to the limits.
+`mca_drake.learning.policy.PolicyNetwork` and a JSON metadata string: W1 (hidden, 24),
+W2 (18, hidden), input_scale (24), lower, upper (18). `PolicyInference` evaluates it in
+numpy, equal to the torch network (tested to 1e-6): the same scaled inputs, two bias-free
+layers with the exact (erf) GELU between, and the saturation to the limits.
 """
 
 import dataclasses
@@ -26,10 +24,6 @@ POLICY_FORMAT = "mca-drake-policy-1"
 POLICY_ARRAYS = ("W1", "W2", "input_scale", "lower", "upper")
 # Inputs [y (6), x = [q, qd] (12), target (6)] and outputs [u (6), x_hat (12)] of the policy.
 INPUT_SIZE = 6 + 2 * NUM_JOINTS + 6
-# ... and [y, x, target, u_(t-1)] of a policy that also sees its previous command: the
-# measured output y_t holds that command's direct effect on the specific forces, which the
-# policy cannot take apart from y_t without it.
-PREVIOUS_COMMAND_INPUT_SIZE = INPUT_SIZE + NUM_JOINTS
 OUTPUT_SIZE = NUM_JOINTS + 2 * NUM_JOINTS
 
 
@@ -95,13 +89,11 @@ def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
     arrays = {k: v.astype(float) for k, v in raw.items()}
     if metadata.get("format") != POLICY_FORMAT:
         raise ValueError(f"{path}: unknown policy format {metadata.get('format')!r}")
-    hidden, inputs = arrays["W1"].shape if arrays["W1"].ndim == 2 else (0, 0)
-    if inputs not in (INPUT_SIZE, PREVIOUS_COMMAND_INPUT_SIZE):
-        inputs = INPUT_SIZE  # reported below as the shape it should have
+    hidden = arrays["W1"].shape[0]
     expected = {
-        "W1": (hidden, inputs),
+        "W1": (hidden, INPUT_SIZE),
         "W2": (OUTPUT_SIZE, hidden),
-        "input_scale": (inputs,),
+        "input_scale": (INPUT_SIZE,),
         "lower": (OUTPUT_SIZE,),
         "upper": (OUTPUT_SIZE,),
     }
@@ -116,12 +108,11 @@ def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
 
 
 class PolicyInference:
-    """u, x_hat = policy(y, x, target, u_prev) in numpy from the arrays of a policy file.
+    """u, x_hat = policy(y, x, target) in numpy from the arrays of a policy file.
 
     Args:
-        arrays: W1 (hidden, 24 or 30), W2 (18, hidden), input_scale (24 or 30), lower, upper
-            (18), as written by `mca_drake.learning.policy.save_policy` (see
-            `load_policy_arrays`). With 30 inputs the policy takes its previous command.
+        arrays: W1 (hidden, 24), W2 (18, hidden), input_scale (24), lower, upper (18), as
+            written by `mca_drake.learning.policy.save_policy` (see `load_policy_arrays`).
     """
 
     def __init__(self, arrays: dict[str, np.ndarray]):
@@ -130,8 +121,6 @@ class PolicyInference:
         # W2 gelu(W1 v) = W2 (1/2) sqrt(2) b (1 + erf(b)) = (W2 / sqrt(2)) (b + b erf(b)):
         # two fewer vector operations per step (the DPC's step budget is 25 us).
         self._W1 = np.ascontiguousarray(arrays["W1"] / arrays["input_scale"][None, :] * _SQRT_HALF)
-        # Whether u_(t-1) is an input (a first layer 30 wide).
-        self.uses_previous_command = self._W1.shape[1] == PREVIOUS_COMMAND_INPUT_SIZE
         self._W2 = np.ascontiguousarray(arrays["W2"] * _SQRT_HALF)
         self._lower, self._upper = arrays["lower"].copy(), arrays["upper"].copy()
         # u's rows and bounds alone, for `command`
@@ -140,26 +129,20 @@ class PolicyInference:
             zip(self._lower[:NUM_JOINTS].tolist(), self._upper[:NUM_JOINTS].tolist(), strict=True)
         )
 
-    def _features(self, y, x, target, u_prev) -> np.ndarray:
+    def __call__(self, y, x, target) -> tuple[np.ndarray, np.ndarray]:
+        """(u (6), x_hat (12)) for y (6), x (12), target (6); 1-D numpy arrays."""
         # A new feature vector per call (0.1 us), not a buffer on self: one inference object
         # may serve several contexts at once.
-        if self.uses_previous_command:
-            return np.concatenate((y, x, target, u_prev))
-        return np.concatenate((y, x, target))
-
-    def __call__(self, y, x, target, u_prev=None) -> tuple[np.ndarray, np.ndarray]:
-        """(u (6), x_hat (12)) for y (6), x (12), target (6) and the previous command u_prev
-        (6, rad/s^2; read only by a policy that takes it); 1-D numpy arrays."""
-        b = self._W1 @ self._features(y, x, target, u_prev)
+        b = self._W1 @ np.concatenate((y, x, target))
         z = np.minimum(np.maximum(self._W2 @ (b + b * erf(b)), self._lower), self._upper)
         return z[:NUM_JOINTS], z[NUM_JOINTS:]
 
-    def command(self, y, x, target, u_prev=None) -> list[float]:
+    def command(self, y, x, target) -> list[float]:
         """u alone, as `__call__` computes it, in six Python floats: the live loop's step
         (fewer numpy calls, and none to bound u). NaN in all six where an input is not finite
         (their sum is not: one call instead of a check per input) or the network overflows,
         which the bounds would otherwise hide."""
-        features = self._features(y, x, target, u_prev)
+        features = np.concatenate((y, x, target))
         if not math.isfinite(features.sum()):
             return [math.nan] * NUM_JOINTS
         b = self._W1 @ features

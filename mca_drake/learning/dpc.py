@@ -160,11 +160,6 @@ class DpcTrainingConfig:
     window_segments: int = 4
     # Hidden neurons of the policy (paper: 128).
     hidden: int = 128
-    # The policy also takes its previous command u_(t-1) (six more inputs; rollouts start
-    # from the dataset's command at the window's first state). The measured output holds that
-    # command's direct effect on the specific forces (the NMPC inverts it at every step);
-    # False: the paper's inputs (v10 and earlier).
-    previous_command: bool = False
     # Scales of the measured and target outputs at the network's input (w_x, w_y, w_z in
     # rad/s, f_x, f_y, a_z in m/s^2; `mca_drake.learning.policy.OUTPUT_SCALE`). A policy
     # fine-tuned from `initial_policy` keeps that file's scales.
@@ -329,10 +324,10 @@ class Rollout:
 
 
 def rollout_cell(policy: PolicyNetwork, plant: RolloutPlant):
-    """One closed-loop step (y_t, x_t, Y_t, u_(t-1)) -> (u_t, x_hat, y_(t+1), x_(t+1))."""
+    """One closed-loop step (y_t, x_t, Y_t) -> (u_t, x_hat, y_(t+1), x_(t+1))."""
 
-    def cell(y, x, target, u_prev):
-        u, x_hat = policy(y, x, target, u_prev)
+    def cell(y, x, target):
+        u, x_hat = policy(y, x, target)
         u = plant.clamp(x, u)
         return u, x_hat, plant.output(x, u), plant.step(x, u)
 
@@ -346,19 +341,15 @@ def closed_loop_rollout(
     y0: torch.Tensor,
     targets: torch.Tensor,
     cell=None,
-    u0: torch.Tensor | None = None,
 ) -> Rollout:
-    """Runs policy and plant in a cycle over targets (B, T, 6) from x0 (B, 12), y0 (B, 6)
-    and the command u0 (B, 6) that acted with y0 (zeros if None; read only by a policy that
-    takes its previous command).
+    """Runs policy and plant in a cycle over targets (B, T, 6) from x0 (B, 12), y0 (B, 6).
 
     `cell` may be a compiled `rollout_cell(policy, plant)`."""
     cell = cell or rollout_cell(policy, plant)
     x, y = x0, y0
-    u = torch.zeros_like(y0) if u0 is None else u0
     U, X, X_hat, Y = [], [x0], [], []
     for t in range(targets.shape[1]):
-        u, x_hat, y, x = cell(y, x, targets[:, t], u)
+        u, x_hat, y, x = cell(y, x, targets[:, t])
         U.append(u)
         X_hat.append(x_hat)
         Y.append(y)
@@ -415,16 +406,15 @@ def mirror_signs(
 
 
 def mirror_some_windows(
-    x0: torch.Tensor, y0: torch.Tensor, u0: torch.Tensor, targets: torch.Tensor, fraction: float
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-    """(x0 (B, 12), y0 (B, 6), u0 (B, 6), targets (B, T, 6)) with a random `fraction` of the
-    windows replaced by their mirror images (torch's global generator; see
-    `mirror_fraction`)."""
+    x0: torch.Tensor, y0: torch.Tensor, targets: torch.Tensor, fraction: float
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(x0 (B, 12), y0 (B, 6), targets (B, T, 6)) with a random `fraction` of the windows
+    replaced by their mirror images (torch's global generator; see `mirror_fraction`)."""
     chosen = torch.rand(x0.shape[0], 1, device=x0.device) < fraction
-    joint_signs, state_signs, channel_signs = mirror_signs(x0.dtype, x0.device)
-    flip = lambda signs: torch.where(chosen, signs, torch.ones_like(signs))  # noqa: E731
-    x_signs, y_signs = flip(state_signs), flip(channel_signs)
-    return x0 * x_signs, y0 * y_signs, u0 * flip(joint_signs), targets * y_signs[:, None]
+    _, state_signs, channel_signs = mirror_signs(x0.dtype, x0.device)
+    x_signs = torch.where(chosen, state_signs, torch.ones_like(state_signs))
+    y_signs = torch.where(chosen, channel_signs, torch.ones_like(channel_signs))
+    return x0 * x_signs, y0 * y_signs, targets * y_signs[:, None]
 
 
 def drop_some_channels(targets: torch.Tensor, probability: float) -> torch.Tensor:
@@ -494,15 +484,13 @@ def dpc_objective(
             cell = rollout_cell(policy, plant)
             cells[id(policy)] = torch.compile(cell) if config.compile else cell
         targets, x0, y0 = batch[key], batch["X"][:, 0], batch["Y"][:, 0]
-        # the command that acted with y0; only a policy that takes it needs the array
-        u0 = batch["U"][:, 0] if policy.previous_command else torch.zeros_like(y0)
         if policy.training and config.mirror_fraction > 0:
-            x0, y0, u0, targets = mirror_some_windows(x0, y0, u0, targets, config.mirror_fraction)
+            x0, y0, targets = mirror_some_windows(x0, y0, targets, config.mirror_fraction)
         if policy.training and config.channel_dropout > 0:
             targets = drop_some_channels(targets, config.channel_dropout)
         if policy.training and config.perturbed_fraction > 0:
             x0 = perturb_initial_states(x0, policy, config)
-        rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)], u0)
+        rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)])
         weights_here = None if channel_weights is None else channel_weights.to(targets)
         terms = dpc_loss_terms(rollout, targets, policy, weights_here)
         if config.terminal_weight_horizon > 0:
@@ -562,18 +550,13 @@ def train_policy(
     torch.manual_seed(config.seed)
     if config.initial_policy:
         policy = load_policy_network(config.initial_policy)
-        if (policy.hidden, policy.previous_command) != (config.hidden, config.previous_command):
+        if policy.hidden != config.hidden:
             raise ValueError(
-                f"initial_policy {config.initial_policy} has {policy.hidden} hidden neurons "
-                f"and previous_command {policy.previous_command}; the config "
-                f"{config.hidden} and {config.previous_command}"
+                f"initial_policy {config.initial_policy} has {policy.hidden} hidden neurons, "
+                f"the config {config.hidden}"
             )
     else:
-        policy = PolicyNetwork(
-            hidden=config.hidden,
-            output_scale=config.output_scale,
-            previous_command=config.previous_command,
-        )
+        policy = PolicyNetwork(hidden=config.hidden, output_scale=config.output_scale)
     plant = RolloutPlant(config)
     if config.mirror_fraction > 0:
         check_mirror_symmetry(plant)
@@ -581,7 +564,7 @@ def train_policy(
     channel_weights = tracking_channel_weights(config, train_targets)
     metadata = {
         "model": "dpc-policy",
-        "model_kwargs": {"hidden": config.hidden, "previous_command": config.previous_command},
+        "model_kwargs": {"hidden": config.hidden},
         "dataset": str(dataset),
         "dpc_config": json.loads(json.dumps(dataclasses.asdict(config))),
         "tracking_channel_weights": None if channel_weights is None else channel_weights.tolist(),
@@ -639,10 +622,7 @@ def export_checkpoint_policy(checkpoint: str | Path, out: str | Path) -> Path:
     payload, meta = load_checkpoint(checkpoint)
     if meta.get("model") != "dpc-policy":
         raise ValueError(f"{checkpoint} is not a DPC policy checkpoint (model {meta.get('model')})")
-    kwargs = meta.get("model_kwargs", {})
-    policy = PolicyNetwork(
-        hidden=kwargs.get("hidden", 128), previous_command=kwargs.get("previous_command", False)
-    )
+    policy = PolicyNetwork(hidden=meta.get("model_kwargs", {}).get("hidden", 128))
     if "best_model" not in payload:
         raise CheckpointError(f"{checkpoint} holds no best weights (best_model) to export")
     load_state_into(policy, payload["best_model"], str(checkpoint))

@@ -5,8 +5,6 @@
     y_t       (B, 6)   the measured plant output (rad/s, m/s^2)
     x_t       (B, 12)  the measured state [q, qd] (rad, rad/s)
     Y_t       (B, 6)   the target output
-    u_(t-1)   (B, 6)   the previous command (rad/s^2), an input of policies made with
-                       `previous_command` (v11 on; not the paper's)
     u_t       (B, 6)   joint accelerations (rad/s^2), within +-qdd_max
     x_hat     (B, 12)  the policy's prediction of the next state, within the state limits
 
@@ -31,7 +29,6 @@ from mca_drake.cueing.dpc import (
     INPUT_SIZE,
     OUTPUT_SIZE,
     POLICY_FORMAT,
-    PREVIOUS_COMMAND_INPUT_SIZE,
     load_policy_arrays,
 )
 from mca_drake.learning.blocks import Mlp
@@ -61,8 +58,6 @@ class PolicyNetwork(nn.Module):
         robot: the KR500 description (limits of the saturation, input scales).
         hidden: neurons of the hidden layer (paper: 128).
         output_scale: the scales of y and Y (6; default `OUTPUT_SCALE`).
-        previous_command: take u_(t-1) as six more inputs (scaled by the acceleration
-            limits).
     """
 
     def __init__(
@@ -70,14 +65,11 @@ class PolicyNetwork(nn.Module):
         robot: KR500 | None = None,
         hidden: int = 128,
         output_scale: tuple[float, ...] | np.ndarray = OUTPUT_SCALE,
-        previous_command: bool = False,
     ):
         super().__init__()
         robot = robot if robot is not None else load_kr500()
         self.hidden = int(hidden)
-        self.previous_command = bool(previous_command)
-        inputs = PREVIOUS_COMMAND_INPUT_SIZE if previous_command else INPUT_SIZE
-        self.f_pi = Mlp(inputs, OUTPUT_SIZE, hidden)
+        self.f_pi = Mlp(INPUT_SIZE, OUTPUT_SIZE, hidden)
         lower = np.concatenate([-robot.qdd_max, robot.q_min, -robot.qd_max])
         upper = np.concatenate([robot.qdd_max, robot.q_max, robot.qd_max])
         output_scale = np.asarray(output_scale, float)
@@ -85,7 +77,6 @@ class PolicyNetwork(nn.Module):
             raise ValueError(f"output_scale must be six positive values; got {output_scale}")
         input_scale = np.concatenate(
             [output_scale, np.maximum(-robot.q_min, robot.q_max), robot.qd_max, output_scale]
-            + ([robot.qdd_max] if previous_command else [])
         )
 
         def buffer(name, value):
@@ -96,22 +87,16 @@ class PolicyNetwork(nn.Module):
         buffer("input_scale", input_scale)
 
     def forward(
-        self,
-        y: torch.Tensor,
-        x: torch.Tensor,
-        target: torch.Tensor,
-        u_prev: torch.Tensor | None = None,
+        self, y: torch.Tensor, x: torch.Tensor, target: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """(u (B, 6), x_hat (B, 12)) for y (B, 6), x (B, 12), target (B, 6) and the previous
-        command u_prev (B, 6; read only with `previous_command`)."""
-        inputs = [y, x, target, u_prev] if self.previous_command else [y, x, target]
-        features = torch.cat(inputs, dim=-1) / self.input_scale
+        """(u (B, 6), x_hat (B, 12)) for y (B, 6), x (B, 12), target (B, 6)."""
+        features = torch.cat([y, x, target], dim=-1) / self.input_scale
         out = relu_clamp(self.f_pi(features), self.lower, self.upper)
         return out[..., :NUM_JOINTS], out[..., NUM_JOINTS:]
 
     def export(self) -> dict[str, np.ndarray]:
-        """float64 numpy arrays for inference without torch: W1 (hidden, 24; 30 with the
-        previous command), W2 (18, hidden), input_scale (24 or 30), lower (18), upper (18)."""
+        """float64 numpy arrays for inference without torch: W1 (hidden, 24), W2 (18, hidden),
+        input_scale (24), lower (18), upper (18)."""
         return {
             "W1": self.f_pi.net[0].weight.detach().cpu().double().numpy(),
             "W2": self.f_pi.net[2].weight.detach().cpu().double().numpy(),
@@ -136,10 +121,7 @@ def load_policy_network(path, robot: KR500 | None = None) -> PolicyNetwork:
     not this robot's limits."""
     arrays, _ = load_policy_arrays(path)
     policy = PolicyNetwork(
-        robot,
-        hidden=arrays["W1"].shape[0],
-        output_scale=arrays["input_scale"][:6],
-        previous_command=arrays["W1"].shape[1] == PREVIOUS_COMMAND_INPUT_SIZE,
+        robot, hidden=arrays["W1"].shape[0], output_scale=arrays["input_scale"][:6]
     )
     for name in ("lower", "upper", "input_scale"):
         if not np.allclose(arrays[name], getattr(policy, name).double().numpy(), atol=1e-6):

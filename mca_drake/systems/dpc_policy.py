@@ -31,8 +31,7 @@ class DpcPolicy(LeafSystem):
         - statistics
 
     Every `time_step` an unrestricted update reads the reference Y_t (6), the state x_t = [q, qd]
-    (12), the measured output y_t (6) and, for a policy that takes it, its own last command
-    u_(t-1) (6, the state it outputs), evaluates the network in numpy (weights exported
+    (12) and the measured output y_t (6), evaluates the network in numpy (weights exported
     from torch, `mca_drake.cueing.dpc`), clamps u_t into the viability interval of the
     true joint limits (`mca_drake.safety.ViabilityClamp`: the robot can always brake inside
     its limits) and stores it; `joint_acceleration` outputs it, so the command computed from
@@ -81,15 +80,7 @@ class DpcPolicy(LeafSystem):
         # Timed from here: evaluating the inputs computes upstream systems (the plant's
         # output), which is simulation, not this MCA's work.
         start = time.perf_counter()
-        # the last command, read only for a policy that takes it; from `discrete`, which
-        # holds the current values on entry (DeclareMcaUpdate) and is read faster than the
-        # context (about 1 us of the 25 us budget)
-        u_prev = (
-            discrete.get_value(self._command_index)
-            if self._inference.uses_previous_command
-            else None
-        )
-        u = self._inference.command(y, x, reference, u_prev)
+        u = self._inference.command(y, x, reference)
         # NaN from the network says an input is not finite (or it overflowed): only then are
         # the inputs checked one by one
         if not math.isfinite(u[0]):
@@ -99,9 +90,11 @@ class DpcPolicy(LeafSystem):
                 )
             if not np.all(np.isfinite(y)):
                 # a dropped IMU sample: the policy still sees state and target
-                u = self._inference.command(np.zeros(6), x, reference, u_prev)
+                u = self._inference.command(np.zeros(6), x, reference)
             # else the network overflowed on huge inputs: the clamp brakes on NaN
         command, intervened = self._clamp(x, u)
+        # from `discrete`, which holds the current values on entry (DeclareMcaUpdate) and is
+        # read faster than the context (about 1 us of the 25 us budget)
         stats = discrete.get_value(self._statistics_index)
         discrete.set_value(self._command_index, command)
         # an array, not a list: pybind's conversion of a list costs 1-2 us of the budget
