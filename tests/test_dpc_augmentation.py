@@ -1,6 +1,6 @@
-"""Augmented training windows (mirror images, dropped channels): the KR500's left-right symmetry (checked against Drake's
-MultibodyPlant), the mirroring of a share of each batch, and the check that refuses a robot
-without the symmetry."""
+"""Augmented training windows: the KR500's left-right symmetry (checked against Drake's
+MultibodyPlant), the mirroring of a share of each batch, the check that refuses a robot
+without the symmetry, and target channels dropped from a share of the windows."""
 
 from __future__ import annotations
 
