@@ -1,6 +1,6 @@
-"""Augmented training windows: the KR500's left-right symmetry (checked against Drake's
-MultibodyPlant), the mirroring of a share of each batch, the check that refuses a robot
-without the symmetry, and target channels dropped from a share of the windows."""
+"""Mirrored training windows: the KR500's left-right symmetry (checked against Drake's
+MultibodyPlant), the mirroring of a share of each batch, and the check that refuses a robot
+without the symmetry."""
 
 from __future__ import annotations
 
@@ -15,7 +15,6 @@ from mca_drake.learning.dpc import (
     RolloutPlant,
     check_mirror_symmetry,
     dpc_objective,
-    drop_some_channels,
     mirror_signs,
     mirror_some_windows,
 )
@@ -93,42 +92,3 @@ def test_the_training_objective_flies_the_mirrored_window():
     mirrored = loss[1.0, id(batch)]
     np.testing.assert_allclose(mirrored, loss[0.0, id(by_hand)], rtol=1e-5)
     assert abs(mirrored - loss[0.0, id(batch)]) > 1e-3 * abs(mirrored)
-
-
-def test_dropped_channels_are_zero_for_the_whole_window_at_the_given_rate():
-    """Each (window, channel) is zeroed with the given probability, for every step of the
-    window; the kept ones are untouched."""
-    torch.manual_seed(0)
-    targets = torch.rand(4000, 9, 6) + 0.5  # no zeros of their own
-    dropped = drop_some_channels(targets, 0.25)
-    zero = dropped == 0
-    assert torch.all(zero == zero[:, :1])  # whole windows
-    assert 0.23 < zero[:, 0].float().mean() < 0.27
-    assert 0.2 < zero[:, 0].float().mean(0).min() and zero[:, 0].float().mean(0).max() < 0.3
-    torch.testing.assert_close(dropped[~zero], targets[~zero])
-
-
-def test_the_training_objective_drops_channels_only_while_training():
-    """With channel dropout the training loss is the loss of the batch with those channels
-    zeroed by hand (the same generator's draw), and validation tracks every channel."""
-    torch.manual_seed(3)
-    T = 16
-    batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
-    policy = PolicyNetwork()
-    plain = DpcTrainingConfig(mirror_fraction=0.0, compile=False)
-    dropping = DpcTrainingConfig(mirror_fraction=0.0, channel_dropout=0.5, compile=False)
-    with torch.no_grad():
-        torch.manual_seed(11)
-        kept = (torch.rand(8, 1, 6) >= 0.5).float()
-        by_hand = dpc_objective(plain, RolloutPlant(plain))(
-            policy.train(), {**batch, "R": batch["R"] * kept}
-        )
-        torch.manual_seed(11)
-        trained = dpc_objective(dropping, RolloutPlant(dropping))(policy.train(), batch)
-        validated = dpc_objective(dropping, RolloutPlant(dropping))(policy.eval(), batch)
-        unchanged = dpc_objective(plain, RolloutPlant(plain))(policy.eval(), batch)
-    np.testing.assert_allclose(float(trained), float(by_hand), rtol=1e-5)
-    np.testing.assert_allclose(float(validated), float(unchanged), rtol=1e-6)
-    assert abs(float(trained) - float(unchanged)) > 1e-3 * abs(float(unchanged))
-    with pytest.raises(ValueError, match="channel_dropout"):
-        DpcTrainingConfig(channel_dropout=1.5).validate()

@@ -459,7 +459,6 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             perturbed_fraction="perturbed_fraction",
             max_start_position="max_start_position_rad",
             mirror_fraction="mirror_fraction",
-            channel_dropout="channel_dropout",
             terminal_weight_horizon="terminal_weight_horizon",
             hidden="hidden",
         ),
@@ -838,11 +837,6 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         help="fraction of training rollouts that fly their window's mirror image (default 0.5; "
         "0: v9)",
-    )
-    policy.add_argument(
-        "--channel-dropout",
-        type=float,
-        help="probability that a training window's target channel is zeroed (default 0)",
     )
     policy.add_argument(
         "--terminal-weight-horizon",

@@ -141,12 +141,6 @@ class DpcTrainingConfig:
     # are symmetric, so a mirrored window is as real as the one flown; it teaches the policy
     # turns and slips the other way round. 0.5 (v10); 0 before.
     mirror_fraction: float = 0.5
-    # Each channel of each training window's targets is zeroed with this probability (0: off,
-    # v10 and earlier). The flights' cues come in fixed mixes (a coordinated turn's roll comes
-    # with yaw and no side force), and v10 learnt the mix: asked for a roll alone it also
-    # yaws (rms equal to its roll) and pushes sideways, which costs an aerobatic type its yaw
-    # rate. A window without one of its cues teaches each channel on its own.
-    channel_dropout: float = 0.0
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
     # tilted far out (|q| up to 2.6 rad) in states the policy never visits in its own closed
@@ -205,7 +199,6 @@ class DpcTrainingConfig:
                 "max_start_position_rad": math.inf,
                 "terminal_weight_horizon": 0,
                 "mirror_fraction": 0.0,
-                "channel_dropout": 0.0,
                 **changes,
             },
         )
@@ -251,7 +244,7 @@ class DpcTrainingConfig:
             raise ValueError(
                 f"max_start_position_rad must be > 0; got {self.max_start_position_rad}"
             )
-        for name in ("perturbed_fraction", "mirror_fraction", "channel_dropout"):
+        for name in ("perturbed_fraction", "mirror_fraction"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{name} must be in [0, 1]; got {getattr(self, name)}")
         if self.plant == "learned" and not Path(self.learned_output_weights).is_file():
@@ -417,13 +410,6 @@ def mirror_some_windows(
     return x0 * x_signs, y0 * y_signs, targets * y_signs[:, None]
 
 
-def drop_some_channels(targets: torch.Tensor, probability: float) -> torch.Tensor:
-    """targets (B, T, 6) with each window's channels zeroed, each with `probability`, for the
-    whole window (torch's global generator; see `channel_dropout`)."""
-    kept = torch.rand(targets.shape[0], 1, targets.shape[2], device=targets.device) >= probability
-    return targets * kept.to(targets.dtype)
-
-
 def check_mirror_symmetry(plant: RolloutPlant, samples: int = 64) -> None:
     """Raises ValueError unless the rollout plant is left-right symmetric, as mirrored
     training windows assume: outputs and steps of mirrored random states and commands are the
@@ -486,8 +472,6 @@ def dpc_objective(
         targets, x0, y0 = batch[key], batch["X"][:, 0], batch["Y"][:, 0]
         if policy.training and config.mirror_fraction > 0:
             x0, y0, targets = mirror_some_windows(x0, y0, targets, config.mirror_fraction)
-        if policy.training and config.channel_dropout > 0:
-            targets = drop_some_channels(targets, config.channel_dropout)
         if policy.training and config.perturbed_fraction > 0:
             x0 = perturb_initial_states(x0, policy, config)
         rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)])
