@@ -162,6 +162,30 @@ def _airliner(
     )
 
 
+def _fast_jet(
+    model: str, engines: int, *, stall_kt: float, never_exceed_kt: float, qbar_ref_psf: float
+) -> Airframe:
+    """An airborne-only jet trainer or fighter without fly-by-wire: the T38's pitch limits,
+    bank, gains, rate limits, climb rate and load factor, with the type's speeds and
+    dynamic-pressure reference (`_airborne`)."""
+    return _airborne(
+        model,
+        engines,
+        stall_kt=stall_kt,
+        never_exceed_kt=never_exceed_kt,
+        climb_rate=20.0,
+        pitch_deg=(30, -20),
+        heading_bank_deg=30,
+        stall_alpha=0.3,
+        qbar_ref_psf=qbar_ref_psf,
+        gains=(0.8, 1.2, 2.0),
+        rates_deg=(40, 80, 12),
+        max_load_factor=7.0,
+        retractable_gear=True,
+        agile=True,
+    )
+
+
 AIRFRAMES = {
     "light": Airframe(
         model="c172p",
@@ -301,22 +325,7 @@ AIRFRAMES = {
         retractable_gear=True,
         agile=True,
     ),
-    "T38": _airborne(
-        "T38",
-        2,
-        stall_kt=150,
-        never_exceed_kt=700,
-        climb_rate=20.0,
-        pitch_deg=(30, -20),
-        heading_bank_deg=30,
-        stall_alpha=0.3,
-        qbar_ref_psf=340.0,
-        gains=(0.8, 1.2, 2.0),
-        rates_deg=(40, 80, 12),
-        max_load_factor=7.0,
-        retractable_gear=True,
-        agile=True,
-    ),
+    "T38": _fast_jet("T38", 2, stall_kt=150, never_exceed_kt=700, qbar_ref_psf=340.0),
     "MD11": _airliner(
         "MD11", 3, stall_kt=150, never_exceed_kt=365, rates_deg=(7, 12, 4), max_load_factor=3.8
     ),
@@ -329,38 +338,8 @@ AIRFRAMES = {
         climb_rate=10.0,
         max_load_factor=3.8,
     ),
-    "A4": _airborne(
-        "A4",
-        1,
-        stall_kt=120,
-        never_exceed_kt=580,
-        climb_rate=20.0,
-        pitch_deg=(30, -20),
-        heading_bank_deg=30,
-        stall_alpha=0.3,
-        qbar_ref_psf=300.0,
-        gains=(0.8, 1.2, 2.0),
-        rates_deg=(40, 80, 12),
-        max_load_factor=7.0,
-        retractable_gear=True,
-        agile=True,
-    ),
-    "F4N": _airborne(
-        "F4N",
-        2,
-        stall_kt=140,
-        never_exceed_kt=700,
-        climb_rate=20.0,
-        pitch_deg=(30, -20),
-        heading_bank_deg=30,
-        stall_alpha=0.3,
-        qbar_ref_psf=340.0,
-        gains=(0.8, 1.2, 2.0),
-        rates_deg=(40, 80, 12),
-        max_load_factor=7.0,
-        retractable_gear=True,
-        agile=True,
-    ),
+    "A4": _fast_jet("A4", 1, stall_kt=120, never_exceed_kt=580, qbar_ref_psf=300.0),
+    "F4N": _fast_jet("F4N", 2, stall_kt=140, never_exceed_kt=700, qbar_ref_psf=340.0),
 }
 
 
