@@ -26,7 +26,8 @@ them, and the fokker100 reads a FlightGear-only property: they are not in the fl
 Three groups: TRAINING_VEHICLES (datasets and tuning), UNSEEN_VEHICLES (evaluation case C)
 and VALIDATION_VEHICLES, flown to choose between training recipes on aircraft that training
 never saw without choosing on case C's (so they are not unseen for evaluation either).
-JSBSim's OV10 and Concorde crashed in their first flights with these constants.
+JSBSim's OV10 and Concorde crashed in their first flights with first-guess constants and are
+not in the fleet.
 
 JSBSim's `737` and `pa28` are reserved for unseen-vehicle checks: they are not vehicles here,
 and `check_vehicle` refuses them by name.
