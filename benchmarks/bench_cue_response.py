@@ -16,10 +16,10 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
+from common import parse_mca
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.conventions import CHANNELS
-from mca_drake.cueing.dpc import DpcConfig
 from mca_drake.references.reference import Reference
 from mca_drake.simulation.closed_loop import run_closed_loop
 
@@ -58,8 +58,7 @@ def main() -> None:
     times = " ".join(f"{s:g}" for s in SAMPLE_TIMES_S)
     print(f"share of the step rendered at {times} s into it; cross-talk rms of the others")
     for text in args.mca:
-        label, _, policy = text.partition("=")
-        mca = DpcConfig(policy=policy) if policy else label
+        label, mca = parse_mca(text)
         figures[label] = {}
         for channel, name in enumerate(CHANNELS):
             response = step_response(mca, channel)

@@ -19,25 +19,15 @@ import json
 from pathlib import Path
 
 import numpy as np
+from common import parse_mca
 
 from mca_drake.atomic_io import atomic_write_json
-from mca_drake.cueing.dpc import DpcConfig
 from mca_drake.metrics import wilcoxon_signed_rank
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.references.jsbsim import VALIDATION_VEHICLES
 from mca_drake.simulation.closed_loop import run_closed_loop
 
 FIRST_VALIDATION_SEED = 700
-
-
-def parse_mca(text: str) -> tuple[str, DpcConfig | str]:
-    """("label", config) of `label=policy.npz` or an MCA name (its own label)."""
-    if "=" in text:
-        label, policy = text.split("=", 1)
-        if not Path(policy).is_file():
-            raise SystemExit(f"--mca {text}: policy file {policy!r} not found")
-        return label, DpcConfig(policy=policy)
-    return text, text
 
 
 def run_flights(mcas, flights, out_dir: Path, duration_s: float, cache_dir: Path) -> dict:

@@ -1,4 +1,5 @@
-"""Timing helpers for the benchmark scripts: repeated wall-clock samples, median and spread."""
+"""Helpers for the benchmark scripts: repeated wall-clock samples, median and spread; the
+`--mca` argument of the scripts that compare MCAs."""
 
 from __future__ import annotations
 
@@ -96,3 +97,17 @@ def print_calibration() -> dict[str, float]:
         flush=True,
     )
     return figures
+
+
+def parse_mca(text: str):
+    """(label, MCA) of a `--mca` argument: `label=policy.npz` is a DPC with that policy file
+    (SystemExit if it is missing), anything else an MCA name that labels itself."""
+    # mca_drake's cueing configs: only the scripts that compare MCAs need them
+    from mca_drake.cueing.dpc import DpcConfig
+
+    label, _, policy = text.partition("=")
+    if not policy:
+        return label, label
+    if not Path(policy).is_file():
+        raise SystemExit(f"--mca {text}: policy file {policy!r} not found")
+    return label, DpcConfig(policy=policy)
