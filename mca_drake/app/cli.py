@@ -459,6 +459,7 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             perturbed_fraction="perturbed_fraction",
             max_start_position="max_start_position_rad",
             mirror_fraction="mirror_fraction",
+            hold_fraction="hold_fraction",
             terminal_weight_horizon="terminal_weight_horizon",
             hidden="hidden",
         ),
@@ -467,6 +468,8 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
         config.compile = False
     if args.channel_weights is not None:
         config.tracking_channel_weights = _channel_weights(args.channel_weights)
+    if args.hold_steps is not None:
+        config.hold_steps = tuple(int(v) for v in args.hold_steps.split(","))
     train = _given(
         args,
         device="device",
@@ -837,6 +840,16 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         help="fraction of training rollouts that fly their window's mirror image (default 0.5; "
         "0: v9)",
+    )
+    policy.add_argument(
+        "--hold-fraction",
+        type=float,
+        help="fraction of training rollouts that track their targets sampled and held over "
+        "random intervals (default 0)",
+    )
+    policy.add_argument(
+        "--hold-steps",
+        help="shortest and longest hold, steps: MIN,MAX (default 64,256)",
     )
     policy.add_argument(
         "--terminal-weight-horizon",

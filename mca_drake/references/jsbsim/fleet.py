@@ -16,6 +16,7 @@ by its JSBSim model. `VEHICLE_CLASSES` says what each is.
     B747       B747        four-engine jumbo               airborne
     A4         A4          attack jet                      airborne
     F4N        F4N         fighter-bomber                  airborne
+    T37        T37         subsonic jet trainer            airborne
 
 "airborne": the pilot's ground constants (taxi, rotation, flare) were flown only for the
 first two; the others' flights start trimmed at the maneuver altitude and fly maneuvers.
@@ -26,8 +27,9 @@ them, and the fokker100 reads a FlightGear-only property: they are not in the fl
 Three groups: TRAINING_VEHICLES (datasets and tuning), UNSEEN_VEHICLES (evaluation case C)
 and VALIDATION_VEHICLES, flown to choose between training recipes on aircraft that training
 never saw without choosing on case C's (so they are not unseen for evaluation either).
-JSBSim's OV10 and Concorde crashed in their first flights with first-guess constants and are
-not in the fleet.
+JSBSim's OV10 and Concorde crashed in their first flights with first-guess constants, as did
+the F80C in 2 of 21 flights (a stall and a steep turn); the f104 reads a radar property its
+files do not define and the pc7 does not trim: none of them is in the fleet.
 
 JSBSim's `737` and `pa28` are reserved for unseen-vehicle checks: they are not vehicles here,
 and `check_vehicle` refuses them by name.
@@ -55,6 +57,7 @@ VEHICLE_CLASSES = {
     "B747": "four-engine jumbo",
     "A4": "attack jet",
     "F4N": "fighter-bomber",
+    "T37": "subsonic jet trainer",
 }
 VEHICLES = tuple(VEHICLE_CLASSES)
 # The shipped policy's training flights fly these (the shipped MCA weights were tuned on
@@ -341,6 +344,7 @@ AIRFRAMES = {
     ),
     "A4": _fast_jet("A4", 1, stall_kt=120, never_exceed_kt=580, qbar_ref_psf=300.0),
     "F4N": _fast_jet("F4N", 2, stall_kt=140, never_exceed_kt=700, qbar_ref_psf=340.0),
+    "T37": _fast_jet("T37", 2, stall_kt=85, never_exceed_kt=440, qbar_ref_psf=200.0),
 }
 
 
@@ -377,6 +381,7 @@ VEHICLE_DEFAULTS = {
     "B747": _TRANSPORT,
     "A4": _defaults(60, (2000.0, 1500.0, 4000.0), 300),
     "F4N": _defaults(60, (2000.0, 1500.0, 4000.0), 350),
+    "T37": _defaults(60, (1500.0, 1000.0, 3000.0), 250),
 }
 
 JSBSIM_MODELS = {vehicle: air.model for vehicle, air in AIRFRAMES.items()}
