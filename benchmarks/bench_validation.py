@@ -5,11 +5,13 @@ evaluation case C so that choosing between training recipes does not choose on i
         --mca pc=results/policy_pc/policy.npz --mca nmpc-rti --out-dir results/validation
 
 Flies `VALIDATION_VEHICLES` (A4, F4N) over seeds 700 on (below the evaluation seeds, never
-training seeds), 300 s each on the analytical plant, every MCA on every flight. One JSON per
-run under out-dir/runs (atomic; a finished run is not flown again, so a killed study
-resumes). Prints per MCA the median PI per vehicle and over all flights, clamp interventions,
-and for each MCA after the first the paired difference to the first (median, better on how
-many flights, signed-rank p). An MCA is `label=policy.npz` (DPC) or an MCA name.
+training seeds), 300 s each on the analytical plant, every MCA on every flight. `--vehicles
+light,jet` flies development flights of the training aircraft of cases A and B at the same
+seeds (the evaluation's are 1000 on), so that a recipe's cost there is seen before the
+suite. One JSON per run under out-dir/runs (atomic; a finished run is not flown again, so a
+killed study resumes). Prints per MCA the median PI per vehicle and over all flights, clamp
+interventions, and for each MCA after the first the paired difference to the first (median,
+better on how many flights, signed-rank p). An MCA is `label=policy.npz` (DPC) or an MCA name.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from common import parse_mca
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.metrics import wilcoxon_signed_rank
 from mca_drake.references.flights import FlightSpec, flight_reference
-from mca_drake.references.jsbsim import VALIDATION_VEHICLES
+from mca_drake.references.jsbsim import UNSEEN_VEHICLES, VALIDATION_VEHICLES, check_vehicle
 from mca_drake.simulation.closed_loop import run_closed_loop
 
 FIRST_VALIDATION_SEED = 700
@@ -87,6 +89,13 @@ def report(results: dict, flights) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--mca", action="append", required=True, help="label=policy.npz or name")
+    parser.add_argument(
+        "--vehicles",
+        default=",".join(VALIDATION_VEHICLES),
+        help="comma-separated (default the validation aircraft; training aircraft give "
+        "development flights of their own vehicle, e.g. light,jet for cases A and B; never "
+        "case C's)",
+    )
     parser.add_argument("--seeds", type=int, default=4, help="flights per vehicle (default 4)")
     parser.add_argument("--duration", type=float, default=300.0, help="s per flight")
     parser.add_argument("--out-dir", default="results/validation")
@@ -97,7 +106,10 @@ def main() -> None:
         raise SystemExit("two --mca share a label")
     out_dir = Path(args.out_dir)
     seeds = range(FIRST_VALIDATION_SEED, FIRST_VALIDATION_SEED + args.seeds)
-    flights = [(vehicle, seed) for vehicle in VALIDATION_VEHICLES for seed in seeds]
+    vehicles = [check_vehicle(v) for v in args.vehicles.split(",")]
+    if set(vehicles) & set(UNSEEN_VEHICLES):
+        raise SystemExit(f"{', '.join(UNSEEN_VEHICLES)} are kept for evaluation case C")
+    flights = [(vehicle, seed) for vehicle in vehicles for seed in seeds]
     results = run_flights(mcas, flights, out_dir, args.duration, out_dir / "flights")
     figures = report(results, flights)
     if args.json:

@@ -460,6 +460,7 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             max_start_position="max_start_position_rad",
             mirror_fraction="mirror_fraction",
             hold_fraction="hold_fraction",
+            clamp_weight="clamp_weight",
             terminal_weight_horizon="terminal_weight_horizon",
             hidden="hidden",
         ),
@@ -846,6 +847,11 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         help="fraction of training rollouts that track their targets sampled and held over "
         "random intervals (default 0)",
+    )
+    policy.add_argument(
+        "--clamp-weight",
+        type=float,
+        help="weight of the commands' part beyond the viability clamp's bounds (default 0)",
     )
     policy.add_argument(
         "--hold-steps",

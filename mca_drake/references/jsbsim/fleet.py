@@ -17,6 +17,7 @@ by its JSBSim model. `VEHICLE_CLASSES` says what each is.
     A4         A4          attack jet                      airborne
     F4N        F4N         fighter-bomber                  airborne
     T37        T37         subsonic jet trainer            airborne
+    f15        f15         air-superiority fighter         airborne
 
 "airborne": the pilot's ground constants (taxi, rotation, flare) were flown only for the
 first two; the others' flights start trimmed at the maneuver altitude and fly maneuvers.
@@ -29,7 +30,7 @@ and VALIDATION_VEHICLES, flown to choose between training recipes on aircraft th
 never saw without choosing on case C's (so they are not unseen for evaluation either).
 JSBSim's OV10 and Concorde crashed in their first flights with first-guess constants, as did
 the F80C in 2 of 21 flights (a stall and a steep turn); the f104 reads a radar property its
-files do not define and the pc7 does not trim: none of them is in the fleet.
+files do not define, and the pc7 and f22 do not trim: none of them is in the fleet.
 
 JSBSim's `737` and `pa28` are reserved for unseen-vehicle checks: they are not vehicles here,
 and `check_vehicle` refuses them by name.
@@ -58,6 +59,7 @@ VEHICLE_CLASSES = {
     "A4": "attack jet",
     "F4N": "fighter-bomber",
     "T37": "subsonic jet trainer",
+    "f15": "air-superiority fighter",
 }
 VEHICLES = tuple(VEHICLE_CLASSES)
 # The shipped policy's training flights fly these (the shipped MCA weights were tuned on
@@ -345,6 +347,7 @@ AIRFRAMES = {
     "A4": _fast_jet("A4", 1, stall_kt=120, never_exceed_kt=580, qbar_ref_psf=300.0),
     "F4N": _fast_jet("F4N", 2, stall_kt=140, never_exceed_kt=700, qbar_ref_psf=340.0),
     "T37": _fast_jet("T37", 2, stall_kt=85, never_exceed_kt=440, qbar_ref_psf=200.0),
+    "f15": _fast_jet("f15", 2, stall_kt=130, never_exceed_kt=700, qbar_ref_psf=340.0),
 }
 
 
@@ -382,6 +385,7 @@ VEHICLE_DEFAULTS = {
     "A4": _defaults(60, (2000.0, 1500.0, 4000.0), 300),
     "F4N": _defaults(60, (2000.0, 1500.0, 4000.0), 350),
     "T37": _defaults(60, (1500.0, 1000.0, 3000.0), 250),
+    "f15": _defaults(60, (2000.0, 1500.0, 4000.0), 350),
 }
 
 JSBSIM_MODELS = {vehicle: air.model for vehicle, air in AIRFRAMES.items()}
