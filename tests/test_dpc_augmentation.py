@@ -1,6 +1,6 @@
 """Mirrored training windows: the KR500's left-right symmetry (checked against Drake's
 MultibodyPlant), the mirroring of a share of each batch, and the check that refuses a robot
-without the symmetry; held targets: a share of each batch sampled and held."""
+without the symmetry."""
 
 from __future__ import annotations
 
@@ -15,7 +15,6 @@ from mca_drake.learning.dpc import (
     RolloutPlant,
     check_mirror_symmetry,
     dpc_objective,
-    hold_some_windows,
     mirror_signs,
     mirror_some_windows,
 )
@@ -93,54 +92,3 @@ def test_the_training_objective_flies_the_mirrored_window():
     mirrored = loss[1.0, id(batch)]
     np.testing.assert_allclose(mirrored, loss[0.0, id(by_hand)], rtol=1e-5)
     assert abs(mirrored - loss[0.0, id(batch)]) > 1e-3 * abs(mirrored)
-
-
-def test_held_windows_hold_each_interval_s_first_target():
-    """Targets that carry their own step index (channel 0 = t, others a multiple) show, step by
-    step, which original step each held value came from; walked through by hand here."""
-    torch.manual_seed(0)
-    batch, horizon, steps = 2000, 300, (20, 50)
-    t = torch.arange(horizon, dtype=torch.float32)
-    targets = (t[None, :, None] * torch.arange(1, 7)[None, None, :]).expand(batch, -1, -1)
-    held = hold_some_windows(targets.clone(), 0.4, steps)
-    source = held[..., 0].long()  # the original step each value was held from
-    torch.testing.assert_close(held, source[..., None] * torch.arange(1, 7).float())
-    chosen = (source != t.long()).any(1)
-    assert 0.37 < chosen.float().mean() < 0.43
-    torch.testing.assert_close(held[~chosen], targets[~chosen])
-    for row in source[chosen][:200].tolist():
-        starts = sorted(set(row))
-        assert starts[0] == 0 and row[0] == 0
-        for first, following in zip(starts, [*starts[1:], horizon], strict=True):
-            length = following - first
-            assert row[first:following] == [first] * length  # held from its first step
-            assert length <= steps[1]
-            assert length >= steps[0] or following == horizon  # the last may be cut short
-    np.testing.assert_array_equal(hold_some_windows(targets, 0.0, steps), targets)
-    with pytest.raises(ValueError, match="hold_steps"):
-        DpcTrainingConfig(hold_steps=(50, 20)).validate()
-
-
-def test_the_training_objective_tracks_the_held_targets():
-    """With every window held, the training loss is that of the same batch with its targets
-    held by hand (the same draws) and flown as they are; validation (eval mode) never holds."""
-    torch.manual_seed(4)
-    T, steps = 16, (2, 5)
-    batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
-    policy = PolicyNetwork()
-
-    def loss(data, fraction, training=True):
-        config = DpcTrainingConfig(
-            hold_fraction=fraction, hold_steps=steps, mirror_fraction=0.0, compile=False
-        )
-        policy.train(training)
-        torch.manual_seed(5)
-        with torch.no_grad():
-            return float(dpc_objective(config, RolloutPlant(config))(policy, data))
-
-    torch.manual_seed(5)
-    by_hand = {**batch, "R": hold_some_windows(batch["R"], 1.0, steps)}
-    held = loss(batch, 1.0)
-    np.testing.assert_allclose(held, loss(by_hand, 0.0), rtol=1e-5)
-    assert abs(held - loss(batch, 0.0)) > 1e-3 * abs(held)
-    np.testing.assert_allclose(loss(batch, 1.0, training=False), loss(batch, 0.0), rtol=1e-6)

@@ -459,7 +459,6 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             perturbed_fraction="perturbed_fraction",
             max_start_position="max_start_position_rad",
             mirror_fraction="mirror_fraction",
-            hold_fraction="hold_fraction",
             clamp_weight="clamp_weight",
             terminal_weight_horizon="terminal_weight_horizon",
             hidden="hidden",
@@ -469,8 +468,6 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
         config.compile = False
     if args.channel_weights is not None:
         config.tracking_channel_weights = _channel_weights(args.channel_weights)
-    if args.hold_steps is not None:
-        config.hold_steps = tuple(int(v) for v in args.hold_steps.split(","))
     train = _given(
         args,
         device="device",
@@ -843,19 +840,9 @@ def build_parser() -> argparse.ArgumentParser:
         "0: v9)",
     )
     policy.add_argument(
-        "--hold-fraction",
-        type=float,
-        help="fraction of training rollouts that track their targets sampled and held over "
-        "random intervals (default 0)",
-    )
-    policy.add_argument(
         "--clamp-weight",
         type=float,
         help="weight of the commands' part beyond the viability clamp's bounds (default 0)",
-    )
-    policy.add_argument(
-        "--hold-steps",
-        help="shortest and longest hold, steps: MIN,MAX (default 64,256)",
     )
     policy.add_argument(
         "--terminal-weight-horizon",

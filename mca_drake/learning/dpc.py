@@ -18,8 +18,7 @@ plus, beyond the paper, the NMPC's terminal cost ||q_n||^2 + ||qd_n||^2 on the l
 long flight), its weights scaled by the NMPC's horizon / n_c (`terminal_weight_horizon`),
 and the rollout runs behind the viability clamp the deployed policy runs behind
 (`safety_filter`), so that training and deployment see the same closed loop. Half of each
-training batch flies its window's mirror image (`mirror_fraction`); a share may track its
-targets sampled and held (`hold_fraction`).
+training batch flies its window's mirror image (`mirror_fraction`).
 
 The weights default to the shipped NMPC's (`NmpcConfig`'s tuned defaults, carried over by
 `DpcTrainingConfig.matching`): the policy learns the objective the tuned NMPC minimises,
@@ -142,15 +141,6 @@ class DpcTrainingConfig:
     # are symmetric, so a mirrored window is as real as the one flown; it teaches the policy
     # turns and slips the other way round. 0.5 (v10); 0 before.
     mirror_fraction: float = 0.5
-    # Training rollouts of this fraction of each batch track their window's targets sampled
-    # and held: each window is cut into intervals of random length (uniform over
-    # `hold_steps`, steps) that hold the target of the interval's first step. The NMPC holds
-    # the reference over its horizon, so what it does is the same on every aircraft; a
-    # policy trained on flights alone learns how the training aircraft's references go on
-    # (the f16's among them) and expects that of aircraft that fly otherwise. Held targets
-    # are steps in every channel at once, whose future the window does not tell. 0: v10.
-    hold_fraction: float = 0.0
-    hold_steps: tuple[int, int] = (64, 256)
     # Weight of ||u_policy - clamp(u_policy)||^2, the part of the policy's commands that the
     # viability clamp removes. The clamp's bounds are constants of each step, so a clamped
     # component passes no gradient to the policy: without this term nothing in the loss
@@ -261,9 +251,7 @@ class DpcTrainingConfig:
             raise ValueError(
                 f"max_start_position_rad must be > 0; got {self.max_start_position_rad}"
             )
-        if len(self.hold_steps) != 2 or not 1 <= self.hold_steps[0] <= self.hold_steps[1]:
-            raise ValueError(f"hold_steps must be (min, max), 1 <= min <= max: {self.hold_steps}")
-        for name in ("perturbed_fraction", "mirror_fraction", "hold_fraction"):
+        for name in ("perturbed_fraction", "mirror_fraction"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{name} must be in [0, 1]; got {getattr(self, name)}")
         if self.plant == "learned" and not Path(self.learned_output_weights).is_file():
@@ -435,23 +423,6 @@ def mirror_some_windows(
     return x0 * x_signs, y0 * y_signs, targets * y_signs[:, None]
 
 
-def hold_some_windows(targets: torch.Tensor, fraction: float, steps: tuple[int, int]):
-    """targets (B, T, 6) with a random `fraction` of the windows sampled and held: cut into
-    intervals of uniform random length in steps[0]..steps[1] (steps), each holding the target
-    of its first step (torch's global generator; see `hold_fraction`). The first step of every
-    window is its own, so the window's first state and output still belong to it."""
-    batch, horizon, _ = targets.shape
-    device = targets.device
-    lengths = torch.randint(steps[0], steps[1] + 1, (batch, horizon // steps[0] + 1), device=device)
-    starts = torch.cumsum(lengths, 1) - lengths  # (B, n) first step of each interval
-    time = torch.arange(horizon, device=device).expand(batch, horizon).contiguous()
-    interval = torch.searchsorted(starts, time, right=True) - 1  # (B, T)
-    first = torch.gather(starts, 1, interval)
-    held = torch.gather(targets, 1, first[..., None].expand(-1, -1, targets.shape[2]))
-    chosen = torch.rand(batch, 1, 1, device=device) < fraction
-    return torch.where(chosen, held, targets)
-
-
 def check_mirror_symmetry(plant: RolloutPlant, samples: int = 64) -> None:
     """Raises ValueError unless the rollout plant is left-right symmetric, as mirrored
     training windows assume: outputs and steps of mirrored random states and commands are the
@@ -515,8 +486,6 @@ def dpc_objective(
         targets, x0, y0 = batch[key], batch["X"][:, 0], batch["Y"][:, 0]
         if policy.training and config.mirror_fraction > 0:
             x0, y0, targets = mirror_some_windows(x0, y0, targets, config.mirror_fraction)
-        if policy.training and config.hold_fraction > 0:
-            targets = hold_some_windows(targets, config.hold_fraction, config.hold_steps)
         if policy.training and config.perturbed_fraction > 0:
             x0 = perturb_initial_states(x0, policy, config)
         rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)])
