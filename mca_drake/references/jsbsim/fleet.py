@@ -27,7 +27,8 @@ them, and the fokker100 reads a FlightGear-only property: they are not in the fl
 
 Three groups: TRAINING_VEHICLES (datasets and tuning), UNSEEN_VEHICLES (evaluation case C)
 and VALIDATION_VEHICLES, flown to choose between training recipes on aircraft that training
-never saw without choosing on case C's (so they are not unseen for evaluation either).
+never saw without choosing on case C's (so they are not unseen for evaluation either). The
+T37 and f15 are in none: training datasets may fly them (the shipped policy does not).
 JSBSim's OV10 and Concorde crashed in their first flights with first-guess constants, as did
 the F80C in 2 of 21 flights (a stall and a steep turn); the f104 reads a radar property its
 files do not define, and the pc7 and f22 do not trim: none of them is in the fleet.
