@@ -577,35 +577,3 @@ def test_terminal_weights_are_scaled_to_their_horizon():
     np.testing.assert_allclose([cost[T], cost[2 * T]], [cost[0], 2 * cost[0]], rtol=1e-6)
     with pytest.raises(ValueError, match="terminal_weight_horizon"):
         DpcTrainingConfig(terminal_weight_horizon=-1).validate()
-
-
-def test_the_clamp_term_is_what_the_deployed_clamp_removes(robot):
-    """The rollout's U_excess is the policy's command minus the deployed filter's clamp of it
-    (`mca_drake.safety`, numpy: the oracle), and the loss's clamp term its mean squared norm,
-    which passes a gradient to the policy's command weights."""
-    from mca_drake.learning.dpc import dpc_loss_terms
-    from mca_drake.safety import viable_acceleration_bounds
-
-    torch.manual_seed(6)
-    policy = PolicyNetwork()
-    plant = RolloutPlant(DpcTrainingConfig(compile=False))
-    # moving fast towards the upper limits: the viable interval brakes hard, so the policy's
-    # small commands are clamped (within its own bound +-qdd_max, where gradients pass)
-    limits = [torch.tensor(v, dtype=torch.float32)[None] for v in (robot.q_max, robot.qd_max)]
-    x0 = torch.cat([0.95 * limits[0], 0.8 * limits[1]], 1)
-    targets = torch.randn(1, 5, 6)
-    roll = closed_loop_rollout(policy, plant, x0, torch.zeros(1, 6), targets)
-    X = roll.X.detach().double().numpy()[0]
-    for t in range(5):
-        command = (roll.U + roll.U_excess)[0, t].detach().double().numpy()
-        lo, hi, _ = viable_acceleration_bounds(
-            X[t, :6], X[t, 6:], robot.q_min, robot.q_max, robot.qd_max, robot.qdd_max, 0.01
-        )
-        np.testing.assert_allclose(
-            roll.U[0, t].detach().numpy(), np.clip(command, lo, hi), atol=1e-4
-        )
-    assert float(roll.U_excess.detach().abs().max()) > 0.1  # the test clamps something
-    terms = dpc_loss_terms(roll, targets, policy)
-    torch.testing.assert_close(terms["clamp"], (roll.U_excess**2).sum(-1).mean())
-    (gradient,) = torch.autograd.grad(terms["clamp"], policy.f_pi.net[2].weight)
-    assert float(gradient[:6].abs().max()) > 0

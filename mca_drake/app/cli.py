@@ -459,7 +459,6 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             perturbed_fraction="perturbed_fraction",
             max_start_position="max_start_position_rad",
             mirror_fraction="mirror_fraction",
-            clamp_weight="clamp_weight",
             terminal_weight_horizon="terminal_weight_horizon",
             hidden="hidden",
         ),
@@ -838,11 +837,6 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         help="fraction of training rollouts that fly their window's mirror image (default 0.5; "
         "0: v9)",
-    )
-    policy.add_argument(
-        "--clamp-weight",
-        type=float,
-        help="weight of the commands' part beyond the viability clamp's bounds (default 0)",
     )
     policy.add_argument(
         "--terminal-weight-horizon",

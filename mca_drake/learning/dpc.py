@@ -11,7 +11,7 @@ and the loss per step is, summed over vector components and averaged over steps 
 segments (the NMPC's cost terms, `mca_drake.cueing.nmpc`):
 
     w_y ||y_(t+1) - Y_t||^2 + w_x ||x_hat_(t+1) - x_(t+1)||^2 + 0.1 ||u_t||^2 + ||q_t||^2
-      + w_b ||violation of the state limits by x_(t+1)||^2 (+ w_c ||u_t - clamp(u_t)||^2)
+      + w_b ||violation of the state limits by x_(t+1)||^2
 
 plus, beyond the paper, the NMPC's terminal cost ||q_n||^2 + ||qd_n||^2 on the last state
 (without it a policy trained on 2.56 s rollouts drifts to the limits within seconds of a
@@ -141,12 +141,6 @@ class DpcTrainingConfig:
     # are symmetric, so a mirrored window is as real as the one flown; it teaches the policy
     # turns and slips the other way round. 0.5 (v10); 0 before.
     mirror_fraction: float = 0.5
-    # Weight of ||u_policy - clamp(u_policy)||^2, the part of the policy's commands that the
-    # viability clamp removes. The clamp's bounds are constants of each step, so a clamped
-    # component passes no gradient to the policy: without this term nothing in the loss
-    # tells a policy to keep its commands within the bounds, and the clamp's corrections
-    # (false cues at the limits) are all it learns from. 0: v10.
-    clamp_weight: float = 0.0
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
     # tilted far out (|q| up to 2.6 rad) in states the policy never visits in its own closed
@@ -234,7 +228,6 @@ class DpcTrainingConfig:
             "terminal_position_weight",
             "terminal_velocity_weight",
             "initial_state_noise",
-            "clamp_weight",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -314,25 +307,22 @@ class RolloutPlant(nn.Module):
 
 @dataclasses.dataclass
 class Rollout:
-    """A closed-loop rollout: U (B, T, 6) the commands after the clamp, X (B, T + 1, 12),
-    X_hat (B, T, 12) predicting X[:, 1:], Y (B, T, 6) the outputs while U acts, U_excess
-    (B, T, 6) what the clamp removed from the policy's commands (zero without the clamp)."""
+    """A closed-loop rollout: U (B, T, 6), X (B, T + 1, 12), X_hat (B, T, 12) predicting
+    X[:, 1:], Y (B, T, 6) the outputs while U acts."""
 
     U: torch.Tensor
     X: torch.Tensor
     X_hat: torch.Tensor
     Y: torch.Tensor
-    U_excess: torch.Tensor
 
 
 def rollout_cell(policy: PolicyNetwork, plant: RolloutPlant):
-    """One closed-loop step (y_t, x_t, Y_t) -> (u_t, excess_t, x_hat, y_(t+1), x_(t+1)),
-    u_t the clamped command and excess_t what the clamp removed from the policy's."""
+    """One closed-loop step (y_t, x_t, Y_t) -> (u_t, x_hat, y_(t+1), x_(t+1))."""
 
     def cell(y, x, target):
-        command, x_hat = policy(y, x, target)
-        u = plant.clamp(x, command)
-        return u, command - u, x_hat, plant.output(x, u), plant.step(x, u)
+        u, x_hat = policy(y, x, target)
+        u = plant.clamp(x, u)
+        return u, x_hat, plant.output(x, u), plant.step(x, u)
 
     return cell
 
@@ -350,16 +340,15 @@ def closed_loop_rollout(
     `cell` may be a compiled `rollout_cell(policy, plant)`."""
     cell = cell or rollout_cell(policy, plant)
     x, y = x0, y0
-    U, X, X_hat, Y, excess = [], [x0], [], [], []
+    U, X, X_hat, Y = [], [x0], [], []
     for t in range(targets.shape[1]):
-        u, removed, x_hat, y, x = cell(y, x, targets[:, t])
+        u, x_hat, y, x = cell(y, x, targets[:, t])
         U.append(u)
-        excess.append(removed)
         X_hat.append(x_hat)
         Y.append(y)
         X.append(x)
     stack = lambda seq: torch.stack(seq, dim=1)  # noqa: E731
-    return Rollout(stack(U), stack(X), stack(X_hat), stack(Y), stack(excess))
+    return Rollout(stack(U), stack(X), stack(X_hat), stack(Y))
 
 
 def dpc_loss_terms(
@@ -376,9 +365,7 @@ def dpc_loss_terms(
     squared_error = (rollout.Y - targets) ** 2
     if channel_weights is not None:
         squared_error = squared_error * channel_weights
-    excess = getattr(rollout, "U_excess", None)
     return {
-        "clamp": torch.zeros(()) if excess is None else (excess**2).sum(-1).mean(),
         "tracking": squared_error.sum(-1).mean(),
         "state_estimate": ((rollout.X_hat - X_next) ** 2).sum(-1).mean(),
         "input": (rollout.U**2).sum(-1).mean(),
@@ -467,7 +454,6 @@ def dpc_objective(
     closed-loop rollout from each segment's first state over its targets, with the
     tracking term's channels weighted by `channel_weights` (6; None: uniform)."""
     weights = {
-        "clamp": config.clamp_weight,
         "tracking": config.tracking_weight,
         "state_estimate": config.state_estimate_weight,
         "input": config.input_weight,
