@@ -30,7 +30,7 @@ and VALIDATION_VEHICLES, flown to choose between training recipes on aircraft th
 never saw without choosing on case C's (so they are not unseen for evaluation either). The
 T37 and f15 are in none: training datasets may fly them (the shipped policy does not).
 JSBSim's OV10 and Concorde crashed in their first flights with first-guess constants, as did
-the F80C in 2 of 21 flights (a stall and a steep turn); the f104 reads a radar property its
+the F80C in 2 of 26 flights (a steep turn, a stall); the f104 reads a radar property its
 files do not define, and the pc7 and f22 do not trim: none of them is in the fleet.
 
 JSBSim's `737` and `pa28` are reserved for unseen-vehicle checks: they are not vehicles here,
