@@ -106,7 +106,10 @@ def main() -> None:
         raise SystemExit("two --mca share a label")
     out_dir = Path(args.out_dir)
     seeds = range(FIRST_VALIDATION_SEED, FIRST_VALIDATION_SEED + args.seeds)
-    vehicles = [check_vehicle(v) for v in args.vehicles.split(",")]
+    try:
+        vehicles = [check_vehicle(v) for v in args.vehicles.split(",")]
+    except ValueError as error:  # unknown or reserved: a message, not a traceback
+        raise SystemExit(f"--vehicles: {error}") from None
     if set(vehicles) & set(UNSEEN_VEHICLES):
         raise SystemExit(f"{', '.join(UNSEEN_VEHICLES)} are kept for evaluation case C")
     flights = [(vehicle, seed) for vehicle in vehicles for seed in seeds]
