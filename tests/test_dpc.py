@@ -577,3 +577,49 @@ def test_terminal_weights_are_scaled_to_their_horizon():
     np.testing.assert_allclose([cost[T], cost[2 * T]], [cost[0], 2 * cost[0]], rtol=1e-6)
     with pytest.raises(ValueError, match="terminal_weight_horizon"):
         DpcTrainingConfig(terminal_weight_horizon=-1).validate()
+
+
+def test_the_margin_term_measures_the_stopping_position_against_the_range(robot):
+    """Closed-form cases: a joint at rest at 0.95 of its half-range from the centre exceeds a
+    0.85 margin by 0.1 (term 0.01); one at the centre moving at the speed whose braking
+    distance at qdd_max is 0.9 half-ranges exceeds it by 0.05 (0.0025); inside the margin the
+    term is 0. The objective adds it with its weight and it reaches the policy's weights."""
+    from mca_drake.learning.dpc import dpc_objective, stopping_margin_excess
+
+    plant = RolloutPlant(DpcTrainingConfig(compile=False))
+    q_min, q_max = np.asarray(robot.q_min), np.asarray(robot.q_max)
+    centre, half = (q_max + q_min) / 2, (q_max - q_min) / 2
+    at_rest = np.zeros((3, 12))
+    at_rest[:, :6] = centre
+    at_rest[0, 1] = centre[1] + 0.95 * half[1]
+    at_rest[1, 4] = centre[4] - 0.95 * half[4]  # the lower side alike
+    at_rest[2, 8] = -np.sqrt(2 * robot.qdd_max[2] * 0.9 * half[2])  # braking towards q_min
+    X = torch.tensor(at_rest, dtype=torch.float32)
+    values = [float(stopping_margin_excess(X[i], plant, 0.85)) for i in range(3)]
+    np.testing.assert_allclose(values, [0.01, 0.01, 0.0025], rtol=1e-4)
+    inside = torch.tensor(np.concatenate([centre + 0.8 * half, np.zeros(6)]), dtype=torch.float32)
+    assert float(stopping_margin_excess(inside, plant, 0.85)) == 0.0
+
+    torch.manual_seed(3)
+    T = 8
+    start = torch.tensor(np.concatenate([centre + 0.97 * half, np.zeros(6)]), dtype=torch.float32)
+    batch = {
+        "X": start.expand(2, T, 12).clone(),
+        "Y": torch.zeros(2, T, 6),
+        "R": torch.randn(2, T, 6),
+    }
+    policy = PolicyNetwork().eval()
+    cost = {}
+    for weight in (0.0, 10.0):
+        config = DpcTrainingConfig(margin_weight=weight, compile=False)
+        cost[weight] = dpc_objective(config, RolloutPlant(config))(policy, batch)
+    rollout = closed_loop_rollout(policy, plant, batch["X"][:, 0], batch["Y"][:, 0], batch["R"])
+    margin = stopping_margin_excess(rollout.X[:, 1:], plant, 0.85)
+    assert float(margin.detach()) > 0
+    torch.testing.assert_close(cost[10.0] - cost[0.0], 10.0 * margin, rtol=1e-4, atol=1e-6)
+    (gradient,) = torch.autograd.grad(margin, policy.f_pi.net[2].weight)
+    assert float(gradient.abs().max()) > 0
+    with pytest.raises(ValueError, match="margin_fraction"):
+        DpcTrainingConfig(margin_fraction=0.0).validate()
+    with pytest.raises(ValueError, match="margin_weight"):
+        DpcTrainingConfig(margin_weight=-1.0).validate()
