@@ -457,6 +457,7 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             washout_weight="washout_weight",
             input_weight="input_weight",
             perturbed_fraction="perturbed_fraction",
+            initial_state_noise="initial_state_noise",
             max_start_position="max_start_position_rad",
             mirror_fraction="mirror_fraction",
             terminal_weight_horizon="terminal_weight_horizon",
@@ -833,6 +834,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--perturbed-fraction",
         type=float,
         help="fraction of training rollouts from perturbed initial positions (default 0)",
+    )
+    policy.add_argument(
+        "--initial-state-noise",
+        type=float,
+        help="perturbed starts move each joint by uniform noise up to this share of its "
+        "half-range (default 0.1)",
     )
     policy.add_argument(
         "--mirror-fraction",
