@@ -288,13 +288,14 @@ def test_train_policy_flags_reach_the_training_config(tmp_path, monkeypatch, cap
     assert (config.hidden, config.train.batch_size) == (64, 32)
     assert (config.max_start_position_rad, config.seed) == (1.0, 3)
     more = ["--margin-weight", "50", "--margin-fraction", "0.9", "--initial-state-noise", "0.4"]
-    assert cli.main(args + more) == 0
+    assert cli.main(args + more + ["--yaw-shift-fraction", "0.3"]) == 0
     config = seen[-1]
     assert (config.margin_weight, config.margin_fraction, config.initial_state_noise) == (
         50.0,
         0.9,
         0.4,
     )
+    assert config.yaw_shift_fraction == 0.3
     # untouched options keep the defaults
     assert config.train.horizons == dpc.DpcTrainingConfig().train.horizons
     for flag, name in (

@@ -1,6 +1,6 @@
-"""Mirrored training windows: the KR500's left-right symmetry (checked against Drake's
-MultibodyPlant), the mirroring of a share of each batch, and the check that refuses a robot
-without the symmetry."""
+"""Symmetries of the training windows: the KR500's left-right symmetry and its independence
+of the base joint's angle (each checked against Drake's MultibodyPlant), the mirroring and
+base turning of a share of each batch, and the checks that refuse a plant without them."""
 
 from __future__ import annotations
 
@@ -13,10 +13,12 @@ from mca_drake.conventions import MIRROR_CHANNEL_SIGNS
 from mca_drake.learning.dpc import (
     DpcTrainingConfig,
     RolloutPlant,
+    check_base_yaw_invariance,
     check_mirror_symmetry,
     dpc_objective,
     mirror_signs,
     mirror_some_windows,
+    shift_base_yaw,
 )
 from mca_drake.learning.policy import PolicyNetwork
 from mca_drake.robot import MIRROR_JOINT_SIGNS
@@ -92,3 +94,75 @@ def test_the_training_objective_flies_the_mirrored_window():
     mirrored = loss[1.0, id(batch)]
     np.testing.assert_allclose(mirrored, loss[0.0, id(by_hand)], rtol=1e-5)
     assert abs(mirrored - loss[0.0, id(batch)]) > 1e-3 * abs(mirrored)
+
+
+def test_the_base_joint_angle_changes_no_cue_in_drake(robot, drake_plant, rng):
+    """Drake's MultibodyPlant (the oracle) gives the same head outputs for any angle of joint
+    1 (its axis is vertical, along gravity), so a window started at another base angle is as
+    real as the one flown; the rollout plant passes the check, a plant that sees the angle
+    does not."""
+    context = drake_plant.CreateDefaultContext()
+    for _ in range(30):
+        q = rng.uniform(robot.q_min, robot.q_max) * 0.9
+        qd, qdd = rng.uniform(-1, 1, 6), rng.uniform(-1, 1, 6)
+        y = drake_plant_output(drake_plant, context, q, qd, qdd)
+        q[0] = rng.uniform(robot.q_min[0], robot.q_max[0])
+        np.testing.assert_allclose(
+            drake_plant_output(drake_plant, context, q, qd, qdd), y, atol=1e-9
+        )
+    plant = RolloutPlant(DpcTrainingConfig(compile=False))
+    check_base_yaw_invariance(plant)
+
+    class Tilted(torch.nn.Module):
+        """The KR500 on a base tilted about x: gravity then leaks into f_y with joint 1."""
+
+        def output(self, x, u):
+            return plant.output(x, u) + 0.2 * torch.sin(x[:, :1]) * torch.tensor(
+                [0.0, 0, 0, 0, 1, 0]
+            )
+
+        def step(self, x, u):
+            return plant.step(x, u)
+
+    with pytest.raises(ValueError, match="joint 1"):
+        check_base_yaw_invariance(Tilted())
+    with pytest.raises(ValueError, match="yaw_shift_fraction"):
+        DpcTrainingConfig(yaw_shift_fraction=-0.1).validate()
+
+
+def test_base_turned_windows_are_a_random_share_within_the_range(robot):
+    torch.manual_seed(1)
+    x0 = torch.rand(4000, 12) * 1e-3  # near neutral: a turned row is told by its joint 1
+    q_min, q_max = torch.tensor(robot.q_min), torch.tensor(robot.q_max)
+    x = shift_base_yaw(x0, 0.4, q_min, q_max)
+    turned = (x[:, 0] - x0[:, 0]).abs() > 0
+    assert 0.37 < turned.float().mean() < 0.43
+    torch.testing.assert_close(x[:, 1:], x0[:, 1:])
+    torch.testing.assert_close(x[~turned], x0[~turned])
+    angles = x[turned, 0].double().numpy()
+    bound = 0.9 * robot.q_max[0]  # joint 1's range is symmetric
+    assert angles.min() >= -bound - 1e-6 and angles.max() <= bound + 1e-6
+    # spread over the range, not near neutral: a uniform sample's quartiles
+    np.testing.assert_allclose(
+        np.quantile(angles, [0.25, 0.75]), [-bound / 2, bound / 2], atol=0.15
+    )
+
+
+def test_the_training_objective_flies_the_base_turned_window():
+    """With every window turned, the training loss differs from the unturned batch's (the
+    policy sees the angle, the washout term counts it); in evaluation mode nothing turns."""
+    torch.manual_seed(4)
+    T = 16
+    batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
+    policy = PolicyNetwork()
+    loss = {}
+    for fraction in (0.0, 1.0):
+        config = DpcTrainingConfig(yaw_shift_fraction=fraction, mirror_fraction=0.0, compile=False)
+        objective = dpc_objective(config, RolloutPlant(config))
+        with torch.no_grad():
+            loss[fraction] = float(objective(policy.train(), batch))
+            if fraction:
+                np.testing.assert_allclose(
+                    float(objective(policy.eval(), batch)), loss[0.0], rtol=1e-6
+                )
+    assert abs(loss[1.0] - loss[0.0]) > 1e-3 * abs(loss[0.0])

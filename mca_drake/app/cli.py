@@ -460,6 +460,7 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             initial_state_noise="initial_state_noise",
             max_start_position="max_start_position_rad",
             mirror_fraction="mirror_fraction",
+            yaw_shift_fraction="yaw_shift_fraction",
             terminal_weight_horizon="terminal_weight_horizon",
             margin_weight="margin_weight",
             margin_fraction="margin_fraction",
@@ -846,6 +847,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         help="fraction of training rollouts that fly their window's mirror image (default 0.5; "
         "0: v9)",
+    )
+    policy.add_argument(
+        "--yaw-shift-fraction",
+        type=float,
+        help="fraction of training rollouts that start with joint 1 (vertical axis, which the "
+        "outputs do not depend on) at a random angle within 90%% of its range (default 0)",
     )
     policy.add_argument(
         "--terminal-weight-horizon",

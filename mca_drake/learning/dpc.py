@@ -149,6 +149,13 @@ class DpcTrainingConfig:
     # are symmetric, so a mirrored window is as real as the one flown; it teaches the policy
     # turns and slips the other way round. 0.5 (v10); 0 before.
     mirror_fraction: float = 0.5
+    # Training rollouts of this fraction of each batch start with the base joint (joint 1,
+    # vertical axis) turned to a uniform random angle within 90 % of its range. The plant's
+    # outputs and motion do not depend on that angle (gravity lies along the axis; checked at
+    # the start of training), so the window is as real as the one flown. It shows the policy
+    # the base joint's limits: a long turn walks joint 1 there in 300 s flights, and the
+    # policy then drove its other joints from a base angle no training window had. 0 (v10).
+    yaw_shift_fraction: float = 0.0
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
     # tilted far out (|q| up to 2.6 rad) in states the policy never visits in its own closed
@@ -255,7 +262,7 @@ class DpcTrainingConfig:
             )
         if not 0.0 < self.margin_fraction <= 1.0:
             raise ValueError(f"margin_fraction must be in (0, 1]; got {self.margin_fraction}")
-        for name in ("perturbed_fraction", "mirror_fraction"):
+        for name in ("perturbed_fraction", "mirror_fraction", "yaw_shift_fraction"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{name} must be in [0, 1]; got {getattr(self, name)}")
         if self.plant == "learned" and not Path(self.learned_output_weights).is_file():
@@ -433,23 +440,58 @@ def mirror_some_windows(
     return x0 * x_signs, y0 * y_signs, targets * y_signs[:, None]
 
 
-def check_mirror_symmetry(plant: RolloutPlant, samples: int = 64) -> None:
-    """Raises ValueError unless the rollout plant is left-right symmetric, as mirrored
-    training windows assume: outputs and steps of mirrored random states and commands are the
-    mirrored outputs and steps (a robot description with a lateral offset is not)."""
+def _symmetry_error(plant: RolloutPlant, map_x, map_u, map_y, samples: int = 64) -> float:
+    """Largest error of plant.output / plant.step under the state, command and output maps
+    (x -> map_x(x), u -> map_u(u), y -> map_y(y)) on random states and commands."""
     generator = torch.Generator().manual_seed(0)
     x = 0.5 * torch.randn(samples, 2 * NUM_JOINTS, generator=generator)
     u = torch.randn(samples, NUM_JOINTS, generator=generator)
-    u_signs, x_signs, y_signs = mirror_signs()
     with torch.no_grad():
-        output_error = plant.output(x * x_signs, u * u_signs) - plant.output(x, u) * y_signs
-        step_error = plant.step(x * x_signs, u * u_signs) - plant.step(x, u) * x_signs
-    worst = max(float(output_error.abs().max()), float(step_error.abs().max()))
+        output_error = plant.output(map_x(x), map_u(u)) - map_y(plant.output(x, u))
+        step_error = plant.step(map_x(x), map_u(u)) - map_x(plant.step(x, u))
+    return max(float(output_error.abs().max()), float(step_error.abs().max()))
+
+
+def check_mirror_symmetry(plant: RolloutPlant) -> None:
+    """Raises ValueError unless the rollout plant is left-right symmetric, as mirrored
+    training windows assume: outputs and steps of mirrored random states and commands are the
+    mirrored outputs and steps (a robot description with a lateral offset is not)."""
+    u_signs, x_signs, y_signs = mirror_signs()
+    worst = _symmetry_error(
+        plant, lambda x: x * x_signs, lambda u: u * u_signs, lambda y: y * y_signs
+    )
     if not worst <= 1e-4:
         raise ValueError(
             f"mirror_fraction > 0 needs a left-right symmetric plant; mirrored states are off "
             f"by up to {worst:.3g} (a robot with a lateral offset, or a learned plant): train "
             f"with mirror_fraction 0 (--mirror-fraction 0)"
+        )
+
+
+def shift_base_yaw(
+    x0: torch.Tensor, fraction: float, q_min: torch.Tensor, q_max: torch.Tensor
+) -> torch.Tensor:
+    """x0 (B, 12) with joint 1's angle of a random `fraction` of the rows replaced by a
+    uniform random angle within 90 % of its range [q_min[0], q_max[0]] (rad) about the range's
+    centre (torch's global generator; see `yaw_shift_fraction`)."""
+    chosen = torch.rand(x0.shape[0], device=x0.device) < fraction
+    centre, half_range = (q_max[0] + q_min[0]) / 2, (q_max[0] - q_min[0]) / 2
+    angle = centre + 0.9 * half_range * (2 * torch.rand(x0.shape[0], device=x0.device) - 1)
+    shifted = x0.clone()
+    shifted[:, 0] = torch.where(chosen, angle.to(x0), x0[:, 0])
+    return shifted
+
+
+def check_base_yaw_invariance(plant: RolloutPlant) -> None:
+    """Raises ValueError unless the rollout plant's outputs and motion are independent of
+    joint 1's angle, as base-yaw-shifted training windows assume (a learned plant need not be)."""
+    turn = torch.zeros(2 * NUM_JOINTS)
+    turn[0] = 1.3
+    worst = _symmetry_error(plant, lambda x: x + turn, lambda u: u, lambda y: y)
+    if not worst <= 1e-4:
+        raise ValueError(
+            f"yaw_shift_fraction > 0 needs a plant that does not depend on joint 1's angle; "
+            f"turned states are off by up to {worst:.3g}: train with --yaw-shift-fraction 0"
         )
 
 
@@ -496,6 +538,8 @@ def dpc_objective(
         targets, x0, y0 = batch[key], batch["X"][:, 0], batch["Y"][:, 0]
         if policy.training and config.mirror_fraction > 0:
             x0, y0, targets = mirror_some_windows(x0, y0, targets, config.mirror_fraction)
+        if policy.training and config.yaw_shift_fraction > 0:
+            x0 = shift_base_yaw(x0, config.yaw_shift_fraction, plant.q_min, plant.q_max)
         if policy.training and config.perturbed_fraction > 0:
             x0 = perturb_initial_states(x0, policy, config)
         rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)])
@@ -572,6 +616,8 @@ def train_policy(
     plant = RolloutPlant(config)
     if config.mirror_fraction > 0:
         check_mirror_symmetry(plant)
+    if config.yaw_shift_fraction > 0:
+        check_base_yaw_invariance(plant)
     train_targets = splits["train"].arrays[target_array(config)]
     channel_weights = tracking_channel_weights(config, train_targets)
     metadata = {
