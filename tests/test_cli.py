@@ -287,22 +287,17 @@ def test_train_policy_flags_reach_the_training_config(tmp_path, monkeypatch, cap
     config = seen[-1]
     assert (config.hidden, config.train.batch_size) == (64, 32)
     assert (config.max_start_position_rad, config.seed) == (1.0, 3)
-    more = ["--margin-weight", "50", "--margin-fraction", "0.9", "--initial-state-noise", "0.4"]
-    assert cli.main(args + more + ["--yaw-shift-fraction", "0.3"]) == 0
+    more = ["--initial-state-noise", "0.4", "--yaw-shift-fraction", "0.3"]
+    assert cli.main(args + more) == 0
     config = seen[-1]
-    assert (config.margin_weight, config.margin_fraction, config.initial_state_noise) == (
-        50.0,
-        0.9,
-        0.4,
-    )
-    assert config.yaw_shift_fraction == 0.3
+    assert (config.initial_state_noise, config.yaw_shift_fraction) == (0.4, 0.3)
     # untouched options keep the defaults
     assert config.train.horizons == dpc.DpcTrainingConfig().train.horizons
-    for flag, name in (
-        ("--hidden", "hidden"),
-        ("--batch-size", "batch_size"),
-        ("--margin-fraction", "margin_fraction"),
+    for flag, name, bad in (
+        ("--hidden", "hidden", "0"),
+        ("--batch-size", "batch_size", "0"),
+        ("--yaw-shift-fraction", "yaw_shift_fraction", "1.5"),
     ):
         capsys.readouterr()
-        assert cli.main([*args, flag, "0"]) != 0
+        assert cli.main([*args, flag, bad]) != 0
         assert name in capsys.readouterr().err

@@ -462,8 +462,6 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             mirror_fraction="mirror_fraction",
             yaw_shift_fraction="yaw_shift_fraction",
             terminal_weight_horizon="terminal_weight_horizon",
-            margin_weight="margin_weight",
-            margin_fraction="margin_fraction",
             hidden="hidden",
         ),
     )
@@ -859,15 +857,6 @@ def build_parser() -> argparse.ArgumentParser:
         type=int,
         help="rollouts of n_c steps carry the terminal weights times this / n_c (default the "
         "NMPC's horizon, 256; 0: unscaled, v9)",
-    )
-    policy.add_argument(
-        "--margin-weight",
-        type=float,
-        help="weight of the stopping-margin term: joints' stopping positions beyond "
-        "--margin-fraction of their half-ranges (default 0: off)",
-    )
-    policy.add_argument(
-        "--margin-fraction", type=float, help="where the stopping margin starts (default 0.85)"
     )
     policy.add_argument("--max-epochs", type=int, help="epochs per curriculum step")
     policy.add_argument("--patience", type=int, help="early stopping, epochs")

@@ -104,14 +104,6 @@ class DpcTrainingConfig:
     input_weight: float = _NMPC.input_weight
     washout_weight: float = _NMPC.washout_weight
     limit_weight: float = 100.0
-    # Weight of the stopping-margin term: the squared excess of each joint's stopping position
-    # q + qd |qd| / (2 qdd_max) beyond `margin_fraction` of its half-range from the range's
-    # centre (in half-ranges, summed over joints, averaged over steps). The viability clamp
-    # keeps the state within the limits, so the limits term above never sees a policy that
-    # chases a sustained force into them; pinned there, the cabin gives false cues that the
-    # loss sees only downstream. 0 (v10): off.
-    margin_weight: float = 0.0
-    margin_fraction: float = 0.85
     # Terminal cost on the rollout's last state, as the NMPC's (weights of ||q_N||^2 and
     # ||qd_N||^2): an addition to the paper's loss that teaches washout beyond n_c.
     terminal_position_weight: float = _NMPC.terminal_position_weight
@@ -240,7 +232,6 @@ class DpcTrainingConfig:
             "input_weight",
             "washout_weight",
             "limit_weight",
-            "margin_weight",
             "terminal_position_weight",
             "terminal_velocity_weight",
             "initial_state_noise",
@@ -260,8 +251,6 @@ class DpcTrainingConfig:
             raise ValueError(
                 f"max_start_position_rad must be > 0; got {self.max_start_position_rad}"
             )
-        if not 0.0 < self.margin_fraction <= 1.0:
-            raise ValueError(f"margin_fraction must be in (0, 1]; got {self.margin_fraction}")
         for name in ("perturbed_fraction", "mirror_fraction", "yaw_shift_fraction"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{name} must be in [0, 1]; got {getattr(self, name)}")
@@ -394,18 +383,6 @@ def dpc_loss_terms(
     }
 
 
-def stopping_margin_excess(X: torch.Tensor, plant: RolloutPlant, fraction: float) -> torch.Tensor:
-    """The stopping-margin term for states X (..., 12): the squared excess of each joint's
-    stopping position q + qd |qd| / (2 qdd_max) [rad] beyond `fraction` of its half-range
-    from the range's centre, in half-ranges, summed over joints and averaged over the rest."""
-    q, qd = X[..., :NUM_JOINTS], X[..., NUM_JOINTS:]
-    centre = (plant.q_max + plant.q_min) / 2
-    half_range = (plant.q_max - plant.q_min) / 2
-    stop = q + qd * qd.abs() / (2 * plant.qdd_max)
-    excess = torch.relu((stop - centre).abs() / half_range - fraction)
-    return (excess**2).sum(-1).mean()
-
-
 def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcTrainingConfig):
     """x0 (B, 12) with the positions of a random `perturbed_fraction` of its rows moved by
     uniform noise (see DpcTrainingConfig), clipped to 90 % of the limits (torch's global
@@ -526,7 +503,6 @@ def dpc_objective(
         "limits": config.limit_weight,
         "terminal_position": config.terminal_position_weight,
         "terminal_velocity": config.terminal_velocity_weight,
-        "margin": config.margin_weight,
     }
     key = target_array(config)
     cells = {}
@@ -549,10 +525,6 @@ def dpc_objective(
             scale = config.terminal_weight_horizon / targets.shape[1]
             terms["terminal_position"] = scale * terms["terminal_position"]
             terms["terminal_velocity"] = scale * terms["terminal_velocity"]
-        if config.margin_weight > 0:
-            terms["margin"] = stopping_margin_excess(
-                rollout.X[:, 1:], plant, config.margin_fraction
-            )
         return sum(weights[k] * v for k, v in terms.items())
 
     return objective
