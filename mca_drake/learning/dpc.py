@@ -145,8 +145,10 @@ class DpcTrainingConfig:
     # vertical axis) turned to a uniform random angle within 90 % of its range. The plant's
     # outputs and motion do not depend on that angle (gravity lies along the axis; checked at
     # the start of training), so the window is as real as the one flown. It shows the policy
-    # the base joint's limits: a long turn walks joint 1 there in 300 s flights, and the
-    # policy then drove its other joints from a base angle no training window had. 0 (v10).
+    # the base joint's limits, where a long turn walks joint 1 in 300 s flights. Measured
+    # (session 25, benchmarks/results/dpc_mixed.md): 0.5 on v10's set took light development
+    # flight 702 from +0.24 to -0.10 and left the other 15 development and validation
+    # flights as they were; on the T37 set it did not stop the steep-turn trap. 0 (v10).
     yaw_shift_fraction: float = 0.0
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
