@@ -19,6 +19,7 @@ from mca_drake.learning.dpc import (
     mirror_signs,
     mirror_some_windows,
     shift_base_yaw,
+    stretch_some_targets,
 )
 from mca_drake.learning.policy import PolicyNetwork
 from mca_drake.robot import MIRROR_JOINT_SIGNS
@@ -166,3 +167,32 @@ def test_the_training_objective_flies_the_base_turned_window():
                     float(objective(policy.eval(), batch)), loss[0.0], rtol=1e-6
                 )
     assert abs(loss[1.0] - loss[0.0]) > 1e-3 * abs(loss[0.0])
+
+
+def test_stretched_windows_are_the_window_slowed_down():
+    """Each stretched row is its window at t / k for one k in [1, k_max] (numpy's linear
+    interpolation as the oracle), the others are untouched, and the share is the fraction."""
+    torch.manual_seed(5)
+    B, T = 3000, 50
+    t = np.arange(T)
+    phase = np.random.default_rng(0).uniform(0, 6, (B, 1, 1))
+    targets = torch.as_tensor(np.sin(0.2 * t[None, :, None] + phase) * np.ones((1, 1, 6)))
+    stretched = stretch_some_targets(targets, 0.4, 3.0)
+    changed = (stretched - targets).abs().amax(dim=(1, 2)) > 1e-9
+    assert 0.37 < changed.float().mean() < 0.43
+    torch.testing.assert_close(stretched[~changed], targets[~changed])
+    factors = []
+    for b in np.flatnonzero(changed.numpy())[:40]:
+        row, flown = stretched[b, :, 0].numpy(), targets[b, :, 0].numpy()
+        # the factor from the first step (r(1 / k)), then the whole row against the oracle
+        k = min(
+            np.linspace(1, 3, 20001),
+            key=lambda k: abs(np.interp(1 / k, t, flown) - row[1]),
+        )
+        np.testing.assert_allclose(row, np.interp(t / k, t, flown), atol=2e-3)
+        factors.append(k)
+    assert 1.0 <= min(factors) and max(factors) <= 3.0
+    with pytest.raises(ValueError, match="time_stretch_max"):
+        DpcTrainingConfig(time_stretch_max=0.5).validate()
+    with pytest.raises(ValueError, match="time_stretch_fraction"):
+        DpcTrainingConfig(time_stretch_fraction=2.0).validate()

@@ -463,6 +463,8 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             yaw_shift_fraction="yaw_shift_fraction",
             onpolicy_fraction="onpolicy_fraction",
             onpolicy_refresh_batches="onpolicy_refresh_batches",
+            time_stretch_fraction="time_stretch_fraction",
+            time_stretch_max="time_stretch_max",
             terminal_weight_horizon="terminal_weight_horizon",
             hidden="hidden",
         ),
@@ -864,6 +866,17 @@ def build_parser() -> argparse.ArgumentParser:
         "--onpolicy-refresh-batches",
         type=int,
         help="fly the policy's own flights again after this many training batches (default 40)",
+    )
+    policy.add_argument(
+        "--time-stretch-fraction",
+        type=float,
+        help="fraction of training rollouts that track their window slowed down by a random "
+        "factor in [1, --time-stretch-max] (default 0)",
+    )
+    policy.add_argument(
+        "--time-stretch-max",
+        type=float,
+        help="the largest slow-down factor of stretched windows (default 3)",
     )
     policy.add_argument(
         "--terminal-weight-horizon",

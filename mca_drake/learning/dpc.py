@@ -165,6 +165,15 @@ class DpcTrainingConfig:
     # steps start from the NMPC's states only: an untrained policy's own flights are
     # meaningless. 0 (v10).
     onpolicy_fraction: float = 0.0
+    # Training rollouts of this fraction of each batch track their window's targets slowed
+    # down by a uniform random factor in [1, time_stretch_max] (linear interpolation: the
+    # first 10.24 / k s of the window fill the rollout). A target is any signal the cue
+    # should follow, so a slower manoeuvre is as real as the one flown; it shows the policy
+    # pulls and turns held k times as long as any window holds them, which a 10.24 s
+    # rollout of the flown targets cannot (the T37-trained policies chase a steep turn's
+    # sustained pull into the joint limits). 0 (v10).
+    time_stretch_fraction: float = 0.0
+    time_stretch_max: float = 3.0
     # The policy's own flights are flown again after this many training batches (about 8 s
     # for the 32 flights of v10's set on one core).
     onpolicy_refresh_batches: int = 40
@@ -271,6 +280,8 @@ class DpcTrainingConfig:
             raise ValueError(
                 f"max_start_position_rad must be > 0; got {self.max_start_position_rad}"
             )
+        if not (math.isfinite(self.time_stretch_max) and self.time_stretch_max >= 1.0):
+            raise ValueError(f"time_stretch_max must be >= 1; got {self.time_stretch_max}")
         if self.onpolicy_refresh_batches < 1:
             raise ValueError(
                 f"onpolicy_refresh_batches must be at least 1; got {self.onpolicy_refresh_batches}"
@@ -280,6 +291,7 @@ class DpcTrainingConfig:
             "mirror_fraction",
             "yaw_shift_fraction",
             "onpolicy_fraction",
+            "time_stretch_fraction",
         ):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ValueError(f"{name} must be in [0, 1]; got {getattr(self, name)}")
@@ -488,6 +500,27 @@ def shift_base_yaw(
     return shifted
 
 
+def stretch_some_targets(targets: torch.Tensor, fraction: float, max_factor: float) -> torch.Tensor:
+    """targets (B, T, C) with a random `fraction` of the windows slowed down by a uniform
+    random factor k in [1, max_factor]: row b becomes r_b(t / k), linearly interpolated
+    between the window's samples (torch's global generator; see `time_stretch_fraction`)."""
+    B, T = targets.shape[:2]
+    chosen = torch.rand(B, device=targets.device) < fraction
+    factor = 1 + (max_factor - 1) * torch.rand(B, device=targets.device)
+    factor = torch.where(chosen, factor, torch.ones_like(factor))
+    # fractional sample index of r(t / k) for each row and step
+    position = torch.arange(T, device=targets.device, dtype=targets.dtype) / factor[:, None].to(
+        targets
+    )
+    below = position.floor().long().clamp(max=T - 1)
+    above = (below + 1).clamp(max=T - 1)
+    weight = (position - below.to(targets))[..., None]
+    pick = lambda index: torch.gather(  # noqa: E731
+        targets, 1, index[..., None].expand(-1, -1, targets.shape[2])
+    )
+    return (1 - weight) * pick(below) + weight * pick(above)
+
+
 def check_base_yaw_invariance(plant: RolloutPlant) -> None:
     """Raises ValueError unless the rollout plant's outputs and motion are independent of
     joint 1's angle, as base-yaw-shifted training windows assume (a learned plant need not be)."""
@@ -559,6 +592,10 @@ def dpc_objective(
             x0, y0, targets = mirror_some_windows(x0, y0, targets, config.mirror_fraction)
         if policy.training and config.yaw_shift_fraction > 0:
             x0 = shift_base_yaw(x0, config.yaw_shift_fraction, plant.q_min, plant.q_max)
+        if policy.training and config.time_stretch_fraction > 0:
+            targets = stretch_some_targets(
+                targets, config.time_stretch_fraction, config.time_stretch_max
+            )
         if policy.training and config.perturbed_fraction > 0:
             x0 = perturb_initial_states(x0, policy, config)
         rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)])
