@@ -288,12 +288,10 @@ def test_train_policy_flags_reach_the_training_config(tmp_path, monkeypatch, cap
     assert (config.hidden, config.train.batch_size) == (64, 32)
     assert (config.max_start_position_rad, config.seed) == (1.0, 3)
     more = ["--initial-state-noise", "0.4", "--yaw-shift-fraction", "0.3"]
-    more += ["--onpolicy-fraction", "0.25", "--onpolicy-refresh-batches", "7"]
     more += ["--time-stretch-fraction", "0.2", "--time-stretch-max", "2.5"]
     assert cli.main(args + more) == 0
     config = seen[-1]
     assert (config.initial_state_noise, config.yaw_shift_fraction) == (0.4, 0.3)
-    assert (config.onpolicy_fraction, config.onpolicy_refresh_batches) == (0.25, 7)
     assert (config.time_stretch_fraction, config.time_stretch_max) == (0.2, 2.5)
     # untouched options keep the defaults
     assert config.train.horizons == dpc.DpcTrainingConfig().train.horizons
@@ -301,7 +299,7 @@ def test_train_policy_flags_reach_the_training_config(tmp_path, monkeypatch, cap
         ("--hidden", "hidden", "0"),
         ("--batch-size", "batch_size", "0"),
         ("--yaw-shift-fraction", "yaw_shift_fraction", "1.5"),
-        ("--onpolicy-refresh-batches", "onpolicy_refresh_batches", "0"),
+        ("--time-stretch-max", "time_stretch_max", "0.5"),
     ):
         capsys.readouterr()
         assert cli.main([*args, flag, bad]) != 0

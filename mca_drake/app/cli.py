@@ -461,8 +461,6 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             max_start_position="max_start_position_rad",
             mirror_fraction="mirror_fraction",
             yaw_shift_fraction="yaw_shift_fraction",
-            onpolicy_fraction="onpolicy_fraction",
-            onpolicy_refresh_batches="onpolicy_refresh_batches",
             time_stretch_fraction="time_stretch_fraction",
             time_stretch_max="time_stretch_max",
             terminal_weight_horizon="terminal_weight_horizon",
@@ -855,17 +853,6 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         help="fraction of training rollouts that start with joint 1 (vertical axis, which the "
         "outputs do not depend on) at a random angle within 90%% of its range (default 0)",
-    )
-    policy.add_argument(
-        "--onpolicy-fraction",
-        type=float,
-        help="fraction of the longest step's training rollouts that start from the state the "
-        "policy itself reaches there, flying the window's whole flight (default 0)",
-    )
-    policy.add_argument(
-        "--onpolicy-refresh-batches",
-        type=int,
-        help="fly the policy's own flights again after this many training batches (default 40)",
     )
     policy.add_argument(
         "--time-stretch-fraction",

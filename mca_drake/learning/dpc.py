@@ -44,12 +44,6 @@ from mca_drake.conventions import CONTROL_PERIOD_S, MIRROR_CHANNEL_SIGNS
 from mca_drake.cueing import NmpcConfig
 from mca_drake.cueing.dpc import load_policy_arrays
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
-from mca_drake.learning.onpolicy import (
-    POSITION_ARRAYS,
-    FlightStarts,
-    locate_flight_runs,
-    start_some_on_policy,
-)
 from mca_drake.learning.output_models import MixedAnalyticalOutput
 from mca_drake.learning.policy import (
     OUTPUT_SCALE,
@@ -156,15 +150,6 @@ class DpcTrainingConfig:
     # flight 702 from +0.24 to -0.10 and left the other 15 development and validation
     # flights as they were; on the T37 set it did not stop the steep-turn trap. 0 (v10).
     yaw_shift_fraction: float = 0.0
-    # Training rollouts of this fraction of each batch, at the curriculum's longest n_c,
-    # start from the state the policy itself reaches at the window's time when it flies the
-    # window's whole flight from the flight's first dataset state (`mca_drake.learning.
-    # onpolicy`; DAgger's remedy for distribution shift), instead of the NMPC's state there.
-    # A 300 s flight takes the policy to states no 10.24 s rollout from the NMPC's states
-    # starts from (the T37-trained policies' steep-turn clamp trap). The earlier, shorter
-    # steps start from the NMPC's states only: an untrained policy's own flights are
-    # meaningless. 0 (v10).
-    onpolicy_fraction: float = 0.0
     # Training rollouts of this fraction of each batch track their window's targets slowed
     # down by a uniform random factor in [1, time_stretch_max] (linear interpolation: the
     # first 10.24 / k s of the window fill the rollout). A target is any signal the cue
@@ -174,9 +159,6 @@ class DpcTrainingConfig:
     # sustained pull into the joint limits). 0 (v10).
     time_stretch_fraction: float = 0.0
     time_stretch_max: float = 3.0
-    # The policy's own flights are flown again after this many training batches (about 8 s
-    # for the 32 flights of v10's set on one core).
-    onpolicy_refresh_batches: int = 40
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
     # tilted far out (|q| up to 2.6 rad) in states the policy never visits in its own closed
@@ -282,15 +264,10 @@ class DpcTrainingConfig:
             )
         if not (math.isfinite(self.time_stretch_max) and self.time_stretch_max >= 1.0):
             raise ValueError(f"time_stretch_max must be >= 1; got {self.time_stretch_max}")
-        if self.onpolicy_refresh_batches < 1:
-            raise ValueError(
-                f"onpolicy_refresh_batches must be at least 1; got {self.onpolicy_refresh_batches}"
-            )
         for name in (
             "perturbed_fraction",
             "mirror_fraction",
             "yaw_shift_fraction",
-            "onpolicy_fraction",
             "time_stretch_fraction",
         ):
             if not 0.0 <= getattr(self, name) <= 1.0:
@@ -552,19 +529,11 @@ def tracking_channel_weights(config: DpcTrainingConfig, targets) -> torch.Tensor
 
 
 def dpc_objective(
-    config: DpcTrainingConfig,
-    plant: RolloutPlant,
-    channel_weights: torch.Tensor | None = None,
-    own_starts: FlightStarts | None = None,
+    config: DpcTrainingConfig, plant: RolloutPlant, channel_weights: torch.Tensor | None = None
 ):
     """objective(policy, batch) for `CurriculumTrainer`: the weighted DPC loss of the
     closed-loop rollout from each segment's first state over its targets, with the
-    tracking term's channels weighted by `channel_weights` (6; None: uniform). With
-    `config.onpolicy_fraction` > 0, `own_starts` holds the policy's own flights of the
-    training set and the batches carry the arrays RUN and STEP (`locate_flight_runs`)."""
-    if config.onpolicy_fraction > 0 and own_starts is None:
-        raise ValueError("onpolicy_fraction > 0 needs own_starts, the policy's own flights")
-    longest = max(config.train.horizons)
+    tracking term's channels weighted by `channel_weights` (6; None: uniform)."""
     weights = {
         "tracking": config.tracking_weight,
         "state_estimate": config.state_estimate_weight,
@@ -582,12 +551,6 @@ def dpc_objective(
             cell = rollout_cell(policy, plant)
             cells[id(policy)] = torch.compile(cell) if config.compile else cell
         targets, x0, y0 = batch[key], batch["X"][:, 0], batch["Y"][:, 0]
-        if policy.training and config.onpolicy_fraction > 0 and targets.shape[1] == longest:
-            if own_starts.due():
-                own_starts.refresh(cells[id(policy)])
-            own_starts.count_batch()
-            own_x, own_y = own_starts.starts(batch["RUN"][:, 0], batch["STEP"][:, 0])
-            x0, y0 = start_some_on_policy(x0, y0, own_x, own_y, config.onpolicy_fraction)
         if policy.training and config.mirror_fraction > 0:
             x0, y0, targets = mirror_some_windows(x0, y0, targets, config.mirror_fraction)
         if policy.training and config.yaw_shift_fraction > 0:
@@ -640,10 +603,6 @@ def train_policy(
     data = SegmentDataset.load(dataset)
     if "R" not in data.arrays and config.targets == "reference":
         raise ValueError(f"{dataset} has no references R; use targets='achieved'")
-    own_starts = None
-    if config.onpolicy_fraction > 0:
-        data, runs = locate_flight_runs(data, target_array(config))
-        own_starts = FlightStarts(runs, config.onpolicy_refresh_batches)
     if config.window_segments > 1:
         splits = long_windows(data, config.window_segments)
     else:
@@ -684,10 +643,9 @@ def train_policy(
         "tracking_channel_weights": None if channel_weights is None else channel_weights.tolist(),
     }
     names = ("X", "Y", "U") + (("R",) if config.targets == "reference" else ())
-    names += POSITION_ARRAYS if own_starts is not None else ()
     trainer = CurriculumTrainer(
         policy,
-        dpc_objective(config, plant, channel_weights, own_starts),
+        dpc_objective(config, plant, channel_weights),
         config.train,
         out / "policy.pt",
         metadata,
