@@ -87,7 +87,12 @@ def test_the_training_objective_flies_the_mirrored_window():
     policy = PolicyNetwork().train()
     loss = {}
     for fraction, data in ((1.0, batch), (0.0, by_hand), (0.0, batch)):
-        config = DpcTrainingConfig(mirror_fraction=fraction, compile=False)
+        config = DpcTrainingConfig(
+            mirror_fraction=fraction,
+            yaw_shift_fraction=0.0,
+            time_stretch_fraction=0.0,
+            compile=False,
+        )
         with torch.no_grad():
             loss[fraction, id(data)] = float(
                 dpc_objective(config, RolloutPlant(config))(policy, data)
@@ -149,16 +154,19 @@ def test_base_turned_windows_are_a_random_share_within_the_range(robot):
     )
 
 
-def test_the_training_objective_flies_the_base_turned_window():
-    """With every window turned, the training loss differs from the unturned batch's (the
-    policy sees the angle, the washout term counts it); in evaluation mode nothing turns."""
+@pytest.mark.parametrize("option", ["yaw_shift_fraction", "time_stretch_fraction"])
+def test_the_training_objective_flies_the_turned_or_stretched_window(option):
+    """With every window turned (or slowed down), the training loss differs from the flown
+    batch's (the policy sees the angle, the washout term counts it; the targets change); in
+    evaluation mode nothing changes."""
     torch.manual_seed(4)
     T = 16
     batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
     policy = PolicyNetwork()
     loss = {}
     for fraction in (0.0, 1.0):
-        config = DpcTrainingConfig(yaw_shift_fraction=fraction, mirror_fraction=0.0, compile=False)
+        off = dict(yaw_shift_fraction=0.0, mirror_fraction=0.0, time_stretch_fraction=0.0)
+        config = DpcTrainingConfig(**{**off, option: fraction}, compile=False)
         objective = dpc_objective(config, RolloutPlant(config))
         with torch.no_grad():
             loss[fraction] = float(objective(policy.train(), batch))

@@ -85,7 +85,9 @@ def test_policy_fine_tuned_on_mixed_vehicles_runs_and_beats_zero_motion(fine_tun
     assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
 
 
-@pytest.mark.parametrize("name", ["default_policy", "policy_v9", "policy_v8", "policy_v6"])
+@pytest.mark.parametrize(
+    "name", ["default_policy", "policy_v10", "policy_v9", "policy_v8", "policy_v6"]
+)
 def test_shipped_policy_files_round_trip(name, tmp_path):
     path = shipped_policy_path(name)
     arrays, _ = load_policy_arrays(path)

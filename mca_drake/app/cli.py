@@ -852,13 +852,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--yaw-shift-fraction",
         type=float,
         help="fraction of training rollouts that start with joint 1 (vertical axis, which the "
-        "outputs do not depend on) at a random angle within 90%% of its range (default 0)",
+        "outputs do not depend on) at a random angle within 90%% of its range (default 0.5; "
+        "0: v10)",
     )
     policy.add_argument(
         "--time-stretch-fraction",
         type=float,
         help="fraction of training rollouts that track their window slowed down by a random "
-        "factor in [1, --time-stretch-max] (default 0)",
+        "factor in [1, --time-stretch-max] (default 0.5; 0: v10)",
     )
     policy.add_argument(
         "--time-stretch-max",

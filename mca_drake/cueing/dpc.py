@@ -63,11 +63,12 @@ def default_policy_path() -> Path:
 
 
 def shipped_policy_path(name: str) -> Path:
-    """A policy file shipped in mca_drake/data: "default_policy" (the default, v10) or an
-    earlier one kept loadable: "policy_v9" (v10's set and objective without mirrored windows
-    or terminal-weight scaling; the default of sessions 17-21), "policy_v8" (six aircraft,
-    the tuned objective; sessions 15-16) or "policy_v6" (five c172p flights, the paper's
-    loss)."""
+    """A policy file shipped in mca_drake/data: "default_policy" (the default, v11) or an
+    earlier one kept loadable: "policy_v10" (v11's recipe without the T37, base-yaw shifted
+    starts or stretched windows; the default of sessions 22-25), "policy_v9" (v10's set and
+    objective without mirrored windows or terminal-weight scaling; the default of sessions
+    17-21), "policy_v8" (six aircraft, the tuned objective; sessions 15-16) or "policy_v6"
+    (five c172p flights, the paper's loss)."""
     path = _DATA_DIR / f"{name}.npz"
     if not path.is_file():
         raise FileNotFoundError(f"no shipped policy '{name}' at {path}")

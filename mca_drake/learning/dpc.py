@@ -18,7 +18,9 @@ plus, beyond the paper, the NMPC's terminal cost ||q_n||^2 + ||qd_n||^2 on the l
 long flight), its weights scaled by the NMPC's horizon / n_c (`terminal_weight_horizon`),
 and the rollout runs behind the viability clamp the deployed policy runs behind
 (`safety_filter`), so that training and deployment see the same closed loop. Half of each
-training batch flies its window's mirror image (`mirror_fraction`).
+training batch flies its window's mirror image (`mirror_fraction`), half starts with the base
+joint turned (`yaw_shift_fraction`) and half tracks its window slowed down
+(`time_stretch_fraction`), each drawn independently.
 
 The weights default to the shipped NMPC's (`NmpcConfig`'s tuned defaults, carried over by
 `DpcTrainingConfig.matching`): the policy learns the objective the tuned NMPC minimises,
@@ -148,16 +150,19 @@ class DpcTrainingConfig:
     # the base joint's limits, where a long turn walks joint 1 in 300 s flights. Measured
     # (session 25, benchmarks/results/dpc_mixed.md): 0.5 on v10's set took light development
     # flight 702 from +0.24 to -0.10 and left the other 15 development and validation
-    # flights as they were; on the T37 set it did not stop the steep-turn trap. 0 (v10).
-    yaw_shift_fraction: float = 0.0
+    # flights as they were; on the T37 set it did not stop the steep-turn trap alone.
+    # 0.5 (v11); 0 before.
+    yaw_shift_fraction: float = 0.5
     # Training rollouts of this fraction of each batch track their window's targets slowed
     # down by a uniform random factor in [1, time_stretch_max] (linear interpolation: the
     # first 10.24 / k s of the window fill the rollout). A target is any signal the cue
     # should follow, so a slower manoeuvre is as real as the one flown; it shows the policy
     # pulls and turns held k times as long as any window holds them, which a 10.24 s
     # rollout of the flown targets cannot (the T37-trained policies chase a steep turn's
-    # sustained pull into the joint limits). 0 (v10).
-    time_stretch_fraction: float = 0.0
+    # sustained pull into the joint limits). Measured (session 26, dpc_mixed.md): 0.5 with
+    # the T37 set took case C from -0.77 to -1.10 with case A kept (-1.46). 0.5 (v11); 0
+    # before.
+    time_stretch_fraction: float = 0.5
     time_stretch_max: float = 3.0
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
@@ -217,6 +222,8 @@ class DpcTrainingConfig:
                 "max_start_position_rad": math.inf,
                 "terminal_weight_horizon": 0,
                 "mirror_fraction": 0.0,
+                "yaw_shift_fraction": 0.0,
+                "time_stretch_fraction": 0.0,
                 **changes,
             },
         )

@@ -28,7 +28,8 @@ them, and the fokker100 reads a FlightGear-only property: they are not in the fl
 Three groups: TRAINING_VEHICLES (datasets and tuning), UNSEEN_VEHICLES (evaluation case C)
 and VALIDATION_VEHICLES, flown to choose between training recipes on aircraft that training
 never saw without choosing on case C's (so they are not unseen for evaluation either). The
-T37 and f15 are in none: training datasets may fly them (the shipped policy does not).
+T37 trains the shipped policy (v11, session 26); the f15 is in none: training datasets may
+fly it.
 JSBSim's OV10 and Concorde crashed in their first flights with first-guess constants, as did
 the F80C in 2 of 26 flights (a steep turn, a stall); the f104 reads a radar property its
 files do not define, and the pc7 and f22 do not trim: none of them is in the fleet.
@@ -64,9 +65,10 @@ VEHICLE_CLASSES = {
 }
 VEHICLES = tuple(VEHICLE_CLASSES)
 # The shipped policy's training flights fly these (the shipped MCA weights were tuned on
-# light and jet); evaluation case C flies UNSEEN_VEHICLES, which neither training nor tuning
-# may fly: an aerobatic turboprop trainer, a supersonic jet trainer, a trijet and a jumbo.
-TRAINING_VEHICLES = ("light", "jet", "f16", "DHC6", "A320", "787-8")
+# light and jet; the T37, a non-fly-by-wire jet trainer, since v11); evaluation case C flies
+# UNSEEN_VEHICLES, which neither training nor tuning may fly: an aerobatic turboprop
+# trainer, a supersonic jet trainer, a trijet and a jumbo.
+TRAINING_VEHICLES = ("light", "jet", "f16", "DHC6", "A320", "787-8", "T37")
 UNSEEN_VEHICLES = ("t6texan2", "T38", "MD11", "B747")
 # Flown to compare DPC training recipes (development flights of aircraft no training saw);
 # neither training nor tuning nor the evaluation suite flies them.
