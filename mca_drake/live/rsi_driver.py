@@ -325,10 +325,16 @@ class RsiDriver:
 
     def timing(self) -> dict[str, np.ndarray]:
         """Each answered cycle's timing (with `config.timing_path`; else empty arrays):
-        ipoc (n,) and arrival_s (n,), when its state packet reached the socket, on the
+        ipoc (n,); arrival_s (n,), when its state packet reached the socket, on the
         time.perf_counter() clock (s; Linux: the monotonic clock every process shares, so a
-        robot's send times compare)."""
-        return {"ipoc": np.asarray(self.ipocs, np.int64), "arrival_s": np.asarray(self.arrivals_s)}
+        robot's send times compare); reply_s (n,), from that arrival to the driver's clock
+        read after its reply's `sendto` returned (s)."""
+        return {
+            "ipoc": np.asarray(self.ipocs, np.int64),
+            "arrival_s": np.asarray(self.arrivals_s),
+            # every cycle has a latency; timed runs record the rest from the first cycle on
+            "reply_s": np.asarray(self.latencies_s if self._timed else []),
+        }
 
     def _check_home(self, axes_deg) -> None:
         worst = max(range(NUM_JOINTS), key=lambda j: abs(axes_deg[j] - self._home_deg[j]))
