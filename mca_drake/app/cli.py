@@ -463,6 +463,7 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             yaw_shift_fraction="yaw_shift_fraction",
             time_stretch_fraction="time_stretch_fraction",
             time_stretch_max="time_stretch_max",
+            correlation_weight="correlation_weight",
             terminal_weight_horizon="terminal_weight_horizon",
             hidden="hidden",
         ),
@@ -865,6 +866,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--time-stretch-max",
         type=float,
         help="the largest slow-down factor of stretched windows (default 3)",
+    )
+    policy.add_argument(
+        "--correlation-weight",
+        type=float,
+        help="weight of the correlation term, sum over channels of 1 - CC of the rollouts' "
+        "outputs with their targets (the PI's CC part; default 0)",
     )
     policy.add_argument(
         "--terminal-weight-horizon",

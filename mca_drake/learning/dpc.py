@@ -20,7 +20,8 @@ and the rollout runs behind the viability clamp the deployed policy runs behind
 (`safety_filter`), so that training and deployment see the same closed loop. Half of each
 training batch flies its window's mirror image (`mirror_fraction`), half starts with the base
 joint turned (`yaw_shift_fraction`) and half tracks its window slowed down
-(`time_stretch_fraction`), each drawn independently.
+(`time_stretch_fraction`), each drawn independently. Optionally the loss adds the PI's
+correlation part, sum_k (1 - CC_k) over the batch's rollouts (`correlation_weight`).
 
 The weights default to the shipped NMPC's (`NmpcConfig`'s tuned defaults, carried over by
 `DpcTrainingConfig.matching`): the policy learns the objective the tuned NMPC minimises,
@@ -164,6 +165,15 @@ class DpcTrainingConfig:
     # clamp traps (-1.04), case C kept (-1.10 against -1.12). 0.5 (v11); 0 before.
     time_stretch_fraction: float = 0.5
     time_stretch_max: float = 3.0
+    # Weight of the correlation term: sum over the six channels of 1 - CC_k, with CC_k the
+    # Pearson correlation of the rollouts' outputs with their targets, each window centred
+    # on its own mean and the windows of a batch pooled (`pooled_correlation`). The PI
+    # scores every channel's CC alike whatever its size, while the tracking term prices a
+    # channel by its squared error: the tuned NMPC and the DPC trained on its objective
+    # leave roll rate and heave uncorrelated (CC about 0.1-0.2 on case A, where the
+    # washout's roll rate reaches 0.7), because their errors are small beside what tilt
+    # coordination and the workspace cost. 0 (v11 and earlier): the tuned objective alone.
+    correlation_weight: float = 0.0
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
     # tilted far out (|q| up to 2.6 rad) in states the policy never visits in its own closed
@@ -253,6 +263,7 @@ class DpcTrainingConfig:
             "terminal_position_weight",
             "terminal_velocity_weight",
             "initial_state_noise",
+            "correlation_weight",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -383,21 +394,40 @@ def closed_loop_rollout(
     return Rollout(stack(U), stack(X), stack(X_hat), stack(Y))
 
 
+def pooled_correlation(outputs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+    """Per channel, the Pearson correlation (C,) of outputs with targets, both (B, T, C):
+    each window centred on its own mean over T, then the B windows pooled as one signal (a
+    window counts by its targets' spread, as the parts of a flight do in its CC). A channel
+    whose targets are still in every window scores 1 (nothing to correlate with; the
+    tracking term keeps it still); an output still where its target moves scores 0 (its
+    gradient stays finite: the output's variance is floored at 1e-12 of the target's)."""
+    out = outputs - outputs.mean(dim=1, keepdim=True)
+    tar = targets - targets.mean(dim=1, keepdim=True)
+    covariance = (out * tar).sum(dim=(0, 1))
+    out_var, tar_var = (out * out).sum(dim=(0, 1)), (tar * tar).sum(dim=(0, 1))
+    cc = covariance / torch.sqrt(out_var * tar_var + (1e-6 * tar_var) ** 2)
+    # still: within `metrics.STILL_TOLERANCE`'s ptp of 1e-6 (a variance of 1e-12 per sample)
+    still = tar_var <= 1e-12 * tar.shape[0] * tar.shape[1]
+    return torch.where(still, torch.ones_like(cc), cc)
+
+
 def dpc_loss_terms(
     rollout: Rollout,
     targets: torch.Tensor,
     policy: PolicyNetwork,
     channel_weights: torch.Tensor | None = None,
+    correlation: bool = False,
 ) -> dict[str, torch.Tensor]:
     """The loss terms (unweighted), each averaged over segments and steps; the tracking
-    term's channels weighted by `channel_weights` (6) if given."""
+    term's channels weighted by `channel_weights` (6) if given; with `correlation`, also
+    sum_k (1 - CC_k) of `pooled_correlation` (0 to 12)."""
     X_next = rollout.X[:, 1:]
     lower, upper = policy.lower[NUM_JOINTS:], policy.upper[NUM_JOINTS:]
     violation = torch.relu(X_next - upper) + torch.relu(lower - X_next)
     squared_error = (rollout.Y - targets) ** 2
     if channel_weights is not None:
         squared_error = squared_error * channel_weights
-    return {
+    terms = {
         "tracking": squared_error.sum(-1).mean(),
         "state_estimate": ((rollout.X_hat - X_next) ** 2).sum(-1).mean(),
         "input": (rollout.U**2).sum(-1).mean(),
@@ -406,6 +436,9 @@ def dpc_loss_terms(
         "terminal_position": (rollout.X[:, -1, :NUM_JOINTS] ** 2).sum(-1).mean(),
         "terminal_velocity": (rollout.X[:, -1, NUM_JOINTS:] ** 2).sum(-1).mean(),
     }
+    if correlation:
+        terms["correlation"] = (1.0 - pooled_correlation(rollout.Y, targets)).sum()
+    return terms
 
 
 def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcTrainingConfig):
@@ -547,6 +580,7 @@ def dpc_objective(
         "limits": config.limit_weight,
         "terminal_position": config.terminal_position_weight,
         "terminal_velocity": config.terminal_velocity_weight,
+        "correlation": config.correlation_weight,
     }
     key = target_array(config)
     cells = {}
@@ -568,7 +602,9 @@ def dpc_objective(
             x0 = perturb_initial_states(x0, policy, config)
         rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)])
         weights_here = None if channel_weights is None else channel_weights.to(targets)
-        terms = dpc_loss_terms(rollout, targets, policy, weights_here)
+        terms = dpc_loss_terms(
+            rollout, targets, policy, weights_here, correlation=config.correlation_weight > 0
+        )
         if config.terminal_weight_horizon > 0:
             scale = config.terminal_weight_horizon / targets.shape[1]
             terms["terminal_position"] = scale * terms["terminal_position"]
