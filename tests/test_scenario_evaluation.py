@@ -42,6 +42,18 @@ def test_small_suite_report_and_resume(tmp_path):
         np.median([f["rms_deg_s"] for f in false])
     )
     assert "deg/s |" in (tmp_path / "evaluation.md").read_text()
+    # each channel's median RMSE and CC over the runs, as the PI's parts
+    washout_runs = [
+        json.loads((tmp_path / "runs" / f"A_washout_{s}.json").read_text()) for s in (1000, 1001)
+    ]
+    for key in ("rmse", "cc"):
+        expected = np.median([r[key] for r in washout_runs], axis=0)
+        np.testing.assert_allclose(case["mcas"]["washout"][f"{key}_median"], expected)
+    for r in washout_runs:  # the parts add up to each run's PI
+        assert sum(r["rmse"]) - sum(r["cc"]) == pytest.approx(r["pi"])
+    m = case["mcas"]["washout"]
+    w_x = f"| washout | {m['rmse_median'][0]:.3f} / {m['cc_median'][0]:.2f} |"
+    assert w_x in (tmp_path / "evaluation.md").read_text()
     # a re-run reads every finished run back: same report, nothing simulated again
     stamp = (tmp_path / "runs" / "A_washout_1001.json").stat().st_mtime_ns
     again = run_evaluation(config, tmp_path, progress=False)

@@ -29,7 +29,7 @@ from mca_drake.atomic_io import (
     check_writable,
     file_sha256,
 )
-from mca_drake.conventions import FIRST_EVALUATION_SEED
+from mca_drake.conventions import CHANNELS, FIRST_EVALUATION_SEED
 from mca_drake.cueing import (
     DpcConfig,
     McaConfig,
@@ -261,6 +261,10 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                 "false_rotation_median_deg_s": float(
                     np.median([r.get("false_rotation", {}).get("rms_deg_s", np.nan) for r in rs])
                 ),
+                # per channel (conventions.CHANNELS), median over flights: where the PI
+                # comes from (it sums RMSE - CC over the six)
+                "rmse_median": np.median([r["rmse"] for r in rs], axis=0).tolist(),
+                "cc_median": np.median([r["cc"] for r in rs], axis=0).tolist(),
                 "step_time_median_s": float(np.median(steps)),
                 "step_time_max_s": float(max(r["step_time_s"]["max"] for r in rs)),
                 "violations": int(sum(sum(r["violations"].values()) for r in rs)),
@@ -328,6 +332,27 @@ def rank_sum_verdict(test: dict) -> str:
     return f"significant at {test['alpha']:g}: DPC {'better' if test['z'] < 0 else 'worse'}"
 
 
+def _channel_table(mcas: dict) -> list[str]:
+    """Markdown lines: per MCA, each channel's median RMSE / CC (rad/s for the rates, m/s^2
+    for the specific forces). Reports written before the per-channel medians have none."""
+    if not all("cc_median" in m for m in mcas.values()):
+        return []
+    lines = [
+        "",
+        "Median RMSE / CC per channel (the PI sums RMSE - CC; CC counts alike on every "
+        "channel, whatever its size):",
+        "",
+        "| MCA | " + " | ".join(CHANNELS) + " |",
+        "|---|" + "---|" * len(CHANNELS),
+    ]
+    for mca, m in mcas.items():
+        cells = (
+            f"{e:.3f} / {c:.2f}" for e, c in zip(m["rmse_median"], m["cc_median"], strict=True)
+        )
+        lines.append(f"| {mca} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def evaluation_markdown(report: dict) -> str:
     """The report as markdown tables, one per case."""
     lines = [
@@ -356,6 +381,7 @@ def evaluation_markdown(report: dict) -> str:
                 f"{m['step_time_max_s'] * 1e3:.2f} ms | {m['violations']} | "
                 f"{m['safety_interventions']} | {m['solver_failures']} |"
             )
+        lines += _channel_table(case["mcas"])
         for key, test in case.items():
             if not key.startswith("dpc_vs_"):
                 continue
