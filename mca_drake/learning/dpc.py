@@ -172,7 +172,10 @@ class DpcTrainingConfig:
     # channel by its squared error: the tuned NMPC and the DPC trained on its objective
     # leave roll rate and heave uncorrelated (CC about 0.1-0.2 on case A, where the
     # washout's roll rate reaches 0.7), because their errors are small beside what tilt
-    # coordination and the workspace cost. 0 (v11 and earlier): the tuned objective alone.
+    # coordination and the workspace cost. Measured (session 27, dpc_mixed.md): 0.3 on
+    # v11's recipe took case B to -2.27 and C to -1.26 (v11 -1.56, -1.06) but lost A (-1.13
+    # against -1.46: half the light flights ride the clamp); 1.0 broke the light aircraft's
+    # f_x. 0 (v11 and earlier): the tuned objective alone.
     correlation_weight: float = 0.0
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start

@@ -261,10 +261,7 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                 "false_rotation_median_deg_s": float(
                     np.median([r.get("false_rotation", {}).get("rms_deg_s", np.nan) for r in rs])
                 ),
-                # per channel (conventions.CHANNELS), median over flights: where the PI
-                # comes from (it sums RMSE - CC over the six)
-                "rmse_median": np.median([r["rmse"] for r in rs], axis=0).tolist(),
-                "cc_median": np.median([r["cc"] for r in rs], axis=0).tolist(),
+                **_channel_medians(rs),
                 "step_time_median_s": float(np.median(steps)),
                 "step_time_max_s": float(max(r["step_time_s"]["max"] for r in rs)),
                 "violations": int(sum(sum(r["violations"].values()) for r in rs)),
@@ -293,6 +290,17 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
     if any(e["mcas"] for e in report["cases"].values()):
         save_figure(plot_pi_boxes(report), out / "evaluation.png")
     return report
+
+
+def _channel_medians(runs: list[dict]) -> dict:
+    """rmse_median and cc_median (6 each, conventions.CHANNELS), medians over the runs:
+    where the PI comes from (it sums RMSE - CC over the six); {} where a run has neither."""
+    if not all("rmse" in r and "cc" in r for r in runs):
+        return {}
+    return {
+        f"{key}_median": np.median([r[key] for r in runs], axis=0).tolist()
+        for key in ("rmse", "cc")
+    }
 
 
 def _paired_test(dpc: dict, other: dict) -> dict | None:
