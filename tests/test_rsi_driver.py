@@ -32,6 +32,11 @@ from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
 
 CYCLE = 0.004
+# Replies with the right IPOC within the cycle, as a share of the cycles: how many make it is
+# the machine's real-time quality (bench_rsi measures it: none late on a quiet host); a
+# loaded CI machine without real-time priority misses some (3-6 % seen), so only most are
+# asked here.
+ON_TIME_SHARE = 0.8
 
 
 def feed(commands, segments, stop_after: int | None = None) -> threading.Thread:
@@ -107,10 +112,7 @@ def test_a_killed_loop_ends_in_a_controlled_stop_along_the_commanded_trajectory(
     report, status, recording = drive_emulator(robot, moving_run, 2.0, stop_after=120)
     assert report["stop_reason"] == "", report
     assert report["bad_replies"] == 0
-    # replies with the right IPOC within the cycle; how many make it is the machine's
-    # real-time quality (bench_rsi measures it: none late on a quiet host), and a loaded CI
-    # machine without real-time priority misses some (3-6 % seen), so only most are asked
-    assert report["on_time"] >= 0.8 * report["cycles"], report
+    assert report["on_time"] >= ON_TIME_SHARE * report["cycles"], report
     assert status["bad_state"] == 0 and status["segments"] == 120
     assert status["mode"] == "stopped" and "no command" in status["reason"], status
     _, error = best_offset_error(recording, moving_run[:120], 0.0)
@@ -280,7 +282,8 @@ def test_a_live_run_drives_the_emulated_robot_through_a_telemetry_stop(tmp_path)
     assert driver["mode"] == "stopped", driver
     assert driver["reason"] in ("the loop ended", "the driver was asked to stop"), driver
     assert "limit" not in report["stop_reason"], report  # it ended by the replies stopping
-    assert report["bad_replies"] == 0 and report["on_time"] >= 0.8 * report["cycles"], report
+    assert report["bad_replies"] == 0, report
+    assert report["on_time"] >= ON_TIME_SHARE * report["cycles"], report
     axes = recording["axes_deg"] - home_deg
     assert np.abs(axes).max() > 0.5  # it moved (the surge oscillation)
     on_time = np.isfinite(recording["latency_s"])

@@ -57,6 +57,7 @@ from mca_drake.learning.policy import (
 )
 from mca_drake.learning.state_models import Node2State
 from mca_drake.learning.trainer import CurriculumTrainer, TrainConfig
+from mca_drake.metrics import STILL_TOLERANCE
 from mca_drake.robot import KR500, MIRROR_JOINT_SIGNS, NUM_JOINTS, load_kr500
 from mca_drake.segments import SegmentDataset, long_windows, package_versions, split_of
 from mca_drake.torch_plant import TorchPlant, viable_acceleration_bounds_torch
@@ -403,14 +404,15 @@ def pooled_correlation(outputs: torch.Tensor, targets: torch.Tensor) -> torch.Te
     window counts by its targets' spread, as the parts of a flight do in its CC). A channel
     whose targets are still in every window scores 1 (nothing to correlate with; the
     tracking term keeps it still); an output still where its target moves scores 0 (its
-    gradient stays finite: the output's variance is floored at 1e-12 of the target's)."""
+    gradient stays finite: the output's variance is floored at STILL_TOLERANCE^2 of the
+    target's)."""
     out = outputs - outputs.mean(dim=1, keepdim=True)
     tar = targets - targets.mean(dim=1, keepdim=True)
     covariance = (out * tar).sum(dim=(0, 1))
     out_var, tar_var = (out * out).sum(dim=(0, 1)), (tar * tar).sum(dim=(0, 1))
-    cc = covariance / torch.sqrt(out_var * tar_var + (1e-6 * tar_var) ** 2)
-    # still: within `metrics.STILL_TOLERANCE`'s ptp of 1e-6 (a variance of 1e-12 per sample)
-    still = tar_var <= 1e-12 * tar.shape[0] * tar.shape[1]
+    cc = covariance / torch.sqrt(out_var * tar_var + (STILL_TOLERANCE * tar_var) ** 2)
+    # still as the PI's CC takes it: spread within STILL_TOLERANCE (its square per sample)
+    still = tar_var <= STILL_TOLERANCE**2 * tar.shape[0] * tar.shape[1]
     return torch.where(still, torch.ones_like(cc), cc)
 
 
