@@ -13,6 +13,7 @@ from mca_drake.learning.dpc import (
     dpc_loss_terms,
     dpc_objective,
     pooled_correlation,
+    window_correlation,
 )
 from mca_drake.learning.policy import PolicyNetwork
 from mca_drake.metrics import pearson_cc
@@ -80,7 +81,7 @@ def test_the_objective_adds_the_weighted_correlation_term():
     plant = RolloutPlant(config)
     with torch.no_grad():
         rollout = closed_loop_rollout(policy, plant, batch["X"][:, 0], batch["Y"][:, 0], batch["R"])
-        terms = dpc_loss_terms(rollout, batch["R"], policy, correlation=True)
+        terms = dpc_loss_terms(rollout, batch["R"], policy, correlation="batch")
     assert "correlation" not in dpc_loss_terms(rollout, batch["R"], policy)
     expected = float((1.0 - pooled_correlation(rollout.Y, batch["R"])).sum())
     assert float(terms["correlation"]) == pytest.approx(expected)
@@ -89,3 +90,60 @@ def test_the_objective_adds_the_weighted_correlation_term():
     for bad in (-0.1, float("nan")):
         with pytest.raises(ValueError, match="correlation_weight"):
             DpcTrainingConfig(correlation_weight=bad).validate()
+
+
+def test_window_correlation_is_the_mean_of_each_windows_pearson_cc():
+    """Against the metrics' Pearson CC (numpy) of each window alone, averaged over the
+    windows: a window with a hundredfold spread counts no more than the others (pooled, it
+    would decide the CC)."""
+    outputs, targets = _windows(3)
+    outputs = outputs + 0.5 * targets
+    outputs[0], targets[0] = 100.0 * targets[0], 100.0 * targets[0]  # a big, fully rendered one
+    per_window = [pearson_cc(t, o) for t, o in zip(targets.numpy(), outputs.numpy(), strict=True)]
+    expected = np.mean(per_window, axis=0)
+    np.testing.assert_allclose(window_correlation(outputs, targets).numpy(), expected, atol=1e-9)
+    assert np.all(pooled_correlation(outputs, targets).numpy() > 0.99)  # the big one decides
+    assert np.all(expected < 0.9)
+
+
+def test_window_correlation_leaves_still_windows_out_and_keeps_finite_gradients():
+    """A window whose target channel is still is left out of that channel's mean; a
+    channel still in every window scores 1; an output still where its target moves scores
+    0 with a finite gradient; elsewhere the gradient matches finite differences."""
+    outputs, targets = _windows(4, shape=(3, 12, 6))
+    targets[0, :, 0] = 0.3  # still in one window: channel 0's CC is the other two's mean
+    targets[..., 1] = 0.7  # still in every window
+    outputs[..., 4] = 0.0
+    outputs.requires_grad_(True)
+    cc = window_correlation(outputs, targets)
+    rest = [pearson_cc(targets[b].numpy(), outputs[b].detach().numpy())[0] for b in (1, 2)]
+    assert cc[0].item() == pytest.approx(np.mean(rest))
+    assert cc[1].item() == 1.0 and cc[4].item() == 0.0
+    cc.sum().backward()
+    assert torch.isfinite(outputs.grad).all()
+    moving = torch.randn(3, 12, 6, dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(lambda o: window_correlation(o, targets), (moving,))
+
+
+def test_the_objective_uses_the_configured_pooling():
+    """correlation_pooling "window" puts window_correlation's term in the objective; an
+    unknown pooling is refused."""
+    torch.manual_seed(6)
+    T = 16
+    batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
+    policy = PolicyNetwork().eval()
+    off = dict(mirror_fraction=0.0, yaw_shift_fraction=0.0, time_stretch_fraction=0.0)
+    loss = {}
+    for weight in (0.0, 0.5):
+        config = DpcTrainingConfig(
+            **off, correlation_weight=weight, correlation_pooling="window", compile=False
+        )
+        with torch.no_grad():
+            loss[weight] = float(dpc_objective(config, RolloutPlant(config))(policy, batch))
+    plant = RolloutPlant(DpcTrainingConfig(**off, compile=False))
+    with torch.no_grad():
+        rollout = closed_loop_rollout(policy, plant, batch["X"][:, 0], batch["Y"][:, 0], batch["R"])
+    expected = float((1.0 - window_correlation(rollout.Y, batch["R"])).sum())
+    assert loss[0.5] - loss[0.0] == pytest.approx(0.5 * expected, rel=1e-4)
+    with pytest.raises(ValueError, match="correlation_pooling"):
+        DpcTrainingConfig(correlation_pooling="flight").validate()
