@@ -2,9 +2,16 @@
 
 A policy file (.npz, no pickle) holds the exported weights of
 `mca_drake.learning.policy.PolicyNetwork` and a JSON metadata string: W1 (hidden, 24),
-W2 (18, hidden), input_scale (24), lower, upper (18). `PolicyInference` evaluates it in
-numpy, equal to the torch network (tested to 1e-6): the same scaled inputs, two bias-free
-layers with the exact (erf) GELU between, and the saturation to the limits.
+W2 (18, hidden), input_scale (24), lower, upper (18), and optionally target_highpass_s (6;
+absent in files before v12: no filter). `PolicyInference` evaluates it in numpy, equal to
+the torch network (tested to 1e-6): the same scaled inputs, two bias-free layers with the
+exact (erf) GELU between, and the saturation to the limits.
+
+The target high-pass: a policy may see some target channels through a first-order
+high-pass of time constant tau_k (s), f_n = a (f_(n-1) + Y_n - Y_(n-1)), a = tau / (tau + h),
+f_0 = 0, so that a sustained target (a steep turn's body pitch rate, held for a minute) fades
+from what it follows instead of being chased into the joint limits. The PI still scores the
+unfiltered reference. `TargetHighPass` is the recursion, for the live step and for training.
 """
 
 import dataclasses
@@ -22,6 +29,8 @@ _SQRT_HALF = np.sqrt(0.5)
 POLICY_FORMAT = "mca-drake-policy-1"
 # The arrays of a policy file, in the order `PolicyNetwork.export` writes them.
 POLICY_ARRAYS = ("W1", "W2", "input_scale", "lower", "upper")
+# An optional array: the target high-pass time constants (6, s; 0: the channel passes).
+HIGHPASS_ARRAY = "target_highpass_s"
 # Inputs [y (6), x = [q, qd] (12), target (6)] and outputs [u (6), x_hat (12)] of the policy.
 INPUT_SIZE = 6 + 2 * NUM_JOINTS + 6
 OUTPUT_SIZE = NUM_JOINTS + 2 * NUM_JOINTS
@@ -84,6 +93,7 @@ def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
     if missing:
         raise ValueError(f"{path} is not a policy file: arrays {missing} are missing")
     raw = {k: stored[k] for k in POLICY_ARRAYS}
+    raw[HIGHPASS_ARRAY] = stored.get(HIGHPASS_ARRAY, np.zeros(6))
     not_real = [k for k, v in raw.items() if v.dtype.kind not in "fiu"]
     if not_real:
         raise ValueError(f"{path}: arrays {not_real} are not real numbers")
@@ -97,6 +107,7 @@ def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
         "input_scale": (INPUT_SIZE,),
         "lower": (OUTPUT_SIZE,),
         "upper": (OUTPUT_SIZE,),
+        HIGHPASS_ARRAY: (6,),
     }
     for name, shape in expected.items():
         if arrays[name].shape != shape:
@@ -105,7 +116,48 @@ def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
             raise ValueError(f"{path}: array {name} holds NaN or inf")
     if np.any(arrays["lower"] > arrays["upper"]) or np.any(arrays["input_scale"] <= 0):
         raise ValueError(f"{path}: bounds or input scales are inconsistent")
+    if np.any(arrays[HIGHPASS_ARRAY] < 0):
+        raise ValueError(f"{path}: target high-pass time constants must be >= 0 s")
     return arrays, metadata
+
+
+class TargetHighPass:
+    """The policy's target high-pass (module docstring): f_n = a (f_(n-1) + Y_n - Y_(n-1))
+    per filtered channel, f_0 = 0; unfiltered channels pass unchanged.
+
+    Args:
+        time_constants_s: tau per target channel (6, s); 0 lets the channel pass.
+        h: the step, s.
+    """
+
+    def __init__(self, time_constants_s, h: float):
+        taus = np.asarray(time_constants_s, float)
+        if taus.shape != (6,) or not np.all(np.isfinite(taus)) or np.any(taus < 0):
+            raise ValueError(f"target high-pass time constants must be six values >= 0 s: {taus}")
+        self.channels = [int(k) for k in np.flatnonzero(taus > 0)]
+        self.gains = [float(taus[k] / (taus[k] + h)) for k in self.channels]
+
+    def __bool__(self) -> bool:
+        return bool(self.channels)
+
+    def step(self, target, memory: list[float]) -> tuple[np.ndarray, list[float]]:
+        """(the policy's target (6), the new memory) for the target Y_n (6) and the memory
+        [Y_(n-1), f_(n-1) per filtered channel..., started]: [] or started 0 is the first
+        step (f_0 = 0). In plain floats: one filtered channel costs about a microsecond."""
+        seen = np.array(target, float)
+        started = bool(memory) and memory[-1] > 0
+        new = []
+        for i, (k, a) in enumerate(zip(self.channels, self.gains, strict=True)):
+            value = float(seen[k])
+            filtered = a * (memory[2 * i + 1] + value - memory[2 * i]) if started else 0.0
+            seen[k] = filtered
+            new += [value, filtered]
+        new.append(1.0)
+        return seen, new
+
+    def memory_size(self) -> int:
+        """Floats of memory `step` keeps: two per filtered channel and the started flag."""
+        return 2 * len(self.channels) + 1
 
 
 class PolicyInference:
