@@ -66,22 +66,20 @@ def test_a_held_target_fades_and_the_step_recursion_is_the_same_filter():
     assert highpass.channels == [1] and highpass.memory_size() == 3
     targets = np.zeros((1501, 6))
     targets[1:, 1] = 0.1
-    memory: list[float] = []
-    seen = []
-    for row in targets:
-        filtered, memory = highpass.step(row, memory)
-        seen.append(filtered)
-    seen = np.array(seen)
+    seen = targets.copy()
+    memory = np.zeros(highpass.memory_size())
+    for row in seen:
+        highpass.step(row, memory)
     a = 5.0 / (5.0 + H)
     np.testing.assert_allclose(seen[1:, 1], 0.1 * a ** np.arange(1, 1501), rtol=1e-12)
     assert seen[-1, 1] == pytest.approx(0.1 * np.exp(-15.0 / 5.0), rel=0.01)  # 15 s: e^-3
     walk = _walks(1, (400, 6))
-    memory, seen = [], []
-    for row in walk:
-        filtered, memory = highpass.step(row, memory)
-        seen.append(filtered)
-    np.testing.assert_allclose(np.array(seen)[:, 1], _scipy_highpass(walk[:, 1], 5.0), atol=1e-12)
-    np.testing.assert_array_equal(np.array(seen)[:, [0, 2, 3, 4, 5]], walk[:, [0, 2, 3, 4, 5]])
+    seen = walk.copy()
+    memory = np.zeros(highpass.memory_size())
+    for row in seen:
+        highpass.step(row, memory)
+    np.testing.assert_allclose(seen[:, 1], _scipy_highpass(walk[:, 1], 5.0), atol=1e-12)
+    np.testing.assert_array_equal(seen[:, [0, 2, 3, 4, 5]], walk[:, [0, 2, 3, 4, 5]])
 
 
 @pytest.mark.parametrize("taus", [(0.0,) * 5, (0.0, -1.0, 0, 0, 0, 0), (np.nan,) + (0.0,) * 5])

@@ -67,12 +67,13 @@ class DpcPolicy(LeafSystem):
         self._inference = PolicyInference(arrays)
         self._clamp = ViabilityClamp.for_robot(self._robot, time_step)
         self._highpass = TargetHighPass(arrays.get(HIGHPASS_ARRAY, np.zeros(6)), time_step)
+        self._filtered = bool(self._highpass)  # an attribute: no __bool__ call per step
         self._reference_port = self.DeclareVectorInputPort("reference", 6)
         self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
         self._output_port = self.DeclareVectorInputPort("inertial_output", 6)
         self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
         self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
-        if self._highpass:
+        if self._filtered:
             self._highpass_index = self.DeclareDiscreteState(self._highpass.memory_size())
         DeclareMcaUpdate(self, time_step, self._update, update_event)
         self.DeclareStateOutputPort("joint_acceleration", self._command_index)
@@ -90,10 +91,10 @@ class DpcPolicy(LeafSystem):
         # Timed from here: evaluating the inputs computes upstream systems (the plant's
         # output), which is simulation, not this MCA's work.
         start = time.perf_counter()
-        if self._highpass:
-            memory = discrete.get_value(self._highpass_index).tolist()
-            reference, memory = self._highpass.step(reference, memory)
-            discrete.set_value(self._highpass_index, np.array(memory))
+        if self._filtered:
+            # in place: the port's value is this update's own copy, and the mutable view
+            # of `discrete` holds the memory's current values on entry
+            self._highpass.step(reference, discrete.get_mutable_value(self._highpass_index))
         u = self._inference.command(y, x, reference)
         # NaN from the network says an input is not finite (or it overflowed): only then are
         # the inputs checked one by one
