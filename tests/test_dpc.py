@@ -117,6 +117,14 @@ def test_policy_file_round_trip_and_bad_files(tmp_path, rng):
     )
     with pytest.raises(ValueError, match="W2 has shape"):
         load_policy_arrays(tmp_path / "bad.npz")
+    np.savez(
+        tmp_path / "newer.npz",
+        metadata_json=np.array('{"format": "mca-drake-policy-1"}'),
+        target_highpass_s=np.ones(6),
+        **arrays,
+    )
+    with pytest.raises(ValueError, match="target_highpass_s"):
+        load_policy_arrays(tmp_path / "newer.npz")
     (tmp_path / "junk.npz").write_bytes(b"junk")
     with pytest.raises(ValueError, match="not a policy file"):
         load_policy_arrays(tmp_path / "junk.npz")

@@ -439,17 +439,6 @@ def _channel_weights(text: str) -> str | tuple[float, ...]:
         ) from None
 
 
-def _target_highpass(text: str) -> tuple[float, ...]:
-    """--target-highpass: six comma-separated time constants, s."""
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != 6:
-        raise SystemExit(f"--target-highpass: six comma-separated numbers (s), not '{text}'")
-    return values
-
-
 def _cmd_train_policy(args: argparse.Namespace) -> int:
     # torch: loaded by the training commands only, so the others start fast
     from mca_drake.learning.dpc import DpcTrainingConfig, train_policy
@@ -484,8 +473,6 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
         config.compile = False
     if args.channel_weights is not None:
         config.tracking_channel_weights = _channel_weights(args.channel_weights)
-    if args.target_highpass is not None:
-        config.target_highpass_s = _target_highpass(args.target_highpass)
     train = _given(
         args,
         device="device",
@@ -886,12 +873,6 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         help="weight of the correlation term, sum over channels of 1 - CC of the rollouts' "
         "outputs with their targets (the PI's CC part; default 0)",
-    )
-    policy.add_argument(
-        "--target-highpass",
-        metavar="TAU,...",
-        help="time constants (s) of the high-pass the policy sees each target channel "
-        "w_x,w_y,w_z,f_x,f_y,a_z through, e.g. 0,5,0,0,0,0 (0: unfiltered; default all 0)",
     )
     policy.add_argument(
         "--correlation-pooling",

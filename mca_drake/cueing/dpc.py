@@ -2,16 +2,9 @@
 
 A policy file (.npz, no pickle) holds the exported weights of
 `mca_drake.learning.policy.PolicyNetwork` and a JSON metadata string: W1 (hidden, 24),
-W2 (18, hidden), input_scale (24), lower, upper (18), and optionally target_highpass_s (6;
-absent in files before v12: no filter). `PolicyInference` evaluates it in numpy, equal to
-the torch network (tested to 1e-6): the same scaled inputs, two bias-free layers with the
-exact (erf) GELU between, and the saturation to the limits.
-
-The target high-pass: a policy may see some target channels through a first-order
-high-pass of time constant tau_k (s), f_n = a (f_(n-1) + Y_n - Y_(n-1)), a = tau / (tau + h),
-f_0 = 0, so that a sustained target (a steep turn's body pitch rate, held for a minute) fades
-from what it follows instead of being chased into the joint limits. The PI still scores the
-unfiltered reference. `TargetHighPass` is the recursion, for the live step and for training.
+W2 (18, hidden), input_scale (24), lower, upper (18). `PolicyInference` evaluates it in
+numpy, equal to the torch network (tested to 1e-6): the same scaled inputs, two bias-free
+layers with the exact (erf) GELU between, and the saturation to the limits.
 """
 
 import dataclasses
@@ -29,8 +22,6 @@ _SQRT_HALF = np.sqrt(0.5)
 POLICY_FORMAT = "mca-drake-policy-1"
 # The arrays of a policy file, in the order `PolicyNetwork.export` writes them.
 POLICY_ARRAYS = ("W1", "W2", "input_scale", "lower", "upper")
-# An optional array: the target high-pass time constants (6, s; 0: the channel passes).
-HIGHPASS_ARRAY = "target_highpass_s"
 # Inputs [y (6), x = [q, qd] (12), target (6)] and outputs [u (6), x_hat (12)] of the policy.
 INPUT_SIZE = 6 + 2 * NUM_JOINTS + 6
 OUTPUT_SIZE = NUM_JOINTS + 2 * NUM_JOINTS
@@ -92,8 +83,11 @@ def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
     missing = [k for k in POLICY_ARRAYS if k not in stored]
     if missing:
         raise ValueError(f"{path} is not a policy file: arrays {missing} are missing")
+    unknown = sorted(set(stored) - set(POLICY_ARRAYS))
+    if unknown:
+        # a newer format's part (a filter, say) left out would run the network wrongly
+        raise ValueError(f"{path}: arrays {unknown} are not part of {POLICY_FORMAT}")
     raw = {k: stored[k] for k in POLICY_ARRAYS}
-    raw[HIGHPASS_ARRAY] = stored.get(HIGHPASS_ARRAY, np.zeros(6))
     not_real = [k for k, v in raw.items() if v.dtype.kind not in "fiu"]
     if not_real:
         raise ValueError(f"{path}: arrays {not_real} are not real numbers")
@@ -107,7 +101,6 @@ def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
         "input_scale": (INPUT_SIZE,),
         "lower": (OUTPUT_SIZE,),
         "upper": (OUTPUT_SIZE,),
-        HIGHPASS_ARRAY: (6,),
     }
     for name, shape in expected.items():
         if arrays[name].shape != shape:
@@ -116,51 +109,7 @@ def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
             raise ValueError(f"{path}: array {name} holds NaN or inf")
     if np.any(arrays["lower"] > arrays["upper"]) or np.any(arrays["input_scale"] <= 0):
         raise ValueError(f"{path}: bounds or input scales are inconsistent")
-    if np.any(arrays[HIGHPASS_ARRAY] < 0):
-        raise ValueError(f"{path}: target high-pass time constants must be >= 0 s")
     return arrays, metadata
-
-
-class TargetHighPass:
-    """The policy's target high-pass (module docstring): f_n = a (f_(n-1) + Y_n - Y_(n-1))
-    per filtered channel, f_0 = 0; unfiltered channels pass unchanged.
-
-    Args:
-        time_constants_s: tau per target channel (6, s); 0 lets the channel pass.
-        h: the step, s.
-    """
-
-    def __init__(self, time_constants_s, h: float):
-        taus = np.asarray(time_constants_s, float)
-        if taus.shape != (6,) or not np.all(np.isfinite(taus)) or np.any(taus < 0):
-            raise ValueError(f"target high-pass time constants must be six values >= 0 s: {taus}")
-        self.channels = [int(k) for k in np.flatnonzero(taus > 0)]
-        self.gains = [float(taus[k] / (taus[k] + h)) for k in self.channels]
-        # (channel, gain, index of its memory) for `step`
-        self._triples = [(k, self.gains[i], 2 * i) for i, k in enumerate(self.channels)]
-
-    def __bool__(self) -> bool:
-        return bool(self.channels)
-
-    def step(self, target: np.ndarray, memory: np.ndarray) -> None:
-        """Filters target Y_n (6) in place into what the policy sees, and advances memory
-        [Y_(n-1), f_(n-1) per filtered channel..., started] (`memory_size`) in place; all
-        zeros is the first step (f_0 = 0). The memory is read and written once each and
-        worked on in Python floats (numpy element access costs more than the arithmetic):
-        about 1 us for one channel, on a Drake state's mutable view."""
-        values = memory.tolist()
-        started = values[-1] > 0.0
-        for k, a, i in self._triples:
-            value = target.item(k)
-            filtered = a * (values[i + 1] + value - values[i]) if started else 0.0
-            values[i], values[i + 1] = value, filtered
-            target[k] = filtered
-        values[-1] = 1.0
-        memory[:] = values
-
-    def memory_size(self) -> int:
-        """Floats of memory `step` keeps: two per filtered channel and the started flag."""
-        return 2 * len(self.channels) + 1
 
 
 class PolicyInference:

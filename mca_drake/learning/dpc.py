@@ -45,7 +45,7 @@ from torch import nn
 from mca_drake.atomic_io import check_writable, file_sha256
 from mca_drake.conventions import CONTROL_PERIOD_S, MIRROR_CHANNEL_SIGNS
 from mca_drake.cueing import NmpcConfig
-from mca_drake.cueing.dpc import TargetHighPass, load_policy_arrays
+from mca_drake.cueing.dpc import load_policy_arrays
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
 from mca_drake.learning.output_models import MixedAnalyticalOutput
 from mca_drake.learning.policy import (
@@ -183,13 +183,6 @@ class DpcTrainingConfig:
     # averages each window's own CC (every window alike: a light aircraft's small roll
     # rates count as much as a fighter's).
     correlation_pooling: str = "batch"
-    # Time constants (s) of the high-pass through which the policy sees each target channel
-    # [w_x, w_y, w_z, f_x, f_y, a_z] (`mca_drake.cueing.dpc.TargetHighPass`; 0: unfiltered).
-    # The loss still scores the unfiltered targets, as the PI does. A steep turn holds a body
-    # pitch rate of 0.1 rad/s for a minute, 6 rad, which the policies chase into the joint
-    # limits (the light flights' clamp trap); filtered, the held rate fades from the input.
-    # Stored in the policy file; 0 (v11 and earlier): none.
-    target_highpass_s: tuple[float, ...] = (0.0,) * 6
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
     # tilted far out (|q| up to 2.6 rad) in states the policy never visits in its own closed
@@ -284,11 +277,6 @@ class DpcTrainingConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0; got {value}")
-        TargetHighPass(self.target_highpass_s, CONTROL_PERIOD_S)  # raises on bad values
-        if any(0 < tau < 0.05 for tau in self.target_highpass_s):
-            raise ValueError(
-                f"target_highpass_s must be 0 or >= 0.05 s; got {self.target_highpass_s}"
-            )
         if self.correlation_pooling not in CORRELATIONS:
             raise ValueError(
                 f"correlation_pooling must be one of {sorted(CORRELATIONS)}; "
@@ -589,27 +577,6 @@ def stretch_some_targets(targets: torch.Tensor, fraction: float, max_factor: flo
     return (1 - weight) * low + weight * high
 
 
-def highpass_targets(targets: torch.Tensor, time_constants_s, h: float) -> torch.Tensor:
-    """targets (B, T, 6) as a policy with a target high-pass sees them
-    (`mca_drake.cueing.dpc.TargetHighPass`, its gains), each window filtered from f_0 = 0 at
-    its first step (a window's history is not in the batch; after a few time constants of a
-    held target the flight's filter is near 0 too). Vectorized: f_n = a^(n+1) sum_(k<=n)
-    a^(-k) (Y_k - Y_(k-1)), in float64 (a^-T stays below 1e300 for tau >= 0.05 s at
-    T = 1024 and h = 0.01 s)."""
-    highpass = TargetHighPass(time_constants_s, h)
-    if not highpass:
-        return targets
-    out = targets.clone()
-    T = targets.shape[1]
-    n = torch.arange(T, dtype=torch.float64, device=targets.device)
-    for k, a in zip(highpass.channels, highpass.gains, strict=True):
-        step = torch.diff(targets[..., k].double(), dim=1, prepend=targets[:, :1, k].double())
-        log_a = math.log(a)
-        summed = torch.cumsum(step * torch.exp(-n * log_a), dim=1)
-        out[..., k] = (torch.exp((n + 1) * log_a) * summed).to(targets)
-    return out
-
-
 def check_base_yaw_invariance(plant: RolloutPlant) -> None:
     """Raises ValueError unless the rollout plant's outputs and motion are independent of
     joint 1's angle, as base-yaw-shifted training windows assume (a learned plant need not be)."""
@@ -674,8 +641,7 @@ def dpc_objective(
             )
         if policy.training and config.perturbed_fraction > 0:
             x0 = perturb_initial_states(x0, policy, config)
-        seen = highpass_targets(targets, config.target_highpass_s, plant.dt)
-        rollout = closed_loop_rollout(policy, plant, x0, y0, seen, cells[id(policy)])
+        rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)])
         weights_here = None if channel_weights is None else channel_weights.to(targets)
         terms = dpc_loss_terms(
             rollout,
@@ -748,7 +714,6 @@ def train_policy(
             )
     else:
         policy = PolicyNetwork(hidden=config.hidden, output_scale=config.output_scale)
-    policy.target_highpass_s = tuple(float(v) for v in config.target_highpass_s)
     plant = RolloutPlant(config)
     if config.mirror_fraction > 0:
         check_mirror_symmetry(plant)
@@ -758,13 +723,7 @@ def train_policy(
     channel_weights = tracking_channel_weights(config, train_targets)
     metadata = {
         "model": "dpc-policy",
-        # the high-pass only where there is one: checkpoints from before it resume
-        "model_kwargs": {"hidden": config.hidden}
-        | (
-            {"target_highpass_s": list(policy.target_highpass_s)}
-            if any(policy.target_highpass_s)
-            else {}
-        ),
+        "model_kwargs": {"hidden": config.hidden},
         "dataset": str(dataset),
         "dpc_config": json.loads(json.dumps(dataclasses.asdict(config))),
         "tracking_channel_weights": None if channel_weights is None else channel_weights.tolist(),
@@ -822,11 +781,7 @@ def export_checkpoint_policy(checkpoint: str | Path, out: str | Path) -> Path:
     payload, meta = load_checkpoint(checkpoint)
     if meta.get("model") != "dpc-policy":
         raise ValueError(f"{checkpoint} is not a DPC policy checkpoint (model {meta.get('model')})")
-    kwargs = meta.get("model_kwargs", {})
-    policy = PolicyNetwork(
-        hidden=kwargs.get("hidden", 128),
-        target_highpass_s=kwargs.get("target_highpass_s", (0.0,) * 6),
-    )
+    policy = PolicyNetwork(hidden=meta.get("model_kwargs", {}).get("hidden", 128))
     if "best_model" not in payload:
         raise CheckpointError(f"{checkpoint} holds no best weights (best_model) to export")
     load_state_into(policy, payload["best_model"], str(checkpoint))

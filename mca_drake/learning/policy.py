@@ -26,7 +26,6 @@ from torch import nn
 
 from mca_drake.atomic_io import atomic_write_npz
 from mca_drake.cueing.dpc import (
-    HIGHPASS_ARRAY,
     INPUT_SIZE,
     OUTPUT_SIZE,
     POLICY_FORMAT,
@@ -59,10 +58,6 @@ class PolicyNetwork(nn.Module):
         robot: the KR500 description (limits of the saturation, input scales).
         hidden: neurons of the hidden layer (paper: 128).
         output_scale: the scales of y and Y (6; default `OUTPUT_SCALE`).
-        target_highpass_s: the time constants (6, s; 0: none) of the high-pass the policy
-            sees its targets through (`mca_drake.cueing.dpc.TargetHighPass`). The network
-            does not filter (training filters whole windows, the Drake system each step);
-            it carries them into its file.
     """
 
     def __init__(
@@ -70,11 +65,8 @@ class PolicyNetwork(nn.Module):
         robot: KR500 | None = None,
         hidden: int = 128,
         output_scale: tuple[float, ...] | np.ndarray = OUTPUT_SCALE,
-        target_highpass_s: tuple[float, ...] | np.ndarray = (0.0,) * 6,
     ):
         super().__init__()
-        # a plain attribute, not a buffer: checkpoints of earlier versions load unchanged
-        self.target_highpass_s = tuple(float(v) for v in target_highpass_s)
         robot = robot if robot is not None else load_kr500()
         self.hidden = int(hidden)
         self.f_pi = Mlp(INPUT_SIZE, OUTPUT_SIZE, hidden)
@@ -104,14 +96,13 @@ class PolicyNetwork(nn.Module):
 
     def export(self) -> dict[str, np.ndarray]:
         """float64 numpy arrays for inference without torch: W1 (hidden, 24), W2 (18, hidden),
-        input_scale (24), lower (18), upper (18), target_highpass_s (6)."""
+        input_scale (24), lower (18), upper (18)."""
         return {
             "W1": self.f_pi.net[0].weight.detach().cpu().double().numpy(),
             "W2": self.f_pi.net[2].weight.detach().cpu().double().numpy(),
             "input_scale": self.input_scale.cpu().double().numpy(),
             "lower": self.lower.cpu().double().numpy(),
             "upper": self.upper.cpu().double().numpy(),
-            HIGHPASS_ARRAY: np.array(self.target_highpass_s, float),
         }
 
 
@@ -130,10 +121,7 @@ def load_policy_network(path, robot: KR500 | None = None) -> PolicyNetwork:
     not this robot's limits."""
     arrays, _ = load_policy_arrays(path)
     policy = PolicyNetwork(
-        robot,
-        hidden=arrays["W1"].shape[0],
-        output_scale=arrays["input_scale"][:6],
-        target_highpass_s=arrays[HIGHPASS_ARRAY],
+        robot, hidden=arrays["W1"].shape[0], output_scale=arrays["input_scale"][:6]
     )
     for name in ("lower", "upper", "input_scale"):
         if not np.allclose(arrays[name], getattr(policy, name).double().numpy(), atol=1e-6):

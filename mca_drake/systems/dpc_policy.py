@@ -10,12 +10,7 @@ import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from mca_drake.conventions import CONTROL_PERIOD_S, MCA_STATISTICS
-from mca_drake.cueing.dpc import (
-    HIGHPASS_ARRAY,
-    PolicyInference,
-    TargetHighPass,
-    load_policy_arrays,
-)
+from mca_drake.cueing.dpc import PolicyInference, load_policy_arrays
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
@@ -40,9 +35,7 @@ class DpcPolicy(LeafSystem):
     from torch, `mca_drake.cueing.dpc`), clamps u_t into the viability interval of the
     true joint limits (`mca_drake.safety.ViabilityClamp`: the robot can always brake inside
     its limits) and stores it; `joint_acceleration` outputs it, so the command computed from
-    x_n acts from t_n (like NmpcController). A policy with a target high-pass
-    (`mca_drake.cueing.dpc.TargetHighPass`) sees the reference through it, its memory a
-    discrete state of this system (timed with the step). `statistics` has the layout of
+    x_n acts from t_n (like NmpcController). `statistics` has the layout of
     `mca_drake.conventions.MCA_STATISTICS`: step time (s), 0 solver failures, safety
     interventions, 0 QP iterations.
 
@@ -66,15 +59,11 @@ class DpcPolicy(LeafSystem):
         self._robot = robot if robot is not None else load_kr500()
         self._inference = PolicyInference(arrays)
         self._clamp = ViabilityClamp.for_robot(self._robot, time_step)
-        self._highpass = TargetHighPass(arrays.get(HIGHPASS_ARRAY, np.zeros(6)), time_step)
-        self._filtered = bool(self._highpass)  # an attribute: no __bool__ call per step
         self._reference_port = self.DeclareVectorInputPort("reference", 6)
         self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
         self._output_port = self.DeclareVectorInputPort("inertial_output", 6)
         self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
         self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
-        if self._filtered:
-            self._highpass_index = self.DeclareDiscreteState(self._highpass.memory_size())
         DeclareMcaUpdate(self, time_step, self._update, update_event)
         self.DeclareStateOutputPort("joint_acceleration", self._command_index)
         self.DeclareStateOutputPort("statistics", self._statistics_index)
@@ -91,10 +80,6 @@ class DpcPolicy(LeafSystem):
         # Timed from here: evaluating the inputs computes upstream systems (the plant's
         # output), which is simulation, not this MCA's work.
         start = time.perf_counter()
-        if self._filtered:
-            # in place: the port's value is this update's own copy, and the mutable view
-            # of `discrete` holds the memory's current values on entry
-            self._highpass.step(reference, discrete.get_mutable_value(self._highpass_index))
         u = self._inference.command(y, x, reference)
         # NaN from the network says an input is not finite (or it overflowed): only then are
         # the inputs checked one by one
