@@ -176,7 +176,8 @@ class DpcTrainingConfig:
     # coordination and the workspace cost. Measured (session 27, dpc_mixed.md): 0.3 on
     # v11's recipe took case B to -2.27 and C to -1.26 (v11 -1.56, -1.06) but lost A (-1.13
     # against -1.46: half the light flights ride the clamp); 1.0 broke the light aircraft's
-    # f_x. 0 (v11 and earlier): the tuned objective alone.
+    # f_x; 0.1 (session 28): B -1.96, C -1.39, A -1.41 (3 of 10 light flights ride the
+    # clamp part of the time; the NMPC -1.55). 0 (v11 and earlier): the tuned objective alone.
     correlation_weight: float = 0.0
     # How the correlation term joins a batch's windows: "batch" pools them as one signal (a
     # window counts by its targets' spread, as a flight's parts do in its CC), "window"
