@@ -289,12 +289,12 @@ def test_train_policy_flags_reach_the_training_config(tmp_path, monkeypatch, cap
     assert (config.max_start_position_rad, config.seed) == (1.0, 3)
     more = ["--initial-state-noise", "0.4", "--yaw-shift-fraction", "0.3"]
     more += ["--time-stretch-fraction", "0.2", "--time-stretch-max", "2.5"]
-    more += ["--correlation-weight", "0.7", "--correlation-pooling", "window"]
+    more += ["--correlation-weight", "0.7"]
     assert cli.main(args + more) == 0
     config = seen[-1]
     assert (config.initial_state_noise, config.yaw_shift_fraction) == (0.4, 0.3)
     assert (config.time_stretch_fraction, config.time_stretch_max) == (0.2, 2.5)
-    assert (config.correlation_weight, config.correlation_pooling) == (0.7, "window")
+    assert config.correlation_weight == 0.7
     # untouched options keep the defaults
     assert config.train.horizons == dpc.DpcTrainingConfig().train.horizons
     for flag, name, bad in (

@@ -13,7 +13,6 @@ from mca_drake.learning.dpc import (
     dpc_loss_terms,
     dpc_objective,
     pooled_correlation,
-    window_correlation,
 )
 from mca_drake.learning.policy import PolicyNetwork
 from mca_drake.metrics import pearson_cc
@@ -47,31 +46,26 @@ def test_a_scaled_copy_with_its_own_offsets_correlates_fully():
         np.testing.assert_allclose(cc.numpy(), expected, atol=1e-9)
 
 
-@pytest.mark.parametrize("correlation", [pooled_correlation, window_correlation])
-def test_still_channels_score_as_the_pi_scores_them_and_keep_finite_gradients(correlation):
+def test_still_channels_score_as_the_pi_scores_them_and_keep_finite_gradients():
     """A target still in every window counts as rendered (1); an output still where its
-    target moves scores 0, and its gradient is finite (the variance floor), also with a
-    window still in one channel; elsewhere the gradient matches finite differences."""
+    target moves scores 0, and its gradient is finite (the variance floor); elsewhere the
+    gradient matches finite differences."""
     outputs, targets = _windows(2, shape=(3, 12, 6))
     targets[..., 1] = 0.7  # a still target channel
-    targets[0, :, 0] = 0.3  # still in one window only
     outputs[..., 4] = 0.0  # a still output channel
     outputs.requires_grad_(True)
-    cc = correlation(outputs, targets)
+    cc = pooled_correlation(outputs, targets)
     assert cc[1].item() == 1.0 and cc[4].item() == 0.0
     cc.sum().backward()
     assert torch.isfinite(outputs.grad).all()
     moving = torch.randn(3, 12, 6, dtype=torch.float64, requires_grad=True)
-    assert torch.autograd.gradcheck(lambda o: correlation(o, targets), (moving,))
+    assert torch.autograd.gradcheck(lambda o: pooled_correlation(o, targets), (moving,))
 
 
-@pytest.mark.parametrize(
-    "pooling, correlation", [("batch", pooled_correlation), ("window", window_correlation)]
-)
-def test_the_objective_adds_the_weighted_correlation_term(pooling, correlation):
+def test_the_objective_adds_the_weighted_correlation_term():
     """With correlation_weight w the objective is the tuned one plus w sum_k (1 - CC_k) of
-    the same rollout, CC as `correlation_pooling` says; 0 leaves it as it was (and computes
-    no term); a negative weight, NaN or an unknown pooling is refused."""
+    the same rollout; 0 leaves it as it was (and computes no term); a negative weight or
+    NaN is refused."""
     torch.manual_seed(5)
     T = 16
     batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
@@ -79,49 +73,19 @@ def test_the_objective_adds_the_weighted_correlation_term(pooling, correlation):
     off = dict(mirror_fraction=0.0, yaw_shift_fraction=0.0, time_stretch_fraction=0.0)
     loss = {}
     for weight in (0.0, 0.5):
-        config = DpcTrainingConfig(
-            **off, correlation_weight=weight, correlation_pooling=pooling, compile=False
-        )
+        config = DpcTrainingConfig(**off, correlation_weight=weight, compile=False)
         with torch.no_grad():
             loss[weight] = float(dpc_objective(config, RolloutPlant(config))(policy, batch))
     config = DpcTrainingConfig(**off, compile=False)
     plant = RolloutPlant(config)
     with torch.no_grad():
         rollout = closed_loop_rollout(policy, plant, batch["X"][:, 0], batch["Y"][:, 0], batch["R"])
-        terms = dpc_loss_terms(rollout, batch["R"], policy, correlation=pooling)
+        terms = dpc_loss_terms(rollout, batch["R"], policy, correlation=True)
     assert "correlation" not in dpc_loss_terms(rollout, batch["R"], policy)
-    expected = float((1.0 - correlation(rollout.Y, batch["R"])).sum())
+    expected = float((1.0 - pooled_correlation(rollout.Y, batch["R"])).sum())
     assert float(terms["correlation"]) == pytest.approx(expected)
     assert 0.0 < expected < 12.0
     assert loss[0.5] - loss[0.0] == pytest.approx(0.5 * expected, rel=1e-4)
     for bad in (-0.1, float("nan")):
         with pytest.raises(ValueError, match="correlation_weight"):
             DpcTrainingConfig(correlation_weight=bad).validate()
-    with pytest.raises(ValueError, match="correlation_pooling"):
-        DpcTrainingConfig(correlation_pooling="flight").validate()
-
-
-def test_window_correlation_is_the_mean_of_each_windows_pearson_cc():
-    """Against the metrics' Pearson CC (numpy) of each window alone, averaged over the
-    windows: a window with a hundredfold spread counts no more than the others (pooled, it
-    would decide the CC)."""
-    outputs, targets = _windows(3)
-    outputs = outputs + 0.5 * targets
-    outputs[0], targets[0] = 100.0 * targets[0], 100.0 * targets[0]  # a big, fully rendered one
-    per_window = [pearson_cc(t, o) for t, o in zip(targets.numpy(), outputs.numpy(), strict=True)]
-    expected = np.mean(per_window, axis=0)
-    np.testing.assert_allclose(window_correlation(outputs, targets).numpy(), expected, atol=1e-9)
-    assert np.all(pooled_correlation(outputs, targets).numpy() > 0.99)  # the big one decides
-    assert np.all(expected < 0.9)
-
-
-def test_window_correlation_leaves_a_still_window_out_of_the_mean():
-    """A window whose target channel is still is left out of that channel's mean: channel
-    0's CC is the other two windows' mean (with it counted as 0 it would be lower by a
-    third)."""
-    outputs, targets = _windows(4, shape=(3, 12, 6))
-    outputs = outputs + targets
-    targets[0, :, 0] = 0.3
-    rest = [pearson_cc(targets[b].numpy(), outputs[b].numpy())[0] for b in (1, 2)]
-    cc = window_correlation(outputs, targets)
-    assert cc[0].item() == pytest.approx(np.mean(rest))

@@ -464,7 +464,6 @@ def _cmd_train_policy(args: argparse.Namespace) -> int:
             time_stretch_fraction="time_stretch_fraction",
             time_stretch_max="time_stretch_max",
             correlation_weight="correlation_weight",
-            correlation_pooling="correlation_pooling",
             terminal_weight_horizon="terminal_weight_horizon",
             hidden="hidden",
         ),
@@ -873,12 +872,6 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         help="weight of the correlation term, sum over channels of 1 - CC of the rollouts' "
         "outputs with their targets (the PI's CC part; default 0)",
-    )
-    policy.add_argument(
-        "--correlation-pooling",
-        choices=("batch", "window"),
-        help="the correlation term's CC: over the batch's windows pooled (default) or each "
-        "window's own, averaged",
     )
     policy.add_argument(
         "--terminal-weight-horizon",

@@ -179,11 +179,6 @@ class DpcTrainingConfig:
     # f_x; 0.1 (session 28): B -1.96, C -1.39, A -1.41 (3 of 10 light flights ride the
     # clamp part of the time; the NMPC -1.55). 0 (v11 and earlier): the tuned objective alone.
     correlation_weight: float = 0.0
-    # How the correlation term joins a batch's windows: "batch" pools them as one signal (a
-    # window counts by its targets' spread, as a flight's parts do in its CC), "window"
-    # averages each window's own CC (every window alike: a light aircraft's small roll
-    # rates count as much as a fighter's).
-    correlation_pooling: str = "batch"
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
     # tilted far out (|q| up to 2.6 rad) in states the policy never visits in its own closed
@@ -278,11 +273,6 @@ class DpcTrainingConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0; got {value}")
-        if self.correlation_pooling not in CORRELATIONS:
-            raise ValueError(
-                f"correlation_pooling must be one of {sorted(CORRELATIONS)}; "
-                f"got {self.correlation_pooling!r}"
-            )
         if len(self.output_scale) != 6 or not all(0 < v < float("inf") for v in self.output_scale):
             raise ValueError(f"output_scale needs six positive numbers; got {self.output_scale}")
         if self.terminal_weight_horizon < 0:
@@ -427,42 +417,16 @@ def pooled_correlation(outputs: torch.Tensor, targets: torch.Tensor) -> torch.Te
     return torch.where(still, torch.ones_like(cc), cc)
 
 
-def window_correlation(outputs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
-    """Per channel, the mean (C,) over the windows of each window's own Pearson correlation
-    of outputs with targets, both (B, T, C): every window counts alike, whatever its
-    targets' spread (pooled, a fighter's roll rates drown a light aircraft's). Windows whose
-    targets are still (per-sample variance within STILL_TOLERANCE^2) are left out of the
-    mean; a channel still in every window scores 1, as in `pooled_correlation`, whose
-    variance floor keeps the gradient of a still output finite here too."""
-    out = outputs - outputs.mean(dim=1, keepdim=True)
-    tar = targets - targets.mean(dim=1, keepdim=True)
-    covariance = (out * tar).sum(dim=1)
-    out_var, tar_var = (out * out).sum(dim=1), (tar * tar).sum(dim=1)
-    moving = (tar_var > STILL_TOLERANCE**2 * tar.shape[1]).to(tar_var)
-    # a still window's denominator is 1 (not 0/0, whose NaN would reach the mean and, through
-    # sqrt's backward at 0, the gradient even with the window masked out)
-    cc = covariance / torch.sqrt(
-        out_var * tar_var + (STILL_TOLERANCE * tar_var) ** 2 + (1.0 - moving)
-    )
-    count = moving.sum(dim=0)
-    mean = (cc * moving).sum(dim=0) / count.clamp(min=1.0)
-    return torch.where(count > 0, mean, torch.ones_like(mean))
-
-
-# How the correlation term joins a batch's windows (`DpcTrainingConfig.correlation_pooling`).
-CORRELATIONS = {"batch": pooled_correlation, "window": window_correlation}
-
-
 def dpc_loss_terms(
     rollout: Rollout,
     targets: torch.Tensor,
     policy: PolicyNetwork,
     channel_weights: torch.Tensor | None = None,
-    correlation: str = "",
+    correlation: bool = False,
 ) -> dict[str, torch.Tensor]:
     """The loss terms (unweighted), each averaged over segments and steps; the tracking
-    term's channels weighted by `channel_weights` (6) if given; with `correlation` (a key of
-    `CORRELATIONS`), also sum_k (1 - CC_k) of that correlation (0 to 12)."""
+    term's channels weighted by `channel_weights` (6) if given; with `correlation`, also
+    sum_k (1 - CC_k) of `pooled_correlation` (0 to 12)."""
     X_next = rollout.X[:, 1:]
     lower, upper = policy.lower[NUM_JOINTS:], policy.upper[NUM_JOINTS:]
     violation = torch.relu(X_next - upper) + torch.relu(lower - X_next)
@@ -479,7 +443,7 @@ def dpc_loss_terms(
         "terminal_velocity": (rollout.X[:, -1, NUM_JOINTS:] ** 2).sum(-1).mean(),
     }
     if correlation:
-        terms["correlation"] = (1.0 - CORRELATIONS[correlation](rollout.Y, targets)).sum()
+        terms["correlation"] = (1.0 - pooled_correlation(rollout.Y, targets)).sum()
     return terms
 
 
@@ -645,11 +609,7 @@ def dpc_objective(
         rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)])
         weights_here = None if channel_weights is None else channel_weights.to(targets)
         terms = dpc_loss_terms(
-            rollout,
-            targets,
-            policy,
-            weights_here,
-            correlation=config.correlation_pooling if config.correlation_weight > 0 else "",
+            rollout, targets, policy, weights_here, correlation=config.correlation_weight > 0
         )
         if config.terminal_weight_horizon > 0:
             scale = config.terminal_weight_horizon / targets.shape[1]
