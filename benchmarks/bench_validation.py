@@ -8,10 +8,12 @@ Flies `VALIDATION_VEHICLES` (A4, F4N) over seeds 700 on (below the evaluation se
 training seeds), 300 s each on the analytical plant, every MCA on every flight. `--vehicles
 light,jet` flies development flights of the training aircraft of cases A and B at the same
 seeds (the evaluation's are 1000 on), so that a recipe's cost there is seen before the
-suite. One JSON per run under out-dir/runs (atomic; a finished run is not flown again, so a
-killed study resumes). Prints per MCA the median PI per vehicle and over all flights, clamp
-interventions, and for each MCA after the first the paired difference to the first (median,
-better on how many flights, signed-rank p). An MCA is `label=policy.npz` (DPC) or an MCA name.
+suite; `--first-seed 600 --seeds 14 --vehicles light` is the light aircraft's trap check
+(fourteen more flights, where a policy that rides the joint limits shows). One JSON per run
+under out-dir/runs (atomic; a finished run is not flown again, so a killed study resumes).
+Prints per MCA the median PI per vehicle and over all flights, clamp interventions, and for
+each MCA after the first the paired difference to the first (median, better on how many
+flights, signed-rank p). An MCA is `label=policy.npz` (DPC) or an MCA name.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import numpy as np
 from common import parse_mca
 
 from mca_drake.atomic_io import atomic_write_json
+from mca_drake.conventions import FIRST_EVALUATION_SEED
 from mca_drake.metrics import wilcoxon_signed_rank
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.references.jsbsim import UNSEEN_VEHICLES, VALIDATION_VEHICLES, check_vehicle
@@ -97,6 +100,13 @@ def main() -> None:
         "case C's)",
     )
     parser.add_argument("--seeds", type=int, default=4, help="flights per vehicle (default 4)")
+    parser.add_argument(
+        "--first-seed",
+        type=int,
+        default=FIRST_VALIDATION_SEED,
+        help=f"the first flight's seed (default {FIRST_VALIDATION_SEED}; below "
+        f"{FIRST_EVALUATION_SEED}, where the evaluation's seeds begin)",
+    )
     parser.add_argument("--duration", type=float, default=300.0, help="s per flight")
     parser.add_argument("--out-dir", default="results/validation")
     parser.add_argument("--json", help="write the figures here too")
@@ -105,7 +115,12 @@ def main() -> None:
     if len({label for label, _ in mcas}) != len(mcas):
         raise SystemExit("two --mca share a label")
     out_dir = Path(args.out_dir)
-    seeds = range(FIRST_VALIDATION_SEED, FIRST_VALIDATION_SEED + args.seeds)
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    if seeds.start < 0 or seeds.stop > FIRST_EVALUATION_SEED:
+        raise SystemExit(
+            f"--first-seed/--seeds: seeds {seeds.start}-{seeds.stop - 1} leave [0, "
+            f"{FIRST_EVALUATION_SEED}): the evaluation's flights are never flown for choosing"
+        )
     try:
         vehicles = [check_vehicle(v) for v in args.vehicles.split(",")]
     except ValueError as error:  # unknown or reserved: a message, not a traceback
