@@ -6,12 +6,17 @@ Layers (imports point down only; tests/test_architecture.py checks it):
                  Table II
     simulation   diagram builders and the one closed-loop runner for both plants
     systems      Drake LeafSystems: plant, reference source, the MCAs, the KR500 station
-    learning     torch only: plant-model candidates, policy network, trainers, DPC training
+    learning     torch only: torch plant, plant-model candidates, policy network, trainers,
+                 DPC training
     cueing       the MCAs as numpy math with their typed configs (DpcConfig, NmpcConfig,
                  WashoutConfig)
     references   vehicle motion: recordings, JSBSim flights, scaling to references
-    core         conventions, robot, kinematics, torch_plant, safety, metrics, segments,
-                 plotting, atomic_io, input_checks, demo_motion
+    core         conventions, robot, kinematics, safety, metrics, segments, resources,
+                 plotting, atomic_io, input_checks, demo_motion, deprecation
 """
 
+from mca_drake.deprecation import install_module_aliases
+
 __version__ = "0.1.0"
+
+install_module_aliases()

@@ -1,7 +1,7 @@
 """A built-in smooth joint motion that exercises every joint inside its Table I limits.
 
-Used by the default `mca-drake simulate` job and by smoke tests until vehicle references
-drive the closed loop. Joint i follows q_i(t) = A_i (1 - cos(2 pi t / T_i)), which starts at
+Used by the default `mca-drake simulate` job and by smoke tests that need a closed loop
+without a vehicle reference. Joint i follows q_i(t) = A_i (1 - cos(2 pi t / T_i)), which starts at
 rest in the neutral pose, with A_i chosen so that position, velocity and acceleration stay
 within fixed fractions of the limits.
 """

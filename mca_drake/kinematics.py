@@ -234,8 +234,9 @@ def plant_output(q, qd, qdd, robot: KR500 | None = None) -> np.ndarray:
     """The plant output y = [w_x, w_y, w_z, f_x, f_y, a_z] in H (equation 1), shape (..., 6).
 
     Args:
-        q, qd, qdd: joint positions (rad), velocities (rad/s), accelerations (rad/s^2),
-            each shape (..., 6) and the same shape.
+        q: joint positions, rad, shape (..., 6).
+        qd: joint velocities, rad/s, the shape of q.
+        qdd: joint accelerations, rad/s^2, the shape of q.
 
     Raises:
         ValueError: wrong shapes or non-finite entries.

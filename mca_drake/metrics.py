@@ -20,8 +20,9 @@ from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 # in its SI units: rad/s, m/s^2) counts as still for the correlation, and a still target is
 # rendered exactly when the achieved signal stays within it. 1e-6 is five orders of magnitude
 # below the vestibular thresholds (about 0.01 rad/s and 0.05 m/s^2) and above a numerical
-# solver's round-off: a converged NMPC that kept a still channel within 1e-8 of zero used to
-# score CC 0 instead of 1 there (+1 on the PI per channel) for noise no occupant could feel.
+# solver's round-off: without it a converged NMPC that keeps a still channel within 1e-8 of
+# zero would score CC 0 instead of 1 there (+1 on the PI per channel) for noise no occupant
+# could feel.
 STILL_TOLERANCE = 1e-6
 
 
@@ -154,7 +155,8 @@ def wilcoxon_rank_sum(pi_a, pi_b) -> RankSumResult:
     """Two-sided Wilcoxon rank-sum test between two sets of PIs (the paper's test).
 
     Args:
-        pi_a, pi_b: 1-D arrays of performance indices, at least 2 each.
+        pi_a: 1-D array of performance indices, at least 2.
+        pi_b: 1-D array of performance indices, at least 2.
     """
     a = as_float_array("pi_a", pi_a)
     b = as_float_array("pi_b", pi_b)
@@ -187,7 +189,8 @@ def wilcoxon_signed_rank(pi_a, pi_b) -> SignedRankResult:
     so it sees smaller differences with the same number of flights.
 
     Args:
-        pi_a, pi_b: 1-D arrays of equal length, at least 2 pairs.
+        pi_a: 1-D array of performance indices, at least 2.
+        pi_b: 1-D array of the same length, paired with pi_a.
     """
     a = as_float_array("pi_a", pi_a)
     b = as_float_array("pi_b", pi_b)
@@ -209,7 +212,8 @@ def normalized_joint_usage(values, lower, upper) -> np.ndarray:
 
     Args:
         values: shape (..., 6).
-        lower, upper: shape (6,).
+        lower: lower bounds, shape (6,).
+        upper: upper bounds, shape (6,).
     """
     values = as_float_array("values", values, last_dim=NUM_JOINTS)
     lower = as_float_array("lower", lower, last_dim=NUM_JOINTS)
@@ -246,7 +250,9 @@ def joint_usage(q, qd, qdd, robot: KR500 | None = None) -> JointUsage:
     """Joint positions, velocities and accelerations normalised by the Table I limits.
 
     Args:
-        q, qd, qdd: trajectories, shape (T, 6) each (rad, rad/s, rad/s^2).
+        q: joint positions, rad, shape (T, 6).
+        qd: joint velocities, rad/s, shape (T, 6).
+        qdd: joint accelerations, rad/s^2, shape (T, 6).
     """
     robot = robot if robot is not None else load_kr500()
     q = as_float_array("q", q, last_dim=NUM_JOINTS)

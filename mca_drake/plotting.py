@@ -145,7 +145,8 @@ def plot_tracking(times, target, measured, title: str = ""):
 
     Args:
         times: shape (T,), s.
-        target, measured: shape (T, 6), the channels of y.
+        target: the target outputs, shape (T, 6), the channels of y.
+        measured: the achieved outputs, shape (T, 6).
     """
     times = np.asarray(times, dtype=float)
     target = np.asarray(target, dtype=float)

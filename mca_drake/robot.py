@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mca_drake.resources import packaged_folder
+
 NUM_JOINTS = 6
 JOINT_NAMES = tuple(f"joint_{i}" for i in range(1, NUM_JOINTS + 1))
 # The KR500's left-right symmetry: with joints 1, 4 and 6 (the vertical and the two roll
@@ -32,20 +34,8 @@ _STRUCTURE_TOL = 1e-9
 
 
 def models_dir() -> Path:
-    """The folder holding kr500.urdf.
-
-    `$MCA_DRAKE_MODELS` wins when set; otherwise the `models/` folder of the source checkout
-    (the package is installed in editable mode by scripts/setup.sh).
-    """
-    env = os.environ.get("MCA_DRAKE_MODELS")
-    path = Path(env) if env else Path(__file__).resolve().parent.parent / "models"
-    if not path.is_dir():
-        raise FileNotFoundError(
-            f"models folder not found at {path}; install mca-drake in editable mode from a "
-            "source checkout (scripts/setup.sh) or set MCA_DRAKE_MODELS to the folder that "
-            "holds kr500.urdf"
-        )
-    return path
+    """The folder holding kr500.urdf: the package's copy of models/ (`resources`)."""
+    return packaged_folder("models")
 
 
 def model_path(name: str = "kr500.urdf") -> Path:

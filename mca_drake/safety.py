@@ -62,8 +62,12 @@ def viable_acceleration_bounds(q, qd, q_min, q_max, qd_max, qdd_max, h, position
     """Per-joint interval [lo, hi] of accelerations (rad/s^2) that keep the robot viable.
 
     Args:
-        q, qd: joint positions (rad) and velocities (rad/s), shape (..., 6).
-        q_min, q_max, qd_max, qdd_max: limits, shape (6,).
+        q: joint positions, rad, shape (..., 6).
+        qd: joint velocities, rad/s, shape (..., 6).
+        q_min: lower position limits, rad, shape (6,).
+        q_max: upper position limits, rad, shape (6,).
+        qd_max: velocity limits, rad/s, shape (6,).
+        qdd_max: acceleration limits, rad/s^2, shape (6,).
         h: control period, s.
         position_coefficient: c of the step q' = q + h qd + c h^2 u (module docstring);
             1/2, the exact zero-order-hold step, by default.
@@ -120,7 +124,10 @@ class ViabilityClamp:
     matters to controllers with a budget of microseconds (tested equal).
 
     Args:
-        q_min, q_max, qd_max, qdd_max: joint limits, shape (6,) (rad, rad/s, rad/s^2).
+        q_min: lower position limits, rad, shape (6,).
+        q_max: upper position limits, rad, shape (6,).
+        qd_max: velocity limits, rad/s, shape (6,).
+        qdd_max: acceleration limits, rad/s^2, shape (6,).
         h: control period, s.
         tolerance: a change of the command larger than this (rad/s^2) counts as an
             intervention.

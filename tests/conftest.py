@@ -7,7 +7,7 @@ import pytest
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 
-from mca_drake.live.rsi_motion import CommandSegment
+from mca_drake.live.rsi.motion import CommandSegment
 from mca_drake.robot import load_kr500, model_path
 from mca_drake.safety import ViabilityClamp
 

@@ -1,5 +1,6 @@
-"""The package's layering (README, "A tour"): imports point down, never in a circle, and
-the Drake-side layers load no torch.
+"""The package's layering (ARCHITECTURE.md, docs/concepts/diagrams.md): imports point down,
+never in a circle; the Drake-side layers, the training configs and the command line's
+modules load no torch; torch is imported by the learning layer only.
 
 The import graph is built from the source with `ast`, counting every import, those inside
 functions included: a function-level import still ties two modules together.
@@ -146,6 +147,8 @@ def test_imports_point_down_the_layers():
         "mca_drake.systems",
         "mca_drake.cueing",
         "mca_drake.simulation",
+        "mca_drake.learning.configs",
+        "mca_drake.app.cli",
         # every module of those layers, not just the packages
         ",".join(
             m for m in _modules() if _layer(m) in ("systems", "cueing", "simulation", "references")
@@ -162,3 +165,25 @@ def test_drake_layers_load_no_torch(modules):
         [sys.executable, "-c", code], capture_output=True, text=True, check=True
     ).stdout
     assert out.strip() == "False", f"importing {modules} loaded torch"
+
+
+# Studies that train torch models themselves (Table II trains and times every plant-model
+# candidate); everything else reaches torch through the learning layer.
+TORCH_STUDIES = {"mca_drake.studies.table2"}
+
+
+def test_only_the_learning_layer_imports_torch():
+    """torch is a dependency of the learning layer (and of the studies that train): a module
+    elsewhere reaches it through that layer's functions, never directly."""
+    direct = []
+    for module, path in _modules().items():
+        if _layer(module) == "learning" or module in TORCH_STUDIES:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module]
+            direct += [f"{module}:{node.lineno}" for n in names if n.split(".")[0] == "torch"]
+    assert not direct, "torch imported outside mca_drake.learning:\n" + "\n".join(direct)

@@ -1,6 +1,6 @@
 """Bad input of every class gets a clear error before any work, or a documented safe
-fallback (issue 16): unbounded settings, outputs that cannot be written, damaged files,
-kills in the middle of a write, and the one-line error of the command."""
+fallback: unbounded settings, outputs that cannot be written, damaged files, kills in the
+middle of a write, and the one-line error of the command."""
 
 from __future__ import annotations
 
@@ -144,7 +144,9 @@ def test_an_unexpected_error_is_one_line_with_a_hint(monkeypatch, capsys):
     def broken(args):
         raise KeyError("deep inside")
 
-    monkeypatch.setattr(cli, "_cmd_flight", broken)
+    from mca_drake.app.cli import recordings
+
+    monkeypatch.setattr(recordings, "run_flight", broken)
     assert cli.main(["flight"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "KeyError" in err and "--debug" in err

@@ -53,7 +53,16 @@ def test_simulate_command_runs_the_multibody_closed_loop(tmp_path, capsys):
     assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     for name in ("tracking.png", "joint_usage.png"):
         assert (plots / name).stat().st_size > 10_000
-    assert "f_x" in capsys.readouterr().out
+    # The terminal gets a result table, not the JSON; its figures are the summary's.
+    printed = capsys.readouterr().out
+    assert not printed.lstrip().startswith("{") and "f_x" in printed
+    rows = {line[:18].strip(): line[18:].split() for line in printed.splitlines()}
+    np.testing.assert_allclose([float(v) for v in rows["RMSE"]], summary["rmse"], atol=6e-4)
+    np.testing.assert_allclose([float(v) for v in rows["CC"]], summary["cc"], atol=6e-4)
+    # zero motion's PI is the sum of its RMSEs (its CC is 0): the row adds up to it
+    zero = [float(v) for v in rows["RMSE zero motion"]]
+    assert sum(zero) == pytest.approx(summary["pi_zero_motion"], abs=4e-3)
+    assert f"PI {summary['pi']:.3f}" in printed and str(out_json) in printed
 
 
 def test_simulate_command_on_the_analytical_plant(tmp_path):
@@ -271,7 +280,7 @@ def test_train_policy_flags_reach_the_training_config(tmp_path, monkeypatch, cap
     """`train-policy`'s options land in DpcTrainingConfig (training itself is tested in
     test_dpc.py): the recorded config is what the command hands over, and a bad value is
     refused by the config's own validation."""
-    import mca_drake.learning.dpc as dpc
+    import mca_drake.learning.dpc_training as dpc
 
     seen = []
 

@@ -11,13 +11,13 @@ from hypothesis import strategies as st
 from pydrake.systems.analysis import Simulator
 
 from mca_drake.cueing.dpc import DpcConfig, PolicyInference
-from mca_drake.learning.dpc import (
+from mca_drake.learning.dpc_training import (
     DpcTrainingConfig,
     RolloutPlant,
     closed_loop_rollout,
     train_policy,
 )
-from mca_drake.learning.policy import (
+from mca_drake.learning.policy_network import (
     PolicyNetwork,
     load_policy_arrays,
     load_policy_network,
@@ -26,7 +26,7 @@ from mca_drake.learning.policy import (
 from mca_drake.learning.trainer import TrainConfig
 from mca_drake.safety import ViabilityClamp, is_stoppable
 from mca_drake.segments import SegmentDataset
-from mca_drake.systems.dpc_policy import DpcPolicy
+from mca_drake.systems.dpc import DpcPolicy
 
 
 def _random_policy(seed: int, gain: float = 3.0) -> PolicyNetwork:
@@ -56,7 +56,7 @@ def test_a_policy_file_keeps_its_own_input_scales(tmp_path, rng):
     with v6's (0.5 rad/s) into a network that computes what its numpy inference computes,
     a new network gets `OUTPUT_SCALE` (0.1 rad/s), and a bad scale is refused."""
     from mca_drake.cueing.dpc import shipped_policy_path
-    from mca_drake.learning.policy import OUTPUT_SCALE, OUTPUT_SCALE_V6
+    from mca_drake.learning.configs import OUTPUT_SCALE, OUTPUT_SCALE_V6
 
     v6_path = shipped_policy_path("policy_v6")
     v6 = load_policy_network(v6_path).double()
@@ -353,7 +353,7 @@ def test_rollout_on_exact_plant_is_the_plant(robot):
 
 
 def test_export_checkpoint_policy_gives_the_best_weights(trained, tmp_path):
-    from mca_drake.learning.dpc import export_checkpoint_policy
+    from mca_drake.learning.dpc_training import export_checkpoint_policy
 
     policy, policy_path, _ = trained
     out = export_checkpoint_policy(policy_path.with_name("policy.pt"), tmp_path / "e.npz")
@@ -368,7 +368,7 @@ def test_export_checkpoint_policy_gives_the_best_weights(trained, tmp_path):
 
 
 def test_perturbed_initial_states_stay_inside_the_limits(robot):
-    from mca_drake.learning.dpc import perturb_initial_states
+    from mca_drake.learning.dpc_training import perturb_initial_states
 
     torch.manual_seed(0)
     policy = PolicyNetwork()
@@ -385,7 +385,7 @@ def test_perturbed_initial_states_stay_inside_the_limits(robot):
 def test_channel_weights_make_every_channel_count_alike():
     """'normalized': c_k var_k is the same for all k and sum_k c_k var_k = sum_k var_k, so
     doing nothing costs what it costs with uniform weights; the loss uses them per channel."""
-    from mca_drake.learning.dpc import dpc_loss_terms, tracking_channel_weights
+    from mca_drake.learning.dpc_training import dpc_loss_terms, tracking_channel_weights
 
     g = torch.Generator().manual_seed(0)
     scales = torch.tensor([0.05, 0.02, 0.03, 0.5, 0.14, 0.7], dtype=torch.float64)
@@ -489,7 +489,7 @@ def test_default_loss_is_the_shipped_nmpc_objective_and_paper_is_v6s():
     ):
         assert getattr(paper, name) == recorded[name], name
     assert set(paper.tracking_channel_weights) == {1.0}
-    # v5 and v6 predate the terminal scaling and the mirrored windows
+    # the paper's recipe scales no terminal weights and mirrors no windows
     assert (paper.terminal_weight_horizon, paper.mirror_fraction) == (0, 0.0)
 
 
@@ -507,7 +507,7 @@ def test_clamp_bounds_are_constants_of_the_step_unless_asked(robot):
     """Near a limit the clamp's bound moves with the state at about 1/(c h^2) per rad: by
     default training treats it as a constant (gradient zero through it), `bound_gradients`
     lets it through, and then it matches a finite difference of the bound."""
-    from mca_drake.learning.dpc import RolloutPlant
+    from mca_drake.learning.dpc_training import RolloutPlant
 
     x = torch.zeros(1, 12, dtype=torch.float32)
     x[0, 0] = float(robot.q_max[0]) - 1e-4  # joint 1 just below its upper limit, at rest
@@ -535,7 +535,7 @@ def test_clamp_bounds_are_constants_of_the_step_unless_asked(robot):
 
 
 def test_near_neutral_windows_keep_the_starts_inside_the_bound(tmp_path):
-    from mca_drake.learning.dpc import near_neutral_windows
+    from mca_drake.learning.dpc_training import near_neutral_windows
 
     data = _sine_target_dataset(n_segments=10, horizon=8)
     data.arrays["X"][3, 0, 2] = 0.5  # starts 0.5 rad out on joint 3
@@ -560,7 +560,7 @@ def test_terminal_weights_are_scaled_to_their_horizon():
     """With only the terminal position cost on, a rollout of T steps whose terminal weights
     belong to a horizon of 2T carries twice the cost of unscaled weights, and one of T the
     same."""
-    from mca_drake.learning.dpc import dpc_objective
+    from mca_drake.learning.dpc_training import dpc_objective
 
     torch.manual_seed(2)
     T = 12

@@ -10,7 +10,7 @@ import torch
 from test_kinematics import drake_plant_output
 
 from mca_drake.conventions import MIRROR_CHANNEL_SIGNS
-from mca_drake.learning.dpc import (
+from mca_drake.learning.dpc_training import (
     DpcTrainingConfig,
     RolloutPlant,
     check_base_yaw_invariance,
@@ -21,7 +21,7 @@ from mca_drake.learning.dpc import (
     shift_base_yaw,
     stretch_some_targets,
 )
-from mca_drake.learning.policy import PolicyNetwork
+from mca_drake.learning.policy_network import PolicyNetwork
 from mca_drake.robot import MIRROR_JOINT_SIGNS
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from mca_drake.learning.dpc import (
+from mca_drake.learning.dpc_training import (
     DpcTrainingConfig,
     RolloutPlant,
     closed_loop_rollout,
@@ -14,7 +14,7 @@ from mca_drake.learning.dpc import (
     dpc_objective,
     pooled_correlation,
 )
-from mca_drake.learning.policy import PolicyNetwork
+from mca_drake.learning.policy_network import PolicyNetwork
 from mca_drake.metrics import pearson_cc
 
 

@@ -3,12 +3,14 @@
 The tiny set: three short NMPC-rti flights of three aircraft classes (light single,
 fighter, airliner) from `generate_closed_loop_dataset`. A few epochs from random weights do
 not give a policy that stays near neutral for seconds (that takes 10 s rollouts and half an
-hour), so the test fine-tunes the kept v6 policy with the paper's loss: what it shows is the
+hour), so the test fine-tunes the policy_v6 file with the paper's loss: what it shows is the
 pipeline (mixed data, training, the policy file, the diagram) and that the result cues
 better than not moving on a flight of an aircraft it did not see.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,11 +21,12 @@ from mca_drake.cueing.dpc import (
     load_policy_arrays,
     shipped_policy_path,
 )
-from mca_drake.learning.dpc import DpcTrainingConfig, train_policy
-from mca_drake.learning.policy import load_policy_network, save_policy
+from mca_drake.learning.dpc_training import DpcTrainingConfig, train_policy
+from mca_drake.learning.policy_network import load_policy_network, save_policy
 from mca_drake.learning.trainer import TrainConfig
 from mca_drake.metrics import performance_index
 from mca_drake.references.flights import FlightSpec, flight_reference
+from mca_drake.resources import SHIPPED_POLICIES
 from mca_drake.segments import SegmentDataset
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.closed_loop_dataset import (
@@ -31,6 +34,7 @@ from mca_drake.studies.closed_loop_dataset import (
     generate_closed_loop_dataset,
 )
 
+DATA = Path(__file__).parent / "data"
 TINY_MIXED = ClosedLoopDatasetConfig(
     vehicles=("light", "f16", "A320"),
     flight_seeds=(31, 32, 33),
@@ -85,11 +89,14 @@ def test_policy_fine_tuned_on_mixed_vehicles_runs_and_beats_zero_motion(fine_tun
     assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
 
 
-@pytest.mark.parametrize(
-    "name", ["default_policy", "policy_v10", "policy_v9", "policy_v8", "policy_v6"]
-)
-def test_shipped_policy_files_round_trip(name, tmp_path):
-    path = shipped_policy_path(name)
+# Policy files of other recipes and format versions kept as fixtures (tests/data), beside
+# the shipped ones: a policy file that users may hold must still load and save unchanged.
+OLDER_POLICY_FILES = ("policy_v10", "policy_v9", "policy_v8")
+
+
+@pytest.mark.parametrize("name", [*SHIPPED_POLICIES, *OLDER_POLICY_FILES])
+def test_policy_files_round_trip(name, tmp_path):
+    path = shipped_policy_path(name) if name in SHIPPED_POLICIES else DATA / f"{name}.npz"
     arrays, _ = load_policy_arrays(path)
     network = load_policy_network(path)
     copy = tmp_path / "copy.npz"
@@ -106,7 +113,7 @@ def test_shipped_policy_files_round_trip(name, tmp_path):
 def test_a_policy_file_that_does_not_fit_is_refused(tmp_path):
     import json
 
-    from mca_drake.systems.dpc_policy import DpcPolicy
+    from mca_drake.systems.dpc import DpcPolicy
 
     arrays, metadata = load_policy_arrays(default_policy_path())
     wrong = dict(arrays)

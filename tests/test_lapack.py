@@ -66,7 +66,8 @@ def test_singular_triangle_gives_non_finite_not_garbage():
 
 
 def test_active_set_solvers_refuse_a_non_finite_gradient():
-    """A NaN in g must give no solution, not a NaN one (scipy's checks used to raise)."""
+    """A NaN in g must give no solution, not a NaN one: the raw LAPACK calls skip scipy's
+    finite checks, so the solvers check their inputs themselves."""
     from mca_drake.cueing.active_set import solve_on_active_set
     from mca_drake.cueing.dual_active_set import solve_dual_active_set
 

@@ -19,15 +19,15 @@ from test_live_loop import stream
 from mca_drake.live.csv_udp import CsvDecoder
 from mca_drake.live.loop import run_live
 from mca_drake.live.receiver import ReceiverConfig
-from mca_drake.live.rsi_driver import RsiDriver, RsiDriverConfig, RsiRefused, lead_report
-from mca_drake.live.rsi_emulator import (
+from mca_drake.live.rsi.driver import RsiDriver, RsiDriverConfig, RsiRefused, lead_report
+from mca_drake.live.rsi.emulator import (
     AxisLimits,
     RsiEmulator,
     RsiEmulatorConfig,
     split_reply_latency,
 )
-from mca_drake.live.rsi_link import RobotClockServo, segment_socket_pair, start_rsi_driver
-from mca_drake.live.rsi_motion import CommandSegment, RsiMotionConfig, SegmentBuffer
+from mca_drake.live.rsi.link import RobotClockServo, segment_socket_pair, start_rsi_driver
+from mca_drake.live.rsi.motion import CommandSegment, RsiMotionConfig, SegmentBuffer
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
 
@@ -261,7 +261,7 @@ def test_a_live_run_drives_the_emulated_robot_through_a_telemetry_stop(tmp_path)
     def start(address):
         threads.append(threading.Thread(target=stream, args=(address, 3.2), daemon=True))
         threads[0].start()
-        command = [sys.executable, "-m", "mca_drake.live.rsi_emulator"]
+        command = [sys.executable, "-m", "mca_drake.live.rsi.emulator"]
         command += ["--driver", f"127.0.0.1:{rsi.port}", "--duration", "8"]  # its port now
         command += ["--start-deg", ",".join(repr(float(v)) for v in home_deg)]
         command += ["--report", str(tmp_path / "report.json")]

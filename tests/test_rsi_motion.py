@@ -13,7 +13,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 from scipy.integrate import solve_ivp
 
-from mca_drake.live.rsi_motion import (
+from mca_drake.live.rsi.motion import (
     BadSegment,
     CommandSegment,
     MotionFollower,

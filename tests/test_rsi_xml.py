@@ -1,4 +1,4 @@
-"""RSI messages (issue 21's groundwork): a state message as ROS-Industrial's
+"""RSI messages: a state message as ROS-Industrial's
 kuka_rsi_hw_interface documents the controller's, replies checked by Python's own XML parser,
 and every malformed datagram refused with BadRsiPacket, never another exception."""
 
@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mca_drake.live.rsi_xml import (
+from mca_drake.live.rsi.xml import (
     MAX_RSI_BYTES,
     BadRsiPacket,
     RsiTags,

@@ -124,7 +124,7 @@ def test_clamp_call_equals_clipping_into_the_bounds(robot, rng):
 def test_torch_bounds_equal_numpy(robot, rng):
     import torch
 
-    from mca_drake.torch_plant import viable_acceleration_bounds_torch
+    from mca_drake.learning.torch_plant import viable_acceleration_bounds_torch
 
     q = rng.uniform(1.1 * robot.q_min, 1.1 * robot.q_max, size=(500, 6))
     qd = rng.uniform(-1.2 * robot.qd_max, 1.2 * robot.qd_max, size=(500, 6))

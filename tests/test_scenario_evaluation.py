@@ -134,7 +134,7 @@ def test_dpc_runs_of_another_policy_are_run_again(tmp_path):
 
     import torch
 
-    from mca_drake.learning.policy import PolicyNetwork, save_policy
+    from mca_drake.learning.policy_network import PolicyNetwork, save_policy
 
     torch.manual_seed(3)
     other = tmp_path / "other_policy.npz"

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mca_drake import kinematics
-from mca_drake.torch_plant import TorchPlant
+from mca_drake.learning.torch_plant import TorchPlant
 
 
 @pytest.fixture(scope="module")

@@ -102,11 +102,11 @@ def test_a_joint_inside_the_ik_reserve_band_does_not_stall_the_ik(robot):
     """The IK keeps 2 % of each range in reserve; the clipped, clamped command can carry a
     joint into that band. From there the IK must still solve (no failure, no frozen robot)
     and may only move the joint back towards the middle. The state is one met on light
-    flight 1006: joint 3 is 1.6e-4 rad inside the band and still moving outwards, which
-    with fixed IK bounds failed at 21021 of 30000 steps."""
+    flight 1006: joint 3 is 1.6e-4 rad inside the band and still moving outwards, where
+    fixed IK position bounds make the QP infeasible (step 21021 of that flight's 30000)."""
     from pydrake.systems.analysis import Simulator
 
-    from mca_drake.systems.classical_washout import ClassicalWashout
+    from mca_drake.systems.washout import ClassicalWashout
 
     washout = ClassicalWashout(robot=robot)
     q = np.array([0.1858, -0.0323, 0.857, 0.9902, -0.7994, 0.0278])

@@ -225,9 +225,9 @@ def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None
     # the live layer (sockets, the live diagram, the RSI driver) only for live jobs
     from mca_drake.live.loop import make_decoder, run_live
     from mca_drake.live.receiver import ReceiverConfig
-    from mca_drake.live.rsi_driver import RsiDriverConfig
-    from mca_drake.live.rsi_link import parse_robot_url
-    from mca_drake.live.rsi_motion import RsiMotionConfig
+    from mca_drake.live.rsi.driver import RsiDriverConfig
+    from mca_drake.live.rsi.link import parse_robot_url
+    from mca_drake.live.rsi.motion import RsiMotionConfig
 
     scenario.validate()
     if scenario.output_json:

@@ -32,6 +32,7 @@ from mca_drake.cueing import (
 )
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
 from mca_drake.references.flights import FlightSpec
+from mca_drake.resources import scenario_path
 from mca_drake.simulation.closed_loop import PLANTS
 from mca_drake.studies.closed_loop_dataset import DEFAULT_DATASET_DIR, ClosedLoopDatasetConfig
 from mca_drake.studies.evaluation import (
@@ -404,10 +405,11 @@ def _prepare_union(members: tuple, raw, current, where: str):
 
 
 def load_scenario(path: str | Path, overrides: str | Sequence[str] | None = None) -> Scenario:
-    """Loads the `scenario` of a YAML file in diagrams/, with optional text overrides.
+    """Loads the `scenario` of a YAML file, with optional text overrides.
 
     Args:
-        path: the YAML file.
+        path: the YAML file, or the name of a scenario the package carries
+            (`mca_drake.resources.packaged_scenarios`: "closed_loop_dpc", "live_rsi", ...).
         overrides: optional YAML text (or several, applied in order) on top of the file's
             scenario, for quick changes: '{scenario: {duration_s: 5}}' or just
             '{duration_s: 5}'; an MCA is replaced with its tag,
@@ -415,13 +417,11 @@ def load_scenario(path: str | Path, overrides: str | Sequence[str] | None = None
             without one, `{mca: {washout_weight: 0.1}}`.
 
     Raises:
-        FileNotFoundError: no such file.
+        FileNotFoundError: no such file and no packaged scenario of that name.
         ValueError: unknown field (named with its class), a value of the wrong type, or a
             value out of range.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"scenario file not found: {path}")
+    path = scenario_path(path)
     try:
         raw_file = _prepare(ScenarioFile, yaml_load(filename=str(path)), None, "")
         scenario = yaml_load_typed(schema=ScenarioFile, data=yaml_dump(raw_file)).scenario

@@ -1,7 +1,7 @@
 """DPC inference: the policy-file format, its reader and the numpy policy (no torch).
 
 A policy file (.npz, no pickle) holds the exported weights of
-`mca_drake.learning.policy.PolicyNetwork` and a JSON metadata string: W1 (hidden, 24),
+`mca_drake.learning.policy_network.PolicyNetwork` and a JSON metadata string: W1 (hidden, 24),
 W2 (18, hidden), input_scale (24), lower, upper (18). `PolicyInference` evaluates it in
 numpy, equal to the torch network (tested to 1e-6): the same scaled inputs, two bias-free
 layers with the exact (erf) GELU between, and the saturation to the limits.
@@ -15,6 +15,7 @@ import numpy as np
 from scipy.special import erf
 
 from mca_drake.atomic_io import load_npz_with_metadata
+from mca_drake.resources import SHIPPED_POLICIES, data_dir
 from mca_drake.robot import NUM_JOINTS
 
 _SQRT_HALF = np.sqrt(0.5)
@@ -47,9 +48,6 @@ class DpcConfig:
         return Path(self.policy) if self.policy else default_policy_path()
 
 
-_DATA_DIR = Path(__file__).resolve().parents[1] / "data"
-
-
 def default_policy_path() -> Path:
     """The policy shipped with the package (mca_drake/data/default_policy.npz); raises
     FileNotFoundError with the command that makes one if it is missing."""
@@ -57,21 +55,24 @@ def default_policy_path() -> Path:
         return shipped_policy_path("default_policy")
     except FileNotFoundError:
         raise FileNotFoundError(
-            f"no default policy at {_DATA_DIR / 'default_policy.npz'}; train one with "
+            f"no default policy at {data_dir() / 'default_policy.npz'}; train one with "
             "`mca-drake train-policy` and pass --policy, or reinstall the package"
         ) from None
 
 
 def shipped_policy_path(name: str) -> Path:
-    """A policy file shipped in mca_drake/data: "default_policy" (the default, v11) or an
-    earlier one kept loadable: "policy_v10" (v11's recipe without the T37, base-yaw shifted
-    starts or stretched windows; the default of sessions 22-25), "policy_v9" (v10's set and
-    objective without mirrored windows or terminal-weight scaling; the default of sessions
-    17-21), "policy_v8" (six aircraft, the tuned objective; sessions 15-16) or "policy_v6"
-    (five c172p flights, the paper's loss)."""
-    path = _DATA_DIR / f"{name}.npz"
+    """A policy file shipped with the package: "default_policy" (the default DPC policy) or
+    "policy_v6" (the paper reproduction: five c172p flights, the paper's loss).
+
+    Raises:
+        ValueError: `name` is not a shipped policy (the message lists them).
+        FileNotFoundError: the file is missing from the install.
+    """
+    if name not in SHIPPED_POLICIES:
+        raise ValueError(f"unknown shipped policy '{name}'; valid: {', '.join(SHIPPED_POLICIES)}")
+    path = data_dir() / f"{name}.npz"
     if not path.is_file():
-        raise FileNotFoundError(f"no shipped policy '{name}' at {path}")
+        raise FileNotFoundError(f"no shipped policy '{name}' at {path}; reinstall mca-drake")
     return path
 
 
@@ -117,7 +118,7 @@ class PolicyInference:
 
     Args:
         arrays: W1 (hidden, 24), W2 (18, hidden), input_scale (24), lower, upper (18), as
-            written by `mca_drake.learning.policy.save_policy` (see `load_policy_arrays`).
+            written by `mca_drake.learning.policy_network.save_policy` (see `load_policy_arrays`).
     """
 
     def __init__(self, arrays: dict[str, np.ndarray]):

@@ -103,9 +103,9 @@ class NmpcConfig:
     #       --vehicles light,jet --seeds 100,101,102 --seed 3
     # on 2026-11-25 with the false-rotation limit (5 deg/s RMS, median over the flights) and
     # the rotation weights searched up to 300: median PI -1.426 against the paper's -0.623 on
-    # those six 120 s training flights, false rotation 2.5-6.9 deg/s RMS (the paper's 3.4-36;
-    # the previous defaults', tuned on the PI alone, 26-49: they swung the cabin for
-    # centripetal heave). benchmarks/results/tune_nmpc_false_rotation.
+    # those six 120 s training flights, false rotation 2.5-6.9 deg/s RMS (the paper's 3.4-36).
+    # The limit is there because weights tuned on the PI alone swing the cabin for
+    # centripetal heave (docs/decisions/0007-nmpc-tuning-limits-false-rotation.md).
     # Weights of the six output channels (w_x, w_y, w_z, f_x, f_y, a_z) in ||y - r||^2.
     output_weights: list[float] = dataclasses.field(
         default_factory=lambda: [
@@ -133,8 +133,8 @@ class NmpcConfig:
     # guess's dual-feasible part. None: 0 in both modes. Each correction is one KKT solve
     # (0.1 to 1 ms with many active rows) that often fails where many rows change, while the
     # dual method always ends, exactly: on a 300 s light flight at the tuned weights, rti's
-    # QP p99 was 2.1 ms with 0 corrections, 2.9 with 1; on the 3 g heave step, converged's
-    # worst step was 144 ms with 0, 290 with 20.
+    # QP p99 is 2.1 ms with 0 corrections, 2.9 with 1; on the 3 g heave step, converged's
+    # worst step is 144 ms with 0, 290 with 20.
     active_set_corrections: int | None = None
     # Drake's QP solver where the hot-started active set does not settle: "clarabel"
     # (interior point, accurate), "osqp" (ADMM with solution polishing, fast) or "auto"
@@ -164,8 +164,9 @@ class NmpcConfig:
     kkt_tolerance: float = 1e-7
     # converged mode: after a full step that the line search rejected (the Gauss-Newton
     # model overshot), the next QPs take Marquardt's damping H + mu diag(H) (`_next_damping`):
-    # on a 3 g surge step this brought the worst step from 0.29 to 0.12 s, and steps that had
-    # stopped at the iteration cap far from a KKT point now reach one. The stop is unchanged.
+    # on a 3 g surge step the worst step takes 0.12 s with it and 0.29 s without, and steps
+    # that stop at the iteration cap far from a KKT point without it reach one. The damping
+    # does not change the stopping test.
     marquardt_damping: bool = True
 
     @classmethod
@@ -679,17 +680,7 @@ class MotionCueingOcp:
         mode = mode or cfg.mode
         if mode not in MODES:
             raise ValueError(f"unknown NMPC mode '{mode}'; valid: {', '.join(MODES)}")
-        x0 = np.asarray(x0, dtype=float)
-        refs = np.broadcast_to(np.asarray(refs, dtype=float), (self.N, 6))
-        U = np.zeros((self.N, NU)) if U_guess is None else np.array(U_guess, dtype=float)
-        lo, hi = self.input_bounds(x0)
-        self._first_input_box.set_bounds(lo[:NU], hi[:NU])
-        U = np.clip(U.reshape(-1), lo, hi).reshape(self.N, NU)
-        lb, ub = self.constraint_bounds(x0)
-        row_lo, row_hi = np.concatenate([lb, lo]), np.concatenate([ub, hi])
-        active = np.zeros(self.num_rows, dtype=np.int8)
-        if active_guess is not None and np.shape(active_guess) == (self.num_rows,):
-            active = np.clip(np.rint(active_guess), -1, 1).astype(np.int8)
+        x0, refs, U, row_lo, row_hi, active = self._start(x0, refs, U_guess, active_guess)
         model = self._gauss_newton(x0, U, refs)
         cost = model.cost
         iterations, hot_starts, message, kkt = 0, 0, "", float("nan")
@@ -714,94 +705,35 @@ class MotionCueingOcp:
             H, factor = self._convex_model(model, hessians, active, damping)
             CU = self._C @ U.reshape(-1)
             step, solution, hot, message = self._qp_step(
-                (H, factor),
-                model.H,
-                g,
-                row_lo - CU,
-                row_hi - CU,
-                active,
-                (x0, U, refs, model.jac),
+                (H, factor), model.H, g, row_lo - CU, row_hi - CU, active, (x0, U, refs, model.jac)
             )
             iterations += 1
             hot_starts += hot
             if step is None:
-                return SolveResult(
-                    U,
-                    cost,
-                    iterations,
-                    False,
-                    time.perf_counter() - start,
-                    message=f"QP failed: {message}",
-                    active=active,
-                    hot_starts=hot_starts,
-                    stop="failed",
-                )
+                elapsed = time.perf_counter() - start
+                return _failed(U, cost, iterations, elapsed, message, active, hot_starts)
             multipliers = None
             if solution is not None:
                 active = solution.active
             if mode == "rti":
                 U = U + step
                 break
-            # Backtracking on the true cost; the segment stays feasible (linear constraints).
-            # A rise within the QP's accuracy is accepted, so that the iteration can finish
-            # converging in U instead of stalling on round-off: about 1e-9 relative for
-            # Drake's solver, only the cost's round-off for the hot start's exact KKT solves
-            # (a wider allowance there let a poor model cycle, rising and falling by 3e-8 on
-            # a 3 g step, 50 iterations). A start that breaks a constraint (the shifted plan
-            # from a new state) takes the full step, which lands on the feasible set,
-            # whatever it costs: a cost line search from outside that set can stall there
-            # (on a 3 g step it did, 50 iterations). The full step's model is the next
-            # iteration's (its Jacobians are needed there).
-            allowance = (EXACT_QP_ALLOWANCE if hot else 1e-9) * max(1.0, abs(cost))
-            alpha, next_model = 1.0, self._gauss_newton(x0, U + step, refs)
-            trial_cost = next_model.cost
-            d = step.reshape(-1)
-            predicted = float(g @ d + 0.5 * d @ (H @ d))  # the model's change of the cost
-            # the full step gained less than that share of what the model promised: the
-            # learnt curvature has drifted from the cost's, so it is measured afresh below
-            drifted = predicted < 0 and trial_cost - cost > CURVATURE_REFRESH_RATIO * predicted
-            restoring = bool(np.any(CU < row_lo - 1e-9) or np.any(CU > row_hi + 1e-9))
-            while trial_cost > cost + allowance and not restoring:
-                alpha, next_model = 0.5 * alpha, None
-                if alpha < 1e-6:
-                    break
-                trial_cost = self.cost(x0, U + alpha * step, refs)
+            alpha, trial_cost, next_model, drifted = self._line_search(
+                x0, U, refs, step, cost, model, H, hot, CU, row_lo, row_hi, damping
+            )
             if alpha < 1e-6:
                 stop = "no_descent"  # none along the Gauss-Newton direction: converged
                 break
-            if (
-                alpha == 1.0
-                and damping == 0.0
-                and not restoring
-                and trial_cost - cost < EXPANSION_RATIO * predicted
-            ):
-                # the step gained more than the model promised: its curvature overrates the
-                # cost's along the step (a convexified or damped model near a saddle; on a
-                # 1 g chirp such steps crept on at twice their promise for 40 iterations),
-                # so the step is tried longer, as far as the constraints allow
-                longer = self._expanded_step(U, step, row_lo, row_hi, CU)
-                if longer is not None:
-                    longer_cost = self.cost(x0, U + longer * step, refs)
-                    if longer_cost < trial_cost:
-                        alpha, trial_cost, next_model = longer, longer_cost, None
             if cfg.marquardt_damping:
                 # a lengthened step (alpha > 1) counts as one the model got wrong, as a
-                # rejected one does: the damping restarts. Measured on the chirp's worst solve:
-                # counted as an accepted full step instead, the next undamped steps crept on to
-                # the 50-iteration cap (stop "iterations"); with the restart it stops at a KKT
-                # point in 24-31 iterations
+                # rejected one does: the damping restarts (counted as accepted, the 1 g chirp's
+                # worst solve creeps on to the 50-iteration cap; restarted, it stops at a KKT
+                # point in 24-31 iterations)
                 damping, shed = _next_damping(damping, alpha == 1.0, shed)
             U, cost = U + alpha * step, trial_cost
-            old = model
-            model = next_model if next_model is not None else self._gauss_newton(x0, U, refs)
-            if drifted:  # measured afresh: no secant update to make first
-                hessians = self._starting_hessians(x0, U, model, None)
-            else:
-                hessians = psb_update(
-                    hessians,
-                    self._condensing.node_steps(alpha * step),
-                    model.node_jacobian - old.node_jacobian,
-                )
+            model, hessians = self._models_at(
+                x0, U, refs, alpha, step, model, next_model, hessians, drifted
+            )
             if alpha == 1.0 and solution is not None:
                 multipliers = solution.multipliers
             if damping == 0.0 and np.max(np.abs(alpha * step)) < cfg.step_tolerance:
@@ -822,6 +754,84 @@ class MotionCueingOcp:
             stop=stop,
             output_hessians=hessians,
         )
+
+    def _start(self, x0, refs, U_guess, active_guess):
+        """A solve's data from its arguments: (x0 (12), refs (N, 6), the warm start U (N, 6)
+        clipped into the input bounds, the rows' lower and upper bounds (`num_rows`,), the
+        guessed active set (`num_rows`,) in {-1, 0, +1}); loads the first input's box."""
+        x0 = np.asarray(x0, dtype=float)
+        refs = np.broadcast_to(np.asarray(refs, dtype=float), (self.N, 6))
+        U = np.zeros((self.N, NU)) if U_guess is None else np.array(U_guess, dtype=float)
+        lo, hi = self.input_bounds(x0)
+        self._first_input_box.set_bounds(lo[:NU], hi[:NU])
+        U = np.clip(U.reshape(-1), lo, hi).reshape(self.N, NU)
+        lb, ub = self.constraint_bounds(x0)
+        row_lo, row_hi = np.concatenate([lb, lo]), np.concatenate([ub, hi])
+        active = np.zeros(self.num_rows, dtype=np.int8)
+        if active_guess is not None and np.shape(active_guess) == (self.num_rows,):
+            active = np.clip(np.rint(active_guess), -1, 1).astype(np.int8)
+        return x0, refs, U, row_lo, row_hi, active
+
+    def _line_search(self, x0, U, refs, step, cost, model, H, hot, CU, row_lo, row_hi, damping):
+        """The length of the QP's step `step` (N, 6) from U in converged mode: (alpha,
+        the true cost at U + alpha step, the Gauss-Newton model there or None where it is not
+        at hand, whether the learnt curvature has drifted); alpha < 1e-6: no descent.
+
+        `model` is the Gauss-Newton model at U (true cost `cost`), H the QP's Hessian, `hot`
+        whether the hot start solved the QP, CU the rows' values at U (`num_rows`,) and
+        `damping` the QP's Marquardt damping."""
+        # Backtracking on the true cost; the segment stays feasible (linear constraints).
+        # A rise within the QP's accuracy is accepted, so that the iteration can finish
+        # converging in U instead of stalling on round-off: about 1e-9 relative for
+        # Drake's solver, only the cost's round-off for the hot start's exact KKT solves
+        # (a wider allowance there lets a poor model cycle, rising and falling by 3e-8 on
+        # a 3 g step, 50 iterations). A start that breaks a constraint (the shifted plan
+        # from a new state) takes the full step, which lands on the feasible set,
+        # whatever it costs: a cost line search from outside that set can stall there
+        # (on a 3 g step it does, 50 iterations). The full step's model is the next
+        # iteration's (its Jacobians are needed there).
+        allowance = (EXACT_QP_ALLOWANCE if hot else 1e-9) * max(1.0, abs(cost))
+        alpha, next_model = 1.0, self._gauss_newton(x0, U + step, refs)
+        trial_cost = next_model.cost
+        d = step.reshape(-1)
+        predicted = float(model.g @ d + 0.5 * d @ (H @ d))  # the model's change of the cost
+        # the full step gained less than that share of what the model promised: the
+        # learnt curvature has drifted from the cost's, so it is measured afresh
+        drifted = predicted < 0 and trial_cost - cost > CURVATURE_REFRESH_RATIO * predicted
+        restoring = bool(np.any(CU < row_lo - 1e-9) or np.any(CU > row_hi + 1e-9))
+        while trial_cost > cost + allowance and not restoring:
+            alpha, next_model = 0.5 * alpha, None
+            if alpha < 1e-6:
+                return alpha, trial_cost, next_model, drifted
+            trial_cost = self.cost(x0, U + alpha * step, refs)
+        if (
+            alpha == 1.0
+            and damping == 0.0
+            and not restoring
+            and trial_cost - cost < EXPANSION_RATIO * predicted
+        ):
+            # the step gained more than the model promised: its curvature overrates the
+            # cost's along the step (a convexified or damped model near a saddle; on a
+            # 1 g chirp such steps creep on at twice their promise for 40 iterations),
+            # so the step is tried longer, as far as the constraints allow
+            longer = self._expanded_step(U, step, row_lo, row_hi, CU)
+            if longer is not None:
+                longer_cost = self.cost(x0, U + longer * step, refs)
+                if longer_cost < trial_cost:
+                    alpha, trial_cost, next_model = longer, longer_cost, None
+        return alpha, trial_cost, next_model, drifted
+
+    def _models_at(self, x0, U, refs, alpha, step, old, model, hessians, drifted):
+        """The Gauss-Newton model and the output Hessians at the new plan U, reached from the
+        plan of model `old` by alpha times `step` (N, 6): (model, hessians). `model` is U's
+        model where the line search has it (else None), `hessians` the estimates at the old
+        plan, `drifted` whether they are to be measured afresh rather than updated."""
+        if model is None:
+            model = self._gauss_newton(x0, U, refs)
+        if drifted:  # measured afresh: no secant update to make first
+            return model, self._starting_hessians(x0, U, model, None)
+        node_steps = self._condensing.node_steps(alpha * step)
+        return model, psb_update(hessians, node_steps, model.node_jacobian - old.node_jacobian)
 
     def _expanded_step(self, U, step, row_lo, row_hi, CU) -> float | None:
         """The longest multiple alpha in (1, EXPANSION_MAX] of `step` that keeps U + alpha step
@@ -969,13 +979,13 @@ class MotionCueingOcp:
 # `_convex_model`'s multiples of N_A^T N_A (the guessed active rows' normals; H's entries are
 # of order 1e-2 to 1) and fractions of the residual curvature, in the order tried.
 # Convexification weights of the guessed active rows (`_convex_candidates`). On a 3 g heave
-# step the reduced Newton model's smallest eigenvalue was 0.007 against couplings of order 1
-# to the constrained directions: rho must reach about 1e4 there, or the iteration fell back
-# to Gauss-Newton and converged linearly (18-40 iterations instead of 6-10).
+# step the reduced Newton model's smallest eigenvalue is 0.007 against couplings of order 1
+# to the constrained directions: rho must reach about 1e4 there, or the iteration falls back
+# to Gauss-Newton and converges linearly (18-40 iterations instead of 6-10).
 CONVEXIFY_RHO = (1.0, 1e2, 1e4)
 SHRINK_THETA = (0.5, 0.25, 0.125)
 # A full step whose true cost change is above this share of the model's predicted (negative)
-# change re-measures the output Hessians by finite differences (PSB's updates had drifted).
+# change re-measures the output Hessians by finite differences (PSB's updates have drifted).
 CURVATURE_REFRESH_RATIO = 0.5
 # A full step that gained more than EXPANSION_RATIO times the model's promise is tried up to
 # EXPANSION_MAX times longer (`MotionCueingOcp._expanded_step`).
@@ -1005,17 +1015,32 @@ def _convex_candidates(H: np.ndarray, S: np.ndarray, active_normals: np.ndarray)
 DAMPING_START, DAMPING_GROWTH, DAMPING_FLOOR = 1e-2, 4.0, 1e-4
 
 
+def _failed(U, cost, iterations, elapsed, message, active, hot_starts) -> SolveResult:
+    """The result of a solve whose QP failed: its last plan U (N, 6), kept as a fallback."""
+    return SolveResult(
+        U,
+        cost,
+        iterations,
+        False,
+        elapsed,
+        message=f"QP failed: {message}",
+        active=active,
+        hot_starts=hot_starts,
+        stop="failed",
+    )
+
+
 def _next_damping(damping: float, accepted_full_step: bool, shed: float) -> tuple[float, float]:
     """(mu for the next iteration, the last non-zero mu) after an iteration with `damping`;
     `shed`: the last non-zero mu before it (0.0: none yet).
 
-    An undamped step that overshoots after the damping was dropped restarts it from
+    An undamped step that overshoots after the damping has been dropped restarts it from
     DAMPING_GROWTH times the last mu in use (whenever in the solve that was), not from
-    DAMPING_START: that mu had been enough. At the worst steps the damping otherwise cycled
-    (restart at 1e-2, five accepted steps that gained twice their promise while it shrank, an
-    overshoot once dropped): on the 54 slowest converged steps of the seven adversarial
-    references and two development flights, 822 -> 774 Gauss-Newton iterations, the 3 g
-    surge's onset 42 -> 37."""
+    DAMPING_START: that mu was enough. A restart from DAMPING_START makes the damping cycle
+    at the worst steps (restart at 1e-2, five accepted steps that gain twice their promise
+    while it shrinks, an overshoot once dropped): on the 54 slowest converged steps of the
+    seven adversarial references and two development flights, with this restart the solves
+    take 774 Gauss-Newton iterations against 822, the 3 g surge's onset 37 against 42."""
     if not accepted_full_step:
         if damping == 0.0 and shed > 0.0:
             return DAMPING_GROWTH * shed, shed

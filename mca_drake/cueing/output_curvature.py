@@ -125,7 +125,9 @@ class NodeCondensing:
     q_k = sum_j Sq[k, j] u_j + ..., qd_k = sum_j Sqd[k, j] u_j + ..., u_k = u_k.
 
     Args:
-        Sq, Sqd: the condensing coefficients of the OCP, shape (>= N, N) (rows 0..N-1 used).
+        Sq: the OCP's condensing coefficients of the positions, shape (>= N, N) (rows
+            0..N-1 used).
+        Sqd: those of the velocities, the same shape.
     """
 
     def __init__(self, Sq: np.ndarray, Sqd: np.ndarray):

@@ -13,7 +13,7 @@ Only the latent model uses y_prev, recursively.
     latent   eq. (7): y_t = f4(f3(y_(t-1), x_t, u_t)), latent size 12
     mixed    eq. (8): F = F(q) exact, dF = f3(g(qd), F), ddF = f4(g(qd), dF) + f5(g(u), F),
              g(v) = [sin v, cos v]; y from (F, dF, ddF) by the exact output equations
-    exact    the exact analytical output (`mca_drake.torch_plant.TorchPlant`)
+    exact    the exact analytical output (`mca_drake.learning.torch_plant.TorchPlant`)
 
 `training_loss` is each model's own objective (equations 6-8): MSE on y for nssm and
 latent, MSE on dF and ddF for mixed.
@@ -26,8 +26,8 @@ from torch import nn
 
 from mca_drake.conventions import CONTROL_PERIOD_S, GRAVITY
 from mca_drake.learning.blocks import Mlp, pose_top, sin_cos_features
+from mca_drake.learning.torch_plant import TorchPlant
 from mca_drake.robot import NUM_JOINTS
-from mca_drake.torch_plant import TorchPlant
 
 STATE_SIZE, INPUT_SIZE, OUTPUT_SIZE = 2 * NUM_JOINTS, NUM_JOINTS, 6
 POSE_SIZE = 12  # top 3x4 block of a pose matrix or its derivative

@@ -26,8 +26,8 @@ from torch import nn
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.learning.blocks import Mlp
 from mca_drake.learning.ode_adjoint import odeint_step
+from mca_drake.learning.torch_plant import integrate_double_integrator
 from mca_drake.robot import NUM_JOINTS
-from mca_drake.torch_plant import integrate_double_integrator
 
 STATE_SIZE, INPUT_SIZE = 2 * NUM_JOINTS, NUM_JOINTS
 

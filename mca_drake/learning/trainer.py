@@ -33,6 +33,7 @@ from mca_drake.learning.checkpoint import (
     load_state_into,
     save_checkpoint,
 )
+from mca_drake.learning.configs import TrainConfig
 from mca_drake.learning.data import TRAINING_ARRAYS, SegmentTensors, to_tensors
 from mca_drake.segments import SegmentDataset
 
@@ -43,51 +44,6 @@ class TrainingDivergedError(FloatingPointError, RuntimeError):
     """Training cannot go on: the loss or too many batches' gradients were not finite. A
     RuntimeError too, so that the command line reports it as an error the user can act on
     (a lower learning rate, other data), not as a bug."""
-
-
-@dataclasses.dataclass
-class TrainConfig:
-    """Training settings; defaults are the paper's for the plant models."""
-
-    # RAdam learning rate and decoupled weight decay.
-    learning_rate: float = 0.01
-    weight_decay: float = 0.01
-    # Segments per batch.
-    batch_size: int = 256
-    # Epochs per curriculum step at most.
-    max_epochs: int = 500
-    # Early stopping: epochs without a validation improvement.
-    early_stopping_patience: int = 150
-    # Reduce-on-plateau of the training loss: factor and patience in epochs.
-    plateau_factor: float = 0.5
-    plateau_patience: int = 100
-    # Curriculum of horizons n_p (steps); each starts from the previous best weights.
-    horizons: tuple[int, ...] = (32, 64, 128, 256)
-    # Seed of the batch shuffling (the caller seeds the weight initialisation).
-    seed: int = 0
-    # "auto" (CUDA when present, else CPU), "cpu" or "cuda".
-    device: str = "auto"
-    # Checkpoint at most this often (s) within a step, and always at the end of a step.
-    checkpoint_interval_s: float = 20.0
-    # Clip the gradient's global norm to this value (0: no clipping). Long closed-loop
-    # rollouts (DPC) can produce exploding gradients that throw the network into saturation.
-    gradient_clip_norm: float = 0.0
-
-    def validate(self) -> None:
-        if min(self.batch_size, self.max_epochs) < 1 or not self.horizons:
-            raise ValueError("batch_size, max_epochs and horizons must be positive / non-empty")
-        if not (self.learning_rate > 0 and 0 < self.plateau_factor < 1):
-            raise ValueError("learning_rate must be > 0 and plateau_factor in (0, 1)")
-        if self.device not in ("auto", "cpu", "cuda"):
-            raise ValueError(f"unknown device '{self.device}'; valid: auto, cpu, cuda")
-
-    def resolved_device(self) -> torch.device:
-        """The torch device to train on; ``auto`` takes CUDA when torch sees one."""
-        if self.device == "auto":
-            return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-        if self.device == "cuda" and not torch.cuda.is_available():
-            raise ValueError("device 'cuda' requested but torch sees no CUDA device")
-        return torch.device(self.device)
 
 
 @dataclasses.dataclass
@@ -163,7 +119,7 @@ def _check_resumable(path: Path, payload: dict, meta: dict, identity: dict) -> N
         raise CheckpointError(f"checkpoint {path} lacks {missing}: it cannot be resumed")
     saved = meta.get("run_identity")
     if saved is None:
-        return  # written before run identities were recorded
+        return  # a checkpoint without a run identity: nothing to compare
     if saved.get("data_sha256") != identity["data_sha256"]:
         raise CheckpointError(
             f"checkpoint {path} was trained on other data; resume it with the same dataset, "
@@ -300,7 +256,8 @@ class CurriculumTrainer:
         """Runs (or resumes) the curriculum; returns the best weights of the last step.
 
         Args:
-            train, validation: segment datasets with a horizon >= max(config.horizons).
+            train: the training segments, with a horizon >= max(config.horizons).
+            validation: the validation segments, with the same horizon bound.
             resume: continue from the checkpoint at `checkpoint_path`. Without it an
                 existing checkpoint is an error (nothing is overwritten by accident).
             progress: show a progress bar per curriculum step.
@@ -311,145 +268,162 @@ class CurriculumTrainer:
                 f"curriculum horizon {max(cfg.horizons)} exceeds the dataset horizon "
                 f"{min(train.horizon, validation.horizon)}"
             )
-        history: list[EpochRecord] = []
-        stages: list[StageResult] = []
         self._identity = run_identity(cfg, train, validation, self.arrays)
         generator = torch.Generator().manual_seed(cfg.seed)
-        start_stage, start_epoch = 0, 0
-        saved = None
-        if self.checkpoint_path.exists():
-            if not resume:
-                raise ValueError(
-                    f"checkpoint {self.checkpoint_path} exists: resume it (--resume) or "
-                    "choose another output folder"
-                )
-            payload, meta = load_checkpoint(self.checkpoint_path, map_location=self.device)
-            for key in ("model", "model_kwargs"):
-                if key in self.metadata and meta.get(key) != self.metadata[key]:
-                    raise CheckpointError(
-                        f"checkpoint {self.checkpoint_path} holds {key}={meta.get(key)!r}; "
-                        f"this run trains {key}={self.metadata[key]!r}"
-                    )
-            _check_resumable(self.checkpoint_path, payload, meta, self._identity)
-            saved = payload
-            load_state_into(self.model, payload["model"], str(self.checkpoint_path))
-            p = payload["progress"]
-            start_stage, start_epoch = p["stage"], p["epoch"]
-            history = [EpochRecord(**r) for r in p["history"]]
-            stages = [StageResult(**s) for s in p["stages"]]
-            generator.set_state(payload["generator"])
-            if "torch_rng" in payload:
-                torch.set_rng_state(payload["torch_rng"])
+        saved, history, stages = self._load_resume_point(resume, generator)
+        start_stage = saved["progress"]["stage"] if saved is not None else 0
         wall_start = time.perf_counter() - (history[-1].wall_s if history else 0.0)
-
         for stage in range(start_stage, len(cfg.horizons)):
-            horizon = cfg.horizons[stage]
-            train_t = to_tensors(train, horizon, device=self.device, names=self.arrays)
-            val_t = to_tensors(validation, horizon, device=self.device, names=self.arrays)
-            optimiser, scheduler = self._new_optimiser()
-            best_state = {k: v.clone() for k, v in self.model.state_dict().items()}
-            best_val, best_epoch, stage_start = math.inf, -1, time.perf_counter()
-            epoch = 0
-            if saved is not None and stage == start_stage:
-                p = saved["progress"]
-                optimiser.load_state_dict(saved["optimiser"])
-                scheduler.load_state_dict(saved["scheduler"])
-                best_state = saved["best_model"]
-                best_val, best_epoch, epoch = p["best_validation"], p["best_epoch"], start_epoch
-                stage_start -= p["stage_wall_s"]
-            last_save = time.perf_counter()
-            bar = tqdm(
-                total=cfg.max_epochs,
-                initial=epoch,
-                desc=f"n_p={horizon}",
-                disable=not progress,
-                leave=False,
-            )
-            while epoch < cfg.max_epochs and epoch - best_epoch <= cfg.early_stopping_patience:
-                self.model.train()
-                total, count, batches, skipped = 0.0, 0, 0, 0
-                for batch in train_t.batches(cfg.batch_size, generator):
-                    batches += 1
-                    optimiser.zero_grad(set_to_none=True)
-                    loss = self.objective(self.model, batch)
-                    if not torch.isfinite(loss):
-                        raise TrainingDivergedError(
-                            f"training loss is {float(loss)} at n_p={horizon}, epoch {epoch}: "
-                            "lower the learning rate or check the data"
-                        )
-                    loss.backward()
-                    # The global norm before clipping (inf: only measured, not clipped).
-                    norm = torch.nn.utils.clip_grad_norm_(
-                        self.model.parameters(),
-                        cfg.gradient_clip_norm if cfg.gradient_clip_norm > 0 else math.inf,
-                    )
-                    if not torch.isfinite(norm):
-                        optimiser.zero_grad(set_to_none=True)
-                        skipped += 1
-                        continue
-                    optimiser.step()
-                    total += loss.item() * batch["U"].shape[0]
-                    count += batch["U"].shape[0]
-                if skipped > MAX_SKIPPED_FRACTION * batches:
-                    raise TrainingDivergedError(
-                        f"the gradient was not finite in {skipped} of {batches} batches at "
-                        f"n_p={horizon}, epoch {epoch}: lower the learning rate or check the "
-                        "data"
-                    )
-                train_loss = total / count
-                scheduler.step(train_loss)
-                val_loss = self.evaluate(val_t)
-                if val_loss < best_val:
-                    best_val, best_epoch = val_loss, epoch
-                    best_state = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
-                epoch += 1
-                record = EpochRecord(
-                    stage,
-                    horizon,
-                    epoch,
-                    train_loss,
-                    val_loss,
-                    optimiser.param_groups[0]["lr"],
-                    time.perf_counter() - wall_start,
-                    skipped,
-                )
-                history.append(record)
-                bar.update(1)
-                bar.set_postfix(train=f"{train_loss:.3g}", val=f"{val_loss:.3g}")
-                if time.perf_counter() - last_save > cfg.checkpoint_interval_s:
-                    progress_state = self._progress(
-                        stage, epoch, best_val, best_epoch, stage_start, history, stages
-                    )
-                    self._save(
-                        self._state(progress_state, optimiser, scheduler, best_state, generator),
-                        history,
-                        stages,
-                    )
-                    last_save = time.perf_counter()
-                for callback in self.callbacks:
-                    callback(record)
-            bar.close()
-            self.model.load_state_dict(best_state)
-            stages.append(
-                StageResult(
-                    horizon, best_val, best_epoch + 1, epoch, time.perf_counter() - stage_start
-                )
-            )
-            for callback in self.stage_callbacks:
-                callback(stages[-1], self.model)
-            # The next step starts from these best weights with a fresh optimiser.
-            progress_state = self._progress(
-                stage + 1, 0, math.inf, -1, time.perf_counter(), history, stages
-            )
-            optimiser, scheduler = self._new_optimiser()
-            self._save(
-                self._state(progress_state, optimiser, scheduler, best_state, generator),
-                history,
-                stages,
+            self._fit_stage(
+                stage, train, validation, generator, saved, history, stages, wall_start, progress
             )
             saved = None
         self._plot(history)
         return TrainResult(self.model, stages, history, time.perf_counter() - wall_start)
+
+    def _load_resume_point(self, resume: bool, generator: torch.Generator):
+        """(the checkpoint's payload to resume from, its loss log, its finished steps), or
+        (None, [], []) for a fresh run; loads the checkpoint's model weights and random
+        states into the model, `generator` and torch's global generator."""
+        if not self.checkpoint_path.exists():
+            return None, [], []
+        if not resume:
+            raise ValueError(
+                f"checkpoint {self.checkpoint_path} exists: resume it (--resume) or "
+                "choose another output folder"
+            )
+        payload, meta = load_checkpoint(self.checkpoint_path, map_location=self.device)
+        for key in ("model", "model_kwargs"):
+            if key in self.metadata and meta.get(key) != self.metadata[key]:
+                raise CheckpointError(
+                    f"checkpoint {self.checkpoint_path} holds {key}={meta.get(key)!r}; "
+                    f"this run trains {key}={self.metadata[key]!r}"
+                )
+        _check_resumable(self.checkpoint_path, payload, meta, self._identity)
+        load_state_into(self.model, payload["model"], str(self.checkpoint_path))
+        p = payload["progress"]
+        history = [EpochRecord(**r) for r in p["history"]]
+        stages = [StageResult(**s) for s in p["stages"]]
+        generator.set_state(payload["generator"])
+        if "torch_rng" in payload:
+            torch.set_rng_state(payload["torch_rng"])
+        return payload, history, stages
+
+    def _fit_stage(
+        self, stage, train, validation, generator, saved, history, stages, wall_start, progress
+    ) -> None:
+        """Trains curriculum step `stage` (from the checkpoint payload `saved` where it is
+        not None), appending its epochs to `history` and its result to `stages`; leaves the
+        model with the step's best weights and checkpoints them."""
+        cfg = self.config
+        horizon = cfg.horizons[stage]
+        train_t = to_tensors(train, horizon, device=self.device, names=self.arrays)
+        val_t = to_tensors(validation, horizon, device=self.device, names=self.arrays)
+        optimiser, scheduler = self._new_optimiser()
+        best_state = {k: v.clone() for k, v in self.model.state_dict().items()}
+        best_val, best_epoch, stage_start = math.inf, -1, time.perf_counter()
+        epoch = 0
+        if saved is not None:
+            p = saved["progress"]
+            optimiser.load_state_dict(saved["optimiser"])
+            scheduler.load_state_dict(saved["scheduler"])
+            best_state = saved["best_model"]
+            best_val, best_epoch, epoch = p["best_validation"], p["best_epoch"], p["epoch"]
+            stage_start -= p["stage_wall_s"]
+        last_save = time.perf_counter()
+        bar = tqdm(
+            total=cfg.max_epochs,
+            initial=epoch,
+            desc=f"n_p={horizon}",
+            disable=not progress,
+            leave=False,
+        )
+        while epoch < cfg.max_epochs and epoch - best_epoch <= cfg.early_stopping_patience:
+            train_loss, skipped = self._train_epoch(train_t, optimiser, generator, horizon, epoch)
+            scheduler.step(train_loss)
+            val_loss = self.evaluate(val_t)
+            if val_loss < best_val:
+                best_val, best_epoch = val_loss, epoch
+                best_state = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
+            epoch += 1
+            record = EpochRecord(
+                stage,
+                horizon,
+                epoch,
+                train_loss,
+                val_loss,
+                optimiser.param_groups[0]["lr"],
+                time.perf_counter() - wall_start,
+                skipped,
+            )
+            history.append(record)
+            bar.update(1)
+            bar.set_postfix(train=f"{train_loss:.3g}", val=f"{val_loss:.3g}")
+            if time.perf_counter() - last_save > cfg.checkpoint_interval_s:
+                progress_state = self._progress(
+                    stage, epoch, best_val, best_epoch, stage_start, history, stages
+                )
+                self._save(
+                    self._state(progress_state, optimiser, scheduler, best_state, generator),
+                    history,
+                    stages,
+                )
+                last_save = time.perf_counter()
+            for callback in self.callbacks:
+                callback(record)
+        bar.close()
+        self.model.load_state_dict(best_state)
+        stages.append(
+            StageResult(horizon, best_val, best_epoch + 1, epoch, time.perf_counter() - stage_start)
+        )
+        for callback in self.stage_callbacks:
+            callback(stages[-1], self.model)
+        # The next step starts from these best weights with a fresh optimiser.
+        progress_state = self._progress(
+            stage + 1, 0, math.inf, -1, time.perf_counter(), history, stages
+        )
+        optimiser, scheduler = self._new_optimiser()
+        self._save(
+            self._state(progress_state, optimiser, scheduler, best_state, generator),
+            history,
+            stages,
+        )
+
+    def _train_epoch(self, data: SegmentTensors, optimiser, generator, horizon, epoch):
+        """One epoch of optimiser steps over `data` (curriculum horizon `horizon`): (the mean
+        training loss of the batches it stepped on, the number of batches it skipped)."""
+        cfg = self.config
+        self.model.train()
+        total, count, batches, skipped = 0.0, 0, 0, 0
+        for batch in data.batches(cfg.batch_size, generator):
+            batches += 1
+            optimiser.zero_grad(set_to_none=True)
+            loss = self.objective(self.model, batch)
+            if not torch.isfinite(loss):
+                raise TrainingDivergedError(
+                    f"training loss is {float(loss)} at n_p={horizon}, epoch {epoch}: "
+                    "lower the learning rate or check the data"
+                )
+            loss.backward()
+            # The global norm before clipping (inf: only measured, not clipped).
+            norm = torch.nn.utils.clip_grad_norm_(
+                self.model.parameters(),
+                cfg.gradient_clip_norm if cfg.gradient_clip_norm > 0 else math.inf,
+            )
+            if not torch.isfinite(norm):
+                optimiser.zero_grad(set_to_none=True)
+                skipped += 1
+                continue
+            optimiser.step()
+            total += loss.item() * batch["U"].shape[0]
+            count += batch["U"].shape[0]
+        if skipped > MAX_SKIPPED_FRACTION * batches:
+            raise TrainingDivergedError(
+                f"the gradient was not finite in {skipped} of {batches} batches at "
+                f"n_p={horizon}, epoch {epoch}: lower the learning rate or check the "
+                "data"
+            )
+        return total / count, skipped
 
     @staticmethod
     def _progress(stage, epoch, best_val, best_epoch, stage_start, history, stages) -> dict:

@@ -11,8 +11,8 @@ and specific force, m/s^2, in the recording conventions), or raise `BadPacket`:
                period (imported from its module: it loads pydrake, the decoders do not)
     supervisor Supervisor: health state machine (ok, degraded, fault) and the blended,
                limit-respecting wash-out to home (also imported from its module)
-    rsi_xml    KUKA RobotSensorInterface messages: the controller's state (IPOC, actual axis
-               positions) and the external reply (echoed IPOC, axis corrections), deg
+    rsi        KUKA RobotSensorInterface: messages, the driver process, its link and an
+               emulator (a subpackage, `mca_drake.live.rsi`)
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ time in each health state; the PI is scored against the reference that was recei
 
 from __future__ import annotations
 
+import dataclasses
 import gc
 import math
 import socket
@@ -18,7 +19,15 @@ from collections.abc import Callable
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder, EventStatus, LeafSystem
+from pydrake.systems.framework import (
+    Context,
+    Diagram,
+    DiagramBuilder,
+    EventStatus,
+    InputPort,
+    LeafSystem,
+    OutputPort,
+)
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import McaConfig, as_mca_config
@@ -29,10 +38,11 @@ from mca_drake.live.pacing import RealTimePacer
 from mca_drake.live.phase_lock import PhaseLockConfig, phase_correction
 from mca_drake.live.receiver import TELEMETRY_FIELDS, ReceiverConfig, TelemetryReceiver
 from mca_drake.live.recorder import BEFORE_POLL_S, LiveRecorder
-from mca_drake.live.rsi_driver import RsiDriverConfig
-from mca_drake.live.rsi_link import (
+from mca_drake.live.rsi.driver import RsiDriverConfig
+from mca_drake.live.rsi.link import (
     RobotClockServo,
     RsiCommandSender,
+    RsiLink,
     segment_socket_pair,
     start_rsi_driver,
     wait_for_robot,
@@ -134,6 +144,101 @@ class LatencyProbe(LeafSystem):
         return EventStatus.Succeeded()
 
 
+@dataclasses.dataclass
+class _LiveRobotPorts:
+    """The robot of a live loop in its diagram: the ports the loop wires to it."""
+
+    handles: dict  # {"plant": MotionCueingPlant} or {"station": StationHandles}
+    state: OutputPort  # x = [q, qd] the MCA reads (measured, on the station)
+    inertial_output: OutputPort  # y the MCA may read
+    joint_acceleration: InputPort  # the command
+    before_poll: dict  # the station's true state and output, recorded before each poll
+
+
+def _AddLiveRobot(
+    builder: DiagramBuilder,
+    plant: str,
+    robot: KR500,
+    h: float,
+    initial_state: np.ndarray,
+    station: StationConfig | None,
+    with_geometry: bool,
+) -> _LiveRobotPorts:
+    """Adds the analytical plant or the KR500 station, starting at `initial_state`."""
+    if plant == "analytical":
+        # the plant steps after the command has gone out (PLANT_DELAY_S), with that command
+        system = builder.AddNamedSystem(
+            "plant",
+            MotionCueingPlant(
+                robot=robot, time_step=h, initial_state=initial_state, update_offset_s=PLANT_DELAY_S
+            ),
+        )
+        return _LiveRobotPorts(
+            {"plant": system},
+            system.GetOutputPort("state"),
+            system.GetOutputPort("inertial_output"),
+            system.GetInputPort("joint_acceleration"),
+            {},
+        )
+    station = station or StationConfig()
+    if BEFORE_POLL_S >= station.plant_time_step:
+        # the recorder reads the station just before the poll, as it is at t_k
+        raise ValueError(
+            f"the station's plant_time_step ({station.plant_time_step} s) must be longer "
+            f"than the live recorder's {BEFORE_POLL_S} s before the poll"
+        )
+    handles = AddKR500Station(
+        builder, robot, station, initial_state, with_geometry=with_geometry, control_period=h
+    )
+    return _LiveRobotPorts(
+        {"station": handles},
+        handles.measured_state,
+        handles.measured_output,
+        handles.joint_acceleration,
+        {"measured_output": handles.true_output, "true_state": handles.true_state},
+    )
+
+
+def _AddLiveRecorder(
+    builder: DiagramBuilder, before_poll: dict, after_command: dict, h: float
+) -> LiveRecorder:
+    """Adds the LiveRecorder of the named ports and connects them."""
+    recorder = builder.AddNamedSystem(
+        "recorder",
+        LiveRecorder(
+            {name: port.size() for name, port in before_poll.items()},
+            {name: port.size() for name, port in after_command.items()},
+            h,
+        ),
+    )
+    for name, port in (before_poll | after_command).items():
+        builder.Connect(port, recorder.GetInputPort(name))
+    return recorder
+
+
+def _ConnectMcaToSupervisor(
+    builder: DiagramBuilder,
+    source: TelemetryReceiver,
+    controller,
+    guard: Supervisor,
+    robot_ports: _LiveRobotPorts,
+) -> None:
+    """Wires the receiver's reference and the robot's state into the MCA, and the MCA's
+    command, statistics and the telemetry into the supervisor that judges them."""
+    reference = source.GetOutputPort("reference")
+    builder.Connect(reference, controller.GetInputPort("reference"))
+    builder.Connect(robot_ports.state, controller.GetInputPort("state"))
+    if controller.HasInputPort("inertial_output"):
+        builder.Connect(robot_ports.inertial_output, controller.GetInputPort("inertial_output"))
+    builder.Connect(robot_ports.state, guard.GetInputPort("state"))
+    builder.Connect(
+        controller.GetOutputPort("joint_acceleration"), guard.GetInputPort("mca_command")
+    )
+    builder.Connect(reference, guard.GetInputPort("reference"))
+    builder.Connect(source.GetOutputPort("telemetry"), guard.GetInputPort("telemetry"))
+    builder.Connect(controller.GetOutputPort("statistics"), guard.GetInputPort("mca_statistics"))
+
+
 def MakeLiveClosedLoop(
     decoder: Decoder,
     mca: McaConfig | str,
@@ -158,7 +263,7 @@ def MakeLiveClosedLoop(
         `state` (the state the MCA reads), `statistics`, `health` and, on the station,
         `true_state` and `measured_output` (the head IMU without its delay: what the occupant
         felt); after each command, `reference` and `command` (what the robot got).
-        With `rsi_commands` (the loop's end of `live.rsi_link.segment_socket_pair`; the
+        With `rsi_commands` (the loop's end of `live.rsi.link.segment_socket_pair`; the
         analytical plant only: its trajectory is the one a real robot follows), an
         `RsiCommandSender` `rsi` sends every period's command segment there; `home` is the
         MCA's home pose (rad), where the robot must start.
@@ -188,58 +293,18 @@ def MakeLiveClosedLoop(
         ),
     )
     handles = dict(receiver=source, mca=controller, supervisor=guard, home=home)
-    initial_state = np.r_[home, np.zeros(6)]
-    before_poll = {}
-    if plant == "analytical":
-        # the plant steps after the command has gone out (PLANT_DELAY_S), with that command
-        robot_system = builder.AddNamedSystem(
-            "plant",
-            MotionCueingPlant(
-                robot=robot, time_step=h, initial_state=initial_state, update_offset_s=PLANT_DELAY_S
-            ),
-        )
-        handles["plant"] = robot_system
-        state = robot_system.GetOutputPort("state")
-        inertial_output = robot_system.GetOutputPort("inertial_output")
-        joint_acceleration = robot_system.GetInputPort("joint_acceleration")
-    else:
-        station = station or StationConfig()
-        if BEFORE_POLL_S >= station.plant_time_step:
-            # the recorder reads the station just before the poll, as it is at t_k
-            raise ValueError(
-                f"the station's plant_time_step ({station.plant_time_step} s) must be longer "
-                f"than the live recorder's {BEFORE_POLL_S} s before the poll"
-            )
-        station_handles = AddKR500Station(
-            builder,
-            robot,
-            station,
-            initial_state,
-            with_geometry=meshcat is not None,
-            control_period=h,
-        )
-        handles["station"] = station_handles
-        state = station_handles.measured_state
-        inertial_output = station_handles.measured_output
-        joint_acceleration = station_handles.joint_acceleration
-        before_poll["measured_output"] = station_handles.true_output
-        before_poll["true_state"] = station_handles.true_state
+    robot_ports = _AddLiveRobot(
+        builder, plant, robot, h, np.r_[home, np.zeros(6)], station, meshcat is not None
+    )
+    handles |= robot_ports.handles
+    state, inertial_output = robot_ports.state, robot_ports.inertial_output
+    before_poll = dict(robot_ports.before_poll)
     probe = builder.AddNamedSystem("probe", LatencyProbe(h))
     handles["probe"] = probe
     reference = source.GetOutputPort("reference")
-    builder.Connect(reference, controller.GetInputPort("reference"))
-    builder.Connect(state, controller.GetInputPort("state"))
-    if controller.HasInputPort("inertial_output"):
-        builder.Connect(inertial_output, controller.GetInputPort("inertial_output"))
-    builder.Connect(state, guard.GetInputPort("state"))
-    builder.Connect(
-        controller.GetOutputPort("joint_acceleration"), guard.GetInputPort("mca_command")
-    )
-    builder.Connect(reference, guard.GetInputPort("reference"))
-    builder.Connect(source.GetOutputPort("telemetry"), guard.GetInputPort("telemetry"))
-    builder.Connect(controller.GetOutputPort("statistics"), guard.GetInputPort("mca_statistics"))
+    _ConnectMcaToSupervisor(builder, source, controller, guard, robot_ports)
     command = guard.GetOutputPort("joint_acceleration")
-    builder.Connect(command, joint_acceleration)
+    builder.Connect(command, robot_ports.joint_acceleration)
     builder.Connect(source.GetOutputPort("telemetry"), probe.GetInputPort("telemetry"))
     builder.Connect(command, probe.GetInputPort("command"))
     if rsi_commands is not None:
@@ -256,20 +321,10 @@ def MakeLiveClosedLoop(
         "health": guard.GetOutputPort("health"),
     }
     after_command = {"reference": reference, "command": command}
-    recorder = builder.AddNamedSystem(
-        "recorder",
-        LiveRecorder(
-            {name: port.size() for name, port in before_poll.items()},
-            {name: port.size() for name, port in after_command.items()},
-            h,
-        ),
-    )
-    for name, port in (before_poll | after_command).items():
-        builder.Connect(port, recorder.GetInputPort(name))
-    handles["recorder"] = recorder
+    handles["recorder"] = _AddLiveRecorder(builder, before_poll, after_command, h)
     if meshcat is not None:
         handles["traces"] = AddMeshcatDrawing(
-            builder, meshcat, default_visualization(), station_handles, reference, h
+            builder, meshcat, default_visualization(), handles["station"], reference, h
         )
     diagram = builder.Build()
     diagram.set_name(f"live_{plant}_closed_loop")
@@ -304,7 +359,7 @@ def run_live(
             `meshcat` a pydrake Meshcat to draw it in).
         phase_lock: how the loop follows a periodic sender's phase (`live.phase_lock`;
             default on), so that samples wait little for their poll; at real-time rates only.
-        rsi: drive a KUKA robot over RSI (`live.rsi_driver`; analytical plant, real time):
+        rsi: drive a KUKA robot over RSI (`live.rsi.driver`; analytical plant, real time):
             the driver starts in its own process before the loop (with port 0 it takes a
             free port, written back into `rsi.port` before `on_listening`) and brakes the
             robot to rest after it; its counters are the summary's `rsi` block. The driver refuses
@@ -337,15 +392,65 @@ def run_live(
         meshcat=meshcat,
         rsi_commands=loop_end,
     )
+    run = _run_paced(
+        diagram,
+        handles,
+        duration_s=duration_s,
+        realtime_rate=realtime_rate,
+        lock=lock,
+        h=h,
+        plant=plant,
+        on_listening=on_listening,
+        rsi=rsi,
+        robot=robot,
+        sockets=(loop_end, driver_end),
+    )
+    summary = _scored_summary(handles, config, plant, decoder, robot, h, run.wall_s)
+    summary["live"] = _live_block(handles, run, decoder, realtime_rate, h)
+    if run.rsi_status is not None:
+        summary["rsi"] = _rsi_block(handles, run)
+    return summary
+
+
+@dataclasses.dataclass
+class _PacedRun:
+    """What a finished live run leaves for its summary."""
+
+    context: Context
+    wall_s: float
+    cpu_s: float
+    phase_shifts_s: list
+    pacer: RealTimePacer | None
+    link: RsiLink | None
+    servo: RobotClockServo | None
+    rsi_status: dict | None
+
+
+def _run_paced(
+    diagram: Diagram,
+    handles: dict,
+    *,
+    duration_s: float,
+    realtime_rate: float,
+    lock: PhaseLockConfig,
+    h: float,
+    plant: str,
+    on_listening,
+    rsi: RsiDriverConfig | None,
+    robot: KR500,
+    sockets: tuple,
+) -> _PacedRun:
+    """Starts the robot's driver (with `rsi`), runs the diagram paced to the wall clock and
+    closes the socket and the driver whatever happens."""
     source = handles["receiver"]
-    link = None
+    loop_end, driver_end = sockets
+    link = pacer = servo = None
     try:
         if rsi is not None:
             link = start_rsi_driver(rsi, robot, handles["home"], driver_end)
             rsi.port = link.address[1]  # the port it got (port 0: any free one)
         simulator = Simulator(diagram)
         # the loop paces itself (`live.pacing`): the poll on time, the MCA right after it
-        pacer = None
         if realtime_rate > 0:
             pacer = RealTimePacer(
                 h,
@@ -360,7 +465,6 @@ def run_live(
         simulator.Initialize()
         if on_listening is not None:
             on_listening(source.address)
-        servo = None
         if link is not None:
             wait_for_robot(loop_end, link, rsi.connect_timeout_s)
             servo = RobotClockServo(loop_end, pacer)
@@ -384,12 +488,23 @@ def run_live(
         gc.unfreeze()
         source.close()
         rsi_status = link.stop() if link is not None else None
-        if loop_end is not None:
-            loop_end.close()
-        if driver_end is not None:
-            driver_end.close()
-    context = simulator.get_context()
+        for end in sockets:
+            if end is not None:
+                end.close()
+    return _PacedRun(simulator.get_context(), wall_s, cpu_s, shifts, pacer, link, servo, rsi_status)
 
+
+def _scored_summary(
+    handles: dict,
+    config: McaConfig,
+    plant: str,
+    decoder: Decoder,
+    robot: KR500,
+    h: float,
+    wall_s: float,
+) -> dict:
+    """The closed-loop summary of the recorded run, scored as `run_closed_loop` scores."""
+    source = handles["receiver"]
     rows = handles["recorder"].rows
     commands, reference = rows("command"), rows("reference")  # period k: rows 0..N-1
     n = commands.shape[0]
@@ -417,11 +532,18 @@ def run_live(
         wall_s=wall_s,
         robot=robot,
     )
-    telemetry = source.counters(source.GetMyContextFromRoot(context))
-    guard = handles["supervisor"]
-    health = guard.health(guard.GetMyContextFromRoot(context))
-    latencies = np.asarray(handles["probe"].latencies_s)
-    summary["live"] = {
+    return summary
+
+
+def _live_block(
+    handles: dict, run: _PacedRun, decoder: Decoder, realtime_rate: float, h: float
+) -> dict:
+    """The summary's `live` block: telemetry counters, latency, health and pacing."""
+    source, guard, probe = handles["receiver"], handles["supervisor"], handles["probe"]
+    telemetry = source.counters(source.GetMyContextFromRoot(run.context))
+    health = guard.health(guard.GetMyContextFromRoot(run.context))
+    pacer = run.pacer
+    return {
         "protocol": decoder.protocol,
         "address": f"udp://{source.address[0]}:{source.address[1]}",
         "packets": int(telemetry["packets"]),
@@ -430,20 +552,18 @@ def run_live(
         "dropped": int(telemetry["dropped"]),
         "stale_periods": int(telemetry["stale_periods"]),
         "stale_events": sum(
-            1
-            for _, _, to, why in handles["supervisor"].transitions
-            if why == "telemetry stale" and to == "fault"
+            1 for _, _, to, why in guard.transitions if why == "telemetry stale" and to == "fault"
         ),
-        "latency_s": step_time_summary(latencies),
+        "latency_s": step_time_summary(np.asarray(probe.latencies_s)),
         # how long samples waited in the socket for their poll (part of the latency)
-        "wait_s": step_time_summary(np.asarray(handles["probe"].waits_s)),
+        "wait_s": step_time_summary(np.asarray(probe.waits_s)),
         # the phase lock's shifts of the control instants, s (> 0: earlier)
-        "phase_shifts_s": shifts,
+        "phase_shifts_s": run.phase_shifts_s,
         # polls that came after their instant (the loop had overrun)
         "late_polls": 0 if pacer is None else pacer.late_polls,
         # control intervals over STALL_PERIODS periods on the wall clock: the process was
         # held up (by the OS or a slow step) long enough for telemetry to look stale
-        "stalls": _stalls(handles["probe"].instants_s, h, realtime_rate),
+        "stalls": _stalls(probe.instants_s, h, realtime_rate),
         # polls a datagram brought forward (phase lock's wake window)
         "early_polls": 0 if pacer is None else pacer.early_polls,
         "health": {
@@ -452,36 +572,37 @@ def run_live(
             "fault_s": float(health["fault_s"]),
         },
         "transitions": [
-            {"t_s": t, "from": a, "to": b, "why": why}
-            for t, a, b, why in handles["supervisor"].transitions
+            {"t_s": t, "from": a, "to": b, "why": why} for t, a, b, why in guard.transitions
         ],
         "realtime_rate": realtime_rate,
         "control_period_s": h,
         # |period - h| of the loop's control instants on the wall clock
         "loop_jitter_s": step_time_summary(
-            np.abs(np.diff(handles["probe"].instants_s) - h / max(realtime_rate, 1e-9))
+            np.abs(np.diff(probe.instants_s) - h / max(realtime_rate, 1e-9))
             if realtime_rate > 0
             else np.zeros(0)
         ),
         # this process's CPU time over wall time (1.0: one core busy)
-        "cpu_load": cpu_s / max(wall_s, 1e-9),
+        "cpu_load": run.cpu_s / max(run.wall_s, 1e-9),
     }
-    if rsi_status is not None:
-        sender = handles["rsi"]
-        summary["rsi"] = {
-            "address": f"rsi://{link.address[0]}:{link.address[1]}",
-            "segments_sent": sender.sent,
-            "segments_unsent": sender.unsent,
-            # the loop's clock following the robot's (`RobotClockServo`)
-            "rate_trim_ppm": 1e6 * pacer.rate_trim,
-            # the driver's lead against its first report, less the phase lock's shifts, s
-            "lead_error_s": {
-                "max_abs": max((abs(e) for _, e, _ in servo.reports), default=0.0),
-                "last": servo.reports[-1][1] if servo.reports else 0.0,
-            },
-            **rsi_status,
-        }
-    return summary
+
+
+def _rsi_block(handles: dict, run: _PacedRun) -> dict:
+    """The summary's `rsi` block: segments sent, the clock servo and the driver's counters."""
+    sender, link, servo = handles["rsi"], run.link, run.servo
+    return {
+        "address": f"rsi://{link.address[0]}:{link.address[1]}",
+        "segments_sent": sender.sent,
+        "segments_unsent": sender.unsent,
+        # the loop's clock following the robot's (`RobotClockServo`)
+        "rate_trim_ppm": 1e6 * run.pacer.rate_trim,
+        # the driver's lead against its first report, less the phase lock's shifts, s
+        "lead_error_s": {
+            "max_abs": max((abs(e) for _, e, _ in servo.reports), default=0.0),
+            "last": servo.reports[-1][1] if servo.reports else 0.0,
+        },
+        **run.rsi_status,
+    }
 
 
 def _stalls(instants_s: list[float], period_s: float, realtime_rate: float) -> int:

@@ -21,7 +21,7 @@ earlier on the wall clock by that much) is reached at no more than `max_slew_per
 per period, so a phase change never shortens or stretches one period by more than that
 (the phase lock of `mca_drake.live.phase_lock` sets it). And its rate: `rate_trim` (> 0:
 the loop's clock runs slower by that fraction, its instants drifting later) lets the loop
-follow another clock, a robot controller's (`mca_drake.live.rsi_link.RobotClockServo`);
+follow another clock, a robot controller's (`mca_drake.live.rsi.link.RobotClockServo`);
 the drift accumulates period by period, so the time between instants changes by the trim
 alone, never by a jump.
 """

@@ -42,7 +42,7 @@ TIME_SOURCES = ("sender", "arrival")
 ANGULAR_ACCELERATION_ESTIMATES = ("finite_difference", "zero")
 
 
-class BadPacket(ValueError):  # noqa: N818 (the name issue 20 gives the live layer)
+class BadPacket(ValueError):  # noqa: N818 (a packet, not an error class: reads as "raise BadPacket")
     """A datagram that does not decode to a usable sample; the message says why."""
 
 

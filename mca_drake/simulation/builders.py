@@ -20,11 +20,11 @@ from mca_drake.demo_motion import demo_joint_motion
 from mca_drake.references.reference import Reference
 from mca_drake.robot import KR500, load_kr500
 from mca_drake.systems import MotionCueingPlant, ReferenceSource
-from mca_drake.systems.classical_washout import ClassicalWashout
-from mca_drake.systems.dpc_policy import DpcPolicy
+from mca_drake.systems.dpc import DpcPolicy
 from mca_drake.systems.kr500_station import AddKR500Station, StationConfig
 from mca_drake.systems.meshcat_traces import MeshcatOutputTraces
-from mca_drake.systems.nmpc_controller import NmpcController
+from mca_drake.systems.nmpc import NmpcController
+from mca_drake.systems.washout import ClassicalWashout
 
 
 def MakePlantDemoDiagram(

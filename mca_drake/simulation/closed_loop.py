@@ -114,8 +114,10 @@ def closed_loop_summary(
 
     Args:
         config: the MCA config that ran (recorded in full as `mca_config`).
-        reference, outputs: r_n and y_n, shape (n, 6).
-        states, accelerations: x_n (n, 12) and the joint accelerations over each step (n, 6).
+        reference: r_n, shape (n, 6).
+        outputs: y_n, shape (n, 6).
+        states: x_n, shape (n, 12).
+        accelerations: the joint accelerations over each step, rad/s^2, shape (n, 6).
         statistics: the MCA's `statistics` log (row k published at t_k, so row n holds the
             totals after n steps), shape (n + 1 or more, 4).
         wall_s: wall time of the simulation, s.
@@ -199,7 +201,6 @@ def run_closed_loop(
         check_writable(plot_dir, folder=True)
     config = as_mca_config(mca)
     robot = robot if robot is not None else load_kr500()
-    h = reference.time_step
     duration = checked_duration(reference, duration_s)
     if plant == "analytical":
         if meshcat is not None or station is not None or visualization is not None:
@@ -222,10 +223,37 @@ def run_closed_loop(
         meshcat.StartRecording(frames_per_second=30)
     simulator.Initialize()
     # One period past the end so that the sample after the last kept one is logged.
-    wall_s = simulate_with_progress(simulator, duration + 1.5 * h, progress)
+    wall_s = simulate_with_progress(simulator, duration + 1.5 * reference.time_step, progress)
     if meshcat is not None:
         meshcat.StopRecording()
         meshcat.PublishRecording()
+    result = _collect_result(
+        handles, context, config, plant, reference, duration, wall_s, robot, station
+    )
+    if random_seed is not None:
+        result.summary["random_seed"] = int(random_seed)
+    if json_path:
+        atomic_write_json(json_path, result.summary)
+    if plot_dir:
+        from mca_drake.simulation.plots import write_closed_loop_plots  # matplotlib: only here
+
+        write_closed_loop_plots(result, plot_dir, robot)
+    return result
+
+
+def _collect_result(
+    handles: dict,
+    context,
+    config: McaConfig,
+    plant: str,
+    reference: Reference,
+    duration: float,
+    wall_s: float,
+    robot: KR500,
+    station: StationConfig | None,
+) -> ClosedLoopResult:
+    """The aligned signals and the summary of a finished run, from the diagram's logs."""
+    h = reference.time_step
 
     def log(name):
         return handles[name].FindLog(context).data().T
@@ -257,22 +285,9 @@ def run_closed_loop(
         wall_s=wall_s,
         robot=robot,
     )
-    if random_seed is not None:
-        summary["random_seed"] = int(random_seed)
     if plant == "multibody":
-        tracking_error = np.abs(states[:, :NUM_JOINTS] - desired[:, :NUM_JOINTS])
-        summary["plant_time_step_s"] = station.plant_time_step
-        summary["joint_tracking_error_rad"] = {
-            "rms": float(np.sqrt(np.mean(tracking_error**2))),
-            "max": float(tracking_error.max()),
-        }
-        summary["station"] = dataclasses.asdict(station)
-        limiter = handles["station"].limiter
-        # Commands the station's limiter had to change: 0 when the MCA's own clamp held.
-        summary["station_interventions"] = limiter.interventions(
-            limiter.GetMyContextFromRoot(context)
-        )
-    result = ClosedLoopResult(
+        summary |= _station_summary(handles, context, station, states, desired)
+    return ClosedLoopResult(
         times=np.arange(n) * h,
         reference=ref,
         outputs=outputs,
@@ -283,13 +298,24 @@ def run_closed_loop(
         summary=summary,
         desired_states=desired,
     )
-    if json_path:
-        atomic_write_json(json_path, summary)
-    if plot_dir:
-        from mca_drake.simulation.plots import write_closed_loop_plots  # matplotlib: only here
 
-        write_closed_loop_plots(result, plot_dir, robot)
-    return result
+
+def _station_summary(
+    handles: dict, context, station: StationConfig, states: np.ndarray, desired: np.ndarray
+) -> dict:
+    """The station's own figures: its step, joint tracking error (rad) and interventions."""
+    tracking_error = np.abs(states[:, :NUM_JOINTS] - desired[:, :NUM_JOINTS])
+    limiter = handles["station"].limiter
+    return {
+        "plant_time_step_s": station.plant_time_step,
+        "joint_tracking_error_rad": {
+            "rms": float(np.sqrt(np.mean(tracking_error**2))),
+            "max": float(tracking_error.max()),
+        },
+        "station": dataclasses.asdict(station),
+        # Commands the station's limiter had to change: 0 when the MCA's own clamp held.
+        "station_interventions": limiter.interventions(limiter.GetMyContextFromRoot(context)),
+    }
 
 
 def station_signals(

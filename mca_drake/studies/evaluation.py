@@ -256,8 +256,8 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                     np.median([max(r["joint_range_used"]) for r in rs])
                 ),
                 # rotation felt that the vehicle did not make (metrics.false_rotation),
-                # median over flights of each run's RMS, deg/s (runs from before the
-                # measure have none: nan)
+                # median over flights of each run's RMS, deg/s (nan for run files without
+                # the measure)
                 "false_rotation_median_deg_s": float(
                     np.median([r.get("false_rotation", {}).get("rms_deg_s", np.nan) for r in rs])
                 ),
@@ -342,7 +342,7 @@ def rank_sum_verdict(test: dict) -> str:
 
 def _channel_table(mcas: dict) -> list[str]:
     """Markdown lines: per MCA, each channel's median RMSE / CC (rad/s for the rates, m/s^2
-    for the specific forces). Reports written before the per-channel medians have none."""
+    for the specific forces); none for a report without the per-channel medians."""
     if not all("cc_median" in m for m in mcas.values()):
         return []
     lines = [

@@ -81,10 +81,11 @@ class TuningConfig:
     # A trial whose false rotation (`mca_drake.metrics.false_rotation`: RMS rate of the
     # rotation the occupant feels that the vehicle did not make), median over the flights,
     # exceeds this is infeasible, deg/s (0: none). The PI prices rotation errors in rad/s
-    # beside specific-force errors in m/s^2: tuned on the PI alone, the NMPC swung the cabin
+    # beside specific-force errors in m/s^2: tuned on the PI alone, the NMPC swings the cabin
     # at 16-58 deg/s RMS of false rotation (felt 80-90 % of the time) to sustain heave by
     # centripetal acceleration. 5 deg/s, about twice the vestibular thresholds, leaves room
-    # for tilt coordination at its usual rate limits (DPC v6 and the washout: 1-4 deg/s).
+    # for tilt coordination at its usual rate limits (the policy_v6 DPC and the washout:
+    # 1-4 deg/s); docs/decisions/0007-nmpc-tuning-limits-false-rotation.md.
     max_false_rotation_deg_s: float = 5.0
     # Seed of the TPE sampler.
     seed: int = 0
@@ -370,7 +371,7 @@ def write_tuning_report(
         row |= {f"config/{k}": v for k, v in r["parameters"].items()}
         row |= {k: r[k] for k in ("objective", "pi_median", "feasible", "why", "step_time_p99_s")}
         row |= {"pi": json.dumps(r["pi"]), "pi_zero_motion": json.dumps(r["pi_zero_motion"])}
-        # (tunes before the false-rotation measure have none)
+        # (a trial file without the false-rotation measure has none)
         row["false_rotation_deg_s"] = json.dumps(r.get("false_rotation_deg_s", []))
         rows.append(row)
     table = pd.DataFrame(rows)

@@ -208,6 +208,123 @@ def _double_integrator(h: float) -> LinearSystem:
     return LinearSystem(A, B, np.eye(2 * n), np.zeros((2 * n, n)), h)
 
 
+def _AddRobotPlant(
+    builder: DiagramBuilder, robot: KR500, h: float, with_geometry: bool
+) -> tuple[MultibodyPlant, SceneGraph | None]:
+    """The discrete MultibodyPlant of the robot (and its SceneGraph, with geometry)."""
+    # TAMSI: with no contact it is plain semi-implicit Euler, 2.5x faster per step than the
+    # default (lagged SAP) on this robot (30 against 78 us).
+    plant_config = MultibodyPlantConfig(time_step=h, discrete_contact_approximation="tamsi")
+    if with_geometry:
+        plant, scene_graph = AddMultibodyPlant(plant_config, builder)
+    else:
+        plant, scene_graph = builder.AddNamedSystem("plant", MultibodyPlant(h)), None
+        plant.set_discrete_contact_approximation(DiscreteContactApproximation.kTamsi)
+    plant.set_name("plant")
+    # One gravity for the physics, the accelerometer and HeadImuOutput: the kinematics'.
+    plant.mutable_gravity_field().set_gravity_vector(np.array([0.0, 0.0, -GRAVITY]))
+    Parser(plant).AddModels(str(robot.urdf_path))
+    plant.Finalize()
+    for i, name in enumerate(robot.joint_names):
+        joint = plant.GetJointByName(name)
+        if joint.position_start() != i or joint.velocity_start() != i:
+            raise RuntimeError(f"{name} is not joint {i} of the MultibodyPlant state")
+    if scene_graph is not None:
+        # A motion simulator touches nothing: filter every collision pair of the robot.
+        inspector = scene_graph.model_inspector()
+        ids = inspector.GetAllGeometryIds()
+        scene_graph.collision_filter_manager().Apply(
+            CollisionFilterDeclaration().ExcludeWithin(GeometrySet(ids))
+        )
+    return plant, scene_graph
+
+
+def _AddTrackingController(
+    builder: DiagramBuilder,
+    plant: MultibodyPlant,
+    robot: KR500,
+    config: StationConfig,
+    control_period: float,
+) -> tuple[InverseDynamicsController, LinearSystem, CommandLimiter]:
+    """The command limiter, the desired trajectory it integrates and the inverse-dynamics
+    controller that tracks it, wired to `plant` (torques saturated when configured)."""
+    h = config.plant_time_step
+    # The controller's model: a copy of the same URDF (continuous: it only does inverse
+    # dynamics). Kept alive by the controller's binding.
+    control_plant = MultibodyPlant(0.0)
+    Parser(control_plant).AddModels(str(robot.urdf_path))
+    control_plant.Finalize()
+    kp, ki, kd = config.gains()
+    controller = builder.AddNamedSystem(
+        "inverse_dynamics",
+        InverseDynamicsController(control_plant, kp, ki, kd, has_reference_acceleration=True),
+    )
+    desired = builder.AddNamedSystem("desired_trajectory", _double_integrator(h))
+    builder.Connect(desired.get_output_port(), controller.get_input_port_desired_state())
+    builder.Connect(plant.get_state_output_port(), controller.get_input_port_estimated_state())
+    torque = controller.get_output_port_control()
+    if config.torque_limits:
+        # The actuation port, which MultibodyPlant clamps at the URDF efforts, behind an
+        # explicit saturation at the description's limits (which may be set lower).
+        limit = robot.effort_max
+        saturation = builder.AddNamedSystem("torque_limits", Saturation(-limit, limit))
+        builder.Connect(torque, saturation.get_input_port())
+        builder.Connect(saturation.get_output_port(), plant.get_actuation_input_port())
+    else:
+        # Ideal actuators: generalized forces bypass the actuators' effort clamp.
+        builder.Connect(torque, plant.get_applied_generalized_force_input_port())
+    # The limited command feeds both the integrator and the controller's feedforward, so
+    # the two stay consistent within every plant step.
+    limiter = builder.AddNamedSystem("command_limiter", CommandLimiter(robot, control_period, h))
+    builder.Connect(desired.get_output_port(), limiter.GetInputPort("desired_state"))
+    command_split = limiter.GetOutputPort("limited_command")
+    builder.Connect(command_split, desired.get_input_port())
+    builder.Connect(command_split, controller.get_input_port_desired_acceleration())
+    return controller, desired, limiter
+
+
+def _AddHeadImu(
+    builder: DiagramBuilder, plant: MultibodyPlant, config: StationConfig
+) -> HeadImuOutput:
+    """Drake's Gyroscope and Accelerometer on the head body (with their noise, when
+    configured), read out as the plant output y by a HeadImuOutput."""
+    head = plant.GetBodyByName("head")
+    gyroscope = builder.AddNamedSystem("gyroscope", Gyroscope(head, RigidTransform()))
+    accelerometer = builder.AddNamedSystem(
+        "accelerometer",
+        Accelerometer(head, RigidTransform(), plant.gravity_field().gravity_vector()),
+    )
+    for sensor in (gyroscope, accelerometer):
+        builder.Connect(plant.get_body_poses_output_port(), sensor.get_body_poses_input_port())
+        builder.Connect(
+            plant.get_body_spatial_velocities_output_port(), sensor.get_body_velocities_input_port()
+        )
+    builder.Connect(
+        plant.get_body_spatial_accelerations_output_port(),
+        accelerometer.get_body_accelerations_input_port(),
+    )
+    imu = builder.AddNamedSystem("imu_mux", Multiplexer([3, 3]))
+    builder.Connect(gyroscope.get_measurement_output_port(), imu.get_input_port(0))
+    builder.Connect(accelerometer.get_measurement_output_port(), imu.get_input_port(1))
+    imu_out = imu.get_output_port()
+    std = np.r_[np.full(3, config.gyroscope_noise_std), np.full(3, config.accelerometer_noise_std)]
+    if np.any(std > 0):
+        noise = builder.AddNamedSystem(
+            "imu_noise",
+            RandomSource(RandomDistribution.kGaussian, 6, config.plant_time_step),
+        )
+        scale = builder.AddNamedSystem("imu_noise_std", Gain(std))
+        adder = builder.AddNamedSystem("imu_with_noise", Adder(2, 6))
+        builder.Connect(noise.get_output_port(), scale.get_input_port())
+        builder.Connect(imu_out, adder.get_input_port(0))
+        builder.Connect(scale.get_output_port(), adder.get_input_port(1))
+        imu_out = adder.get_output_port()
+    measured = builder.AddNamedSystem("head_imu_output", HeadImuOutput(int(head.index())))
+    builder.Connect(imu_out, measured.GetInputPort("imu"))
+    builder.Connect(plant.get_body_poses_output_port(), measured.GetInputPort("body_poses"))
+    return measured
+
+
 def AddKR500Station(
     builder: DiagramBuilder,
     robot: KR500 | None = None,
@@ -242,99 +359,11 @@ def AddKR500Station(
     if x0.shape != (2 * NUM_JOINTS,) or not np.all(np.isfinite(x0)):
         raise ValueError(f"initial_state must be 12 finite numbers; got {x0}")
 
-    # TAMSI: with no contact it is plain semi-implicit Euler, 2.5x faster per step than the
-    # default (lagged SAP) on this robot (30 against 78 us, measured).
-    plant_config = MultibodyPlantConfig(time_step=h, discrete_contact_approximation="tamsi")
-    if with_geometry:
-        plant, scene_graph = AddMultibodyPlant(plant_config, builder)
-    else:
-        plant, scene_graph = builder.AddNamedSystem("plant", MultibodyPlant(h)), None
-        plant.set_discrete_contact_approximation(DiscreteContactApproximation.kTamsi)
-    plant.set_name("plant")
-    # One gravity for the physics, the accelerometer and HeadImuOutput: the kinematics'.
-    plant.mutable_gravity_field().set_gravity_vector(np.array([0.0, 0.0, -GRAVITY]))
-    Parser(plant).AddModels(str(robot.urdf_path))
-    plant.Finalize()
-    for i, name in enumerate(robot.joint_names):
-        joint = plant.GetJointByName(name)
-        if joint.position_start() != i or joint.velocity_start() != i:
-            raise RuntimeError(f"{name} is not joint {i} of the MultibodyPlant state")
-    if scene_graph is not None:
-        # A motion simulator touches nothing: filter every collision pair of the robot.
-        inspector = scene_graph.model_inspector()
-        ids = inspector.GetAllGeometryIds()
-        scene_graph.collision_filter_manager().Apply(
-            CollisionFilterDeclaration().ExcludeWithin(GeometrySet(ids))
-        )
-
-    # The controller's model: a copy of the same URDF (continuous: it only does inverse
-    # dynamics). Kept alive by the controller's binding.
-    control_plant = MultibodyPlant(0.0)
-    Parser(control_plant).AddModels(str(robot.urdf_path))
-    control_plant.Finalize()
-    kp, ki, kd = config.gains()
-    controller = builder.AddNamedSystem(
-        "inverse_dynamics",
-        InverseDynamicsController(control_plant, kp, ki, kd, has_reference_acceleration=True),
+    plant, scene_graph = _AddRobotPlant(builder, robot, h, with_geometry)
+    controller, desired, limiter = _AddTrackingController(
+        builder, plant, robot, config, control_period
     )
-    desired = builder.AddNamedSystem("desired_trajectory", _double_integrator(h))
-    builder.Connect(desired.get_output_port(), controller.get_input_port_desired_state())
-    builder.Connect(plant.get_state_output_port(), controller.get_input_port_estimated_state())
-    torque = controller.get_output_port_control()
-    if config.torque_limits:
-        # The actuation port, which MultibodyPlant clamps at the URDF efforts, behind an
-        # explicit saturation at the description's limits (which may be set lower).
-        limit = robot.effort_max
-        saturation = builder.AddNamedSystem("torque_limits", Saturation(-limit, limit))
-        builder.Connect(torque, saturation.get_input_port())
-        builder.Connect(saturation.get_output_port(), plant.get_actuation_input_port())
-    else:
-        # Ideal actuators: generalized forces bypass the actuators' effort clamp.
-        builder.Connect(torque, plant.get_applied_generalized_force_input_port())
-
-    # The limited command feeds both the integrator and the controller's feedforward, so
-    # the two stay consistent within every plant step.
-    limiter = builder.AddNamedSystem("command_limiter", CommandLimiter(robot, control_period, h))
-    builder.Connect(desired.get_output_port(), limiter.GetInputPort("desired_state"))
-    command_split = limiter.GetOutputPort("limited_command")
-    builder.Connect(command_split, desired.get_input_port())
-    builder.Connect(command_split, controller.get_input_port_desired_acceleration())
-
-    head = plant.GetBodyByName("head")
-    gyroscope = builder.AddNamedSystem("gyroscope", Gyroscope(head, RigidTransform()))
-    accelerometer = builder.AddNamedSystem(
-        "accelerometer",
-        Accelerometer(head, RigidTransform(), plant.gravity_field().gravity_vector()),
-    )
-    for sensor in (gyroscope, accelerometer):
-        builder.Connect(plant.get_body_poses_output_port(), sensor.get_body_poses_input_port())
-        builder.Connect(
-            plant.get_body_spatial_velocities_output_port(), sensor.get_body_velocities_input_port()
-        )
-    builder.Connect(
-        plant.get_body_spatial_accelerations_output_port(),
-        accelerometer.get_body_accelerations_input_port(),
-    )
-    imu = builder.AddNamedSystem("imu_mux", Multiplexer([3, 3]))
-    builder.Connect(gyroscope.get_measurement_output_port(), imu.get_input_port(0))
-    builder.Connect(accelerometer.get_measurement_output_port(), imu.get_input_port(1))
-    imu_out = imu.get_output_port()
-    std = np.r_[np.full(3, config.gyroscope_noise_std), np.full(3, config.accelerometer_noise_std)]
-    if np.any(std > 0):
-        noise = builder.AddNamedSystem(
-            "imu_noise", RandomSource(RandomDistribution.kGaussian, 6, h)
-        )
-        scale = builder.AddNamedSystem("imu_noise_std", Gain(std))
-        adder = builder.AddNamedSystem("imu_with_noise", Adder(2, 6))
-        builder.Connect(noise.get_output_port(), scale.get_input_port())
-        builder.Connect(imu_out, adder.get_input_port(0))
-        builder.Connect(scale.get_output_port(), adder.get_input_port(1))
-        imu_out = adder.get_output_port()
-    head_index = int(head.index())
-    measured = builder.AddNamedSystem("head_imu_output", HeadImuOutput(head_index))
-    builder.Connect(imu_out, measured.GetInputPort("imu"))
-    builder.Connect(plant.get_body_poses_output_port(), measured.GetInputPort("body_poses"))
-
+    measured = _AddHeadImu(builder, plant, config)
     state_out, y_out = plant.get_state_output_port(), measured.GetOutputPort("inertial_output")
     delays = []
     if config.delay_steps > 0:

@@ -37,7 +37,8 @@ class MeshcatOutputTraces(LeafSystem):
         window_s: time shown, s (default 10).
         origin: position in W of the board's lower-left corner, m (default beside the
             robot, 3 m to its left, behind it).
-        width, strip_height: board width and height of one strip, m.
+        width: board width, m.
+        strip_height: height of one strip, m.
         scales: magnitude at a strip's half-height per channel (DEFAULT_SCALES).
         prefix: Meshcat path of the drawings.
     """

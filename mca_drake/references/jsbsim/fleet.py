@@ -28,7 +28,7 @@ them, and the fokker100 reads a FlightGear-only property: they are not in the fl
 Three groups: TRAINING_VEHICLES (datasets and tuning), UNSEEN_VEHICLES (evaluation case C)
 and VALIDATION_VEHICLES, flown to choose between training recipes on aircraft that training
 never saw without choosing on case C's (so they are not unseen for evaluation either). The
-T37 trains the shipped policy (v11, session 26); the f15 is in none: training datasets may
+T37 is a training vehicle of the default policy; the f15 is in none: training datasets may
 fly it.
 JSBSim's OV10 and Concorde crashed in their first flights with first-guess constants, as did
 the F80C in 2 of 26 flights (a steep turn, a stall); the f104 reads a radar property its
@@ -64,10 +64,11 @@ VEHICLE_CLASSES = {
     "f15": "air-superiority fighter",
 }
 VEHICLES = tuple(VEHICLE_CLASSES)
-# The shipped policy's training flights fly these (the shipped MCA weights were tuned on
-# light and jet; the T37, a non-fly-by-wire jet trainer, since v11); evaluation case C flies
-# UNSEEN_VEHICLES, which neither training nor tuning may fly: an aerobatic turboprop
-# trainer, a supersonic jet trainer, a trijet and a jumbo.
+# The default policy's training flights fly these (the shipped MCA weights were tuned on
+# light and jet). The T37 is there because the f16, the only other aerobatic type, flies by
+# wire (its turns come coordinated and smooth) and case C's trainers do not. Evaluation
+# case C flies UNSEEN_VEHICLES, which neither training nor tuning may fly: an aerobatic
+# turboprop trainer, a supersonic jet trainer, a trijet and a jumbo.
 TRAINING_VEHICLES = ("light", "jet", "f16", "DHC6", "A320", "787-8", "T37")
 UNSEEN_VEHICLES = ("t6texan2", "T38", "MD11", "B747")
 # Flown to compare DPC training recipes (development flights of aircraft no training saw);

@@ -23,7 +23,7 @@ it commanded, which passed the same checks, the strongest deceleration the viabi
 allows, to rest; then it holds. There is no jump (the commanded state is continuous) and no
 hold at speed.
 
-Nothing here touches a socket: `mca_drake.live.rsi_driver` does, around a `MotionFollower`.
+Nothing here touches a socket: `mca_drake.live.rsi.driver` does, around a `MotionFollower`.
 """
 
 from __future__ import annotations

@@ -44,264 +44,21 @@ from torch import nn
 
 from mca_drake.atomic_io import check_writable, file_sha256
 from mca_drake.conventions import CONTROL_PERIOD_S, MIRROR_CHANNEL_SIGNS
-from mca_drake.cueing import NmpcConfig
 from mca_drake.cueing.dpc import load_policy_arrays
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
+from mca_drake.learning.configs import DpcTrainingConfig
 from mca_drake.learning.output_models import MixedAnalyticalOutput
-from mca_drake.learning.policy import (
-    OUTPUT_SCALE,
-    OUTPUT_SCALE_V6,
+from mca_drake.learning.policy_network import (
     PolicyNetwork,
     load_policy_network,
     save_policy,
 )
 from mca_drake.learning.state_models import Node2State
-from mca_drake.learning.trainer import CurriculumTrainer, TrainConfig
+from mca_drake.learning.torch_plant import TorchPlant, viable_acceleration_bounds_torch
+from mca_drake.learning.trainer import CurriculumTrainer
 from mca_drake.metrics import STILL_TOLERANCE
 from mca_drake.robot import KR500, MIRROR_JOINT_SIGNS, NUM_JOINTS, load_kr500
 from mca_drake.segments import SegmentDataset, long_windows, package_versions, split_of
-from mca_drake.torch_plant import TorchPlant, viable_acceleration_bounds_torch
-
-TARGETS = ("achieved", "reference")
-PLANTS = ("exact", "learned")
-
-
-def _default_train() -> TrainConfig:
-    return TrainConfig(
-        learning_rate=1e-3,
-        weight_decay=0.01,
-        batch_size=256,
-        # v8's recipe (n_c 256 then 1024, 400 epochs each at most: 19.3 min on one core)
-        max_epochs=400,
-        early_stopping_patience=100,
-        plateau_patience=100,
-        horizons=(256, 1024),
-        gradient_clip_norm=1.0,
-    )
-
-
-# The shipped NMPC's weights (tuned), the DPC loss's defaults: one home, NmpcConfig.
-_NMPC = NmpcConfig()
-
-
-@dataclasses.dataclass
-class DpcTrainingConfig:
-    """DPC policy training settings (defaults: the shipped NMPC's objective, see the module
-    docstring; `paper()` for the paper's loss)."""
-
-    # Targets: "achieved" (NMPC outputs) or "reference" (the NMPC's references).
-    targets: str = "reference"
-    # Frozen plant of the rollouts: "exact" or "learned" (NODE 2 + mixed analytical).
-    plant: str = "exact"
-    # With plant="learned": the mixed analytical model's best weights (a Table II run's
-    # output_mixed_n256.pt).
-    learned_output_weights: str = ""
-    # Loss weights: tracking, state prediction, input (paper 0.1), washout, state limits.
-    tracking_weight: float = 1.0
-    # Per-channel weights inside the tracking term (w_x, w_y, w_z, f_x, f_y, f_z), applied as
-    # sum_k c_k (y_k - Y_k)^2: six numbers (default the NMPC's output weights), "uniform"
-    # (all 1, the paper's), or "normalized" (c_k = mean variance / variance of channel k of
-    # the training targets: every channel counts alike, as in the PI, whose CC term ignores
-    # scale, while doing nothing costs what it costs with uniform weights).
-    tracking_channel_weights: str | tuple[float, ...] = tuple(_NMPC.output_weights)
-    state_estimate_weight: float = 1.0
-    input_weight: float = _NMPC.input_weight
-    washout_weight: float = _NMPC.washout_weight
-    limit_weight: float = 100.0
-    # Terminal cost on the rollout's last state, as the NMPC's (weights of ||q_N||^2 and
-    # ||qd_N||^2): an addition to the paper's loss that teaches washout beyond n_c.
-    terminal_position_weight: float = _NMPC.terminal_position_weight
-    terminal_velocity_weight: float = _NMPC.terminal_velocity_weight
-    # The horizon (steps) the terminal weights belong to (the NMPC's horizon_steps); a
-    # rollout of n_c steps carries them times this / n_c (0: as they are, v9 and earlier).
-    # The loss averages the stage costs over the rollout but adds the terminal cost once, so
-    # the drift back to neutral that minimises it grows with n_c: unscaled, a 10.24 s rollout
-    # is best served by washing a sustained turn out four times as fast as the NMPC's 2.56 s
-    # horizon does (v9 lost an unseen airliner's 45 s turn so; benchmarks/results/dpc_mixed.md).
-    terminal_weight_horizon: int = _NMPC.horizon_steps
-    # Run the rollouts behind the viability clamp, as the policy runs when deployed
-    # (`mca_drake.safety`); gradients pass through the clamp.
-    safety_filter: bool = True
-    # Let gradients flow through the clamp's bounds into the state. False (the default):
-    # the bounds are constants of each step (the command's gradient passes where it is not
-    # clamped): near a limit the bounds' slopes in the state reach 1/(c h^2) = 2e4 per
-    # step, and from the tuned NMPC's far-from-neutral states of the mixed-vehicle set the
-    # rollout gradients overflowed (norms of 1e17 to inf at n_c = 256-1024). v5 and v6 were
-    # trained with True (`paper()`).
-    bound_gradients: bool = False
-    # Training rollouts of this fraction of each batch start from perturbed positions: the
-    # dataset's first state plus uniform noise of `initial_state_noise` times the joints'
-    # half-ranges, clipped inside the limits; validation uses the dataset states. v5 and v6
-    # used 0.5 (`paper()`: the paper-weight NMPC's data stayed near neutral, and without
-    # other states the policy drifted to a limit in long flights). 0 (v8): the tuned NMPC's
-    # data already range over the workspace, and perturbed rollouts carried losses of 10-30
-    # against the dataset states' 1-2, drowning the tracking of small signals (an
-    # airliner's yaw).
-    perturbed_fraction: float = 0.0
-    initial_state_noise: float = 0.1
-    # Training rollouts of this fraction of each batch fly the mirror image of their window
-    # (left and right swapped: `conventions.MIRROR_CHANNEL_SIGNS` on the targets and the
-    # first output, `robot.MIRROR_JOINT_SIGNS` on the first state). The robot and the loss
-    # are symmetric, so a mirrored window is as real as the one flown; it teaches the policy
-    # turns and slips the other way round. 0.5 (v10); 0 before.
-    mirror_fraction: float = 0.5
-    # Training rollouts of this fraction of each batch start with the base joint (joint 1,
-    # vertical axis) turned to a uniform random angle within 90 % of its range. The plant's
-    # outputs and motion do not depend on that angle (gravity lies along the axis; checked at
-    # the start of training), so the window is as real as the one flown. It shows the policy
-    # the base joint's limits, where a long turn walks joint 1 in 300 s flights. Measured
-    # (session 25, benchmarks/results/dpc_mixed.md): 0.5 on v10's set took light development
-    # flight 702 from +0.24 to -0.10 and left the other 15 development and validation
-    # flights as they were; on the T37 set it did not stop the steep-turn trap alone.
-    # 0.5 (v11); 0 before.
-    yaw_shift_fraction: float = 0.5
-    # Training rollouts of this fraction of each batch track their window's targets slowed
-    # down by a uniform random factor in [1, time_stretch_max] (linear interpolation: the
-    # first 10.24 / k s of the window fill the rollout). A target is any signal the cue
-    # should follow, so a slower manoeuvre is as real as the one flown; it shows the policy
-    # pulls and turns held k times as long as any window holds them, which a 10.24 s
-    # rollout of the flown targets cannot (the T37-trained policies chase a steep turn's
-    # sustained pull into the joint limits). Measured (session 26, dpc_mixed.md): on the T37
-    # set with yaw shift 0.5, case A -1.46 where the T37 set without either lost it to
-    # clamp traps (-1.04), case C kept (-1.10 against -1.12). 0.5 (v11); 0 before.
-    time_stretch_fraction: float = 0.5
-    time_stretch_max: float = 3.0
-    # Weight of the correlation term: sum over the six channels of 1 - CC_k, with CC_k the
-    # Pearson correlation of the rollouts' outputs with their targets, each window centred
-    # on its own mean and the windows of a batch pooled (`pooled_correlation`). The PI
-    # scores every channel's CC alike whatever its size, while the tracking term prices a
-    # channel by its squared error: the tuned NMPC and the DPC trained on its objective
-    # leave roll rate and heave uncorrelated (CC about 0.1-0.2 on case A, where the
-    # washout's roll rate reaches 0.7), because their errors are small beside what tilt
-    # coordination and the workspace cost. Measured (session 27, dpc_mixed.md): 0.3 on
-    # v11's recipe took case B to -2.27 and C to -1.26 (v11 -1.56, -1.06) but lost A (-1.13
-    # against -1.46: half the light flights ride the clamp); 1.0 broke the light aircraft's
-    # f_x; 0.1 (session 28): B -1.96, C -1.39, A -1.41 (3 of 10 light flights ride the
-    # clamp part of the time; the NMPC -1.55). 0 (v11 and earlier): the tuned objective alone.
-    correlation_weight: float = 0.0
-    # Train and validate only on windows whose first joint positions are all within this
-    # many rad of neutral (inf: all windows). The tuned NMPC's data hold windows that start
-    # tilted far out (|q| up to 2.6 rad) in states the policy never visits in its own closed
-    # loop; their rollouts dominate the clipped gradient and fine-tuning barely moved v6 (with
-    # 0.3: the f16 check flight 10.7 -> 7.9; benchmarks/results/dpc_mixed.md).
-    # 0.6 (v8) keeps 1008 of the 2106 windows of the mixed set flown by the tuned NMPC (0.3:
-    # 338, a worse policy on the airliners); v5 and v6 used all (`paper()`).
-    max_start_position_rad: float = 0.6
-    # Train on windows of this many consecutive dataset segments (n_c up to 4 x 256 = 10.24 s;
-    # `mca_drake.segments.long_windows`); 1 uses the segments and their split.
-    window_segments: int = 4
-    # Hidden neurons of the policy (paper: 128).
-    hidden: int = 128
-    # Scales of the measured and target outputs at the network's input (w_x, w_y, w_z in
-    # rad/s, f_x, f_y, a_z in m/s^2; `mca_drake.learning.policy.OUTPUT_SCALE`). A policy
-    # fine-tuned from `initial_policy` keeps that file's scales.
-    output_scale: tuple[float, ...] = OUTPUT_SCALE
-    # Optimiser, epochs, batch and the rollout length n_c (train.horizons, one step).
-    train: TrainConfig = dataclasses.field(default_factory=_default_train)
-    # Seed of the weight initialisation.
-    seed: int = 0
-    # Start from the weights of this policy file (fine-tuning) instead of a random
-    # initialisation; "" for a fresh policy. Ignored when a run resumes from its checkpoint.
-    initial_policy: str = ""
-    # Fuse each rollout step with torch.compile (about 9x faster on CPU after a compile of
-    # about a minute; needs a C++ compiler). False: plain eager mode.
-    compile: bool = True
-
-    @classmethod
-    def matching(cls, nmpc: NmpcConfig, **changes) -> DpcTrainingConfig:
-        """A config whose loss is `nmpc`'s objective: its output, input, washout and terminal
-        weights, tracking the references; `changes` set other fields."""
-        weights = dict(
-            targets="reference",
-            tracking_channel_weights=tuple(float(w) for w in nmpc.output_weights),
-            input_weight=nmpc.input_weight,
-            washout_weight=nmpc.washout_weight,
-            terminal_position_weight=nmpc.terminal_position_weight,
-            terminal_velocity_weight=nmpc.terminal_velocity_weight,
-            terminal_weight_horizon=nmpc.horizon_steps,
-        )
-        return cls(**{**weights, **changes})
-
-    @classmethod
-    def paper(cls, **changes) -> DpcTrainingConfig:
-        """The paper's loss (equation 9 with the NMPC's paper weights: uniform tracking of the
-        NMPC-achieved outputs, input 0.1, washout 1; our terminal cost 1, 1), with which the
-        v5 and v6 policies were trained; `changes` set other fields."""
-        return cls.matching(
-            NmpcConfig.paper(),
-            **{
-                "targets": "achieved",
-                "bound_gradients": True,
-                "output_scale": OUTPUT_SCALE_V6,
-                "perturbed_fraction": 0.5,
-                "max_start_position_rad": math.inf,
-                "terminal_weight_horizon": 0,
-                "mirror_fraction": 0.0,
-                "yaw_shift_fraction": 0.0,
-                "time_stretch_fraction": 0.0,
-                **changes,
-            },
-        )
-
-    def validate(self) -> None:
-        if self.targets not in TARGETS:
-            raise ValueError(f"unknown targets '{self.targets}'; valid: {', '.join(TARGETS)}")
-        if self.plant not in PLANTS:
-            raise ValueError(f"unknown plant '{self.plant}'; valid: {', '.join(PLANTS)}")
-        weights = self.tracking_channel_weights
-        if isinstance(weights, str):
-            if weights not in ("uniform", "normalized"):
-                raise ValueError(
-                    f"tracking_channel_weights must be 'uniform', 'normalized' or six numbers;"
-                    f" got '{weights}'"
-                )
-        elif len(weights) != 6 or not all(w >= 0 and w < float("inf") for w in weights):
-            raise ValueError(f"tracking_channel_weights needs six finite numbers >= 0: {weights}")
-        if self.initial_policy and not Path(self.initial_policy).is_file():
-            raise ValueError(f"initial_policy file not found: {self.initial_policy}")
-        for name in (
-            "tracking_weight",
-            "state_estimate_weight",
-            "input_weight",
-            "washout_weight",
-            "limit_weight",
-            "terminal_position_weight",
-            "terminal_velocity_weight",
-            "initial_state_noise",
-            "correlation_weight",
-        ):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0; got {value}")
-        if len(self.output_scale) != 6 or not all(0 < v < float("inf") for v in self.output_scale):
-            raise ValueError(f"output_scale needs six positive numbers; got {self.output_scale}")
-        if self.terminal_weight_horizon < 0:
-            raise ValueError(
-                f"terminal_weight_horizon must be >= 0 steps; got {self.terminal_weight_horizon}"
-            )
-        if self.hidden < 1:
-            raise ValueError(f"hidden must be at least 1 neuron; got {self.hidden}")
-        if not self.max_start_position_rad > 0:
-            raise ValueError(
-                f"max_start_position_rad must be > 0; got {self.max_start_position_rad}"
-            )
-        if not (math.isfinite(self.time_stretch_max) and self.time_stretch_max >= 1.0):
-            raise ValueError(f"time_stretch_max must be >= 1; got {self.time_stretch_max}")
-        for name in (
-            "perturbed_fraction",
-            "mirror_fraction",
-            "yaw_shift_fraction",
-            "time_stretch_fraction",
-        ):
-            if not 0.0 <= getattr(self, name) <= 1.0:
-                raise ValueError(f"{name} must be in [0, 1]; got {getattr(self, name)}")
-        if self.plant == "learned" and not Path(self.learned_output_weights).is_file():
-            raise ValueError(
-                "plant='learned' needs learned_output_weights, the mixed analytical model's "
-                f"weights (output_mixed_n256.pt of `mca-drake table2`); got "
-                f"'{self.learned_output_weights}'"
-            )
-        self.train.validate()
 
 
 class RolloutPlant(nn.Module):
@@ -538,7 +295,8 @@ def stretch_some_targets(targets: torch.Tensor, fraction: float, max_factor: flo
     index = torch.cat((below, above), dim=1)[..., None].expand(-1, -1, C)
     low, high = torch.gather(targets, 1, index).split(T, dim=1)
     weight = (position - below.to(targets))[..., None]
-    # (1 - w) a + w b rather than torch.lerp: v11 was trained with this rounding
+    # (1 - w) a + w b rather than torch.lerp: the default policy was trained with this
+    # rounding, so that its command reproduces it
     return (1 - weight) * low + weight * high
 
 

@@ -4,7 +4,7 @@
 (`AFTER_COMMAND_S`, before the analytical plant's step), sends the segment (k, q_k, qd_k,
 u_k) to the driver over a Unix datagram socket (`segment_socket_pair`): a non-blocking send,
 off the path from a telemetry sample to its command. `start_rsi_driver` starts
-`mca_drake.live.rsi_driver` in a process of its own, with the driver's end of the pair, and
+`mca_drake.live.rsi.driver` in a process of its own, with the driver's end of the pair, and
 waits until it listens; `RsiLink.stop` stops it (the driver brakes the robot to rest first)
 and returns its counters.
 """
@@ -25,8 +25,8 @@ from pathlib import Path
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
 from mca_drake.live.recorder import AFTER_COMMAND_S
-from mca_drake.live.rsi_driver import ROBOT_READY, RsiDriverConfig, read_lead_report
-from mca_drake.live.rsi_motion import CommandSegment
+from mca_drake.live.rsi.driver import ROBOT_READY, RsiDriverConfig, read_lead_report
+from mca_drake.live.rsi.motion import CommandSegment
 from mca_drake.robot import KR500, NUM_JOINTS
 
 
@@ -102,7 +102,7 @@ class RsiLink:
 
     def stop(self, timeout_s: float = 30.0) -> dict:
         """Asks the driver to brake to rest and end (SIGTERM), waits for it and returns its
-        counters (`rsi_driver.DRIVER_COUNTERS` and figures; {"refused": why} if it never
+        counters (`rsi.driver.DRIVER_COUNTERS` and figures; {"refused": why} if it never
         moved the robot)."""
         if self.process.poll() is None:
             self.process.terminate()
@@ -129,7 +129,7 @@ class RobotClockServo:
     crystals differ by parts per million, so the driver's lead (how far the held trajectory
     reaches beyond the time it plays) drifts: 50 ppm would use up a 25 ms delay in about 8
     minutes and brake the robot. The driver reports its mean lead every 0.6 s
-    (`rsi_driver.LEAD_REPORT`); this servo trims the pacer's rate (`RealTimePacer.rate_trim`,
+    (`rsi.driver.LEAD_REPORT`); this servo trims the pacer's rate (`RealTimePacer.rate_trim`,
     at most `max_trim`) with a proportional-integral law that holds the lead, less the
     phase lock's own shifts of the loop (`pacer.phase_s`, which move the lead by design),
     where it was at the first report. Trimming the rate moves no trajectory: the plant and
@@ -195,7 +195,7 @@ class RobotClockServo:
 
 def wait_for_robot(loop_end: socket.socket, link: RsiLink, timeout_s: float) -> None:
     """Waits until the driver reports the robot's first state at the home pose
-    (`rsi_driver.ROBOT_READY` on the segment socket): the loop starts only then, so the
+    (`rsi.driver.ROBOT_READY` on the segment socket): the loop starts only then, so the
     robot follows it from its first period. RuntimeError if the driver ends first (it
     refused the robot: the message says why) or `timeout_s` passes."""
     deadline = time.monotonic() + timeout_s
@@ -221,7 +221,7 @@ def segment_socket_pair() -> tuple[socket.socket, socket.socket]:
 def start_rsi_driver(
     config: RsiDriverConfig, robot: KR500, home, driver_end: socket.socket
 ) -> RsiLink:
-    """Starts `python -m mca_drake.live.rsi_driver` listening on config's address, with
+    """Starts `python -m mca_drake.live.rsi.driver` listening on config's address, with
     `driver_end` of a `segment_socket_pair` (closed here once the driver has it), and waits
     until it listens (its `listening` line); raises RuntimeError if it ends first (an
     address in use, a bad setting: its own error output says which). Its error output goes
@@ -239,7 +239,7 @@ def start_rsi_driver(
     command = [
         sys.executable,
         "-m",
-        "mca_drake.live.rsi_driver",
+        "mca_drake.live.rsi.driver",
         "--job",
         str(folder / "job.json"),
         "--command-fd",

@@ -40,7 +40,7 @@ class DpcPolicy(LeafSystem):
     interventions, 0 QP iterations.
 
     Args:
-        policy: a policy file (`mca_drake.learning.policy.save_policy`) or its arrays.
+        policy: a policy file (`mca_drake.learning.policy_network.save_policy`) or its arrays.
         robot: the KR500 description (the clamp's limits).
         time_step: control period, s.
         update_event: the phase of t_k the step runs in (`mca_update.MCA_UPDATE_EVENTS`):

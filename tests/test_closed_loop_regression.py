@@ -1,31 +1,18 @@
-"""The same numbers as before the layering refactor (issue 15).
+"""Closed loops against stored runs: `tests/data/closed_loop_regression.npz` and `.json` hold
+an 8 s built-in light flight (seed 1000) and the 3 s closed loop of every MCA on it on the
+analytical plant (commands, states, outputs, PI, violations, solver failures).
 
-`tests/data/closed_loop_regression.npz` and `.json` were computed by the code path that the
-refactor replaced (commit f31529d, `evaluation.run_closed_loop`, now
-`simulation.closed_loop.run_closed_loop`): an 8 s built-in light flight (seed 1000) and the
-3 s closed loop of every MCA on the analytical plant. The refactor moved code and must not
-change a single floating-point operation on these paths, so the comparison is exact
-(atol = rtol = 0) for the flight, the commands, the states and the outputs, and the PI.
+Each path is compared as tightly as its arithmetic allows, so that any change of what the
+code computes shows here:
+- the flight and the washout's commands and states exactly (atol = rtol = 0);
+- the outputs and the PI to the round-off of the kinematics (`OUTPUT_TOLERANCE`), and so the
+  DPC's commands and states too (the policy reads the plant's output);
+- the NMPC runs to within `NMPC_TOLERANCE`: the stored runs and these reach the same QP
+  and KKT solutions only to the solvers' tolerances (they differ by up to 7e-7 rad/s^2 in
+  the commands and 4e-8 in the PI).
 
-The fixture's multibody runs were compared the same way until issue 16 changed the station
-on purpose (a command limiter and the plant's own integration step for the desired
-trajectory); `test_kr500_station.py` and `test_station_limits.py` cover it now.
-
-Issue 18 changed how the NMPC solves its QPs, on purpose: a verified active-set solve
-replaces OSQP's approximate solution (rti) and a quasi-Newton term and a KKT stop shorten the
-Gauss-Newton iterations (converged). The NMPC runs are therefore compared to within
-`NMPC_TOLERANCE` (the largest difference measured at that change: 3e-7 rad/s^2 in the
-commands, 2e-8 in the PI), everything else still exactly.
-
-Issue 18 later replaced the quasi-Newton term by Newton models from learnt output Hessians
-(`mca_drake.cueing.output_curvature`): the same KKT points to the same tolerance, here
-within 7e-7 rad/s^2 of the fixture's commands and 4e-8 of its PI.
-
-Issue 18 also replaced the kinematics' method (twists and closed-form Jacobians instead of
-forward-mode jets, `mca_drake.kinematics`): the same outputs in another order of floating-
-point operations, so the outputs and the PI are compared to round-off (`OUTPUT_TOLERANCE`),
-and so are the DPC's commands and states (the policy reads the plant's output); the
-washout's commands and states still exactly.
+The multibody station is not in the fixture: `test_kr500_station.py` and
+`test_station_limits.py` check it against independent oracles.
 """
 
 from __future__ import annotations
@@ -48,10 +35,10 @@ DATA = Path(__file__).parent / "data"
 NMPC_TOLERANCE = 1e-6
 # Absolute tolerance of the outputs and the PI: round-off of the kinematics (m/s^2, rad/s).
 OUTPUT_TOLERANCE = 1e-12
-# The MCAs as the fixture ran them: the defaults of f31529d, named explicitly so that
-# tuned defaults do not change them.
+# The MCAs as the fixture ran them, named explicitly so that tuned defaults do not change
+# them: the paper reproduction's policy, the paper's NMPC weights, the classic washout.
 MCAS = {
-    "dpc": DpcConfig(policy=str(shipped_policy_path("policy_v6"))),  # shipped at f31529d
+    "dpc": DpcConfig(policy=str(shipped_policy_path("policy_v6"))),
     "nmpc-rti": NmpcConfig.paper("rti"),
     "nmpc-converged": NmpcConfig.paper("converged"),
     "washout": WashoutConfig.classic(),
@@ -65,7 +52,7 @@ def fixture():
     return arrays, meta
 
 
-def test_the_built_in_flight_is_unchanged(fixture):
+def test_the_built_in_flight_matches_the_stored_one(fixture):
     arrays, _ = fixture
     recording = fly("light", 8.0, 1000, progress=False)
     np.testing.assert_array_equal(recording.t, arrays["recording_t"])
@@ -74,12 +61,13 @@ def test_the_built_in_flight_is_unchanged(fixture):
 
 
 @pytest.mark.parametrize("mca", MCAS)
-def test_closed_loop_is_unchanged(mca):
+def test_each_mcas_closed_loop_matches_its_stored_run(mca):
     compare("analytical", mca)
 
 
 def compare(plant: str, mca: str) -> None:
-    """Runs one closed loop of the fixture and compares it exactly."""
+    """Runs one closed loop of the fixture and compares it with the stored run, to the
+    tolerance of its MCA (see the module docstring)."""
     arrays = dict(np.load(DATA / "closed_loop_regression.npz"))
     meta = json.loads((DATA / "closed_loop_regression.json").read_text())
     recording = Recording(

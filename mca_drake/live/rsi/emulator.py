@@ -1,10 +1,10 @@
 """A loopback RSI robot: the controller side of KUKA RSI, for tests and demos.
 
-    python -m mca_drake.live.rsi_emulator --driver 127.0.0.1:49152 --duration 60
+    python -m mca_drake.live.rsi.emulator --driver 127.0.0.1:49152 --duration 60
         [--cycle-ms 4] [--report report.json] [--recording recording.npz]
 
 Every cycle (4 or 12 ms, on the monotonic clock) it sends the driver a state packet
-(`rsi_xml.format_state`: the axis positions, deg, and the IPOC, ms) and waits for the reply
+(`rsi.xml.format_state`: the axis positions, deg, and the IPOC, ms) and waits for the reply
 for a cycle. A reply with this cycle's IPOC that reaches its socket within a cycle of the
 state's leaving (both the kernel's stamps: a controller's cycle runs from when its state
 goes out; a stall of this process before it does is this process's own, as its
@@ -42,7 +42,7 @@ from mca_drake.atomic_io import atomic_write_json, atomic_write_npz
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.pacing import wait_until
 from mca_drake.live.realtime import request_realtime_priority
-from mca_drake.live.rsi_xml import (
+from mca_drake.live.rsi.xml import (
     MAX_RSI_BYTES,
     RSI_RESOLUTION_DEG,
     BadRsiPacket,

@@ -13,7 +13,7 @@ lb + relu(z - lb) - relu(z - ub) = min(max(z, lb), ub) with lb = [qdd-, q-, qd-]
 ub = [qdd+, q+, qd+] (Table I). One addition to the paper: the inputs are divided by fixed
 scales (the joint limits for x, `OUTPUT_SCALE` for y and Y) so that every input is of order
 one; the scales are constants of the network, exported with its weights (a file keeps its own:
-v5 and v6 were trained with `OUTPUT_SCALE_V6`).
+the policy_v6 file carries `OUTPUT_SCALE_V6`).
 """
 
 from __future__ import annotations
@@ -32,16 +32,8 @@ from mca_drake.cueing.dpc import (
     load_policy_arrays,
 )
 from mca_drake.learning.blocks import Mlp
+from mca_drake.learning.configs import OUTPUT_SCALE
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
-
-# Typical magnitudes of the output channels [w_x, w_y, w_z, f_x, f_y, a_z]: rad/s, m/s^2.
-# The scaled references' rates have a spread of 0.02-0.06 rad/s (the mixed-vehicle set; p99
-# 0.09-0.28) against 0.3-1.4 m/s^2 for the forces: at v6's 0.5 rad/s an airliner's yaw rate
-# reached the network at a fiftieth of a force's size, and Adam's bounded steps never grew
-# its weights enough (yaw CC 0.14 against the NMPC's 0.96 on a 787 flight).
-OUTPUT_SCALE = (0.1, 0.1, 0.1, 2.0, 2.0, 2.0)
-# The scales of v5 and v6 (their files carry them).
-OUTPUT_SCALE_V6 = (0.5, 0.5, 0.5, 2.0, 2.0, 2.0)
 
 
 def relu_clamp(z: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor) -> torch.Tensor:

@@ -1,12 +1,12 @@
 """RsiDriver: the live loop's joint commands to a KUKA robot over RSI, in a process of its own.
 
-    python -m mca_drake.live.rsi_driver --job job.json --command-fd N [--status status.json]
+    python -m mca_drake.live.rsi.driver --job job.json --command-fd N [--status status.json]
 
-A KUKA controller running RSI sends its state (`mca_drake.live.rsi_xml`) every interpolation
+A KUKA controller running RSI sends its state (`mca_drake.live.rsi.xml`) every interpolation
 cycle, 4 or 12 ms, and needs the reply, with the same IPOC, within that cycle; the live loop
 steps every 10 ms in Python and may stall, or die. So the RSI socket has a process of its
 own that does nothing else: every cycle it reads the state, takes the loop's newest command
-segments from its command socket (`rsi_motion.CommandSegment`, Unix datagrams), steps its
+segments from its command socket (`rsi.motion.CommandSegment`, Unix datagrams), steps its
 `MotionFollower` (the exact trajectory, `delay_s` behind the loop, checked against the
 robot's limits, braking when the segments stop) and replies with the axis corrections: the
 commanded joint positions relative to the home pose, in degrees, with the axis signs of the
@@ -24,7 +24,7 @@ cycle that brings segments (the newest of them is the loop's present; older ones
 waited for the robot's first cycle are its past); both are then assumed to run at the same
 rate: the driver reports its mean lead (how far the held trajectory reaches beyond the time
 it plays, `delay_s` at the start) every 0.6 s, and the loop trims its clock's rate to keep
-it (`mca_drake.live.rsi_link.RobotClockServo`), since a controller's crystal drifts from
+it (`mca_drake.live.rsi.link.RobotClockServo`), since a controller's crystal drifts from
 the PC's by parts per million. A lead that runs out anyway ends in braking, never a jump.
 """
 
@@ -49,14 +49,14 @@ from mca_drake.atomic_io import atomic_write_json, atomic_write_npz
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.realtime import request_realtime_priority
-from mca_drake.live.rsi_motion import (
+from mca_drake.live.rsi.motion import (
     BadSegment,
     CommandSegment,
     MotionFollower,
     RsiMotionConfig,
     SegmentBuffer,
 )
-from mca_drake.live.rsi_xml import MAX_RSI_BYTES, BadRsiPacket, RsiTags, format_reply, parse_state
+from mca_drake.live.rsi.xml import MAX_RSI_BYTES, BadRsiPacket, RsiTags, format_reply, parse_state
 from mca_drake.live.socket_stamps import arrival_time, enable_kernel_timestamps
 from mca_drake.robot import NUM_JOINTS
 from mca_drake.simulation.closed_loop import step_time_summary
@@ -73,7 +73,7 @@ DRIVER_COUNTERS = (
 
 
 # What the driver tells the loop once the robot's first state packet showed the home pose:
-# the loop may start (`mca_drake.live.rsi_link.wait_for_robot`).
+# the loop may start (`mca_drake.live.rsi.link.wait_for_robot`).
 ROBOT_READY = b"robot ready"
 # While following, the driver reports its mean lead (s) over this much robot time (s) to the
 # loop: LEAD_REPORT then the mean as a little-endian double. 0.6 s is a whole number of the

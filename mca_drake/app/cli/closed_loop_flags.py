@@ -1,0 +1,39 @@
+"""The flags that choose an MCA and a reference, shared by `simulate` and `evaluate`."""
+
+from __future__ import annotations
+
+import argparse
+
+from mca_drake.app.scenarios import ClosedLoopScenario
+from mca_drake.cueing import MCA_NAMES, DpcConfig, mca_config_from_name, mca_name
+
+
+def add_mca_flags(parser: argparse.ArgumentParser, default_mca) -> None:
+    """--mca NAME (a default config) and --policy FILE (the policy of --mca dpc)."""
+    parser.add_argument(
+        "--mca",
+        help=f"{', '.join(MCA_NAMES)}, each at its default config (default "
+        f"{mca_name(default_mca)})",
+    )
+    parser.add_argument("--policy", help="policy file for --mca dpc (default: the shipped one)")
+
+
+def mca_from_flags(args: argparse.Namespace, default):
+    """The MCA config of --mca NAME and --policy FILE (a DPC policy), or `default`."""
+    mca = mca_config_from_name(args.mca) if args.mca is not None else default
+    if args.policy is not None:
+        if not isinstance(mca, DpcConfig):
+            raise ValueError("--policy is the policy file of --mca dpc")
+        mca = DpcConfig(policy=args.policy)
+    return mca
+
+
+def closed_loop_scenario_from_flags(args: argparse.Namespace, **fixed) -> ClosedLoopScenario:
+    """A ClosedLoopScenario: its defaults, overridden by the flags that were given."""
+    scenario = ClosedLoopScenario(**fixed)
+    scenario.mca = mca_from_flags(args, scenario.mca)
+    if args.reference is not None:
+        scenario.flight.recording = args.reference
+    if args.duration_s is not None:
+        scenario.duration_s = args.duration_s
+    return scenario

@@ -1,0 +1,114 @@
+"""`mca-drake evaluate`: one recording through an MCA, or the evaluation suite."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from mca_drake.app.cli.closed_loop_flags import (
+    add_mca_flags,
+    closed_loop_scenario_from_flags,
+)
+from mca_drake.app.cli.flags import (
+    ADDRESS_HELP,
+    add_config_flags,
+    add_quiet,
+    check_outputs,
+    given_fields,
+)
+from mca_drake.app.cli.report import format_pi
+from mca_drake.app.jobs import run_closed_loop_scenario, run_scenario
+from mca_drake.app.scenarios import ClosedLoopScenario, EvaluationScenario
+from mca_drake.cueing import DpcConfig, mca_config_from_name, mca_name
+from mca_drake.plotting import save_figure
+from mca_drake.references.recording import load_recording
+from mca_drake.simulation.plots import tracking_figure
+from mca_drake.studies.evaluation import default_cases
+
+# EvaluationScenario fields with a flag (the suite's), by flag name where it differs.
+SUITE_FLAGS = {"workers": "", "output_dir": "--out-dir"}
+
+
+def add_parser(commands) -> None:
+    """Adds `evaluate` to the sub-command parsers `commands`."""
+    suite = EvaluationScenario()
+    parser = commands.add_parser(
+        "evaluate",
+        help="run one recording through an MCA on the analytical plant, or the suite",
+    )
+    add_mca_flags(parser, ClosedLoopScenario().mca)
+    parser.add_argument("--reference", help="recording CSV (one run)")
+    parser.add_argument(
+        "--suite", action="store_true", help="the scenario set: cases A, B and C, report, box plot"
+    )
+    parser.add_argument(
+        "--cases",
+        help=f"suite: cases to run (default {','.join(c.name for c in default_cases())})",
+    )
+    parser.add_argument(
+        "--flights", type=int, help="suite: the first N flights of each case (default all)"
+    )
+    parser.add_argument(
+        "--mcas",
+        help=f"suite: MCAs to compare (default {','.join(mca_name(m) for m in suite.mcas)})",
+    )
+    add_config_flags(parser, suite, SUITE_FLAGS, help_suffix={"workers": "suite"})
+    parser.add_argument("--address", help=ADDRESS_HELP)
+    parser.add_argument(
+        "--duration",
+        dest="duration_s",
+        type=float,
+        help=f"simulated seconds (default: all; suite: {suite.duration_s:g})",
+    )
+    parser.add_argument("--json", help="write the result summary here")
+    parser.add_argument("--plot", help="PNG of target versus achieved outputs")
+    add_quiet(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """One recording (--reference) or the suite (--suite)."""
+    if args.suite:
+        return run_suite(args)
+    if not args.reference:
+        raise ValueError("give --reference flight.csv (one recording) or --suite (scenario set)")
+    scenario = closed_loop_scenario_from_flags(args, plant="analytical")
+    check_outputs(args.plot)
+    if args.duration_s is None:
+        scenario.duration_s = load_recording(args.reference).duration_s
+    result = run_closed_loop_scenario(
+        scenario, progress=not args.quiet, json_path=args.json or "", plot_dir=""
+    )
+    if args.plot:
+        save_figure(tracking_figure(result), args.plot)
+    print(json.dumps(result.summary, indent=2))
+    print(format_pi(result.summary))
+    return 0
+
+
+def run_suite(args: argparse.Namespace) -> int:
+    """The evaluation suite over the cases and MCAs the flags choose; prints its report."""
+    scenario = EvaluationScenario(**given_fields(args, [*SUITE_FLAGS, "duration_s", "address"]))
+    if args.mcas is not None:
+        scenario.mcas = [mca_config_from_name(n) for n in args.mcas.split(",")]
+    if args.policy is not None:
+        if not any(isinstance(m, DpcConfig) for m in scenario.mcas):
+            raise ValueError("--policy is the policy file of dpc, which --mcas leaves out")
+        scenario.mcas = [
+            DpcConfig(policy=args.policy) if isinstance(m, DpcConfig) else m for m in scenario.mcas
+        ]
+    if args.flights is not None and args.flights < 1:
+        raise ValueError(f"--flights must be at least 1; got {args.flights}")
+    cases = {c.name: c for c in default_cases()}  # A: light, B: jet, C: unseen seeds
+    wanted = args.cases.split(",") if args.cases is not None else list(cases)
+    unknown = [c for c in wanted if c not in cases]
+    if unknown:
+        raise ValueError(f"--cases: unknown case {unknown}; valid: {', '.join(cases)}")
+    flights = args.flights
+    scenario.light_seeds = list(cases["A"].seeds[:flights]) if "A" in wanted else []
+    scenario.jet_seeds = list(cases["B"].seeds[:flights]) if "B" in wanted else []
+    scenario.unseen_seeds = list(cases["C"].seeds[:flights]) if "C" in wanted else []
+    run_scenario(scenario, progress=not args.quiet)
+    print((Path(scenario.output_dir) / "evaluation.md").read_text())
+    return 0

@@ -1,0 +1,125 @@
+"""`mca-drake live`: cue a running simulator's UDP telemetry in real time."""
+
+from __future__ import annotations
+
+import argparse
+
+from mca_drake.app.cli.flags import add_config_flags
+from mca_drake.app.cli.report import hold_meshcat
+from mca_drake.app.jobs import run_live_scenario, start_meshcat
+from mca_drake.app.scenarios import LiveScenario
+from mca_drake.cueing import MCA_NAMES, mca_config_from_name
+
+# LiveScenario fields with a flag of the same name.
+LIVE_FLAGS = ("host", "port", "rsi_cycle_ms")
+
+
+def add_parser(commands) -> None:
+    """Adds `live` to the sub-command parsers `commands`."""
+    defaults = LiveScenario()
+    parser = commands.add_parser(
+        "live", help="cue a running flight simulator's UDP telemetry in real time"
+    )
+    parser.add_argument("--protocol", help="fgnetfdm, xplane or csv")
+    parser.add_argument("--xplane-version", type=int, help="11 or 12 (protocol xplane)")
+    add_config_flags(parser, defaults, LIVE_FLAGS)
+    parser.add_argument("--duration", type=float, help="s of live cueing (demo: 60)")
+    parser.add_argument("--mca", default="dpc", help=", ".join(MCA_NAMES))
+    parser.add_argument("--realtime-rate", type=float, default=1.0, help="1: real time")
+    parser.add_argument(
+        "--plant", help="analytical (default) or multibody (the KR500 station; demo default)"
+    )
+    parser.add_argument("--meshcat", action="store_true", help="draw the station in Meshcat")
+    parser.add_argument("--json", help="result summary with its live block")
+    parser.add_argument(
+        "--robot",
+        help="rsi://HOST:PORT: drive a KUKA robot over RSI (the driver listens there for the "
+        "controller's state packets; analytical plant)",
+    )
+    parser.add_argument(
+        "--demo",
+        action="store_true",
+        help="JSBSim flies the light aircraft and streams FlightGear packets to this loop, "
+        "cued on the KR500 station in Meshcat",
+    )
+    parser.set_defaults(func=run)
+
+
+def _scenario_from_flags(args: argparse.Namespace) -> LiveScenario:
+    """The LiveScenario of the flags; with --demo, the demo's protocol and defaults."""
+    scenario = LiveScenario(
+        mca=mca_config_from_name(args.mca),
+        robot=args.robot or "",
+        output_json=args.json or "",
+        **{f: getattr(args, f) for f in LIVE_FLAGS if getattr(args, f) is not None},
+    )
+    if args.demo:
+        # the demo sender is JSBSim streaming FGNetFDM at its own time resolution
+        from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S
+
+        scenario.protocol, scenario.port = "fgnetfdm", 0
+        scenario.fgnetfdm_time_resolution_s = DEMO_TIME_RESOLUTION_S
+        args.plant = args.plant or ("analytical" if args.robot else "multibody")
+        args.meshcat = args.meshcat or args.plant == "multibody"
+        args.duration = args.duration or 60.0
+    elif args.protocol is None or args.duration is None:
+        raise ValueError("live needs --protocol and --duration (or --demo)")
+    else:
+        scenario.protocol, scenario.xplane_version = args.protocol, args.xplane_version or 0
+    scenario.plant = args.plant or "analytical"
+    scenario.duration_s = args.duration
+    if args.meshcat and scenario.plant != "multibody":
+        raise ValueError("--meshcat draws the KR500 station: add --plant multibody")
+    scenario.validate()
+    return scenario
+
+
+def _ms(figures: dict) -> dict:
+    return {k: f"{v * 1e3:.3f} ms" for k, v in figures.items()}
+
+
+def format_live_report(summary: dict) -> str:
+    """The live block of a summary (and its robot's, when there is one) as text."""
+    live = summary["live"]
+    lines = [
+        f"{live['packets']} packets ({live['bad']} bad, {live['dropped']} dropped, "
+        f"{live['out_of_order']} out of order), {live['stale_events']} stale events; "
+        f"latency {_ms(live['latency_s'])} (of which waiting for the poll "
+        f"{_ms(live['wait_s'])}); health {live['health']}; PI {summary['pi']:.3f} "
+        f"(zero motion {summary['pi_zero_motion']:.3f}); violations {summary['violations']}"
+    ]
+    if "rsi" in summary:
+        r = summary["rsi"]
+        lines.append(
+            f"robot {r['address']}: {r.get('cycles', 0)} cycles, {r.get('late_replies', 0)} "
+            f"late, {r.get('missed_cycles', 0)} missed, {r.get('bad_state', 0)} bad state "
+            f"packets; reply latency {_ms(r.get('reply_latency_s', {}))}; ended "
+            f"{r.get('mode')} ({r.get('reason')})"
+        )
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Runs the live loop (and, with --demo, its JSBSim sender); prints the live figures."""
+    scenario = _scenario_from_flags(args)
+    meshcat = start_meshcat() if args.meshcat else None
+    sender = []
+
+    def listening(address):
+        print(f"listening on udp://{address[0]}:{address[1]}", flush=True)
+        if args.demo:
+            # JSBSim is loaded only by the demo
+            from mca_drake.live.demo import start_demo_sender
+
+            # a little longer than the loop, so that the stream does not stop before it
+            sender.append(start_demo_sender(address[1], args.duration + 2.0))
+
+    try:
+        summary = run_live_scenario(scenario, on_listening=listening, meshcat=meshcat)
+    finally:
+        for process in sender:
+            process.terminate()
+            process.wait(timeout=10)
+    print(format_live_report(summary))
+    hold_meshcat(meshcat)
+    return 0

@@ -1,0 +1,70 @@
+"""What the closed-loop commands print: a readable result table, not the summary JSON.
+
+The full summary goes to its JSON file; the terminal gets the figures an engineer reads
+first: the PI beside not moving at all, each channel's RMSE and CC, how much of each joint's
+range the run used, the MCA's step time and the real-time factor.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from mca_drake.conventions import CHANNELS
+from mca_drake.metrics import rmse
+
+
+def format_closed_loop_report(result) -> str:
+    """The result table of a closed-loop run (a `ClosedLoopResult`), as text.
+
+    Rows: per output channel, the RMSE and CC of the run and the RMSE of zero motion (whose
+    CC is 0); the PI of both; the share of each joint's range swept; the step time (median,
+    p99, max, us); the real-time factor; limit violations and interventions.
+    """
+    summary = result.summary
+    width = 9
+    header = f"{'':<18}" + "".join(f"{c:>{width}}" for c in CHANNELS)
+
+    def row(name: str, values) -> str:
+        return f"{name:<18}" + "".join(f"{v:>{width}.3f}" for v in values)
+
+    steps = summary["step_time_s"]
+    lines = [
+        f"{summary['mca']} on the {summary['plant']} plant, {summary['reference']}, "
+        f"{summary['duration_s']:g} s",
+        "",
+        header,
+        row("RMSE", summary["rmse"]),
+        row("CC", summary["cc"]),
+        row("RMSE zero motion", rmse(result.reference, np.zeros_like(result.reference))),
+        "",
+        f"PI {summary['pi']:.3f}   zero motion {summary['pi_zero_motion']:.3f}   "
+        "(sum of RMSE - CC over the channels; lower is better, minimum -6)",
+        "joint range used  "
+        + "  ".join(f"j{i + 1} {v:.0%}" for i, v in enumerate(summary["joint_range_used"])),
+        f"MCA step time     median {steps['median'] * 1e6:.1f} us, p99 {steps['p99'] * 1e6:.1f}"
+        f" us, max {steps['max'] * 1e6:.1f} us; real-time factor "
+        f"{summary['realtime_factor']:.1f}",
+        f"limits            violations {summary['violations']}, safety interventions "
+        f"{summary['safety_interventions']}, solver failures {summary['solver_failures']}",
+    ]
+    return "\n".join(lines)
+
+
+def format_pi(summary: dict) -> str:
+    """One line: the PI beside zero motion's."""
+    return (
+        f"PI {summary['pi']:.3f} (zero motion {summary['pi_zero_motion']:.3f}; lower is "
+        "better, minimum -6)"
+    )
+
+
+def hold_meshcat(meshcat) -> None:
+    """Keeps the Meshcat server (and its recording) alive until the user is done."""
+    if meshcat is None or not sys.stdin.isatty():
+        return
+    try:
+        input(f"replay the recording at {meshcat.web_url()}; press Enter to exit ")
+    except (EOFError, KeyboardInterrupt):
+        pass

@@ -1,0 +1,230 @@
+"""`mca-drake train-policy`, `export-policy` and `table2`: the torch commands.
+
+torch is imported inside the commands only, so that the other commands start fast; the
+flags come from the torch-free configs (`mca_drake.learning.configs`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+
+from mca_drake.app.cli.flags import ADDRESS_HELP, add_config_flags, add_quiet, check_outputs
+from mca_drake.learning.configs import DpcTrainingConfig
+from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
+from mca_drake.studies.closed_loop_dataset import (
+    DEFAULT_DATASET,
+    ClosedLoopDatasetConfig,
+    generate_closed_loop_dataset,
+)
+
+# DpcTrainingConfig fields with a flag, by flag name where it differs from the field's.
+POLICY_FLAGS = {
+    "targets": "",
+    "plant": "",
+    "learned_output_weights": "",
+    "window_segments": "",
+    "initial_policy": "--init-policy",
+    "washout_weight": "",
+    "input_weight": "",
+    "max_start_position_rad": "--max-start-position",
+    "perturbed_fraction": "",
+    "initial_state_noise": "",
+    "mirror_fraction": "",
+    "yaw_shift_fraction": "",
+    "time_stretch_fraction": "",
+    "time_stretch_max": "",
+    "correlation_weight": "",
+    "terminal_weight_horizon": "",
+    "hidden": "",
+    "seed": "",
+}
+# TrainConfig fields (the policy's optimisation) with a flag.
+POLICY_TRAIN_FLAGS = {
+    "horizons": "",
+    "max_epochs": "",
+    "early_stopping_patience": "--patience",
+    "learning_rate": "",
+    "batch_size": "",
+    "device": "",
+}
+
+
+def add_parsers(commands) -> None:
+    """Adds `train-policy`, `export-policy` and `table2` to the parsers `commands`."""
+    _add_train_policy(commands)
+    export = commands.add_parser(
+        "export-policy", help="best weights so far of a training checkpoint as a policy file"
+    )
+    export.add_argument("checkpoint", help="policy.pt of a train-policy run")
+    export.add_argument("--out", default="policy.npz", help="the policy file to write")
+    export.set_defaults(func=run_export_policy)
+    _add_table2(commands)
+
+
+def _add_train_policy(commands) -> None:
+    defaults = DpcTrainingConfig()
+    parser = commands.add_parser(
+        "train-policy",
+        help="train the DPC policy on a closed-loop dataset (unset flags: the defaults of "
+        "mca_drake.learning.dpc_training.DpcTrainingConfig: the shipped NMPC's objective)",
+    )
+    parser.add_argument(
+        "--objective",
+        choices=("tuned", "paper"),
+        default="tuned",
+        help="loss weights: tuned (the shipped NMPC's weights, tracking the references; "
+        "default) or paper (equation 9, tracking the NMPC-achieved outputs)",
+    )
+    parser.add_argument("--dataset", default=DEFAULT_DATASET, help="closed-loop dataset.npz")
+    parser.add_argument("--out-dir", default="results/policy", help="the run's folder")
+    add_config_flags(parser, defaults, POLICY_FLAGS)
+    add_config_flags(parser, defaults.train, POLICY_TRAIN_FLAGS)
+    parser.add_argument(
+        "--channel-weights",
+        help="tracking weights per output channel: six numbers (default the objective's), "
+        "uniform, or normalized (1 / target variance)",
+    )
+    parser.add_argument("--no-compile", action="store_true", help="eager torch (slower)")
+    parser.add_argument("--resume", action="store_true", help="continue a killed run")
+    add_quiet(parser)
+    parser.set_defaults(func=run_train_policy)
+
+
+def channel_weights(text: str) -> str | tuple[float, ...]:
+    """--channel-weights: 'uniform', 'normalized' or six comma-separated numbers."""
+    if text in ("uniform", "normalized"):
+        return text
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise SystemExit(
+            f"--channel-weights: 'uniform', 'normalized' or six numbers, not '{text}'"
+        ) from None
+
+
+def _command_line() -> str:
+    return "mca-drake " + " ".join(sys.argv[1:]) if sys.argv[0].endswith("mca-drake") else ""
+
+
+def run_train_policy(args: argparse.Namespace) -> int:
+    """Trains the policy the flags describe; writes policy.npz in --out-dir."""
+    # torch: loaded by the training commands only, so the others start fast
+    from mca_drake.learning.dpc_training import train_policy
+
+    base = DpcTrainingConfig.paper() if args.objective == "paper" else DpcTrainingConfig()
+    given = {f: getattr(args, f) for f in POLICY_FLAGS if getattr(args, f) is not None}
+    config = dataclasses.replace(base, **given)
+    if args.no_compile:
+        config.compile = False
+    if args.channel_weights is not None:
+        config.tracking_channel_weights = channel_weights(args.channel_weights)
+    train = {f: getattr(args, f) for f in POLICY_TRAIN_FLAGS if getattr(args, f) is not None}
+    config.train = dataclasses.replace(config.train, **train)
+    _, path = train_policy(
+        config,
+        args.dataset,
+        args.out_dir,
+        resume=args.resume,
+        progress=not args.quiet,
+        command=_command_line(),
+    )
+    print(f"policy written to {path}")
+    return 0
+
+
+def run_export_policy(args: argparse.Namespace) -> int:
+    """Writes the checkpoint's best weights as a policy file."""
+    check_outputs(args.out)
+    # torch: loaded by the training commands only, so the others start fast
+    from mca_drake.learning.dpc_training import export_checkpoint_policy
+
+    print(f"policy written to {export_checkpoint_policy(args.checkpoint, args.out)}")
+    return 0
+
+
+def _add_table2(commands) -> None:
+    parser = commands.add_parser(
+        "table2", help="train and score every plant-model candidate (the paper's Table II)"
+    )
+    parser.add_argument("--quick", action="store_true", help="a few minutes: small data, epochs")
+    parser.add_argument("--closed-loop-dataset", help=f"default {DEFAULT_DATASET}")
+    parser.add_argument("--open-loop-dataset", help="default datasets/open_loop.npz")
+    parser.add_argument("--out-dir", default="results/table2", help="the study's folder")
+    parser.add_argument("--resume", action="store_true", help="continue a killed run")
+    parser.add_argument(
+        "--workers", type=int, help="candidates at once, on a local Ray (default 1: here)"
+    )
+    parser.add_argument("--address", help=ADDRESS_HELP)
+    parser.add_argument("--device", help="auto (CUDA if present), cpu, cuda")
+    parser.add_argument("--max-epochs", type=int, help="override epochs per curriculum step")
+    parser.add_argument(
+        "--only", help="comma-separated candidates, e.g. state_node1,output_mixed (default all)"
+    )
+    add_quiet(parser)
+    parser.set_defaults(func=run_table2)
+
+
+def _quick_closed_loop_dataset(folder: Path, progress: bool) -> Path:
+    config = ClosedLoopDatasetConfig(flight_seeds=(100,), flight_duration_s=60.0, horizon=32)
+    return generate_closed_loop_dataset(config, folder / "closed_loop", progress=progress)
+
+
+def _quick_open_loop_dataset(folder: Path) -> Path:
+    path = folder / "open_loop_quick.npz"
+    if not path.is_file():
+        config = ExcitationConfig(repetitions=3, duration_s=4.0, horizon=32)
+        generate_excitation_dataset(config, progress=False).save(path)
+    return path
+
+
+def _table2_config(args: argparse.Namespace, out: Path):
+    """The study's config: the quick one, or the paper-size one on datasets that exist."""
+    # torch: loaded by the training commands only, so the others start fast
+    from mca_drake.studies.table2 import Table2Config, quick_config
+
+    closed, open_loop = args.closed_loop_dataset, args.open_loop_dataset
+    if args.quick:
+        closed = closed or str(_quick_closed_loop_dataset(out / "data", not args.quiet))
+        open_loop = open_loop or str(_quick_open_loop_dataset(out / "data"))
+        return quick_config(closed, open_loop)
+    defaults = Table2Config()
+    config = Table2Config(
+        closed_loop_dataset=closed or defaults.closed_loop_dataset,
+        open_loop_dataset=open_loop or defaults.open_loop_dataset,
+    )
+    for path, command in (
+        (config.closed_loop_dataset, "mca-drake dataset closed-loop"),
+        (config.open_loop_dataset, "mca-drake dataset open-loop --out datasets/open_loop.npz"),
+    ):
+        if not Path(path).is_file():
+            raise FileNotFoundError(f"dataset {path} not found; make it with `{command}`")
+    return config
+
+
+def run_table2(args: argparse.Namespace) -> int:
+    """Trains and scores the plant-model candidates; prints Table II."""
+    # torch: loaded by the training commands only, so the others start fast
+    from mca_drake.studies.table2 import run_table2 as run_study
+
+    out = Path(args.out_dir)
+    config = _table2_config(args, out)
+    given = {k: getattr(args, k) for k in ("device", "max_epochs") if getattr(args, k) is not None}
+    config.train = dataclasses.replace(config.train, **given)
+    if args.only:
+        wanted = set(args.only.split(","))
+        config.state_models = tuple(n for n in config.state_models if f"state_{n}" in wanted)
+        config.output_models = tuple(n for n in config.output_models if f"output_{n}" in wanted)
+    report = run_study(
+        config,
+        out,
+        resume=args.resume,
+        progress=not args.quiet,
+        workers=args.workers if args.workers is not None else 1,
+        address=args.address,
+    )
+    print((out / "table2.md").read_text())
+    print(f"written to {out / 'table2.md'} and table2.json ({report['wall_s'] / 60:.1f} min)")
+    return 0

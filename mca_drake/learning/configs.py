@@ -1,0 +1,296 @@
+"""The training configs, readable without torch: `TrainConfig` (the curriculum trainer's),
+`DpcTrainingConfig` (the DPC policy's loss, data and network) and the policy network's input
+scales. The command line derives its training flags from them without loading torch.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+from mca_drake.cueing import NmpcConfig
+
+# Typical magnitudes of the output channels [w_x, w_y, w_z, f_x, f_y, a_z]: rad/s, m/s^2.
+# The scaled references' rates have a spread of 0.02-0.06 rad/s (the mixed-vehicle set; p99
+# 0.09-0.28) against 0.3-1.4 m/s^2 for the forces. The rates' scale is 0.1 rad/s because at
+# 0.5 rad/s an airliner's yaw rate reaches the network at a fiftieth of a force's size, and
+# Adam's bounded steps never grow its weights enough (yaw CC 0.14 against the NMPC's 0.96 on
+# a 787 flight).
+OUTPUT_SCALE = (0.1, 0.1, 0.1, 2.0, 2.0, 2.0)
+# The scales of the policy_v6 file (the paper reproduction), which carries them.
+OUTPUT_SCALE_V6 = (0.5, 0.5, 0.5, 2.0, 2.0, 2.0)
+
+
+@dataclasses.dataclass
+class TrainConfig:
+    """Training settings; defaults are the paper's for the plant models."""
+
+    # RAdam learning rate and decoupled weight decay.
+    learning_rate: float = 0.01
+    weight_decay: float = 0.01
+    # Segments per batch.
+    batch_size: int = 256
+    # Epochs per curriculum step at most.
+    max_epochs: int = 500
+    # Early stopping: epochs without a validation improvement.
+    early_stopping_patience: int = 150
+    # Reduce-on-plateau of the training loss: factor and patience in epochs.
+    plateau_factor: float = 0.5
+    plateau_patience: int = 100
+    # Curriculum of horizons n_p (steps); each starts from the previous best weights.
+    horizons: tuple[int, ...] = (32, 64, 128, 256)
+    # Seed of the batch shuffling (the caller seeds the weight initialisation).
+    seed: int = 0
+    # "auto" (CUDA when present, else CPU), "cpu" or "cuda".
+    device: str = "auto"
+    # Checkpoint at most this often (s) within a step, and always at the end of a step.
+    checkpoint_interval_s: float = 20.0
+    # Clip the gradient's global norm to this value (0: no clipping). Long closed-loop
+    # rollouts (DPC) can produce exploding gradients that throw the network into saturation.
+    gradient_clip_norm: float = 0.0
+
+    def validate(self) -> None:
+        if min(self.batch_size, self.max_epochs) < 1 or not self.horizons:
+            raise ValueError("batch_size, max_epochs and horizons must be positive / non-empty")
+        if not (self.learning_rate > 0 and 0 < self.plateau_factor < 1):
+            raise ValueError("learning_rate must be > 0 and plateau_factor in (0, 1)")
+        if self.device not in ("auto", "cpu", "cuda"):
+            raise ValueError(f"unknown device '{self.device}'; valid: auto, cpu, cuda")
+
+    def resolved_device(self):
+        """The torch device to train on; ``auto`` takes CUDA when torch sees one."""
+        import torch  # torch: the config itself is read without it (the command line)
+
+        if self.device == "auto":
+            return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+        if self.device == "cuda" and not torch.cuda.is_available():
+            raise ValueError("device 'cuda' requested but torch sees no CUDA device")
+        return torch.device(self.device)
+
+
+TARGETS = ("achieved", "reference")
+PLANTS = ("exact", "learned")
+
+
+def _default_train() -> TrainConfig:
+    return TrainConfig(
+        learning_rate=1e-3,
+        weight_decay=0.01,
+        batch_size=256,
+        # n_c 256 then 1024, 400 epochs each at most: about 20 min on one core, within the
+        # 30-minute training budget on 2 CPUs
+        max_epochs=400,
+        early_stopping_patience=100,
+        plateau_patience=100,
+        horizons=(256, 1024),
+        gradient_clip_norm=1.0,
+    )
+
+
+# The shipped NMPC's weights (tuned), the DPC loss's defaults: one home, NmpcConfig.
+_NMPC = NmpcConfig()
+
+
+@dataclasses.dataclass
+class DpcTrainingConfig:
+    """DPC policy training settings (defaults: the shipped NMPC's objective, see the module
+    docstring and docs/decisions/0001-tuned-objective.md; `paper()` for the paper's loss)."""
+
+    # Targets: "reference" (the references the NMPC was given: the policy learns the
+    # objective, not one solver's answers) or "achieved" (the NMPC's outputs, the paper's).
+    targets: str = "reference"
+    # Frozen plant of the rollouts: "exact" (the analytical torch plant, exact for the robot
+    # the policy drives: docs/decisions/0008-exact-plant-for-dpc-training.md) or "learned"
+    # (NODE 2 + mixed analytical, the paper's).
+    plant: str = "exact"
+    # With plant="learned": the mixed analytical model's best weights (a Table II run's
+    # output_mixed_n256.pt).
+    learned_output_weights: str = ""
+    # Weight of the tracking term (paper: 1).
+    tracking_weight: float = 1.0
+    # Per-channel weights inside the tracking term (w_x, w_y, w_z, f_x, f_y, f_z), applied as
+    # sum_k c_k (y_k - Y_k)^2: six numbers (default the NMPC's output weights), "uniform"
+    # (all 1, the paper's), or "normalized" (c_k = mean variance / variance of channel k of
+    # the training targets: every channel counts alike, as in the PI, whose CC term ignores
+    # scale, while doing nothing costs what it costs with uniform weights).
+    tracking_channel_weights: str | tuple[float, ...] = tuple(_NMPC.output_weights)
+    # Weight of the state-prediction term ||x_hat_(t+1) - x_(t+1)||^2 (paper: 1).
+    state_estimate_weight: float = 1.0
+    # Weight of ||u_t||^2, (rad/s^2)^-2: the tuned NMPC's (paper: 0.1).
+    input_weight: float = _NMPC.input_weight
+    # Washout weight of ||q_t||^2, rad^-2: the tuned NMPC's (paper: 1).
+    washout_weight: float = _NMPC.washout_weight
+    # Weight of the squared violation of the state limits by x_(t+1): large beside the other
+    # terms (order 1), so that no tracking gain pays for leaving the limits.
+    limit_weight: float = 100.0
+    # Terminal cost on the rollout's last state, as the NMPC's (weights of ||q_N||^2 and
+    # ||qd_N||^2): an addition to the paper's loss that teaches washout beyond n_c.
+    terminal_position_weight: float = _NMPC.terminal_position_weight
+    terminal_velocity_weight: float = _NMPC.terminal_velocity_weight
+    # The horizon (steps) the terminal weights belong to (the NMPC's horizon_steps); a
+    # rollout of n_c steps carries them times this / n_c (0: as they are). The stage costs
+    # are averaged over the rollout but the terminal cost is added once, so unscaled, a
+    # long rollout washes a sustained turn out faster than the NMPC does
+    # (docs/decisions/0003-mirrored-windows-and-scaled-terminal-weights.md).
+    terminal_weight_horizon: int = _NMPC.horizon_steps
+    # Run the rollouts behind the viability clamp, as the policy runs when deployed
+    # (`mca_drake.safety`); gradients pass through the clamp
+    # (docs/decisions/0004-viability-clamp-in-training-rollouts.md).
+    safety_filter: bool = True
+    # Let gradients flow through the clamp's bounds into the state. False: the bounds are
+    # constants of each step (the command's gradient passes where it is not clamped), since
+    # near a limit the bounds' slopes in the state reach 1/(c h^2) = 2e4 per step and the
+    # rollout gradients from far-from-neutral states overflow (same record).
+    bound_gradients: bool = False
+    # Fraction of each training batch whose rollouts start from the dataset's first state
+    # plus uniform noise of `initial_state_noise` joint half-ranges, clipped inside the
+    # limits (validation uses the dataset states). 0: on the tuned NMPC's data the perturbed
+    # rollouts' losses drown the tracking of small signals
+    # (docs/decisions/0009-training-windows-near-neutral.md).
+    perturbed_fraction: float = 0.0
+    initial_state_noise: float = 0.1
+    # Fraction of each training batch whose rollouts fly their window's mirror image (left
+    # and right swapped: `conventions.MIRROR_CHANNEL_SIGNS`, `robot.MIRROR_JOINT_SIGNS`).
+    # Robot and loss are symmetric, so it teaches turns and slips the other way round
+    # (docs/decisions/0003-mirrored-windows-and-scaled-terminal-weights.md).
+    mirror_fraction: float = 0.5
+    # Fraction of each training batch whose rollouts start with joint 1 (vertical axis: no
+    # cue depends on its angle, checked at the start of training) turned to a uniform random
+    # angle within 90 % of its range, so that the policy sees the base joint's limits, where
+    # long turns walk it (docs/decisions/0005-base-yaw-shifted-starts.md).
+    yaw_shift_fraction: float = 0.5
+    # Fraction of each training batch whose rollouts track their window's targets slowed
+    # down by a uniform random factor in [1, time_stretch_max] (linear interpolation: the
+    # first 10.24 / k s of the window fill the rollout). 0.5: without stretched windows the
+    # policy chases a sustained pull or turn into the joint limits, which no 10.24 s rollout
+    # of the flown targets shows (docs/decisions/0002-time-stretched-windows.md).
+    time_stretch_fraction: float = 0.5
+    time_stretch_max: float = 3.0
+    # Weight of the correlation term: sum over the six channels of 1 - CC_k, with CC_k the
+    # Pearson correlation of the rollouts' outputs with their targets, each window centred
+    # on its own mean and the windows of a batch pooled (`pooled_correlation`). 0: the term
+    # gains the PI on the jet and unseen aircraft but drives the light aircraft's flights
+    # into the joint limits (docs/decisions/0006-correlation-term-off-by-default.md).
+    correlation_weight: float = 0.0
+    # Train and validate only on windows whose first joint positions are all within this
+    # many rad of neutral (inf: all windows). The tuned NMPC's windows that start tilted far
+    # out, in states the policy never visits itself, would dominate the clipped gradient;
+    # 0.6 keeps about half the windows (docs/decisions/0009-training-windows-near-neutral.md).
+    max_start_position_rad: float = 0.6
+    # Train on windows of this many consecutive dataset segments (n_c up to 4 x 256 = 10.24 s;
+    # `mca_drake.segments.long_windows`); 1 uses the segments and their split.
+    window_segments: int = 4
+    # Hidden neurons of the policy (paper: 128).
+    hidden: int = 128
+    # Scales of the measured and target outputs at the network's input (w_x, w_y, w_z in
+    # rad/s, f_x, f_y, a_z in m/s^2; `mca_drake.learning.policy_network.OUTPUT_SCALE`). A policy
+    # fine-tuned from `initial_policy` keeps that file's scales.
+    output_scale: tuple[float, ...] = OUTPUT_SCALE
+    # Optimiser, epochs, batch and the rollout length n_c (train.horizons, one step).
+    train: TrainConfig = dataclasses.field(default_factory=_default_train)
+    # Seed of the weight initialisation.
+    seed: int = 0
+    # Start from the weights of this policy file (fine-tuning) instead of a random
+    # initialisation; "" for a fresh policy. Ignored when a run resumes from its checkpoint.
+    initial_policy: str = ""
+    # Fuse each rollout step with torch.compile (about 9x faster on CPU after a compile of
+    # about a minute; needs a C++ compiler). False: plain eager mode.
+    compile: bool = True
+
+    @classmethod
+    def matching(cls, nmpc: NmpcConfig, **changes) -> DpcTrainingConfig:
+        """A config whose loss is `nmpc`'s objective: its output, input, washout and terminal
+        weights, tracking the references; `changes` set other fields."""
+        weights = dict(
+            targets="reference",
+            tracking_channel_weights=tuple(float(w) for w in nmpc.output_weights),
+            input_weight=nmpc.input_weight,
+            washout_weight=nmpc.washout_weight,
+            terminal_position_weight=nmpc.terminal_position_weight,
+            terminal_velocity_weight=nmpc.terminal_velocity_weight,
+            terminal_weight_horizon=nmpc.horizon_steps,
+        )
+        return cls(**{**weights, **changes})
+
+    @classmethod
+    def paper(cls, **changes) -> DpcTrainingConfig:
+        """The paper's loss (equation 9 with the NMPC's paper weights: uniform tracking of the
+        NMPC-achieved outputs, input 0.1, washout 1; our terminal cost 1, 1) and the paper's
+        training data (all windows, perturbed starts, none augmented), the recipe of the
+        policy_v6 file; `changes` set other fields."""
+        return cls.matching(
+            NmpcConfig.paper(),
+            **{
+                "targets": "achieved",
+                "bound_gradients": True,
+                "output_scale": OUTPUT_SCALE_V6,
+                "perturbed_fraction": 0.5,
+                "max_start_position_rad": math.inf,
+                "terminal_weight_horizon": 0,
+                "mirror_fraction": 0.0,
+                "yaw_shift_fraction": 0.0,
+                "time_stretch_fraction": 0.0,
+                **changes,
+            },
+        )
+
+    def validate(self) -> None:
+        if self.targets not in TARGETS:
+            raise ValueError(f"unknown targets '{self.targets}'; valid: {', '.join(TARGETS)}")
+        if self.plant not in PLANTS:
+            raise ValueError(f"unknown plant '{self.plant}'; valid: {', '.join(PLANTS)}")
+        weights = self.tracking_channel_weights
+        if isinstance(weights, str):
+            if weights not in ("uniform", "normalized"):
+                raise ValueError(
+                    f"tracking_channel_weights must be 'uniform', 'normalized' or six numbers;"
+                    f" got '{weights}'"
+                )
+        elif len(weights) != 6 or not all(w >= 0 and w < float("inf") for w in weights):
+            raise ValueError(f"tracking_channel_weights needs six finite numbers >= 0: {weights}")
+        if self.initial_policy and not Path(self.initial_policy).is_file():
+            raise ValueError(f"initial_policy file not found: {self.initial_policy}")
+        for name in (
+            "tracking_weight",
+            "state_estimate_weight",
+            "input_weight",
+            "washout_weight",
+            "limit_weight",
+            "terminal_position_weight",
+            "terminal_velocity_weight",
+            "initial_state_noise",
+            "correlation_weight",
+        ):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0; got {value}")
+        if len(self.output_scale) != 6 or not all(0 < v < float("inf") for v in self.output_scale):
+            raise ValueError(f"output_scale needs six positive numbers; got {self.output_scale}")
+        if self.terminal_weight_horizon < 0:
+            raise ValueError(
+                f"terminal_weight_horizon must be >= 0 steps; got {self.terminal_weight_horizon}"
+            )
+        if self.hidden < 1:
+            raise ValueError(f"hidden must be at least 1 neuron; got {self.hidden}")
+        if not self.max_start_position_rad > 0:
+            raise ValueError(
+                f"max_start_position_rad must be > 0; got {self.max_start_position_rad}"
+            )
+        if not (math.isfinite(self.time_stretch_max) and self.time_stretch_max >= 1.0):
+            raise ValueError(f"time_stretch_max must be >= 1; got {self.time_stretch_max}")
+        for name in (
+            "perturbed_fraction",
+            "mirror_fraction",
+            "yaw_shift_fraction",
+            "time_stretch_fraction",
+        ):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} must be in [0, 1]; got {getattr(self, name)}")
+        if self.plant == "learned" and not Path(self.learned_output_weights).is_file():
+            raise ValueError(
+                "plant='learned' needs learned_output_weights, the mixed analytical model's "
+                f"weights (output_mixed_n256.pt of `mca-drake table2`); got "
+                f"'{self.learned_output_weights}'"
+            )
+        self.train.validate()

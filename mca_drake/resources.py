@@ -1,0 +1,75 @@
+"""The files the package carries: the KR500 model, the scenario files and the policies.
+
+`models/` and `diagrams/` at the top of the source tree are the sources; a wheel carries
+copies of them as package data (`mca_drake/data/models`, `mca_drake/data/diagrams`, copied
+by setup.py at build time), so an installed package runs from any folder. In a source
+checkout (an editable install) the top-level folders themselves are used.
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+from pathlib import Path
+
+# The folders a wheel carries, by their name in the source tree.
+PACKAGED_FOLDERS = ("models", "diagrams")
+# Policy files shipped with the package (mca_drake/data/<name>.npz).
+SHIPPED_POLICIES = ("default_policy", "policy_v6")
+
+
+def data_dir() -> Path:
+    """The package's data folder (mca_drake/data): shipped policies, and in an installed
+    package the copies of models/ and diagrams/."""
+    return Path(str(importlib.resources.files("mca_drake") / "data"))
+
+
+def packaged_folder(name: str) -> Path:
+    """The folder `name` ("models" or "diagrams"): the wheel's copy, else the checkout's.
+
+    Raises:
+        ValueError: `name` is not one of `PACKAGED_FOLDERS`.
+        FileNotFoundError: neither copy exists (a broken install).
+    """
+    if name not in PACKAGED_FOLDERS:
+        raise ValueError(f"unknown packaged folder '{name}'; valid: {', '.join(PACKAGED_FOLDERS)}")
+    packaged = data_dir() / name
+    if packaged.is_dir():
+        return packaged
+    checkout = Path(__file__).resolve().parent.parent / name
+    if checkout.is_dir():
+        return checkout
+    raise FileNotFoundError(
+        f"the package's {name}/ folder is missing (looked in {packaged} and {checkout}); "
+        "reinstall mca-drake from its wheel or a source checkout"
+    )
+
+
+def packaged_scenarios() -> dict[str, Path]:
+    """The scenario files the package carries, by name (file name without `.yaml`)."""
+    return {p.stem: p for p in sorted(packaged_folder("diagrams").glob("*.yaml"))}
+
+
+def scenario_path(name_or_path: str | Path) -> Path:
+    """A scenario file given by its path or by its packaged name.
+
+    Args:
+        name_or_path: an existing YAML file, or the name of a packaged scenario with or
+            without `.yaml` ("closed_loop_dpc", "diagrams/live_rsi.yaml" from any folder).
+
+    Raises:
+        FileNotFoundError: no such file and no packaged scenario of that name; the message
+            lists the packaged names.
+    """
+    path = Path(name_or_path)
+    if path.is_file():
+        return path
+    packaged = packaged_scenarios()
+    stem = path.name.removesuffix(".yaml")
+    # A bare name, or diagrams/NAME.yaml typed from outside a checkout.
+    if stem in packaged and (path.parent == Path(".") or path.parent.name == "diagrams"):
+        return packaged[stem]
+    if path.is_dir():
+        raise FileNotFoundError(f"scenario {path} is a directory, not a YAML file")
+    raise FileNotFoundError(
+        f"scenario file not found: {path}; packaged scenarios: {', '.join(packaged)}"
+    )
