@@ -7,7 +7,8 @@ Prints, per repeat and as median with min and max over repeats: the DPC step med
 the NMPC-rti step median and p99 (ms) on the analytical plant, and the real-time factor of
 the multibody station (1 kHz MultibodyPlant, DPC). A short calibration workload (numpy and
 pure Python, fixed size) is timed first so that figures from different machines can be
-compared. `--json` writes the figures.
+compared. `--json` writes the figures with their provenance (date, command, calibration,
+machine).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import platform
 import statistics
 
 import numpy as np
-from common import calibration_s
+from common import calibration_s, result_header
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.references.jsbsim import fly
@@ -74,7 +75,7 @@ def main() -> None:
             f"(min {summary[name]['min']:.3f}, max {summary[name]['max']:.3f}, n {len(values)})"
         )
     if args.json:
-        atomic_write_json(args.json, {"calibration": calibration, "figures": summary})
+        atomic_write_json(args.json, {"provenance": result_header(calibration), "figures": summary})
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """How MCAs answer one cue at a time: a step in one channel from the neutral pose, nothing else.
 
-    python benchmarks/bench_cue_response.py --mca v10=mca_drake/data/default_policy.npz \
-        --mca nmpc-rti [--json results/cue_response.json]
+    python benchmarks/bench_cue_response.py --mca dpc=mca_drake/data/default_policy.npz \
+        --mca nmpc-rti --mca washout [--json results/cue_response.json]
 
 For each channel a 10 s step (w_x, w_y 0.05 rad/s, w_z 0.03 rad/s, f_x 0.5, f_y 0.3, a_z 1.0
 m/s^2; 20 s flights on the analytical plant, the step from 2 s) and for each MCA: the share of
@@ -9,6 +9,8 @@ the step rendered (achieved / asked) 0.2, 0.5, 1, 2, 4, 7 and 9.9 s into it, and
 (rms of every other channel during the step, rad/s or m/s^2: cues the vehicle did not make).
 An MCA that tracks a channel alone renders it whole and fast with little cross-talk; a
 classical washout renders the onset only. An MCA is `label=policy.npz` (DPC) or an MCA name.
+Writes the figures with their provenance (date, command, calibration, machine) to `--json`,
+by default `benchmarks/results/cue_response.json`.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import parse_mca
+from common import default_result_path, parse_mca, result_header
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.conventions import CHANNELS
@@ -52,7 +54,9 @@ def step_response(mca, channel: int) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--mca", action="append", required=True, help="label=policy.npz or name")
-    parser.add_argument("--json", help="write the figures here too")
+    parser.add_argument(
+        "--json", default=default_result_path("cue_response.json"), help="write the figures here"
+    )
     args = parser.parse_args()
     figures: dict[str, dict] = {}
     times = " ".join(f"{s:g}" for s in SAMPLE_TIMES_S)
@@ -66,8 +70,13 @@ def main() -> None:
             shares = " ".join(f"{v:5.2f}" for v in response["share"])
             worst = max(response["cross_talk_rms"].items(), key=lambda item: item[1])
             print(f"{label:10s} {name:4s} {shares}   largest cross-talk {worst[0]} {worst[1]:.3f}")
-    if args.json:
-        atomic_write_json(args.json, figures)
+    report = {
+        "provenance": result_header(),
+        "sample_times_s": list(SAMPLE_TIMES_S),
+        "step_sizes": dict(zip(CHANNELS, STEP_SIZES, strict=True)),
+        "mcas": figures,
+    }
+    atomic_write_json(args.json, report)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
-"""Live loop figures on JSBSim's own telemetry (issue 20): latency, jitter and CPU load.
+"""Live loop figures on JSBSim's own telemetry: latency, jitter and CPU load.
 
     python benchmarks/bench_live.py [--duration 600] [--mcas dpc,nmpc-rti]
-        [--plant analytical] [--phase-lock on|off|both] [--json out.json]
+        [--plant analytical] [--phase-lock on|off|both] [--json results/live.json]
 
 For each MCA, `mca-drake live --demo`'s set-up without Meshcat: a JSBSim process flies the
 light aircraft (a training seed) in real time and streams its FGNetFDM packets over
@@ -11,7 +11,8 @@ latency from a sample's arrival to the command computed from it (median, p99, ma
 part of it the sample waited in the socket for its poll, the
 loop's jitter (|period - 10 ms| of its control instants on the wall clock), the loop
 process's CPU load and the sender's, and the stream's counters. The machine's calibration
-first.
+first. Writes the figures with their provenance (date, command, calibration, machine) to
+`--json`, by default `benchmarks/results/live.json`.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from __future__ import annotations
 import argparse
 import resource
 
-from common import in_ms, print_calibration
+from common import default_result_path, in_ms, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import mca_config_from_name
@@ -40,10 +41,12 @@ def main() -> None:
     parser.add_argument("--mcas", default="dpc,nmpc-rti")
     parser.add_argument("--plant", default="analytical")
     parser.add_argument("--phase-lock", choices=("on", "off", "both"), default="on")
-    parser.add_argument("--json", help="write the figures here")
+    parser.add_argument(
+        "--json", default=default_result_path("live.json"), help="write the figures here"
+    )
     args = parser.parse_args()
     locks = {"on": (True,), "off": (False,), "both": (False, True)}[args.phase_lock]
-    report = {"calibration": print_calibration(), "runs": {}}
+    report = {"provenance": result_header(print_calibration()), "runs": {}}
     for name, lock in ((n, lock) for n in args.mcas.split(",") for lock in locks):
         senders = []
 

@@ -2,7 +2,7 @@
 
     python benchmarks/bench_nmpc.py [--duration 300] [--converged-duration 300]
         [--vehicle light] [--seed 1000] [--adversarial-duration 5]
-        [--baseline DIR --baseline-converged-duration 30] [--json out.json]
+        [--baseline DIR --baseline-converged-duration 30] [--json results/nmpc.json]
 
 On one evaluation flight (analytical plant, closed loop), per weight set and mode: step
 median, p99 and max (ms) and the PI; then the PI gap rti - converged over the converged
@@ -15,7 +15,8 @@ evaluation suite's converged cost (20 flights x 300 s).
 another checkout (e.g. `git worktree add /tmp/base <commit>`) in a subprocess, one after the
 other in this run, so that before and after are timed under the same conditions; converged
 mode there may be slow, hence its own window (a shorter one is rerun here for the PI).
-The machine's calibration is printed first.
+The machine's calibration is printed first. Every figure goes to `--json` with its
+provenance (date, command, calibration, machine), by default `benchmarks/results/nmpc.json`.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import json
 from pathlib import Path
 
 import numpy as np
-from common import print_calibration, run_with_checkout
+from common import default_result_path, print_calibration, result_header, run_with_checkout
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import NmpcConfig
@@ -195,7 +196,9 @@ def main() -> None:
     parser.add_argument("--baseline", help="a checkout to compare with (its mca_drake)")
     parser.add_argument("--baseline-converged-duration", type=float, default=30.0)
     parser.add_argument("--profile", type=float, default=20.0, help="profiled seconds, 0: none")
-    parser.add_argument("--json", help="write every figure here")
+    parser.add_argument(
+        "--json", default=default_result_path("nmpc.json"), help="write every figure here"
+    )
     parser.add_argument("--measure-flight-only", help=argparse.SUPPRESS)
     parser.add_argument("--weights", help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -215,7 +218,7 @@ def main() -> None:
             figures["adversarial"] = measure_adversarial(args.adversarial_duration)
         Path(args.measure_flight_only).write_text(json.dumps(figures))
         return
-    report = {"calibration": print_calibration()}
+    report = {"provenance": result_header(print_calibration())}
     if args.profile > 0:
         print(f"profile, {args.profile:g} s of the flight:", flush=True)
         report["profile"] = profile_modes(args.vehicle, args.seed, args.profile)

@@ -1,12 +1,12 @@
-"""RSI driver figures (issue 21): reply latency per robot cycle and late replies, live.
+"""RSI driver figures: reply latency per robot cycle and late replies, live.
 
     python benchmarks/bench_rsi.py [--duration 600] [--cycles-ms 4,12] [--mca dpc]
-        [--json out.json]
+        [--json results/rsi.json]
 
 For each RSI cycle: the live loop of `bench_live.py` (JSBSim flies the light aircraft in
 real time and streams FGNetFDM packets over loopback; the MCA on the analytical plant at
 real-time rate 1) drives a robot over RSI (`mca-drake live --robot`): the driver in its own
-process, the loopback RSI robot emulator (`mca_drake.live.rsi_emulator`) in another, started
+process, the loopback RSI robot emulator (`mca_drake.live.rsi.emulator`) in another, started
 at the home pose, sending its state every cycle for the whole run. Prints, per cycle, the
 reply latency as the robot sees it (its state left -> the reply in its socket, both the
 kernel's stamps: median, p99, max), the driver's own (the state's kernel arrival -> reply
@@ -16,10 +16,12 @@ loop's telemetry latency beside them. The machine's calibration first.
 Where a reply's time goes: the driver logs each cycle's state arrival
 (`RsiDriverConfig.timing_path`), the emulator its states' departures and the late replies'
 arrivals, on the clock both share, so each reply splits into the way there and the answer
-(`rsi_emulator.split_reply_latency`; median, p99, max); and a stall probe per CPU
+(`rsi.emulator.split_reply_latency`; median, p99, max); and a stall probe per CPU
 (`machine_stalls.py`: when that CPU was not there for a SCHED_FIFO 40 process, and its steal
 time; it wakes every 5 ms, a few microseconds each, above the live loop) says for each cycle
-left without a reply on time whether the machine stalled in it.
+left without a reply on time whether the machine stalled in it. Writes the figures with
+their provenance (date, command, calibration, machine) to `--json`, by default
+`benchmarks/results/rsi.json`.
 """
 
 from __future__ import annotations
@@ -33,16 +35,16 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from common import in_ms, print_calibration
+from common import default_result_path, in_ms, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import mca_config_from_name
 from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S, start_demo_sender
 from mca_drake.live.loop import make_decoder, run_live
 from mca_drake.live.receiver import ReceiverConfig
-from mca_drake.live.rsi_driver import RsiDriverConfig
-from mca_drake.live.rsi_emulator import split_reply_latency
-from mca_drake.live.rsi_motion import RsiMotionConfig
+from mca_drake.live.rsi.driver import RsiDriverConfig
+from mca_drake.live.rsi.emulator import split_reply_latency
+from mca_drake.live.rsi.motion import RsiMotionConfig
 from mca_drake.simulation.closed_loop import step_time_summary
 
 STALL_PROBE = Path(__file__).with_name("machine_stalls.py")
@@ -95,9 +97,11 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=600.0, help="s per cycle time")
     parser.add_argument("--cycles-ms", default="4,12")
     parser.add_argument("--mca", default="dpc")
-    parser.add_argument("--json", help="write the figures here")
+    parser.add_argument(
+        "--json", default=default_result_path("rsi.json"), help="write the figures here"
+    )
     args = parser.parse_args()
-    report = {"calibration": print_calibration(), "runs": {}}
+    report = {"provenance": result_header(print_calibration()), "runs": {}}
     folder = Path(tempfile.mkdtemp(prefix="bench_rsi_"))
     for cycle_ms in (int(c) for c in args.cycles_ms.split(",")):
         # port 0: the driver takes a free one, written back into rsi.port before start()
@@ -119,7 +123,7 @@ def main() -> None:
             files=(emulator_report, emulator_recording),
         ):
             processes.append(start_demo_sender(address[1], args.duration + 3.0))
-            command = [sys.executable, "-m", "mca_drake.live.rsi_emulator"]
+            command = [sys.executable, "-m", "mca_drake.live.rsi.emulator"]
             command += ["--driver", f"127.0.0.1:{rsi.port}", "--cycle-ms", str(c)]
             command += ["--duration", repr(args.duration + 2.0)]
             command += ["--report", str(files[0]), "--recording", str(files[1])]

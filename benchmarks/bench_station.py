@@ -1,29 +1,31 @@
 """Real-time factor of the KR500 station closed loop, and measured-vs-analytical PI.
 
     python benchmarks/bench_station.py [--minutes 10] [--mca dpc] [--repeats 1] [--seed 1000]
-    python benchmarks/bench_station.py --case C [--minutes 5] [--mca dpc] [--json out.json]
+    python benchmarks/bench_station.py --case C [--minutes 5] [--mca dpc]
+        [--json results/station_case_c.json]
 
 Runs the MCA at 100 Hz on the 1 kHz MultibodyPlant station (inverse dynamics, head IMU)
 over a built-in light-aircraft flight, `repeats` times, and once on the analytical plant.
 Prints the real-time factor (simulated s per wall s; median and spread over repeats), the
-per-channel RMSE/CC and PI of both plants, and their PI difference. Targets (issue 7):
-real-time factor >= 10 for a 10-minute DPC flight; |PI_multibody - PI_analytical| <= 0.1.
+per-channel RMSE/CC and PI of both plants, and their PI difference. Targets: real-time
+factor >= 10 for a 10-minute DPC flight; |PI_multibody - PI_analytical| <= 0.1.
 
 `--case C` (or A, B) instead flies every flight of that case of the evaluation suite
 (`mca_drake.studies.evaluation.default_cases`; C: aircraft used in neither training nor
 tuning) on both plants and prints per flight the two PIs and their difference, then the
-median and largest |difference| (issue 19's target: within 0.1 on case C).
+median and largest |difference| (target: within 0.1 on case C), and writes them with their
+provenance (date, command, calibration, machine) to `--json`, by default
+`benchmarks/results/station_case_<case>.json`.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 
 import numpy as np
-from common import print_calibration
+from common import default_result_path, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.references.flights import FlightSpec, flight_reference
@@ -33,8 +35,11 @@ from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.evaluation import default_cases
 
 
-def compare_case(case_name: str, mca: str, duration: float, json_path: str | None) -> None:
-    """Station against analytical plant on every flight of an evaluation case."""
+def compare_case(
+    case_name: str, mca: str, duration: float, json_path: str, calibration: dict[str, float]
+) -> None:
+    """Station against analytical plant on every flight of an evaluation case (`duration`
+    s each); the figures go to `json_path`."""
     cases = {case.name: case for case in default_cases()}
     if case_name not in cases:
         raise SystemExit(f"unknown case '{case_name}'; valid: {', '.join(cases)}")
@@ -73,8 +78,8 @@ def compare_case(case_name: str, mca: str, duration: float, json_path: str | Non
         f"|PI multibody - PI analytical|: median {np.median(gaps):.4f}, max {gaps.max():.4f} "
         f"over {len(rows)} flights (target <= 0.1)"
     )
-    if json_path:
-        atomic_write_json(json_path, {"case": case.name, "mca": mca, "flights": rows})
+    report = {"provenance": result_header(calibration), "case": case.name, "mca": mca}
+    atomic_write_json(json_path, report | {"flights": rows})
 
 
 def main() -> None:
@@ -83,12 +88,17 @@ def main() -> None:
     parser.add_argument("--mca", default="dpc")
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--seed", type=int, default=1000)
-    parser.add_argument("--json", help="also write the figures to this JSON file")
+    parser.add_argument(
+        "--json",
+        help="write the figures to this JSON file (with --case: by default "
+        "benchmarks/results/station_case_<case>.json)",
+    )
     parser.add_argument("--case", help="an evaluation case (A, B, C): station vs analytical")
     args = parser.parse_args()
-    print_calibration()
+    calibration = print_calibration()
     if args.case:
-        compare_case(args.case, args.mca, 60.0 * args.minutes, args.json)
+        json_path = args.json or default_result_path(f"station_case_{args.case.lower()}.json")
+        compare_case(args.case, args.mca, 60.0 * args.minutes, json_path, calibration)
         return
     duration = 60.0 * args.minutes
     reference = reference_from_recording(
@@ -132,14 +142,14 @@ def main() -> None:
     )
     if args.json:
         figures = {
+            "provenance": result_header(calibration),
             "realtime_factor": rtf,
             "pi_multibody": s["pi"],
             "pi_analytical": a["pi"],
             "summary_multibody": s,
             "summary_analytical": a,
         }
-        with open(args.json, "w") as f:
-            json.dump(figures, f, indent=2)
+        atomic_write_json(args.json, figures)
 
 
 if __name__ == "__main__":

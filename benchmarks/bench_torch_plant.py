@@ -10,7 +10,7 @@ import argparse
 import torch
 from common import describe, print_calibration, time_calls
 
-from mca_drake.torch_plant import TorchPlant
+from mca_drake.learning.torch_plant import TorchPlant
 
 
 def main() -> None:

@@ -1,7 +1,7 @@
-"""Tuned MCA configs against their baselines on evaluation flights (issue 17's figures).
+"""Tuned MCA configs against their baselines on evaluation flights.
 
-    python benchmarks/bench_tuned.py --nmpc results/tune_nmpc/best.yaml \
-        --washout results/tune_washout/best.yaml [--flights 10] [--duration 120] [--workers 2]
+    python benchmarks/bench_tuned.py --nmpc nmpc-rti --washout washout [--flights 10]
+        [--duration 120] [--workers 2] [--json results/tuned.json]
 
 NMPC-rti at the tuned config against the paper's weights (`NmpcConfig.paper()`), and the
 tuned washout against zero motion, each on the first `--flights` evaluation flights of the
@@ -9,7 +9,10 @@ light aircraft (seeds 1000 on) and of the jet (2000 on), `--duration` s each, on
 analytical plant. Prints per flight and per vehicle the PIs, the median PI gain and on how
 many flights the tuned config is better, the step-time p99 of the tuned NMPC, and the
 machine's calibration (`common.calibration_s`). Runs are tasks of
-`mca_drake.studies.parallel.run_tasks` (a local Ray with `--workers` CPUs).
+`mca_drake.studies.parallel.run_tasks` (a local Ray with `--workers` CPUs). `--nmpc` and
+`--washout` take a best.yaml of `mca-drake tune` or an MCA name (its defaults: the shipped,
+tuned configs). Writes the figures with their provenance (date, command, calibration,
+machine) to `--json`, by default `benchmarks/results/tuned.json`.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from common import calibration_s
+from common import default_result_path, print_calibration, result_header
 
 from mca_drake.app.scenarios import load_scenario
 from mca_drake.atomic_io import atomic_write_json
@@ -67,7 +70,9 @@ def main() -> None:
     parser.add_argument("--flights", type=int, default=10)
     parser.add_argument("--duration", type=float, default=120.0)
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--json", help="also write the figures here")
+    parser.add_argument(
+        "--json", default=default_result_path("tuned.json"), help="write the figures here"
+    )
     args = parser.parse_args()
     configs = {}
     if args.nmpc:
@@ -79,7 +84,7 @@ def main() -> None:
     flights = [
         (v, base + k) for v, base in (("light", 1000), ("jet", 2000)) for k in range(args.flights)
     ]
-    print(f"calibration: {calibration_s()}")
+    calibration = print_calibration()
     with tempfile.TemporaryDirectory() as tmp:
         tasks = [
             (label, config, v, s, args.duration, tmp)
@@ -144,8 +149,7 @@ def main() -> None:
                 f"{len(seeds)}"
             )
         print(f"  violations: {f['violations']}")
-    if args.json:
-        atomic_write_json(args.json, figures)
+    atomic_write_json(args.json, {"provenance": result_header(calibration), "vehicles": figures})
 
 
 if __name__ == "__main__":

@@ -1,8 +1,9 @@
 """DPC policies and MCAs on the validation flights: aircraft no training saw, kept apart from
 evaluation case C so that choosing between training recipes does not choose on it.
 
-    python benchmarks/bench_validation.py --mca v10=mca_drake/data/default_policy.npz \
-        --mca pc=results/policy_pc/policy.npz --mca nmpc-rti --out-dir results/validation
+    python benchmarks/bench_validation.py --mca dpc=mca_drake/data/default_policy.npz \
+        --mca candidate=results/policy/policy.npz --mca nmpc-rti [--out-dir results/validation]
+        [--json results/validation.json]
 
 Flies `VALIDATION_VEHICLES` (A4, F4N) over seeds 700 on (below the evaluation seeds, never
 training seeds), 300 s each on the analytical plant, every MCA on every flight. `--vehicles
@@ -13,7 +14,10 @@ suite; `--first-seed 600 --seeds 14 --vehicles light` is the light aircraft's tr
 under out-dir/runs (atomic; a finished run is not flown again, so a killed study resumes).
 Prints per MCA the median PI per vehicle and over all flights, clamp interventions, and for
 each MCA after the first the paired difference to the first (median, better on how many
-flights, signed-rank p). An MCA is `label=policy.npz` (DPC) or an MCA name.
+flights, signed-rank p). An MCA is `label=policy.npz` (DPC) or an MCA name. On the
+validation aircraft the figures go with their provenance (date, command, calibration,
+machine) to `--json`, by default `benchmarks/results/validation.json` (from seed 700); other
+flights are written only where `--json` names a file.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ import json
 from pathlib import Path
 
 import numpy as np
-from common import parse_mca
+from common import default_result_path, parse_mca, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.conventions import FIRST_EVALUATION_SEED
@@ -109,7 +113,11 @@ def main() -> None:
     )
     parser.add_argument("--duration", type=float, default=300.0, help="s per flight")
     parser.add_argument("--out-dir", default="results/validation")
-    parser.add_argument("--json", help="write the figures here too")
+    parser.add_argument(
+        "--json",
+        help="write the figures here (default on the validation aircraft: "
+        "benchmarks/results/validation.json)",
+    )
     args = parser.parse_args()
     mcas = [parse_mca(text) for text in args.mca]
     if len({label for label, _ in mcas}) != len(mcas):
@@ -128,10 +136,15 @@ def main() -> None:
     if set(vehicles) & set(UNSEEN_VEHICLES):
         raise SystemExit(f"{', '.join(UNSEEN_VEHICLES)} are kept for evaluation case C")
     flights = [(vehicle, seed) for vehicle in vehicles for seed in seeds]
+    calibration = print_calibration()
     results = run_flights(mcas, flights, out_dir, args.duration, out_dir / "flights")
     figures = report(results, flights)
-    if args.json:
-        atomic_write_json(args.json, figures)
+    json_path = args.json
+    validation = vehicles == list(VALIDATION_VEHICLES) and seeds.start == FIRST_VALIDATION_SEED
+    if json_path is None and validation:
+        json_path = default_result_path("validation.json")
+    if json_path:
+        atomic_write_json(json_path, {"provenance": result_header(calibration), "mcas": figures})
 
 
 if __name__ == "__main__":

@@ -1,11 +1,14 @@
 """Helpers for the benchmark scripts: repeated wall-clock samples, median and spread; the
-`--mca` argument of the scripts that compare MCAs."""
+machine's calibration and the `provenance` block of a result file; the `--mca` argument of
+the scripts that compare MCAs."""
 
 from __future__ import annotations
 
+import datetime
 import json
 import os
 import platform
+import shlex
 import statistics
 import subprocess
 import sys
@@ -15,6 +18,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+
+# Where each benchmark writes its current result file by default (benchmarks/README.md).
+RESULTS_DIR = Path(__file__).resolve().parent / "results"
 
 
 def time_calls(fn: Callable[[], object], *, repeats: int, warmup: int = 3) -> list[float]:
@@ -97,6 +103,29 @@ def print_calibration() -> dict[str, float]:
         flush=True,
     )
     return figures
+
+
+def machine() -> dict:
+    """The machine a result was measured on: core count and CPU as the platform names it."""
+    return {"cores": os.cpu_count(), "cpu": platform.processor() or platform.machine()}
+
+
+def result_header(calibration: dict[str, float] | None = None) -> dict:
+    """The `provenance` block every result file starts with: the UTC date (ISO), the command
+    line that wrote it, the machine's calibration (`calibration_s`, s; measured now unless
+    given) and the machine, so that figures from different days and machines compare."""
+    return {
+        "date": datetime.datetime.now(datetime.timezone.utc).date().isoformat(),
+        "command": shlex.join(["python", *sys.argv]),
+        "calibration": calibration_s() if calibration is None else calibration,
+        "machine": machine(),
+    }
+
+
+def default_result_path(name: str) -> str:
+    """The stable path of a benchmark's current result file, `benchmarks/results/<name>`,
+    whatever the working directory."""
+    return str(RESULTS_DIR / name)
 
 
 def parse_mca(text: str):

@@ -1,16 +1,17 @@
 """Two DPC policies on the same evaluation flights: the gain of a new policy over an old one.
 
-    mca-drake evaluate --suite --workers 2 --out-dir benchmarks/results/evaluation_suite
-    mca-drake evaluate --suite --mcas dpc --policy mca_drake/data/policy_v6.npz \
-        --workers 2 --out-dir benchmarks/results/evaluation_suite_v6
-    python benchmarks/compare_policies.py benchmarks/results/evaluation_suite \
-        benchmarks/results/evaluation_suite_v6 [--labels v8,v6] [--json out.json]
+    mca-drake evaluate --suite --mcas dpc --policy results/policy/policy.npz \
+        --workers 2 --out-dir results/evaluation_candidate
+    python benchmarks/compare_policies.py results/evaluation_candidate \
+        benchmarks/results/evaluation [--labels candidate,shipped] [--json out.json]
 
 Reads the finished DPC runs of two suite folders (`runs/{case}_dpc_{seed}.json`, written by
 `mca_drake.studies.evaluation`), refuses folders whose runs mix policies or were made by the
 same policy file, and prints per case: each policy's median PI over the flights both
 finished, the gain (new - old; < 0: the new policy is better), on how many flights the new
-one is better, the Wilcoxon rank-sum p and the paired signed-rank p. Reads files only.
+one is better, the Wilcoxon rank-sum p and the paired signed-rank p. Reads files only;
+the shipped policy's runs are those of the evaluation suite's folder
+(`benchmarks/results/evaluation`, its runs/ kept beside it but not in git).
 """
 
 from __future__ import annotations
@@ -69,12 +70,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("new", type=Path, help="suite folder of the new policy")
     parser.add_argument("old", type=Path, help="suite folder of the old policy")
-    parser.add_argument("--labels", default="new,old", help="names of the two, e.g. v8,v6")
+    parser.add_argument(
+        "--labels", default="new,old", help="names of the two, e.g. candidate,shipped"
+    )
     parser.add_argument("--json", type=Path, help="write the figures here")
     args = parser.parse_args()
     labels = args.labels.split(",")
     if len(labels) != 2:
-        raise SystemExit("--labels needs two names, e.g. v8,v6")
+        raise SystemExit("--labels needs two names, e.g. candidate,shipped")
     new, new_policy = dpc_runs(args.new)
     old, old_policy = dpc_runs(args.old)
     if new_policy == old_policy:

@@ -1,5 +1,5 @@
-"""The hostile-user probe of issue 16, as a table: bad input of every class through the
-`mca-drake` command, and the adversarial reference set on the station.
+"""A hostile-user probe, as a table: bad input of every class through the `mca-drake`
+command, and the adversarial reference set on the station.
 
     python benchmarks/probe_bad_input.py [--json out.json]
 
@@ -8,7 +8,8 @@ line on stderr, no traceback), a traceback (an exception escaped), silent garbag
 on input that is wrong) or, for the valid variants, accepted. Then DPC, washout and
 NMPC-rti cue 3 g steps in each axis, 3 rad/s spins and a 1 g chirp on the multibody station
 and the measured q, qd, qdd violations are summed (converged NMPC: `pytest -m slow
-tests/test_station_limits.py`). No reserved aircraft is flown.
+tests/test_station_limits.py`). No reserved aircraft is flown. `--json` writes the table
+with its provenance (date, command, calibration, machine).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from common import print_calibration
+from common import print_calibration, result_header
 from test_station_limits import KINDS, adversarial_reference
 
 from mca_drake.app import cli
@@ -231,7 +232,7 @@ def main() -> None:
     parser.add_argument("--json", help="also write the table to this JSON file")
     parser.add_argument("--skip-station", action="store_true")
     args = parser.parse_args()
-    print_calibration()
+    calibration = print_calibration()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
@@ -262,7 +263,7 @@ def main() -> None:
         f"{total['traceback']} | {total['silent garbage']} |"
     )
     other = {k: v for k, v in total.items() if k not in ("clear error", "accepted")}
-    result = {"rows": rows, "totals": dict(total)}
+    result = {"provenance": result_header(calibration), "rows": rows, "totals": dict(total)}
     if not args.skip_station:
         violations = station_violations()
         print(f"\nstation, adversarial set ({len(KINDS)} references): violations {violations}")

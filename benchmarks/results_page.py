@@ -1,0 +1,713 @@
+"""The results page and the README's headline table, generated from the current result
+files under `benchmarks/results/` (benchmarks/README.md names the command behind each).
+
+    python benchmarks/results_page.py [--results benchmarks/results] [--page OUT.md]
+        [--readme README.md]
+
+Without `--page` or `--readme` the page is printed. `--page` writes it to a file; the docs
+build copies the plots it links (paths relative to the results folder, such as
+`evaluation/evaluation.png`) next to it. `--readme` rewrites only the lines between
+`<!-- headline-table:start -->` and `<!-- headline-table:end -->` of that file with the
+headline table. The output depends on the result files alone (fixed number formats, the
+files' own order), so a test can compare a README's table with a fresh render.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import statistics
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from mca_drake.conventions import CHANNELS
+
+RESULTS_DIR = Path(__file__).resolve().parent / "results"
+HEADLINE_START = "<!-- headline-table:start -->"
+HEADLINE_END = "<!-- headline-table:end -->"
+PAGE_COMMAND = "python benchmarks/results_page.py"
+
+# Display names of the MCAs as the evaluation suite and the benchmarks key them.
+MCA_LABELS = {
+    "dpc": "DPC",
+    "nmpc-converged": "NMPC, converged",
+    "nmpc-rti": "NMPC, RTI",
+    "washout": "Washout (tuned)",
+}
+# The headline table's rows, in this order, where the suite ran them.
+HEADLINE_MCAS = ("dpc", "nmpc-converged", "nmpc-rti", "washout")
+
+
+# --- number formats (fixed, so that a render is reproducible) ---------------------------
+
+
+def fmt_pi(value: float) -> str:
+    """A performance index (dimensionless), three decimals."""
+    return f"{value:.3f}"
+
+
+def fmt_us(seconds: float) -> str:
+    """A duration in s as microseconds, one decimal."""
+    return f"{seconds * 1e6:.1f} us"
+
+
+def fmt_ms(seconds: float) -> str:
+    """A duration in s as milliseconds, two decimals."""
+    return f"{seconds * 1e3:.2f} ms"
+
+
+def fmt_step(seconds: float) -> str:
+    """A step time in s: microseconds below 1 ms, milliseconds from there."""
+    return fmt_us(seconds) if seconds < 1e-3 else fmt_ms(seconds)
+
+
+def _ms_of(milliseconds: float) -> str:
+    """A duration already in ms, two decimals."""
+    return f"{milliseconds:.2f} ms"
+
+
+def _range(spread: dict, fmt: Callable[[float], str]) -> str:
+    """`{median, min, max}` (any of them) as 'median (min to max)' or 'min to max'."""
+    bounds = f"{fmt(spread['min'])} to {fmt(spread['max'])}" if "min" in spread else ""
+    if "median" in spread:
+        return f"{fmt(spread['median'])} ({bounds})" if bounds else fmt(spread["median"])
+    return bounds
+
+
+def _table(header: list[str], rows: list[list[str]]) -> list[str]:
+    """A Markdown table."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return lines
+
+
+# --- the files ------------------------------------------------------------------------
+
+
+def load_result(results_dir: Path, name: str) -> dict:
+    """The JSON result file `name` under `results_dir`; FileNotFoundError names the
+    benchmark README, which says which command writes it."""
+    path = Path(results_dir) / name
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"{path}: result file missing; benchmarks/README.md names the command that writes it"
+        )
+    return json.loads(path.read_text())
+
+
+def provenance_of(data: dict, name: str) -> dict:
+    """The `provenance` block of a result file (date, command, calibration, machine);
+    ValueError if the file has none or it lacks the date or the command."""
+    provenance = data.get("provenance")
+    if not isinstance(provenance, dict) or not {"date", "command"} <= set(provenance):
+        raise ValueError(f"{name}: no provenance block with date and command")
+    return provenance
+
+
+def _calibration_text(calibration: dict | None) -> str:
+    if not calibration:
+        return "calibration not recorded"
+    return (
+        f"calibration numpy {calibration['numpy_s'] * 1e3:.1f} ms, "
+        f"pure Python {calibration['python_s'] * 1e3:.1f} ms"
+    )
+
+
+def _machine_text(machine: dict | None) -> str:
+    if not machine:
+        return "machine not recorded"
+    parts = [f"{machine['cores']} cores"] if machine.get("cores") else []
+    if machine.get("cpu"):
+        parts.append(str(machine["cpu"]))
+    return ", ".join(parts) or "machine not recorded"
+
+
+def provenance_lines(provenance: dict, name: str) -> list[str]:
+    """The 'measured when, where, how to regenerate' lines of a section."""
+    lines = [
+        f"Measured {provenance['date']} ({_machine_text(provenance.get('machine'))}; "
+        f"{_calibration_text(provenance.get('calibration'))}). File "
+        f"`benchmarks/results/{name}`, regenerated by `{provenance['command']}`.",
+    ]
+    if provenance.get("note"):
+        lines += ["", f"Note: {provenance['note']}"]
+    return lines
+
+
+def _image(results_dir: Path, relative: str, caption: str) -> list[str]:
+    """An image link (relative to the results folder) if the plot exists."""
+    return [f"![{caption}]({relative})", ""] if (results_dir / relative).is_file() else []
+
+
+# --- the sections ---------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Section:
+    """One benchmark or study on the page: its title, its result file (relative to the
+    results folder), what it measures, and how its figures are rendered."""
+
+    title: str
+    file: str
+    measures: str
+    render: Callable[[Path, dict], list[str]]
+
+
+def _evaluation(results_dir: Path, data: dict) -> list[str]:
+    lines = [
+        f"{data['duration_s']:.0f} s flights on the analytical plant. PI = sum over the six "
+        "channels of (RMSE - CC), lower is better; zero motion scores the reference's own "
+        "size. IQR: interquartile range of the flights' PIs.",
+        "",
+    ]
+    for case_name, case in data["cases"].items():
+        seeds = case["seeds"]
+        lines += [f"### Case {case_name}: {case['vehicle']} (seeds {seeds[0]}-{seeds[-1]})", ""]
+        rows = []
+        for mca, m in case["mcas"].items():
+            rows.append(
+                [
+                    MCA_LABELS.get(mca, mca),
+                    str(m["runs"]),
+                    fmt_pi(m["pi_median"]),
+                    f"{fmt_pi(m['pi_iqr'][0])} to {fmt_pi(m['pi_iqr'][1])}",
+                    fmt_pi(m["pi_zero_motion_median"]),
+                    str(m["violations"]),
+                    str(m["safety_interventions"]),
+                    fmt_step(m["step_time_median_s"]),
+                ]
+            )
+        header = ["MCA", "flights", "PI median", "PI IQR", "zero motion PI"]
+        header += ["violations", "clamp interventions", "step median"]
+        lines += [*_table(header, rows), ""]
+        for key, test in case.items():
+            if not key.startswith("dpc_vs_"):
+                continue
+            other = MCA_LABELS.get(test["other"], test["other"])
+            text = (
+                f"- DPC vs {other}: median PI gap {test['median_gap']:+.3f}, rank-sum "
+                f"p {test['p']:.3g}"
+            )
+            paired = test.get("paired")
+            if paired:
+                text += (
+                    f"; paired, DPC better on {paired['dpc_better']} of {len(paired['seeds'])} "
+                    f"flights (signed-rank p {paired['p']:.3g})"
+                )
+            lines.append(text)
+        lines.append("")
+    lines += _image(results_dir, "evaluation/evaluation.png", "PI per case and MCA")
+    lines += [
+        "Per-channel RMSE and CC: `benchmarks/results/evaluation/evaluation.md`.",
+        "",
+    ]
+    return lines
+
+
+def _dpc(results_dir: Path, data: dict) -> list[str]:
+    rows = []
+    for mca in ("dpc", "nmpc-converged"):
+        entry = data.get(mca)
+        if entry is None:
+            continue
+        unit = fmt_us if mca == "dpc" else fmt_ms
+        runs = len(entry.get("runs", [])) or "-"
+        rows.append(
+            [
+                MCA_LABELS[mca],
+                f"{entry['seconds']:.0f} s",
+                _range(entry["step_median_s"], unit),
+                str(runs),
+            ]
+        )
+    lines = [f"{data['vehicle']} flight, seed {data['seed']}, policy: {data['policy']}.", ""]
+    lines += _table(["MCA", "flight", "step median: median (min to max) of runs", "runs"], rows)
+    if "step_time_ratio" in data:
+        ratio = data["step_time_ratio"]
+        lines += ["", f"Converged NMPC / DPC step time: {_range(ratio, lambda v: f'{v:.0f}x')}."]
+    return [*lines, ""]
+
+
+def _nmpc(results_dir: Path, data: dict) -> list[str]:
+    rows = []
+    for label, f in data["flight"].items():
+        weights, _, mode = label.partition("/")
+        rows.append(
+            [
+                f"{weights} weights, {mode.replace('_', ' ')}",
+                f"{f['seconds']:.0f} s",
+                _ms_of(f["median_ms"]),
+                _ms_of(f["p99_ms"]),
+                _ms_of(f["max_ms"]),
+                fmt_pi(f["pi"]),
+                str(f["violations"]),
+                str(f["failures"]),
+            ]
+        )
+    header = ["weights, mode", "flight", "step median", "p99", "max", "PI", "violations"]
+    lines = _table([*header, "solver failures"], rows)
+    lines += [
+        "",
+        "shipped: NmpcConfig's (tuned) defaults; paper: NmpcConfig.paper(); rti window: RTI "
+        "over the converged run's window, for the PI gap.",
+        "",
+        f"The default-size evaluation suite's converged NMPC runs cost "
+        f"{data['suite_converged_core_hours']:.2f} core-hours at this mean step time.",
+        "",
+    ]
+    if data.get("adversarial"):
+        rows = [
+            [
+                kind,
+                f"{f['seconds']:.0f} s",
+                _ms_of(f["median_ms"]),
+                _ms_of(f["p99_ms"]),
+                _ms_of(f["max_ms"]),
+                str(f["violations"]),
+            ]
+            for kind, f in data["adversarial"].items()
+        ]
+        lines += [
+            "Converged NMPC on the adversarial references (3 g steps, 3 rad/s spins, 1 g chirp):",
+            "",
+        ]
+        header = ["reference", "length", "step median", "p99", "max", "violations"]
+        lines += [*_table(header, rows), ""]
+    return lines
+
+
+def _station(results_dir: Path, data: dict) -> list[str]:
+    flights = data["flights"]
+    rows = [
+        [
+            f["vehicle"],
+            str(f["seed"]),
+            f"{f['pi_multibody']:.4f}",
+            f"{f['pi_analytical']:.4f}",
+            f"{f['difference']:+.4f}",
+            f"{f['realtime_factor_multibody']:.1f}",
+        ]
+        for f in flights
+    ]
+    gaps = [abs(f["difference"]) for f in flights]
+    factors = [f["realtime_factor_multibody"] for f in flights]
+    violations = sum(f["violations_multibody"] for f in flights)
+    header = ["vehicle", "seed", "PI station", "PI analytical", "difference", "real-time factor"]
+    lines = [f"Case {data['case']}, {MCA_LABELS.get(data['mca'], data['mca'])}.", ""]
+    lines += _table(header, rows)
+    lines += [
+        "",
+        f"Over {len(flights)} flights, |PI station - PI analytical|: median "
+        f"{statistics.median(gaps):.4f}, max {max(gaps):.4f}. Station real-time factor: median "
+        f"{statistics.median(factors):.1f} ({min(factors):.1f} to {max(factors):.1f}). "
+        f"Limit violations on the station: {violations}.",
+        "",
+    ]
+    return lines
+
+
+def _paired_keys(entry: dict) -> list[str]:
+    return [k for k in entry if k.startswith("paired_vs_")]
+
+
+def _validation(results_dir: Path, data: dict) -> list[str]:
+    mcas = data["mcas"]
+    first = next(iter(mcas.values()))
+    vehicles = [
+        k for k in first if k not in ("all", "interventions") and k not in _paired_keys(first)
+    ]
+    rows = []
+    for label, entry in mcas.items():
+        row = [MCA_LABELS.get(label, label)]
+        row += [fmt_pi(entry[v]) for v in vehicles]
+        row += [fmt_pi(entry["all"]), str(entry["interventions"])]
+        paired = [entry[k] for k in _paired_keys(entry)]
+        row.append(
+            f"{paired[0]['median_difference']:+.3f}, better on {paired[0]['better_on']} of "
+            f"{paired[0]['flights']} (p {paired[0]['signed_rank_p']:.3g})"
+            if paired
+            else "-"
+        )
+        rows.append(row)
+    header = ["MCA", *(f"median PI {v}" for v in vehicles), "median PI, all"]
+    header += ["clamp interventions", "paired vs first MCA"]
+    return [*_table(header, rows), ""]
+
+
+def _cue_response(results_dir: Path, data: dict) -> list[str]:
+    times = data["sample_times_s"]
+    lines = [
+        "Share of a 10 s step in one channel that the MCA renders, at each time into the step "
+        "(1: all of it), and the largest cue it adds on another channel (rms during the step; "
+        "rad/s or m/s^2).",
+        "",
+    ]
+    for label, channels in data["mcas"].items():
+        rows = []
+        for channel, response in channels.items():
+            worst = max(response["cross_talk_rms"].items(), key=lambda item: item[1])
+            step = data["step_sizes"][channel]
+            rows.append(
+                [f"{channel} ({step:g})"]
+                + [f"{share:.2f}" for share in response["share"]]
+                + [f"{worst[0]} {worst[1]:.3f}"]
+            )
+        header = ["channel (step)", *(f"{t:g} s" for t in times), "largest cross-talk"]
+        lines += [f"**{MCA_LABELS.get(label, label)}**", "", *_table(header, rows), ""]
+    return lines
+
+
+def _tuned(results_dir: Path, data: dict) -> list[str]:
+    columns = [
+        ("zero_motion_median", "zero motion PI", fmt_pi),
+        ("nmpc_tuned_median", "NMPC-rti tuned PI", fmt_pi),
+        ("nmpc_paper_median", "NMPC-rti paper PI", fmt_pi),
+        ("tuned_better_on", "tuned NMPC better on", str),
+        ("washout_median", "washout (tuned) PI", fmt_pi),
+        ("washout_beats_zero_on", "washout better than zero motion on", str),
+    ]
+    vehicles = data["vehicles"]
+    present = [c for c in columns if any(c[0] in v for v in vehicles.values())]
+    rows = [
+        [vehicle, str(v["flights"])] + [fmt(v[key]) if key in v else "-" for key, _, fmt in present]
+        for vehicle, v in vehicles.items()
+    ]
+    lines = ["Medians over the flights of each vehicle.", ""]
+    return [*lines, *_table(["vehicle", "flights", *(c[1] for c in present)], rows), ""]
+
+
+def _tuning(results_dir: Path, data: dict) -> list[str]:
+    best = data["best_config"]
+    weights = ", ".join(
+        f"{name} {value:.4g}" for name, value in zip(CHANNELS, best["output_weights"], strict=True)
+    )
+    lines = [
+        f"{data['mca']}: {data['trials']} trials ({data['feasible_trials']} feasible) on "
+        f"{len(data['flights'])} training flights of {data['duration_s']:.0f} s. Median PI of the "
+        f"best config {fmt_pi(data['best']['pi_median'])}, of the untuned baseline "
+        f"{fmt_pi(data['baseline']['pi_median'])}, of zero motion "
+        f"{fmt_pi(data['zero_motion']['pi_median'])}; false-rotation limit "
+        f"{data['max_false_rotation_deg_s']:g} deg/s RMS.",
+        "",
+        f"Best config (NmpcConfig's defaults, `benchmarks/results/tuning/nmpc/best.yaml`): output "
+        f"weights {weights}; input weight {best['input_weight']:.4g}, washout weight "
+        f"{best['washout_weight']:.4g}, terminal position {best['terminal_position_weight']:.4g}, "
+        f"terminal velocity {best['terminal_velocity_weight']:.4g}.",
+        "",
+    ]
+    lines += _image(results_dir, "tuning/nmpc/convergence.png", "tuning convergence")
+    lines += _image(results_dir, "tuning/nmpc/importance.png", "parameter importance")
+    return lines
+
+
+def _coverage(results_dir: Path, data: dict) -> list[str]:
+    header = ["set", "vehicle", "flights", "minutes", *(f"std {c}" for c in CHANNELS)]
+    rows = []
+    for title, table in data["tables"].items():
+        for vehicle, s in table.items():
+            rows.append(
+                [title, vehicle, str(s["flights"]), f"{s['minutes']:.1f}"]
+                + [f"{v:.3f}" for v in s["std"]]
+                + [f"{s['a_z_p99']:.2f}"]
+            )
+    lines = [
+        f"Dataset `{data['dataset']}`: spread of each scaled reference channel (rad/s, m/s^2) "
+        "and the 99th percentile of |a_z| (m/s^2), beside the evaluation flights'.",
+        "",
+    ]
+    return [*lines, *_table([*header, "p99 abs a_z"], rows), ""]
+
+
+def _live(results_dir: Path, data: dict) -> list[str]:
+    rows = []
+    for label, run in data["runs"].items():
+        live = run["live"]
+        latency, wait, jitter = live["latency_s"], live["wait_s"], live["loop_jitter_s"]
+        rows.append(
+            [
+                label,
+                f"{fmt_ms(latency['median'])} / {fmt_ms(latency['p99'])} / "
+                f"{fmt_ms(latency['max'])}",
+                fmt_ms(wait["median"]),
+                fmt_ms(jitter["p99"]),
+                f"{live['cpu_load']:.2f}",
+                f"{live['packets']} / {live['dropped']}",
+                str(sum(run["violations"].values())),
+            ]
+        )
+    header = ["run", "sample to command: median / p99 / max", "wait for the poll (median)"]
+    header += ["loop jitter p99", "CPU load", "packets / dropped", "violations"]
+    lines = [
+        "JSBSim flies the light aircraft in real time and streams FGNetFDM telemetry over "
+        "loopback; the loop cues it at real-time rate 1.",
+        "",
+    ]
+    return [*lines, *_table(header, rows), ""]
+
+
+def _rsi(results_dir: Path, data: dict) -> list[str]:
+    rows = []
+    for label, run in data["runs"].items():
+        robot, driver = run["emulator"], run["driver"]
+        robot_latency, driver_latency = robot["reply_latency_s"], driver["reply_latency_s"]
+        rows.append(
+            [
+                label,
+                str(robot["cycles"]),
+                str(robot["late"]),
+                f"{fmt_ms(robot_latency['median'])} / {fmt_ms(robot_latency['p99'])} / "
+                f"{fmt_ms(robot_latency['max'])}",
+                f"{fmt_ms(driver_latency['median'])} / {fmt_ms(driver_latency['p99'])} / "
+                f"{fmt_ms(driver_latency['max'])}",
+                fmt_ms(run["live_latency_s"]["median"]),
+                str(sum(run["violations"].values())),
+            ]
+        )
+    header = ["run", "cycles", "late replies", "reply latency, robot's view: median / p99 / max"]
+    header += ["driver's own", "telemetry to command (median)", "violations"]
+    lines = [
+        "The live loop drives the loopback RSI robot (its own process, real-time priority) "
+        "through the RSI driver; reply latency from the robot's state leaving to the reply in "
+        "its socket.",
+        "",
+    ]
+    return [*lines, *_table(header, rows), ""]
+
+
+SECTIONS = (
+    Section(
+        "Evaluation suite",
+        "evaluation/evaluation.json",
+        "every MCA on the same evaluation flights: case A light aircraft, case B jet, case C "
+        "four aircraft used in neither training nor tuning",
+        _evaluation,
+    ),
+    Section(
+        "DPC step time",
+        "dpc.json",
+        "the DPC policy's step time inside the Drake diagram and converged NMPC's on the same "
+        "flight",
+        _dpc,
+    ),
+    Section(
+        "NMPC step time and PI",
+        "nmpc.json",
+        "NMPC's step times and PI in both modes (RTI, converged) at the shipped and the "
+        "paper's weights, and converged NMPC on adversarial references",
+        _nmpc,
+    ),
+    Section(
+        "KR500 station against the analytical plant",
+        "station_case_c.json",
+        "the PI on the 1 kHz MultibodyPlant station (inverse dynamics, head IMU) against the "
+        "analytical plant's on the unseen aircraft's flights, and the station's real-time "
+        "factor",
+        _station,
+    ),
+    Section(
+        "Validation flights",
+        "validation.json",
+        "MCAs on 300 s flights of two aircraft no training saw (A4, F4N), kept apart from "
+        "evaluation case C",
+        _validation,
+    ),
+    Section(
+        "Cue response",
+        "cue_response.json",
+        "how each MCA answers one cue at a time: a step in one channel from the neutral pose",
+        _cue_response,
+    ),
+    Section(
+        "Tuned configs on evaluation flights",
+        "tuned.json",
+        "the tuned MCA configs against their baselines (the paper's NMPC weights, zero "
+        "motion) on 120 s evaluation flights of the light aircraft and the jet",
+        _tuned,
+    ),
+    Section(
+        "NMPC tuning",
+        "tuning/nmpc/report.json",
+        "the search (Optuna on Ray Tune) that produced NmpcConfig's default weights",
+        _tuning,
+    ),
+    Section(
+        "Training-set coverage",
+        "coverage.json",
+        "what the shipped policy's closed-loop training set covers per vehicle, beside the "
+        "evaluation flights",
+        _coverage,
+    ),
+    Section(
+        "Live loop",
+        "live.json",
+        "latency from a telemetry sample's arrival to the command computed from it, loop "
+        "jitter and CPU load, 10 minutes of live JSBSim telemetry",
+        _live,
+    ),
+    Section(
+        "KUKA RSI driver",
+        "rsi.json",
+        "reply latency and late replies per RSI cycle time, live, against a loopback robot",
+        _rsi,
+    ),
+)
+
+TABLE2_FILE = "table2/table2.md"
+TABLE2_COMMAND = "OMP_NUM_THREADS=1 mca-drake table2 --out-dir benchmarks/results/table2"
+
+
+def _table2_lines(results_dir: Path) -> list[str]:
+    """Table II from the study's own page: its table and notes as written, with the date the
+    page states."""
+    path = results_dir / TABLE2_FILE
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: result file missing; written by `{TABLE2_COMMAND}`")
+    text = path.read_text()
+    date = re.search(r"\d{4}-\d{2}-\d{2}", text.splitlines()[0])
+    body = text[text.index("| Metric") :].rstrip("\n").splitlines()
+    return [
+        "## Table II: plant-model candidates",
+        "",
+        "The paper's Table II reproduced: state and output models of the plant, trained and "
+        "scored on the same segments; ours with the paper's figure in parentheses.",
+        "",
+        f"Measured {date.group(0) if date else '(date not recorded)'} (2-core CPU machine, as "
+        f"the page states). File `benchmarks/results/{TABLE2_FILE}`, regenerated by "
+        f"`{TABLE2_COMMAND}`.",
+        "",
+        *body,
+        "",
+    ]
+
+
+def render_results_page(results_dir: Path) -> str:
+    """The results page (Markdown): per benchmark and study, what it measures, when and on
+    what machine (with its calibration), the command that regenerates it, its headline
+    figures (medians with their spread; step times in us or ms, PIs dimensionless) and its
+    plots, linked relative to `results_dir`. Raises FileNotFoundError for a missing result
+    file and ValueError for one without provenance."""
+    results_dir = Path(results_dir)
+    lines = [
+        "# Results",
+        "",
+        f"Generated by `{PAGE_COMMAND}` from the result files under `benchmarks/results/`; "
+        "`benchmarks/README.md` says what each benchmark measures and how to run it. Each "
+        "section states when its figures were measured, on what machine and with what "
+        "calibration (wall time of a fixed numpy and a fixed pure-Python workload: a slower "
+        "machine or a busier day shows there first).",
+        "",
+        "## Headline",
+        "",
+        render_headline_table(results_dir).rstrip("\n"),
+        "",
+    ]
+    for section in SECTIONS:
+        data = load_result(results_dir, section.file)
+        provenance = provenance_of(data, section.file)
+        lines += [f"## {section.title}", "", f"Measures {section.measures}.", ""]
+        lines += [*provenance_lines(provenance, section.file), ""]
+        lines += section.render(results_dir, data)
+    lines += _table2_lines(results_dir)
+    return "\n".join(lines).rstrip("\n") + "\n"
+
+
+def render_headline_table(results_dir: Path) -> str:
+    """The README's headline table (Markdown): the evaluation suite's median PI per case for
+    each MCA and zero motion, the DPC and NMPC step times (median; us, ms) from their
+    benchmarks, the dates, and the command that regenerates it."""
+    results_dir = Path(results_dir)
+    suite = load_result(results_dir, "evaluation/evaluation.json")
+    dpc = load_result(results_dir, "dpc.json")
+    nmpc = load_result(results_dir, "nmpc.json")
+    cases = suite["cases"]
+    steps = {
+        "dpc": fmt_us(dpc["dpc"]["step_median_s"]["median"]),
+        "nmpc-converged": _ms_of(nmpc["flight"]["shipped/converged"]["median_ms"]),
+        "nmpc-rti": _ms_of(nmpc["flight"]["shipped/rti"]["median_ms"]),
+    }
+    header = ["MCA", *(f"case {name}: {case['vehicle']}" for name, case in cases.items())]
+    rows = []
+    for mca in HEADLINE_MCAS:
+        if not all(mca in case["mcas"] for case in cases.values()):
+            continue
+        rows.append(
+            [MCA_LABELS[mca]]
+            + [fmt_pi(case["mcas"][mca]["pi_median"]) for case in cases.values()]
+            + [steps.get(mca, "-")]
+        )
+    zero = []
+    for case in cases.values():
+        first = next(iter(case["mcas"].values()))
+        zero.append(fmt_pi(first["pi_zero_motion_median"]))
+    rows.append(["Zero motion", *zero, "-"])
+    suite_date = provenance_of(suite, "evaluation/evaluation.json")["date"]
+    dpc_date = provenance_of(dpc, "dpc.json")["date"]
+    nmpc_date = provenance_of(nmpc, "nmpc.json")["date"]
+    flights = {len(case["seeds"]) for case in cases.values()}
+    lines = _table([*header, "step time (median)"], rows)
+    lines += [
+        "",
+        f"Median PI (lower is better) over each case's "
+        f"{'/'.join(str(n) for n in sorted(flights))} flights of {suite['duration_s']:.0f} s on "
+        f"the analytical plant, evaluation suite of {suite_date}; step times on a "
+        f"light-aircraft flight, DPC "
+        f"{dpc_date} (`dpc.json`), NMPC {nmpc_date} (`nmpc.json`). Generated by "
+        f"`{PAGE_COMMAND} --readme README.md` from `benchmarks/results/`.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def replace_headline_block(text: str, table: str) -> str:
+    """`text` with the lines between the headline markers replaced by `table`; ValueError
+    if the markers are missing or out of order."""
+    lines = text.splitlines(keepends=True)
+    try:
+        start = next(i for i, line in enumerate(lines) if line.strip() == HEADLINE_START)
+        end = next(i for i, line in enumerate(lines) if line.strip() == HEADLINE_END)
+    except StopIteration:
+        raise ValueError(f"no '{HEADLINE_START}' ... '{HEADLINE_END}' lines") from None
+    if end < start:
+        raise ValueError(f"'{HEADLINE_END}' comes before '{HEADLINE_START}'")
+    return "".join(lines[: start + 1]) + table + "".join(lines[end:])
+
+
+def _write_atomically(path: Path, text: str) -> None:
+    """Writes `text` to a temporary file beside `path`, then renames it over `path`."""
+    path = Path(path)
+    mode = path.stat().st_mode & 0o777 if path.exists() else 0o644
+    fd, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.chmod(temporary, mode)
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--results", type=Path, default=RESULTS_DIR, help="results folder")
+    parser.add_argument("--page", type=Path, help="write the results page here")
+    parser.add_argument("--readme", type=Path, help="rewrite this file's headline table")
+    args = parser.parse_args()
+    if args.readme:
+        text = args.readme.read_text()
+        try:
+            updated = replace_headline_block(text, render_headline_table(args.results))
+        except ValueError as error:
+            raise SystemExit(f"{args.readme}: {error}") from None
+        _write_atomically(args.readme, updated)
+    if args.page:
+        _write_atomically(args.page, render_results_page(args.results))
+    if not (args.readme or args.page):
+        print(render_results_page(args.results), end="")
+
+
+if __name__ == "__main__":
+    main()
