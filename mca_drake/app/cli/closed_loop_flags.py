@@ -8,14 +8,15 @@ from mca_drake.app.scenarios import ClosedLoopScenario
 from mca_drake.cueing import MCA_NAMES, DpcConfig, mca_config_from_name, mca_name
 
 
-def add_mca_flags(parser: argparse.ArgumentParser, default_mca) -> None:
-    """--mca NAME (a default config) and --policy FILE (the policy of --mca dpc)."""
+def add_mca_flags(parser: argparse.ArgumentParser, default_mca, *, policy: bool = True) -> None:
+    """--mca NAME (a default config) and, with `policy`, --policy FILE (that of --mca dpc)."""
     parser.add_argument(
         "--mca",
         help=f"{', '.join(MCA_NAMES)}, each at its default config (default "
         f"{mca_name(default_mca)})",
     )
-    parser.add_argument("--policy", help="policy file for --mca dpc (default: the shipped one)")
+    if policy:
+        parser.add_argument("--policy", help="policy file for --mca dpc (default: the shipped one)")
 
 
 def mca_from_flags(args: argparse.Namespace, default):

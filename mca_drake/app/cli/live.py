@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import argparse
 
+from mca_drake.app.cli.closed_loop_flags import add_mca_flags
 from mca_drake.app.cli.flags import add_config_flags
 from mca_drake.app.cli.report import hold_meshcat
 from mca_drake.app.jobs import run_live_scenario, start_meshcat
 from mca_drake.app.scenarios import LiveScenario
-from mca_drake.cueing import MCA_NAMES, mca_config_from_name
+from mca_drake.cueing import mca_config_from_name
 
 # LiveScenario fields with a flag of the same name.
 LIVE_FLAGS = ("host", "port", "rsi_cycle_ms")
@@ -24,7 +25,7 @@ def add_parser(commands) -> None:
     parser.add_argument("--xplane-version", type=int, help="11 or 12 (protocol xplane)")
     add_config_flags(parser, defaults, LIVE_FLAGS)
     parser.add_argument("--duration", type=float, help="s of live cueing (demo: 60)")
-    parser.add_argument("--mca", default="dpc", help=", ".join(MCA_NAMES))
+    add_mca_flags(parser, defaults.mca, policy=False)
     parser.add_argument("--realtime-rate", type=float, default=1.0, help="1: real time")
     parser.add_argument(
         "--plant", help="analytical (default) or multibody (the KR500 station; demo default)"
@@ -48,7 +49,7 @@ def add_parser(commands) -> None:
 def _scenario_from_flags(args: argparse.Namespace) -> LiveScenario:
     """The LiveScenario of the flags; with --demo, the demo's protocol and defaults."""
     scenario = LiveScenario(
-        mca=mca_config_from_name(args.mca),
+        **({"mca": mca_config_from_name(args.mca)} if args.mca is not None else {}),
         robot=args.robot or "",
         output_json=args.json or "",
         **{f: getattr(args, f) for f in LIVE_FLAGS if getattr(args, f) is not None},
