@@ -10,6 +10,14 @@ import dataclasses
 import typing
 
 import numpy as np
+import yaml
+
+# A scenario or override is a few kilobytes; these bounds stop a file that expands (YAML
+# aliases: 461 bytes can stand for gigabytes) before anything is expanded.
+MAX_YAML_BYTES = 1_000_000
+MAX_YAML_NODES = 100_000
+# Error messages quote at most this many characters of what a user gave.
+MAX_QUOTED_CHARS = 200
 
 
 def as_float_array(name: str, value, *, last_dim: int | None = None) -> np.ndarray:
@@ -70,6 +78,8 @@ def check_config_numbers(config) -> None:
         for item in values:
             if isinstance(item, bool) or not isinstance(item, int | float | np.number):
                 continue
+            if isinstance(item, int) and not -(2**63) <= item < 2**63:
+                raise ValueError(f"{name}.{field.name} must fit in 64 bits; got {quoted(item)}")
             if not np.isfinite(item):
                 raise ValueError(f"{name}.{field.name} must be a finite number; got {value}")
             if whole and float(item) != int(item):
@@ -85,3 +95,49 @@ def check_range(
     if not ok:
         opening = "(" if low_open else "["
         raise ValueError(f"{owner}.{name} must be in {opening}{low:g}, {high:g}]; got {value}")
+
+
+def quoted(value: object, limit: int = MAX_QUOTED_CHARS) -> str:
+    """`repr(value)`, cut to `limit` characters with the length said: error messages quote a
+    user's input without repeating a huge one."""
+    text = repr(value)
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}... ({len(text)} characters)"
+
+
+def check_yaml_size(text: str, where: str) -> None:
+    """Raises ValueError, naming `where`, for YAML text too large to be a scenario: over
+    MAX_YAML_BYTES, or more than MAX_YAML_NODES nodes once its aliases are expanded. The
+    count walks the node graph without expanding it (each shared node counted once per use
+    by memoised sums), so an alias bomb is refused in microseconds.
+
+    Raises:
+        ValueError: too large, or not YAML at all (the parser's message, one line).
+    """
+    if len(text.encode("utf-8", errors="replace")) > MAX_YAML_BYTES:
+        raise ValueError(f"{where}: over {MAX_YAML_BYTES} bytes, too large for a scenario")
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as err:
+        raise ValueError(f"{where}: not valid YAML: {' '.join(str(err).split())}") from None
+    sizes: dict[int, int] = {}
+
+    def expanded(node) -> int:
+        key = id(node)
+        if key not in sizes:
+            sizes[key] = 0  # a node that contains itself counts once
+            if isinstance(node, yaml.SequenceNode):
+                total = 1 + sum(expanded(child) for child in node.value)
+            elif isinstance(node, yaml.MappingNode):
+                total = 1 + sum(expanded(k) + expanded(v) for k, v in node.value)
+            else:
+                total = 1
+            sizes[key] = min(total, MAX_YAML_NODES + 1)
+        return sizes[key]
+
+    if root is not None and expanded(root) > MAX_YAML_NODES:
+        raise ValueError(
+            f"{where}: more than {MAX_YAML_NODES} YAML nodes once its aliases are expanded; "
+            "refusing it (a scenario holds a few hundred)"
+        )

@@ -63,6 +63,8 @@ def scenario_path(name_or_path: str | Path) -> Path:
     path = Path(name_or_path)
     if path.is_file():
         return path
+    if path.exists() and not path.is_dir():
+        raise FileNotFoundError(f"scenario {path} is not a regular file (a FIFO or a device?)")
     packaged = packaged_scenarios()
     stem = path.name.removesuffix(".yaml")
     # A bare name, or diagrams/NAME.yaml typed from outside a checkout.

@@ -38,7 +38,9 @@ from mca_drake.systems.kr500_station import StationConfig
         (NmpcConfig(horizon_steps=0), "horizon_steps and max_iterations"),
         (WashoutConfig(tilt_limit=float("inf")), "tilt_limit must be a finite"),
         (ClosedLoopScenario(duration_s=float("inf")), "duration_s must be a finite"),
-        (ClosedLoopScenario(duration_s=1e9), r"duration_s must be in \(0, 10800\]"),
+        (ClosedLoopScenario(duration_s=1e9), r"duration_s must be in \[0.01, 10800\]"),
+        # shorter than one control period: nothing to run
+        (ClosedLoopScenario(duration_s=1e-9), r"duration_s must be in \[0.01, 10800\]"),
         (ClosedLoopDatasetConfig(horizon=0), "horizon must be at least 1"),
         (ClosedLoopDatasetConfig(horizon=-5), "horizon must be at least 1"),
         (ClosedLoopDatasetConfig(split_seed=-1), "split_seed must be in"),

@@ -221,3 +221,35 @@ def test_the_phase_lock_brings_the_polls_just_after_a_periodic_senders_packets()
     assert live["wait_s"]["median"] < 0.001, live
     assert live["early_polls"] > 200, live  # the samples brought their polls forward
     assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+
+
+def with_intruder(address, duration_s):
+    """The real stream from 127.0.0.1, and an intruder on 127.0.0.2 that starts a moment
+    later with a violent roll (3 rad/s) at 100 Hz; both bounded."""
+    intruder = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    intruder.bind(("127.0.0.2", 0))
+
+    def flood():
+        start = time.perf_counter()
+        time.sleep(0.2)
+        while (t := time.perf_counter() - start) < duration_s:
+            intruder.sendto(encode_csv_sample(t + 100.0, [3.0, 0.0, 0.0], [0, 0, 9.81]), address)
+            time.sleep(0.01)
+        intruder.close()
+
+    thread = threading.Thread(target=flood, daemon=True)
+    thread.start()
+    stream(address, duration_s, gap=(9.0, 9.0), nan_at=99.0)
+    thread.join(timeout=5)
+
+
+def test_a_live_run_reads_only_its_sender_and_counts_an_intruder():
+    summary = live_with_sender(with_intruder, 1.7, "washout", 1.5)
+    live = summary["live"]
+    assert live["foreign"] > 50  # about 130 sent in the 1.3 s the intruder runs
+    assert live["sender"].startswith("udp://127.0.0.1:") and "locked" in live["sender"]
+    # the intruder's roll never became a reference (s_w x 3 rad/s = 1.5 rad/s cued would
+    # leave an RMSE of order 1 in w_x): the real stream has none
+    assert summary["rmse"][0] < 0.05
+    assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    assert live["health"]["ok_s"] > 0.8

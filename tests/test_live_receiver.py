@@ -74,13 +74,14 @@ def test_bad_and_late_datagrams_are_counted_and_ignored():
 
 
 class SequencedDecoder(Decoder):
-    """A test protocol: 'sequence' as ASCII; level flight."""
+    """A test protocol: 'sequence' as ASCII, sent at 100 Hz; level flight."""
 
     protocol = "sequenced"
+    max_datagram_bytes = 64
 
     def _decode_at_source(self, packet, received_s):
         n = int(packet.decode())
-        return TelemetrySample(float(n), np.zeros(3), [0.0, 0.0, 9.81], sequence=n)
+        return TelemetrySample(0.01 * n, np.zeros(3), [0.0, 0.0, 9.81], sequence=n)
 
 
 def test_gaps_in_the_senders_sequence_count_as_dropped():

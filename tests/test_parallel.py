@@ -93,3 +93,45 @@ def test_serial_loop_runs_every_task_and_rejects_no_workers(tmp_path):
     assert done == [1, 2]
     with pytest.raises(ValueError, match="workers must be at least 1"):
         run_tasks(done.append, [], workers=0)
+
+
+def test_a_cluster_refusing_the_token_gets_a_message_with_the_fix(monkeypatch):
+    """Ray's AuthenticationError (token authentication, on by default for local clusters
+    since Ray 2.59) becomes one message that says how to pass the token."""
+    import ray
+
+    from mca_drake.studies.parallel import ray_session
+
+    def refuse(**_):
+        raise ray.exceptions.AuthenticationError("token missing or mismatched")
+
+    monkeypatch.setattr(ray, "init", refuse)
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    with pytest.raises(RuntimeError, match="RAY_AUTH_TOKEN") as caught:
+        with ray_session(1, "127.0.0.1:6379"):
+            pass
+    assert "ray get-auth-token" in str(caught.value) and "127.0.0.1:6379" in str(caught.value)
+
+
+def test_paths_leave_the_driver_absolute(tmp_path, monkeypatch):
+    """Relative paths in a task (a Path, a config's file fields, nested) are made absolute
+    against the driver's folder: a cluster's workers run in folders of their own."""
+    from pathlib import Path
+
+    from mca_drake.cueing import DpcConfig, NmpcConfig
+    from mca_drake.studies.parallel import with_absolute_paths
+    from mca_drake.studies.table2 import Table2Config
+
+    monkeypatch.chdir(tmp_path)
+    task = (
+        Path("out"),
+        [DpcConfig(policy="policies/p.npz"), NmpcConfig()],
+        Table2Config(closed_loop_dataset="data/cl.npz", open_loop_dataset="/abs/ol.npz"),
+        "results",  # a plain string is the caller's to resolve
+    )
+    out, mcas, table2, text = with_absolute_paths(task)
+    assert out == tmp_path / "out"
+    assert mcas[0].policy == str(tmp_path / "policies" / "p.npz")
+    assert mcas[1] is task[1][1]  # nothing to change: the same object
+    assert table2.closed_loop_dataset == str(tmp_path / "data" / "cl.npz")
+    assert table2.open_loop_dataset == "/abs/ol.npz" and text == "results"

@@ -43,7 +43,7 @@ def test_round_trip_is_exact(tmp_path):
 
 
 def test_columns_in_any_order_with_extras(tmp_path):
-    rec = level_flight(n=5)
+    rec = level_flight(n=30)  # 0.3 s: a recording is at least 0.2 s long
     order = ["f_z", "extra", *reversed(COLUMNS[:-1])]
     # gentle rates (peak 0.12 rad/s) must name their unit
     lines = [",".join(f"{c} [rad/s]" if c.startswith("omega") else c for c in order)]

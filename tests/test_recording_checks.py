@@ -169,3 +169,75 @@ def test_rates_that_fit_both_readings_need_a_unit(motion, tmp_path):
     gentle_deg = Recording(motion.t, motion.omega * 20.0, motion.f)  # numbers peak at 6
     with pytest.raises(RecordingError, match="6 rad/s or 6 deg/s"):
         load_recording(_write(tmp_path, _table(gentle_deg, HEADER)))
+
+
+def _uniform(rate_hz: float, duration_s: float, f_x) -> Recording:
+    """A level recording sampled at `rate_hz` with surge `f_x(t)` (m/s^2)."""
+    t = np.arange(round(duration_s * rate_hz) + 1) / rate_hz
+    f = np.column_stack([f_x(t), np.zeros_like(t), np.full_like(t, GRAVITY)])
+    return Recording(t, np.zeros((t.size, 3)), f)
+
+
+def test_a_clean_10_hz_file_passes_the_rate_check(tmp_path):
+    """Steps of 0.1 s in floating point may read 0.1000000000000001: still 10 Hz."""
+    t = np.arange(60) * np.nextafter(0.1, 1.0)
+    recording = Recording(t, np.zeros((60, 3)), np.tile([0.0, 0.0, GRAVITY], (60, 1)))
+    assert np.median(np.diff(t)) > 0.1  # the float steps really exceed 1 / 10 Hz
+    loaded = load_recording(_write(tmp_path, recording_to_csv(recording)), rate_hz=None)
+    assert loaded.t.size == 60
+
+
+def test_a_fast_file_is_low_passed_before_it_is_resampled(tmp_path):
+    """A 99 Hz vibration in a 1 kHz file must not fold into a 1 Hz surge at 100 Hz, while a
+    2 Hz cue keeps its size. Expected gains: the zero-phase Butterworth of order N at f_c has
+    |H|^2 = 1 / (1 + (f / f_c)^(2N)); at 40 Hz, 99 Hz keeps 7e-4 of its size, 2 Hz all."""
+    vibration = _uniform(1000.0, 10.0, lambda t: np.sin(2 * np.pi * 99.0 * t))
+    path = _write(tmp_path, recording_to_csv(vibration))
+    resampled = load_recording(path)
+    gain_99 = 1 / (1 + (99.0 / 40.0) ** 8)
+    steady = slice(100, -100)  # away from the filter's ends
+    assert np.max(np.abs(resampled.f[steady, 0])) < 3 * gain_99
+    # the same vibration resampled without the filter: the alias this prevents
+    aliased = np.interp(resampled.t, vibration.t, vibration.f[:, 0])
+    assert np.max(np.abs(aliased)) > 0.5
+    assert resampled.metadata["anti_alias_cutoff_hz"] == "40"
+
+    cue = _uniform(1000.0, 10.0, lambda t: np.sin(2 * np.pi * 2.0 * t))
+    kept = load_recording(_write(tmp_path, recording_to_csv(cue), "cue.csv"))
+    expected = np.sin(2 * np.pi * 2.0 * kept.t) / (1 + (2.0 / 40.0) ** 8)
+    np.testing.assert_allclose(kept.f[steady, 0], expected[steady], atol=2e-3)
+
+
+@pytest.mark.parametrize("samples", [2, 20])
+def test_a_recording_shorter_than_20_control_periods_is_refused(tmp_path, samples):
+    rows = "".join(f"{k / 100},0,0,0,0,0,9.81\n" for k in range(samples))  # 100 Hz
+    path = _write(tmp_path, HEADER + "\n" + rows)
+    with pytest.raises(RecordingError, match=r"needs at least 0\.2 s"):
+        load_recording(path)
+
+
+def test_a_folder_a_fifo_and_a_nul_byte_get_their_own_message(tmp_path):
+    import os
+
+    with pytest.raises(RecordingError, match="is a folder"):
+        load_recording(tmp_path)
+    fifo = tmp_path / "pipe.csv"
+    os.mkfifo(fifo)
+    with pytest.raises(RecordingError, match="not a regular file"):
+        load_recording(fifo)  # refused before it is opened: nothing blocks
+    nul = _write(tmp_path, HEADER + "\n0,0,0,0,0,0,9.81\n0.5,\x000,0,0,0,0,9.81\n")
+    with pytest.raises(RecordingError, match="line 3: a NUL byte"):
+        load_recording(nul)
+
+
+def test_a_long_file_is_read_only_as_far_as_asked(tmp_path):
+    """A damaged row far past the requested duration is never reached with
+    max_duration_s, and stops a whole read: the rest of the file is not parsed."""
+    long = _uniform(100.0, 60.0, lambda t: 0.3 * np.sin(t))
+    text = recording_to_csv(long) + "not,a,row\n"
+    path = _write(tmp_path, text)
+    with pytest.raises(RecordingError, match=r"line .*: 3 values"):
+        load_recording(path)
+    short = load_recording(path, max_duration_s=3.0)
+    assert 3.0 <= short.duration_s <= 3.0 + 0.5 + 0.01
+    np.testing.assert_allclose(short.f[:, 0], 0.3 * np.sin(short.t), atol=1e-9)

@@ -199,3 +199,16 @@ def test_case_c_deals_unseen_aircraft_to_its_seeds():
     assert flown[:4] == list(UNSEEN_VEHICLES) and flown[4] == UNSEEN_VEHICLES[0]
     assert not set(flown) & set(TRAINING_VEHICLES)
     assert case.label() == ", ".join(UNSEEN_VEHICLES)
+
+
+@pytest.mark.parametrize("text", ["[1, 2]", "3.5", '"summary"', "null"])
+def test_a_run_file_that_is_not_an_object_is_run_again(tmp_path, text):
+    """Valid JSON that is no summary (a list, a number, a string) does not stop the suite:
+    the run counts as not finished, so it is simulated again and the file overwritten."""
+    from mca_drake.cueing import WashoutConfig
+    from mca_drake.studies.evaluation import _finished_run, _run_path
+
+    path = _run_path(tmp_path, "A", "washout", 1000)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    assert _finished_run(tmp_path, "A", WashoutConfig(), 1000, 5.0) is None

@@ -246,7 +246,10 @@ def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None
         decoder,
         scenario.mca,
         scenario.duration_s,
-        receiver=ReceiverConfig(host=scenario.host, port=scenario.port),
+        receiver=ReceiverConfig(
+            host=scenario.host, port=scenario.port, allowed_senders=scenario.allowed_senders
+        ),
+        realtime_rate=scenario.realtime_rate,
         on_listening=on_listening,
         plant=scenario.plant,
         meshcat=meshcat,

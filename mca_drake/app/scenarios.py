@@ -30,7 +30,15 @@ from mca_drake.cueing import (
     as_mca_config,
     mca_config_from_name,
 )
-from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
+from mca_drake.input_checks import (
+    MAX_DURATION_S,
+    MAX_YAML_BYTES,
+    check_config_numbers,
+    check_range,
+    check_yaml_size,
+    quoted,
+)
+from mca_drake.live.receiver import allowed_senders
 from mca_drake.references.flights import FlightSpec
 from mca_drake.resources import scenario_path
 from mca_drake.simulation.closed_loop import PLANTS
@@ -108,7 +116,7 @@ class ClosedLoopScenario:
         if self.plant not in PLANTS:
             raise ValueError(f"plant must be one of {', '.join(PLANTS)}; got {self.plant!r}")
         check_range(
-            "ClosedLoopScenario", "duration_s", self.duration_s, 0.0, MAX_DURATION_S, low_open=True
+            "ClosedLoopScenario", "duration_s", self.duration_s, CONTROL_PERIOD_S, MAX_DURATION_S
         )
         realtime = self.simulator_config.target_realtime_rate
         if not realtime >= 0:
@@ -257,6 +265,9 @@ class LiveScenario:
     # Address to listen on (loopback by default) and UDP port (0: any free one).
     host: str = "127.0.0.1"
     port: int = 5500
+    # The telemetry senders allowed to move the robot: "HOST" or "HOST:PORT" (IPv4); empty:
+    # the first sender is locked in. Datagrams from anyone else are counted and ignored.
+    allowed_senders: list[str] = dataclasses.field(default_factory=list)
     # Seconds of live cueing.
     duration_s: float = 600.0
     # The motion cueing algorithm (a typed config or a name, as in ClosedLoopScenario).
@@ -268,6 +279,9 @@ class LiveScenario:
     robot: str = ""
     # The robot's RSI interpolation cycle, ms (4 or 12).
     rsi_cycle_ms: int = 4
+    # Pace of the loop against the wall clock: 1 is real time (live telemetry, a robot); 0
+    # steps as fast as it can (a replayed stream); at most 10 (MAX_LIVE_REALTIME_RATE).
+    realtime_rate: float = 1.0
     # The result summary with its live (and rsi) block; "": none.
     output_json: str = "results/live/summary.json"
 
@@ -279,15 +293,27 @@ class LiveScenario:
         check_config_numbers(self)
         if self.plant not in PLANTS:
             raise ValueError(f"plant must be one of {', '.join(PLANTS)}; got {self.plant!r}")
-        check_range(
-            "LiveScenario", "duration_s", self.duration_s, 0.0, MAX_DURATION_S, low_open=True
-        )
+        check_range("LiveScenario", "duration_s", self.duration_s, CONTROL_PERIOD_S, MAX_DURATION_S)
         if self.rsi_cycle_ms not in (4, 12):
             raise ValueError(f"rsi_cycle_ms must be 4 or 12; got {self.rsi_cycle_ms}")
+        try:
+            allowed_senders(self.allowed_senders)
+        except ValueError as err:
+            raise ValueError(f"LiveScenario.allowed_senders: {err}") from None
+        check_range(
+            "LiveScenario", "realtime_rate", self.realtime_rate, 0.0, MAX_LIVE_REALTIME_RATE
+        )
+        if self.robot and self.realtime_rate != 1.0:
+            raise ValueError(
+                f"a robot runs in real time: realtime_rate 1, not {self.realtime_rate}"
+            )
         if self.robot and self.plant != "analytical":
             raise ValueError("a robot over RSI follows the analytical plant: plant analytical")
         self.mca.validate()
 
+
+# Fastest live pace accepted: past 10x real time the loop's own step is the limit anyway.
+MAX_LIVE_REALTIME_RATE = 10.0
 
 # typing.Union, not `|`: Drake's YAML loader reads the members' tags from it.
 Scenario = Union[  # noqa: UP007
@@ -422,13 +448,22 @@ def load_scenario(path: str | Path, overrides: str | Sequence[str] | None = None
             value out of range.
     """
     path = scenario_path(path)
+    if path.stat().st_size > MAX_YAML_BYTES:
+        raise ValueError(f"{path}: over {MAX_YAML_BYTES} bytes, too large for a scenario")
+    text = path.read_text(encoding="utf-8", errors="replace")
+    check_yaml_size(text, str(path))
+    for number, override in enumerate(
+        [overrides] if isinstance(overrides, str) else overrides or ()
+    ):
+        check_yaml_size(override, f"override {number + 1} ({quoted(override)})")
     try:
-        raw_file = _prepare(ScenarioFile, yaml_load(filename=str(path)), None, "")
+        raw_file = _prepare(ScenarioFile, yaml_load(data=text), None, "")
         scenario = yaml_load_typed(schema=ScenarioFile, data=yaml_dump(raw_file)).scenario
         for override in [overrides] if isinstance(overrides, str) else overrides or ():
-            raw = yaml_load(data=override)
+            # an empty override is no mapping (Drake's loader fails on it without a word)
+            raw = yaml_load(data=override) if override.strip() else None
             if not isinstance(raw, dict):
-                raise ValueError(f"an override must be a YAML mapping; got {override!r}")
+                raise ValueError(f"an override must be a YAML mapping; got {quoted(override)}")
             if set(raw) == {"scenario"}:
                 raw = raw["scenario"]
             # Applied to the loaded scenario's own type, so a tagged file needs no tag here.

@@ -76,11 +76,18 @@ def shipped_policy_path(name: str) -> Path:
     return path
 
 
+# Largest inflated policy file accepted, bytes (the shipped ones hold about 60 kB).
+POLICY_MAX_BYTES = 16 * 2**20
+
+
 def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
     """(arrays, metadata) of a policy file; ValueError with the reason if it is not one or
     its arrays do not fit together, FileNotFoundError if it is missing."""
     path = Path(path)
-    stored, metadata = load_npz_with_metadata(path, "policy")
+    # a policy is tens of kilobytes: anything near a megabyte is not one
+    stored, metadata = load_npz_with_metadata(
+        path, "policy", names=frozenset(POLICY_ARRAYS), max_bytes=POLICY_MAX_BYTES
+    )
     missing = [k for k in POLICY_ARRAYS if k not in stored]
     if missing:
         raise ValueError(f"{path} is not a policy file: arrays {missing} are missing")

@@ -54,6 +54,8 @@ class CsvDecoder(Decoder):
     """
 
     protocol = "csv"
+    # seven numbers and an optional sequence as text: far below this
+    max_datagram_bytes = 1024
 
     def __init__(self, *, lever_arm: LeverArm | None = None) -> None:
         super().__init__(lever_arm=lever_arm)

@@ -257,6 +257,7 @@ class FgNetFdmDecoder(Decoder):
     """
 
     protocol = "fgnetfdm"
+    max_datagram_bytes = FGNETFDM_SIZE
 
     def __init__(
         self, *, time_resolution_s: float | None = None, lever_arm: LeverArm | None = None

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import gc
+import ipaddress
 import math
 import socket
 import time
@@ -546,10 +547,17 @@ def _live_block(
     return {
         "protocol": decoder.protocol,
         "address": f"udp://{source.address[0]}:{source.address[1]}",
+        # who was read: the locked first sender, or the senders the scenario allows
+        "sender": _sender_text(telemetry, source),
         "packets": int(telemetry["packets"]),
         "bad": int(telemetry["bad"]),
+        "foreign": int(telemetry["foreign"]),
         "out_of_order": int(telemetry["out_of_order"]),
+        "time_jumps": int(telemetry["time_jumps"]),
+        "restarts": int(telemetry["restarts"]),
+        "sender_changes": int(telemetry["sender_changes"]),
         "dropped": int(telemetry["dropped"]),
+        "kernel_dropped": int(telemetry["kernel_dropped"]),
         "stale_periods": int(telemetry["stale_periods"]),
         "stale_events": sum(
             1 for _, _, to, why in guard.transitions if why == "telemetry stale" and to == "fault"
@@ -585,6 +593,17 @@ def _live_block(
         # this process's CPU time over wall time (1.0: one core busy)
         "cpu_load": run.cpu_s / max(run.wall_s, 1e-9),
     }
+
+
+def _sender_text(telemetry: dict, source: TelemetryReceiver) -> str:
+    """The sender a run read, as the live block says it."""
+    allowed = source.allowed_senders
+    if allowed:
+        return f"allowed: {', '.join(allowed)}"
+    if not np.isfinite(telemetry["sender_ip"]):
+        return "none (no datagram arrived)"
+    ip = ipaddress.IPv4Address(int(telemetry["sender_ip"]))
+    return f"udp://{ip}:{int(telemetry['sender_port'])} (the first sender, locked in)"
 
 
 def _rsi_block(handles: dict, run: _PacedRun) -> dict:

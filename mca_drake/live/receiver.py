@@ -4,7 +4,21 @@ Every control instant the receiver drains its non-blocking socket: each datagram
 (`mca_drake.live` decoders, which also move it to the head point) and the newest sample is
 held (zero-order hold: the latest sample resampled to the control period). Bad datagrams,
 samples older than the one held (out of order) and gaps in the sender's sequence (dropped)
-are counted, never raised; so are control periods that brought nothing new (stale periods).
+are counted, never raised; so are control periods that brought nothing new (stale periods)
+and the datagrams the kernel dropped for want of room in the socket (`kernel_dropped`).
+
+Who may move the robot is the scenario's to say: only datagrams from the senders it allows
+(`ReceiverConfig.allowed_senders`, addresses with an optional port) are read; with none
+named, the first sender is locked in (its address and port: `sender_ip`, `sender_port`),
+whatever address the socket listens on. Datagrams from anyone else are counted (`foreign`)
+and dropped unread. A locked sender silent for `sender_timeout_s` may be succeeded by
+another port of the same host (a restarted simulator), counted in `sender_changes`.
+
+The sender's clock is checked against the wall clock: a sample more than `max_time_jump_s`
+ahead of where the held one's clock should be now is a fault of that packet (`time_jumps`),
+never a new clock; a run of `restart_samples` consecutive samples older than the held one,
+each newer than the last, is the sender's clock restarted (or a bad first sample held): the
+receiver follows it (`restarts`), and the supervisor recovers as the stream is fresh again.
 The held sample leaves as the reference through the same scaling as recordings
 (`scaled_reference_sample`, computed once per sample at the poll and held as state, so
 that reading the reference costs the MCA nothing).
@@ -20,6 +34,7 @@ sample one period late.
 from __future__ import annotations
 
 import dataclasses
+import ipaddress
 import math
 import socket
 import time
@@ -29,7 +44,12 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import check_config_numbers
-from mca_drake.live.socket_stamps import arrival_time, enable_kernel_timestamps
+from mca_drake.live.socket_stamps import (
+    arrival_time,
+    enable_drop_counter,
+    enable_kernel_timestamps,
+    kernel_drops,
+)
 from mca_drake.live.telemetry import BadPacket, Decoder
 from mca_drake.references.reference import ReferenceScaling, scaled_reference_sample
 
@@ -44,11 +64,30 @@ TELEMETRY_FIELDS = (
     "stale_periods",  # control periods that brought no new sample
     "arrival_s",  # time.perf_counter() when the held sample reached the socket (NaN: none)
     "poll_s",  # time.perf_counter() of the poll that took the held sample (NaN: none)
+    "foreign",  # datagrams from senders the scenario does not allow (or not the locked one)
+    "time_jumps",  # samples too far ahead of the sender's clock, ignored
+    "restarts",  # times the sender's clock was followed back (restart, bad first sample)
+    "kernel_dropped",  # datagrams the kernel dropped: the socket's buffer was full
+    "sender_ip",  # the sender read (IPv4 address as an integer; NaN: none yet)
+    "sender_port",  # its UDP port (NaN: none yet)
+    "sender_changes",  # a silent locked sender succeeded by another port of the same host
 )
-# Discrete state: the held sample and the counters.
+# Discrete state: the held sample, the counters and the sender's bookkeeping.
 _OMEGA, _F = slice(0, 3), slice(3, 6)
 _T_S, _ARRIVAL, _SEQUENCE, _PACKETS, _BAD, _OUT_OF_ORDER, _DROPPED, _STALE, _POLL = range(6, 15)
-_STATE_SIZE = 15
+(
+    _FOREIGN,
+    _TIME_JUMPS,
+    _RESTARTS,
+    _KERNEL_DROPPED,
+    _SENDER_IP,
+    _SENDER_PORT,
+    _SENDER_CHANGES,
+    _SENDER_SEEN,  # perf_counter of the locked sender's last datagram
+    _CANDIDATE_T,  # the newest of a run of samples older than the held one
+    _CANDIDATES,  # how many such samples in a row
+) = range(15, 25)
+_STATE_SIZE = 25
 
 
 @dataclasses.dataclass
@@ -63,18 +102,60 @@ class ReceiverConfig:
     stale_after_s: float = 0.1
     # At most this many datagrams are read per poll (bounds a poll's time under a flood).
     max_datagrams_per_poll: int = 256
+    # The socket's receive buffer, bytes (0: the system's default). What overflows it is
+    # dropped by the kernel and counted (`kernel_dropped`).
+    receive_buffer_bytes: int = 0
     # Control period, s.
     time_step: float = CONTROL_PERIOD_S
+    # The senders whose datagrams are read: "HOST" (any port) or "HOST:PORT", IPv4. Empty:
+    # the first sender is locked in. Anyone else is counted as foreign and ignored.
+    allowed_senders: list[str] = dataclasses.field(default_factory=list)
+    # A locked sender silent this long (s) may be succeeded by another port of its host.
+    sender_timeout_s: float = 2.0
+    # A sample this far (s) ahead of where the held sample's clock should be is refused.
+    max_time_jump_s: float = 1.0
+    # This many consecutive, increasing samples older than the held one: the clock restarted.
+    restart_samples: int = 10
 
     def validate(self) -> None:
         """Raises ValueError for a setting that cannot run, naming it."""
         check_config_numbers(self)
+        allowed_senders(self.allowed_senders)
+        if not (self.sender_timeout_s > 0 and self.max_time_jump_s > 0):
+            raise ValueError("ReceiverConfig.sender_timeout_s and max_time_jump_s must be positive")
+        if self.receive_buffer_bytes < 0:
+            raise ValueError("ReceiverConfig.receive_buffer_bytes must be >= 0 (0: default)")
+        if self.restart_samples < 2:
+            raise ValueError("ReceiverConfig.restart_samples must be at least 2")
         if not 0 <= self.port <= 65535:
             raise ValueError(f"ReceiverConfig.port must be in [0, 65535]; got {self.port}")
         if not self.time_step > 0 or not self.stale_after_s > 0:
             raise ValueError("ReceiverConfig.time_step and stale_after_s must be positive")
         if self.max_datagrams_per_poll < 1:
             raise ValueError("ReceiverConfig.max_datagrams_per_poll must be at least 1")
+
+
+def allowed_senders(items: list[str]) -> list[tuple[int, int | None]]:
+    """[(IPv4 address as an integer, port or None)] of "HOST" / "HOST:PORT" items.
+
+    Raises:
+        ValueError: naming the item that is not an IPv4 address with an optional port.
+    """
+    senders = []
+    for item in items:
+        host, _, port = str(item).strip().partition(":")
+        try:
+            address = int(ipaddress.IPv4Address(host))
+            number = int(port) if port else None
+        except ValueError:
+            raise ValueError(
+                f"allowed sender {item!r} is not HOST or HOST:PORT (IPv4, e.g. 192.168.1.20 "
+                "or 127.0.0.1:5501)"
+            ) from None
+        if number is not None and not 1 <= number <= 65535:
+            raise ValueError(f"allowed sender {item!r}: port must be in [1, 65535]")
+        senders.append((address, number))
+    return senders
 
 
 class TelemetryReceiver(LeafSystem):
@@ -113,13 +194,21 @@ class TelemetryReceiver(LeafSystem):
         self._decoder = decoder
         self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._socket.setblocking(False)
+        if self._config.receive_buffer_bytes:
+            self._socket.setsockopt(
+                socket.SOL_SOCKET, socket.SO_RCVBUF, self._config.receive_buffer_bytes
+            )
         self._socket.bind((self._config.host, self._config.port))
         self._address = self._socket.getsockname()
         # the time a datagram waited in the socket for the next poll counts in its age
         enable_kernel_timestamps(self._socket)
+        enable_drop_counter(self._socket)
+        self._allowed = allowed_senders(self._config.allowed_senders)
         initial = np.zeros(_STATE_SIZE)
         initial[_F] = (0.0, 0.0, 9.81)  # level flight until a sample arrives: y_ref = 0
-        initial[[_T_S, _ARRIVAL, _SEQUENCE, _POLL]] = np.nan
+        initial[
+            [_T_S, _ARRIVAL, _SEQUENCE, _POLL, _SENDER_IP, _SENDER_PORT, _SENDER_SEEN, _CANDIDATE_T]
+        ] = np.nan
         self._state_index = self.DeclareDiscreteState(initial)
         self._reference_index = self.DeclareDiscreteState(
             scaled_reference_sample(initial[_OMEGA], initial[_F], self._scaling)
@@ -139,6 +228,11 @@ class TelemetryReceiver(LeafSystem):
     def address(self) -> tuple[str, int]:
         """(host, port) the socket is bound to (the real port when config.port is 0)."""
         return self._address
+
+    @property
+    def allowed_senders(self) -> list[str]:
+        """The senders the scenario allows ("HOST" or "HOST:PORT"); empty: the first one."""
+        return list(self._config.allowed_senders)
 
     def fileno(self) -> int:
         """The socket's file descriptor (-1 once closed), for `select`: the live loop's pacer
@@ -163,20 +257,25 @@ class TelemetryReceiver(LeafSystem):
         receive, decode = self._socket.recvmsg, self._decoder.decode
         for _ in range(self._config.max_datagrams_per_poll):
             try:
-                packet, ancillary, _, _ = receive(65536, 64)
+                packet, ancillary, _, sender = receive(65536, 128)
             except (BlockingIOError, InterruptedError):
                 break
             except OSError:  # closed socket
                 break
             arrival = arrival_time(ancillary)
             x[_PACKETS] += 1
+            drops = kernel_drops(ancillary)
+            if drops is not None:
+                x[_KERNEL_DROPPED] = max(x[_KERNEL_DROPPED], drops)
+            if not self._from_allowed_sender(x, sender, arrival):
+                x[_FOREIGN] += 1
+                continue
             try:
                 sample = decode(packet, arrival)
             except BadPacket:
                 x[_BAD] += 1
                 continue
-            if sample.t_s < x[_T_S]:  # False while none is held (NaN)
-                x[_OUT_OF_ORDER] += 1
+            if not self._on_the_senders_clock(x, sample.t_s, arrival):
                 continue
             if sample.sequence is not None and math.isfinite(x[_SEQUENCE]):
                 x[_DROPPED] += max(0, sample.sequence - int(x[_SEQUENCE]) - 1)
@@ -192,6 +291,55 @@ class TelemetryReceiver(LeafSystem):
         else:
             x[_STALE] += 1
         discrete.set_value(self._state_index, np.array(x))
+
+    def _from_allowed_sender(self, x: list, sender: tuple, arrival: float) -> bool:
+        """Whether a datagram from `sender` (host, port) is read; locks the first sender in
+        when the scenario names none (state `x` updated)."""
+        try:
+            ip = int(ipaddress.IPv4Address(sender[0]))
+        except ValueError:
+            return False
+        port = sender[1]
+        if self._allowed:
+            return any(ip == a and (p is None or p == port) for a, p in self._allowed)
+        if math.isnan(x[_SENDER_IP]):  # the first sender: locked in
+            x[_SENDER_IP], x[_SENDER_PORT], x[_SENDER_SEEN] = ip, port, arrival
+            return True
+        if ip != x[_SENDER_IP]:
+            return False
+        if port != x[_SENDER_PORT]:
+            if arrival - x[_SENDER_SEEN] < self._config.sender_timeout_s:
+                return False
+            # the locked sender has been silent: its host restarted it on another port
+            x[_SENDER_PORT] = port
+            x[_SENDER_CHANGES] += 1
+        x[_SENDER_SEEN] = arrival
+        return True
+
+    def _on_the_senders_clock(self, x: list, t_s: float, arrival: float) -> bool:
+        """Whether a sample at the sender's time `t_s` is newer than the held one and on its
+        clock; counts time jumps, out-of-order samples and clock restarts (state `x`)."""
+        if math.isnan(x[_T_S]):
+            return True
+        if t_s >= x[_T_S]:
+            expected = x[_T_S] + max(arrival - x[_ARRIVAL], 0.0)
+            if t_s - expected > self._config.max_time_jump_s:
+                x[_TIME_JUMPS] += 1
+                return False
+            x[_CANDIDATES], x[_CANDIDATE_T] = 0, math.nan
+            return True
+        # older than the held sample: out of order, or the start of a restarted clock
+        if x[_CANDIDATES] and t_s > x[_CANDIDATE_T]:
+            x[_CANDIDATES] += 1
+        else:
+            x[_CANDIDATES] = 1
+        x[_CANDIDATE_T] = t_s
+        if x[_CANDIDATES] >= self._config.restart_samples:
+            x[_RESTARTS] += 1
+            x[_CANDIDATES], x[_CANDIDATE_T] = 0, math.nan
+            return True
+        x[_OUT_OF_ORDER] += 1
+        return False
 
     def _calc_telemetry(self, context: Context, output: BasicVector) -> None:
         x = context.get_discrete_state(self._state_index).value()
@@ -209,5 +357,12 @@ class TelemetryReceiver(LeafSystem):
                 x[_STALE],
                 arrival,
                 x[_POLL],
+                x[_FOREIGN],
+                x[_TIME_JUMPS],
+                x[_RESTARTS],
+                x[_KERNEL_DROPPED],
+                x[_SENDER_IP],
+                x[_SENDER_PORT],
+                x[_SENDER_CHANGES],
             ]
         )

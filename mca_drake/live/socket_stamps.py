@@ -23,6 +23,10 @@ SO_TIMESTAMPING = getattr(socket, "SO_TIMESTAMPING", 37)
 _TX_SOFTWARE, _SOFTWARE, _OPT_TSONLY = 1 << 1, 1 << 4, 1 << 11
 # The struct timespec they carry: seconds and nanoseconds.
 _TIMESPEC = struct.Struct("qq")
+# Linux's SO_RXQ_OVFL: every datagram read carries the count of datagrams the kernel dropped
+# on this socket so far (its receive buffer was full), a 32-bit unsigned integer.
+SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)
+_DROP_COUNTER = struct.Struct("I")
 
 
 def _perf_counter_time(stamp: bytes) -> float | None:
@@ -93,3 +97,24 @@ def departure_time(sock: socket.socket, not_before: float) -> float | None:
                 # the conversion is good to microseconds
                 if stamped is not None and stamped >= not_before - 50e-6:
                     return stamped
+
+
+def enable_drop_counter(sock: socket.socket) -> bool:
+    """Asks the kernel to report, with every datagram `sock` receives, how many it dropped
+    on this socket so far for want of room (Linux's SO_RXQ_OVFL); False where the platform
+    has no such counter (`kernel_drops` then reads None)."""
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, SO_RXQ_OVFL, 1)
+    except OSError:
+        return False
+    return True
+
+
+def kernel_drops(ancillary) -> int | None:
+    """The kernel's count of datagrams dropped on the socket so far, from the ancillary data
+    of a `recvmsg` (`enable_drop_counter`); None when the datagram carries none (no drop yet
+    on Linux, or no counter on the platform)."""
+    for level, kind, data in ancillary:
+        if level == socket.SOL_SOCKET and kind == SO_RXQ_OVFL and len(data) >= 4:
+            return _DROP_COUNTER.unpack_from(data)[0]
+    return None

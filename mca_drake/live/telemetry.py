@@ -226,6 +226,8 @@ class Decoder(abc.ABC):
 
     # The protocol's name as the live summary reports it.
     protocol: ClassVar[str]
+    # The largest datagram the protocol sends, bytes: a larger one is refused unread.
+    max_datagram_bytes: ClassVar[int]
 
     def __init__(self, *, lever_arm: LeverArm | None = None) -> None:
         self._transfer = HeadPointTransfer(lever_arm or LeverArm())
@@ -255,6 +257,11 @@ class Decoder(abc.ABC):
         """
         if not isinstance(packet, bytes | bytearray | memoryview):
             raise BadPacket(f"{self.protocol} packet must be bytes; got {type(packet).__name__}")
+        if len(packet) > self.max_datagram_bytes:
+            raise BadPacket(
+                f"{self.protocol} packet of {len(packet)} bytes; the protocol's are at most "
+                f"{self.max_datagram_bytes} bytes"
+            )
         if received_s is None:
             received_s = time.monotonic()
         received_s = float(received_s)

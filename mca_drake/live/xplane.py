@@ -37,6 +37,9 @@ XPLANE_HEADER = b"DATA"
 # Header: "DATA" and X-Plane's internal byte.
 HEADER_SIZE = 5
 RECORD_SIZE = 36
+# X-Plane's Data Output screen numbers its rows below 200: a datagram with more records
+# than that (each row at most once) is not one X-Plane sent.
+MAX_RECORDS = 200
 _RECORD = struct.Struct("<i8f")
 
 RATE_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0}
@@ -135,6 +138,7 @@ class XPlaneDecoder(Decoder):
     """
 
     protocol = "xplane"
+    max_datagram_bytes = HEADER_SIZE + MAX_RECORDS * RECORD_SIZE
 
     def __init__(
         self,

@@ -59,7 +59,8 @@ def flight_recording(
     """
     flight.validate()
     if flight.recording:
-        return load_recording(flight.recording)
+        # read only what the run needs: a long file asked for a few seconds is not parsed whole
+        return load_recording(flight.recording, max_duration_s=duration_s)
     cached = None
     if cache_dir is not None:
         cached = Path(cache_dir) / f"{flight.vehicle}_{flight.seed}_{duration_s:g}s.csv"

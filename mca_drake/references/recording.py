@@ -50,6 +50,17 @@ FORMAT_TAG = "mca-drake recording v1"
 MIN_RATE_HZ = 10.0
 # Longest gap between samples, s: resampling would fill a longer one with invented motion.
 MAX_GAP_S = 0.5
+# Relative tolerance of the rate check: a 10 Hz file's steps read 0.1000000001 s in floats.
+RATE_TOLERANCE = 1e-6
+# Shortest recording, s: 20 control periods. A file of a few samples (two, say) would be
+# cued and scored, and the correlation of a handful of samples is noise, not a figure.
+MIN_DURATION_S = 0.2
+# Anti-alias low-pass before resampling a faster recording: a zero-phase Butterworth of this
+# order (twice that, run forward and back) with its cut-off at this share of the new rate
+# (40 Hz for 100 Hz, below the new Nyquist frequency, above any motion cue). Without it a
+# 99 Hz vibration in a 1 kHz file would come out as a 1 Hz surge.
+ANTI_ALIAS_ORDER = 4
+ANTI_ALIAS_CUTOFF_SHARE = 0.4
 # Largest plausible specific force, m/s^2 (20 g: beyond any crewed vehicle).
 MAX_SPECIFIC_FORCE = 20 * GRAVITY
 # Unit plausibility thresholds (see `check_units`).
@@ -111,7 +122,13 @@ class Recording:
         return np.column_stack([self.t, self.omega, self.f])
 
     def resampled(self, rate_hz: float = DEFAULT_RATE_HZ) -> Recording:
-        """Linear interpolation onto t0 + k / rate_hz (k = 0, 1, ...) up to the last sample."""
+        """Linear interpolation onto t0 + k / rate_hz (k = 0, 1, ...) up to the last sample.
+
+        A recording faster than `rate_hz` is first low-passed (zero phase, Butterworth of
+        `ANTI_ALIAS_ORDER`, cut-off `ANTI_ALIAS_CUTOFF_SHARE` x rate_hz, on its own uniform
+        grid), so that what lies above the new Nyquist frequency does not fold into the cue
+        band; the metadata then records `anti_alias_cutoff_hz`.
+        """
         if not rate_hz > 0:
             raise RecordingError(f"rate_hz must be positive; got {rate_hz}")
         h = 1.0 / rate_hz
@@ -119,9 +136,29 @@ class Recording:
         t = self.t[0] + h * np.arange(n)
         if self.t.size == n and np.allclose(self.t, t, rtol=0, atol=1e-9):
             return dataclasses.replace(self, metadata=dict(self.metadata))  # already uniform
-        columns = [np.interp(t, self.t, c) for c in np.column_stack([self.omega, self.f]).T]
+        source = self
+        if self.rate_hz > rate_hz * (1 + RATE_TOLERANCE):
+            source = self._low_passed(ANTI_ALIAS_CUTOFF_SHARE * rate_hz)
+        columns = [np.interp(t, source.t, c) for c in np.column_stack([source.omega, source.f]).T]
         data = np.column_stack(columns)
-        return Recording(t, data[:, :3], data[:, 3:], dict(self.metadata))
+        return Recording(t, data[:, :3], data[:, 3:], dict(source.metadata))
+
+    def _low_passed(self, cutoff_hz: float) -> Recording:
+        """The recording on its own uniform grid (its mean rate), low-passed at `cutoff_hz`
+        by a zero-phase Butterworth filter (`ANTI_ALIAS_ORDER`)."""
+        # scipy: only resampling a faster file needs it, and the module stays light without
+        from scipy.signal import butter, sosfiltfilt
+
+        rate = self.rate_hz
+        t = np.linspace(self.t[0], self.t[-1], self.t.size)
+        data = np.column_stack([self.omega, self.f])
+        uniform = np.column_stack([np.interp(t, self.t, c) for c in data.T])
+        sos = butter(ANTI_ALIAS_ORDER, cutoff_hz, fs=rate, output="sos")
+        # the padding sosfiltfilt needs: a short file is filtered with what it has
+        pad = min(3 * (2 * len(sos) + 1), t.size - 1)
+        filtered = sosfiltfilt(sos, uniform, axis=0, padlen=pad)
+        metadata = {**self.metadata, "anti_alias_cutoff_hz": f"{cutoff_hz:g}"}
+        return Recording(t, filtered[:, :3], filtered[:, 3:], metadata)
 
     def sliced(self, start_s: float, stop_s: float) -> Recording:
         """Samples with start_s <= t - t0 < stop_s (times keep their values)."""
@@ -223,17 +260,28 @@ _AMBIGUOUS_RATES = ((0.0, np.deg2rad(8.0)), (2.0, 8.0))
 _HEADER_CELL = re.compile(r"^\s*([A-Za-z_]\w*)\s*(?:[\[(]\s*([^\])]*?)\s*[\])])?\s*$")
 
 
-def _read_text(path: Path) -> str:
-    """The file as text: UTF-8, a byte-order mark dropped; a clear error otherwise."""
-    data = path.read_bytes()
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        line = data[: err.start].count(b"\n") + 1
-        raise RecordingError(
-            f"{path}: line {line}: byte {err.start} is not UTF-8 text ({err.reason}); save "
-            "the file as UTF-8 CSV"
-        ) from None
+def _text_lines(path: Path):
+    """The file's lines as text, read as they are needed: UTF-8 (a byte-order mark dropped),
+    no NUL byte; a clear error naming the line otherwise."""
+    offset = 0
+    with path.open("rb") as f:
+        for line_no, raw in enumerate(f, start=1):
+            if line_no == 1 and raw.startswith(b"\xef\xbb\xbf"):
+                raw, offset = raw[3:], 3
+            try:
+                line = raw.decode("utf-8")
+            except UnicodeDecodeError as err:
+                raise RecordingError(
+                    f"{path}: line {line_no}: byte {offset + err.start} is not UTF-8 text "
+                    f"({err.reason}); save the file as UTF-8 CSV"
+                ) from None
+            if "\x00" in line:
+                raise RecordingError(
+                    f"{path}: line {line_no}: a NUL byte; this is not a text CSV (a binary or "
+                    "damaged file?)"
+                )
+            offset += len(raw)
+            yield line
 
 
 def _parse_header(
@@ -275,7 +323,7 @@ def _check_time_base(path: Path, t: np.ndarray, lines: list[int]) -> None:
             f"(previous line {lines[k]}: {t[k]})"
         )
     typical = float(np.median(steps))
-    if typical > 1 / MIN_RATE_HZ:
+    if typical > (1 + RATE_TOLERANCE) / MIN_RATE_HZ:
         hint = " (is t in ms? name it `t [ms]` or divide by 1000)" if typical >= 1 else ""
         raise RecordingError(
             f"{path}: column t: samples {typical:.6g} s apart ({1 / typical:.3g} Hz), slower "
@@ -295,8 +343,13 @@ def load_recording(
     *,
     rate_hz: float | None = DEFAULT_RATE_HZ,
     validate_units: bool = True,
+    max_duration_s: float | None = None,
 ) -> Recording:
     """Reads and validates a recording CSV; resamples it to `rate_hz` (None: keep as is).
+
+    With `max_duration_s`, reading stops once the samples cover that long (and `MAX_GAP_S`
+    more, for the interpolation at the end): a day-long file asked for 3 s is not parsed
+    whole. Faster files are low-passed before resampling (`Recording.resampled`).
 
     Times start at 0: a file with absolute time stamps (Unix epoch) is shifted, its first
     stamp kept in the metadata as `t0_s`. Header cells may name units in brackets
@@ -304,19 +357,25 @@ def load_recording(
 
     Raises:
         FileNotFoundError: no such file.
-        RecordingError: text that is not UTF-8, a missing column, a row with too many or
-            too few values (a decimal comma?), a value that is not a finite number, times
-            that do not increase or leave a gap, too slow a rate, or implausible units; the
-            message names file, line and column and says how to fix it.
+        RecordingError: a folder, FIFO or device instead of a file, text that is not UTF-8
+            or holds a NUL byte, a missing column, a row with too many or too few values (a
+            decimal comma?), a value that is not a finite number, times that do not
+            increase or leave a gap, too slow a rate, fewer than `MIN_DURATION_S` seconds,
+            or implausible units; the message names file, line and column and says how to
+            fix it.
     """
     path = Path(path)
+    if path.is_dir():
+        raise RecordingError(f"{path} is a folder, not a recording CSV")
+    if path.exists() and not path.is_file():
+        raise RecordingError(f"{path} is not a regular file (a FIFO or a device?): not a CSV")
     if not path.is_file():
         raise FileNotFoundError(f"recording not found: {path}")
     metadata: dict[str, str] = {}
     header: list[str] | None = None
     rows: list[list[float]] = []
     line_numbers: list[int] = []
-    for line_no, row in enumerate(csv.reader(io.StringIO(_read_text(path))), start=1):
+    for line_no, row in enumerate(csv.reader(_text_lines(path)), start=1):
         if not row or all(not cell.strip() for cell in row):
             continue
         if row[0].lstrip().startswith("#"):
@@ -355,12 +414,20 @@ def load_recording(
             values.append(value * factor)
         rows.append(values)
         line_numbers.append(line_no)
+        if max_duration_s is not None and values[0] - rows[0][0] > max_duration_s + MAX_GAP_S:
+            metadata["read_until_s"] = repr(values[0] - rows[0][0])
+            break
     if header is None:
         raise RecordingError(f"{path}: no header line; expected {','.join(COLUMNS)}")
     if len(rows) < 2:
         raise RecordingError(f"{path}: needs at least 2 samples; found {len(rows)}")
     data = np.array(rows)
     _check_time_base(path, data[:, 0], line_numbers)
+    if data[-1, 0] - data[0, 0] < MIN_DURATION_S:
+        raise RecordingError(
+            f"{path}: {len(rows)} samples over {data[-1, 0] - data[0, 0]:.6g} s; a recording "
+            f"needs at least {MIN_DURATION_S:g} s to be cued and scored"
+        )
     t = data[:, 0]
     if t[0] != 0.0:
         metadata["t0_s"] = repr(float(t[0]))

@@ -215,7 +215,8 @@ def generate_closed_loop_dataset(
     """
     config = config or ClosedLoopDatasetConfig()
     config.validate()
-    out_dir = check_writable(out_dir, folder=True)
+    # absolute: a cluster's workers write here from folders of their own
+    out_dir = check_writable(Path(out_dir).resolve(), folder=True)
     todo = [
         (config, vehicle, s, str(out_dir))
         for vehicle, s in config.flights()

@@ -149,14 +149,16 @@ def _finished_run(
     out: Path, case: str, config: McaConfig, seed: int, duration_s: float
 ) -> dict | None:
     """The summary of a finished run of (case, MCA, seed) on disk, or None: not there,
-    unreadable, or made with another MCA config, duration or DPC policy (then it is run
-    again and overwritten)."""
+    unreadable, not a JSON object, or made with another MCA config, duration or DPC policy
+    (then it is run again and overwritten)."""
     path = _run_path(out, case, mca_name(config), seed)
     if not path.is_file():
         return None
     try:
         summary = json.loads(path.read_text())
     except (OSError, ValueError):
+        return None
+    if not isinstance(summary, dict):  # valid JSON but no summary (a list, a number): redo
         return None
     same = (
         summary.get("mca_config") == mca_config_record(config)
@@ -197,7 +199,7 @@ def run_evaluation(
         address: a Ray cluster to run on (`mca_drake.studies.parallel.run_tasks`).
     """
     config.validate()
-    out = Path(out_dir)
+    out = Path(out_dir).resolve()  # a cluster's workers write here from folders of their own
     check_writable(out / "runs", folder=True)
     tasks = [
         (mca, case, seed, config.duration_s, str(out))

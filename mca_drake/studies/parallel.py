@@ -7,15 +7,59 @@ Ray started with `workers` CPUs, or on an existing cluster (`address`, or the RA
 environment variable). Each task builds its own Drake diagram: diagrams and
 MathematicalPrograms do not pickle. When the driver dies (kill -9), Ray ends its workers,
 so no orphan goes on simulating and writing files.
+
+A cluster's workers run in folders of their own: every path a task carries (a `Path`, and
+the file fields of its configs, `PATH_FIELDS`) is made absolute on the driver before the
+task leaves it, and each study resolves its output folder at its start.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from tqdm.auto import tqdm
+
+# Config fields that name a file: resolved against the driver's folder before a task leaves.
+PATH_FIELDS = frozenset(
+    {
+        "policy",
+        "recording",
+        "initial_policy",
+        "learned_output_weights",
+        "closed_loop_dataset",
+        "open_loop_dataset",
+    }
+)
+
+
+def with_absolute_paths(value):
+    """`value` with every `Path`, and every non-empty `PATH_FIELDS` field of the configs in
+    it (nested dataclasses, lists and tuples included), made absolute; unchanged objects
+    are returned as they are."""
+    if isinstance(value, Path):
+        return value.resolve()
+    if isinstance(value, list | tuple):
+        items = [with_absolute_paths(v) for v in value]
+        changed = any(a is not b for a, b in zip(items, value, strict=True))
+        return type(value)(items) if changed else value
+    if not dataclasses.is_dataclass(value) or isinstance(value, type):
+        return value
+    changes = {}
+    for field in dataclasses.fields(value):
+        current = getattr(value, field.name)
+        if field.name in PATH_FIELDS and isinstance(current, str) and current:
+            absolute = str(Path(current).resolve())
+            if absolute != current:
+                changes[field.name] = absolute
+        else:
+            new = with_absolute_paths(current)
+            if new is not current:
+                changes[field.name] = new
+    return dataclasses.replace(value, **changes) if changes else value
 
 
 def ray_address(address: str | None = None) -> str | None:
@@ -63,6 +107,7 @@ def run_tasks(
                 function(*task)
                 bar.update(1)
         elif tasks:
+            tasks = [tuple(with_absolute_paths(arg) for arg in task) for task in tasks]
             _run_on_ray(function, tasks, workers, address, bar)
 
 
@@ -83,12 +128,26 @@ def ray_session(workers: int, address: str | None = None):
                 configure_logging=False,
             )
         else:
-            ray.init(address=address, log_to_driver=False, configure_logging=False)
+            try:
+                ray.init(address=address, log_to_driver=False, configure_logging=False)
+            except ray.exceptions.AuthenticationError as err:
+                raise RuntimeError(_token_hint(address, err)) from None
     try:
         yield ray
     finally:
         if started:
             ray.shutdown()
+
+
+def _token_hint(address: str, err: Exception) -> str:
+    """What to do when a cluster with token authentication refuses this process."""
+    return (
+        f"the Ray cluster at {address} refused the connection: it uses token "
+        "authentication (RAY_AUTH_MODE=token) and this process has not got its token. On the "
+        "head node, `ray get-auth-token` prints it; give it here as RAY_AUTH_TOKEN=<token> "
+        "(or RAY_AUTH_TOKEN_PATH=<file>) with RAY_AUTH_MODE=token, then run again "
+        f"(docs/guides/ray.md). Ray said: {' '.join(str(err).split())[:200]}"
+    )
 
 
 def _run_on_ray(function: Callable, tasks: Sequence[tuple], workers: int, address, bar) -> None:

@@ -200,7 +200,8 @@ def run_table2(
             1 trains them here, one after the other.
         address: a Ray cluster to train on (default RAY_ADDRESS, else a local Ray).
     """
-    out = check_writable(out_dir, folder=True)
+    # absolute: a cluster's workers write here from folders of their own
+    out = check_writable(Path(out_dir).resolve(), folder=True)
     started = time.perf_counter()
     splits = _splits(config.closed_loop_dataset, config.split_seed)
     open_loop = SegmentDataset.load(config.open_loop_dataset)

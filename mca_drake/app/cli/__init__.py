@@ -44,6 +44,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# The longest error line printed: a message quoting a huge input is cut, with its length said.
+MAX_ERROR_CHARS = 600
+
+
+def error_line(err: BaseException) -> str:
+    """`err` as one printable line: whitespace collapsed, control characters (a NUL byte
+    from a damaged file) escaped, cut to MAX_ERROR_CHARS."""
+    text = " ".join(str(err).split()) or type(err).__name__
+    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+    if len(text) > MAX_ERROR_CHARS:
+        text = f"{text[:MAX_ERROR_CHARS]}... ({len(text)} characters)"
+    return text
+
+
 # Errors a user can act on from the message alone (bad input, a missing or unwritable file,
 # a run that cannot go on); anything else is a bug, reported with a pointer to --debug.
 _USER_ERRORS = (ValueError, OSError, RuntimeError)
@@ -65,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as err:
         if args.debug:
             raise
-        message = " ".join(str(err).split()) or type(err).__name__
+        message = error_line(err)
         if not isinstance(err, _USER_ERRORS):
             message = (
                 f"{type(err).__name__}: {message} (unexpected: rerun with --debug for the "

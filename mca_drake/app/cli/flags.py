@@ -67,16 +67,16 @@ def _format_default(value: object) -> str:
     if isinstance(value, float):
         return "inf" if math.isinf(value) else f"{value:g}"
     if isinstance(value, tuple | list):
-        return ",".join(_format_default(v) for v in value)
+        return ",".join(_format_default(v) for v in value) or "none"
     if value in ("", None):
         return "none"
     return str(value)
 
 
-def _list_of(item_type: type):
-    def parse(text: str) -> tuple:
+def _list_of(item_type: type, container: type = tuple):
+    def parse(text: str):
         try:
-            return tuple(item_type(v) for v in text.split(",") if v.strip())
+            return container(item_type(v.strip()) for v in text.split(",") if v.strip())
         except ValueError:
             raise argparse.ArgumentTypeError(
                 f"comma-separated {item_type.__name__} values, not '{text}'"
@@ -91,8 +91,8 @@ def _flag_type(annotation: object):
     if annotation in (int, float):
         return annotation
     origin, args = typing.get_origin(annotation), typing.get_args(annotation)
-    if origin is tuple and args and args[0] in (int, float):
-        return _list_of(args[0])
+    if origin in (tuple, list) and args and args[0] in (int, float, str):
+        return _list_of(args[0], origin)
     return None
 
 

@@ -12,7 +12,7 @@ from mca_drake.app.scenarios import LiveScenario
 from mca_drake.cueing import mca_config_from_name
 
 # LiveScenario fields with a flag of the same name.
-LIVE_FLAGS = ("host", "port", "rsi_cycle_ms")
+LIVE_FLAGS = ("host", "port", "allowed_senders", "rsi_cycle_ms", "realtime_rate")
 
 
 def add_parser(commands) -> None:
@@ -26,7 +26,6 @@ def add_parser(commands) -> None:
     add_config_flags(parser, defaults, LIVE_FLAGS)
     parser.add_argument("--duration", type=float, help="s of live cueing (demo: 60)")
     add_mca_flags(parser, defaults.mca, policy=False)
-    parser.add_argument("--realtime-rate", type=float, default=1.0, help="1: real time")
     parser.add_argument(
         "--plant", help="analytical (default) or multibody (the KR500 station; demo default)"
     )
@@ -83,8 +82,11 @@ def format_live_report(summary: dict) -> str:
     """The live block of a summary (and its robot's, when there is one) as text."""
     live = summary["live"]
     lines = [
-        f"{live['packets']} packets ({live['bad']} bad, {live['dropped']} dropped, "
-        f"{live['out_of_order']} out of order), {live['stale_events']} stale events; "
+        f"telemetry from {live['sender']}: {live['packets']} packets ({live['bad']} bad, "
+        f"{live['foreign']} from other senders, {live['dropped']} missing from the sequence, "
+        f"{live['kernel_dropped']} dropped by the kernel, {live['out_of_order']} out of "
+        f"order, {live['time_jumps']} ahead of the clock, {live['restarts']} clock restarts), "
+        f"{live['stale_events']} stale events; "
         f"latency {_ms(live['latency_s'])} (of which waiting for the poll "
         f"{_ms(live['wait_s'])}); health {live['health']}; PI {summary['pi']:.3f} "
         f"(zero motion {summary['pi_zero_motion']:.3f}); violations {summary['violations']}"
