@@ -76,7 +76,6 @@ def _replace(old: bytes, new: bytes) -> bytes:
         (b"x" * (MAX_RSI_BYTES + 1), "at most"),
         (STATE.replace(b"0.0", "\u00b0".encode(), 1), "not ASCII"),
         (b"<Sen Type='x'/>", "not one <Rob> element"),
-        (_replace(b'Type="KUKA"', b'Type="ABB"'), 'Type="ABB"'),
         (_replace(b"AIPos", b"AIPosX"), "0 <AIPos> elements"),
         (_replace(b"<Delay", b'<AIPos A1="1"/><Delay'), "2 <AIPos> elements"),
         (_replace(b' A6="-1.25E1"', b""), "lacks axis A6"),
@@ -95,6 +94,16 @@ def _replace(old: bytes, new: bytes) -> bytes:
 def test_malformed_states_are_refused_with_the_reason(packet, match):
     with pytest.raises(BadRsiPacket, match=match):
         parse_state(packet)
+
+
+@pytest.mark.parametrize(
+    "root", [b'<Rob TYPE="KUKA">', b'<Rob type="kuka">', b"<Rob>", b'<Rob Type="ABB">']
+)
+def test_the_roots_type_attribute_is_not_required(root):
+    """ROS-Industrial's kuka_rsi_simulator writes TYPE="KUKA", others none; its hardware
+    interface reads no Type at all: the state parses whatever the attribute says."""
+    state = parse_state(_replace(b'<Rob Type="KUKA">', root))
+    assert state.ipoc == 4208275638 and len(state.axes_deg) == 6
 
 
 def test_only_bytes_are_read():

@@ -225,9 +225,7 @@ def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None
     # the live layer (sockets, the live diagram, the RSI driver) only for live jobs
     from mca_drake.live.loop import make_decoder, run_live
     from mca_drake.live.receiver import ReceiverConfig
-    from mca_drake.live.rsi.driver import RsiDriverConfig
     from mca_drake.live.rsi.link import parse_robot_url
-    from mca_drake.live.rsi.motion import RsiMotionConfig
 
     scenario.validate()
     if scenario.output_json:
@@ -240,8 +238,8 @@ def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None
     rsi = None
     if scenario.robot:
         host, port = parse_robot_url(scenario.robot)
-        motion = RsiMotionConfig(cycle_s=scenario.rsi_cycle_ms * 1e-3)
-        rsi = RsiDriverConfig(host=host, port=port, motion=motion)
+        motion = dataclasses.replace(scenario.rsi.motion, cycle_s=scenario.rsi_cycle_ms * 1e-3)
+        rsi = dataclasses.replace(scenario.rsi, host=host, port=port, motion=motion)
     summary = run_live(
         decoder,
         scenario.mca,

@@ -39,6 +39,7 @@ from mca_drake.input_checks import (
     quoted,
 )
 from mca_drake.live.receiver import allowed_senders
+from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.references.flights import FlightSpec
 from mca_drake.resources import scenario_path
 from mca_drake.simulation.closed_loop import PLANTS
@@ -279,6 +280,11 @@ class LiveScenario:
     robot: str = ""
     # The robot's RSI interpolation cycle, ms (4 or 12).
     rsi_cycle_ms: int = 4
+    # The RSI driver's settings: the controller's address, its IPOC unit, the robot's home
+    # pose in axis angles (home_deg, deg) and axis signs, the tolerance of the home check,
+    # the XML tags (docs/guides/rsi.md gives the KR500's). `robot` and `rsi_cycle_ms` set
+    # its listening address and cycle.
+    rsi: RsiDriverConfig = dataclasses.field(default_factory=RsiDriverConfig)
     # Pace of the loop against the wall clock: 1 is real time (live telemetry, a robot); 0
     # steps as fast as it can (a replayed stream); at most 10 (MAX_LIVE_REALTIME_RATE).
     realtime_rate: float = 1.0
@@ -303,6 +309,10 @@ class LiveScenario:
         check_range(
             "LiveScenario", "realtime_rate", self.realtime_rate, 0.0, MAX_LIVE_REALTIME_RATE
         )
+        try:
+            self.rsi.validate()
+        except ValueError as err:
+            raise ValueError(f"LiveScenario.rsi: {err}") from None
         if self.robot and self.realtime_rate != 1.0:
             raise ValueError(
                 f"a robot runs in real time: realtime_rate 1, not {self.realtime_rate}"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 
 from mca_drake.app.cli.closed_loop_flags import add_mca_flags
 from mca_drake.app.cli.flags import add_config_flags
@@ -102,8 +103,15 @@ def format_live_report(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def _stop_on_sigterm(*_) -> None:
+    # SIGTERM ends the run as Ctrl-C does: through the loop's clean-up, which brakes a
+    # driven robot to rest and stops its driver, instead of killing the process outright
+    raise KeyboardInterrupt
+
+
 def run(args: argparse.Namespace) -> int:
     """Runs the live loop (and, with --demo, its JSBSim sender); prints the live figures."""
+    signal.signal(signal.SIGTERM, _stop_on_sigterm)
     scenario = _scenario_from_flags(args)
     meshcat = start_meshcat() if args.meshcat else None
     sender = []

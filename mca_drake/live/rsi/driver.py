@@ -28,14 +28,14 @@ it (`mca_drake.live.rsi.link.RobotClockServo`), since a controller's crystal dri
 the PC's by parts per million. A lead that runs out anyway ends in braking, never a jump.
 """
 
-from __future__ import annotations
-
 import argparse
 import array
 import dataclasses
 import gc
+import ipaddress
 import json
 import math
+import os
 import signal
 import socket
 import struct
@@ -64,6 +64,7 @@ from mca_drake.simulation.closed_loop import step_time_summary
 # Counters the driver reports, in this order.
 DRIVER_COUNTERS = (
     "cycles",  # state packets answered
+    "foreign",  # state packets from another address than the controller's: never answered
     "bad_state",  # state packets that did not parse (no reply: no IPOC to echo)
     "missed_cycles",  # cycles the IPOC skipped (state packets the driver never saw)
     "late_replies",  # replies sent more than one cycle after their state packet arrived
@@ -97,6 +98,15 @@ def read_lead_report(message: bytes) -> float | None:
 
 # After a requested stop brought the robot to rest, the driver answers this long (s) more.
 HOLD_AFTER_STOP_S = 0.2
+# The IPOC's unit is measured against the local clock over this many first state packets
+# (the robot holds its home pose meanwhile: the loop starts only after them).
+IPOC_CHECK_PACKETS = 10
+# A measured IPOC rate within this factor of a unit's is that unit.
+IPOC_RATE_TOLERANCE = 1.5
+IPOC_UNITS = ("auto", "ms", "cycles")
+# The trajectory may lead the time played by delay_s and this much more (s): beyond it the
+# robot's clock runs slower than the loop's, which no rate trim catches up.
+LEAD_MARGIN_S = 0.5
 
 
 class RsiRefused(RuntimeError):  # noqa: N818 (a refusal, not a failure)
@@ -115,7 +125,7 @@ class RsiDriverConfig:
     motion: RsiMotionConfig = dataclasses.field(default_factory=RsiMotionConfig)
     # The controller's axis positions A1..A6 (deg) at the MCA's home pose; None: the home
     # pose's joint angles in degrees times axis_signs (the model's zero is the robot's).
-    home_deg: list[float] | None = None
+    home_deg: list[float] = dataclasses.field(default_factory=list)
     # +1 or -1 per axis: the robot's axis direction against the model's joint.
     axis_signs: list[float] = dataclasses.field(default_factory=lambda: [1.0] * NUM_JOINTS)
     # The robot must report home_deg within this (deg) at the first cycle, or nothing moves.
@@ -137,19 +147,34 @@ class RsiDriverConfig:
     timing_path: str = ""
     # The RSI object configuration's XML names.
     tags: RsiTags = dataclasses.field(default_factory=RsiTags)
+    # The robot controller: "HOST" or "HOST:PORT" (IPv4); "": the first address that sends
+    # a state packet is locked in. Packets from any other address are counted, never answered.
+    controller: str = ""
+    # The unit of the controller's IPOC: "ms" (KUKA controllers stamp milliseconds),
+    # "cycles" (a counter of interpolation cycles, as ROS-Industrial's simulator sends) or
+    # "auto" (measured against the local clock over the first cycles). A unit that does not
+    # match what is measured is refused at the start.
+    ipoc_unit: str = "auto"
 
     def validate(self) -> None:
         """Raises ValueError for a setting that cannot run, naming it."""
         check_config_numbers(self)
         self.motion.validate()
         self.tags.validate()
+        if self.ipoc_unit not in IPOC_UNITS:
+            raise ValueError(
+                f"RsiDriverConfig.ipoc_unit must be one of {', '.join(IPOC_UNITS)}; got "
+                f"{self.ipoc_unit!r}"
+            )
+        if self.controller:
+            controller_address(self.controller)
         if not 0 <= self.port <= 65535:
             raise ValueError(f"RsiDriverConfig.port must be in [0, 65535]; got {self.port}")
         if len(self.axis_signs) != NUM_JOINTS or any(s not in (1, -1) for s in self.axis_signs):
             raise ValueError(
                 f"RsiDriverConfig.axis_signs must be six of +1 or -1; got {self.axis_signs}"
             )
-        if self.home_deg is not None and len(self.home_deg) != NUM_JOINTS:
+        if self.home_deg and len(self.home_deg) != NUM_JOINTS:
             raise ValueError(f"RsiDriverConfig.home_deg must hold six angles; got {self.home_deg}")
         positive = ("home_tolerance_deg", "robot_silence_s", "period_s", "connect_timeout_s")
         if not all(getattr(self, name) > 0 for name in positive):
@@ -162,21 +187,51 @@ class RsiDriverConfig:
         return dataclasses.asdict(self)
 
     @classmethod
-    def from_dict(cls, values: dict) -> RsiDriverConfig:
+    def from_dict(cls, values: dict) -> "RsiDriverConfig":
         """Settings from `to_dict`'s form; ValueError naming an unknown key."""
         values = dict(values)
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = set(values) - known
         if unknown:
             raise ValueError(f"unknown RsiDriverConfig settings: {sorted(unknown)}")
+        if values.get("home_deg") is None:
+            values["home_deg"] = []
         if isinstance(values.get("motion"), dict):
             values["motion"] = RsiMotionConfig(**values["motion"])
         if isinstance(values.get("tags"), dict):
             tags = dict(values["tags"])
             if "axes" in tags:
-                tags["axes"] = tuple(tags["axes"])
+                tags["axes"] = list(tags["axes"])
             values["tags"] = RsiTags(**tags)
         return cls(**values)
+
+
+def controller_address(text: str) -> tuple[str, int | None]:
+    """(IPv4 address, port or None) of "HOST" / "HOST:PORT".
+
+    Raises:
+        ValueError: naming the setting, for anything else.
+    """
+    host, _, port = text.strip().partition(":")
+    try:
+        address = str(ipaddress.IPv4Address(host))
+        number = int(port) if port else None
+    except ValueError:
+        raise ValueError(
+            f"RsiDriverConfig.controller {text!r} is not HOST or HOST:PORT (IPv4)"
+        ) from None
+    if number is not None and not 1 <= number <= 65535:
+        raise ValueError(f"RsiDriverConfig.controller {text!r}: port must be in [1, 65535]")
+    return address, number
+
+
+def ipoc_unit_of(rate_per_s: float, cycle_s: float) -> str | None:
+    """ "ms" or "cycles" for an IPOC that advances `rate_per_s` a second on the local clock;
+    None when it is neither (within IPOC_RATE_TOLERANCE)."""
+    for unit, expected in (("ms", 1000.0), ("cycles", 1.0 / cycle_s)):
+        if rate_per_s > 0 and abs(math.log(rate_per_s / expected)) < math.log(IPOC_RATE_TOLERANCE):
+            return unit
+    return None
 
 
 class RsiDriver:
@@ -203,7 +258,7 @@ class RsiDriver:
         self._signs = [float(s) for s in config.axis_signs]
         self._home_deg = (
             [float(v) for v in config.home_deg]
-            if config.home_deg is not None
+            if config.home_deg
             else [s * math.degrees(q) for s, q in zip(self._signs, self._home, strict=True)]
         )
         self._rsi = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -226,6 +281,13 @@ class RsiDriver:
         self.ipocs = array.array("q")
         self.arrivals_s = array.array("d")
         self._ipoc: int | None = None  # the last state packet's IPOC
+        self._controller = controller_address(config.controller) if config.controller else None
+        self.controller: tuple[str, int] | None = None  # the address answered (locked)
+        # the IPOC's unit, in seconds; None until measured (or configured and confirmed)
+        self._ipoc_s: float | None = None
+        self._ipoc_check: list[tuple[int, float]] = []  # (IPOC, arrival) of the first packets
+        self.ipoc_unit = ""
+        self._segment_seen = -math.inf  # time.perf_counter() of the last segment taken
         self._anchor: tuple[int, int] | None = None  # (IPOC, k) at the first segment
         self._stop_requested = False
         self._report_from: tuple[int, int] | None = None  # (IPOC, index) of a lead window
@@ -244,9 +306,9 @@ class RsiDriver:
         stop has brought the robot to rest; returns `summary()`.
 
         Raises:
-            RsiRefused: the robot's first state is not the home pose (nothing was sent).
+            RsiRefused: the robot's first state is not the home pose, or its IPOC's unit is
+                not the configured one (or neither unit); nothing has moved.
         """
-        cycle_ms = self.config.motion.cycle_s * 1e3
         tags = self.config.tags
         last_packet = at_rest = None
         while max_cycles is None or self.counters["cycles"] < max_cycles:
@@ -264,6 +326,9 @@ class RsiDriver:
                 if time.monotonic() - last_packet > self.config.robot_silence_s:
                     break  # the controller ended RSI
                 continue
+            if not self._from_controller(robot):
+                self.counters["foreign"] += 1  # never parsed, never answered
+                continue
             last_packet = time.monotonic()
             arrival = arrival_time(ancillary)
             try:
@@ -272,29 +337,11 @@ class RsiDriver:
                 self.counters["bad_state"] += 1
                 self.follower.halt(f"malformed state packet: {error}")
                 continue
-            if self._ipoc is None:
-                self._check_home(state.axes_deg)
-                dt = self.config.motion.cycle_s
-                self._tell_loop(ROBOT_READY)
-            else:
-                elapsed_ms = state.ipoc - self._ipoc
-                if elapsed_ms <= 0:
-                    self.counters["bad_state"] += 1
-                    self.follower.halt(f"IPOC went from {self._ipoc} to {state.ipoc}")
-                    continue
-                self.counters["missed_cycles"] += max(0, round(elapsed_ms / cycle_ms) - 1)
-                dt = elapsed_ms * 1e-3
+            dt = self._cycle_time(state, arrival)
+            if dt is None:
+                continue
             self._ipoc = state.ipoc
-            self._take_segments()
-            if self._anchor is None:
-                q = self.follower.q  # waiting at home for the loop's first segment
-            else:
-                ipoc0, k0 = self._anchor
-                s = k0 * self.config.period_s + (state.ipoc - ipoc0) * 1e-3
-                s -= self.config.motion.delay_s
-                if self.follower.mode == "following":
-                    self._note_lead(self.buffer.lead_s(s), state.ipoc)
-                q = self.follower.step(s, dt, self.buffer)
+            q = self._commanded(state.ipoc, dt)
             corrections = [
                 sign * math.degrees(value - home)
                 for sign, value, home in zip(self._signs, q, self._home, strict=True)
@@ -310,6 +357,93 @@ class RsiDriver:
                 self.counters["late_replies"] += 1
         return self.summary()
 
+    def _from_controller(self, sender: tuple[str, int]) -> bool:
+        """Whether a datagram from `sender` is the controller's: the configured address, or
+        the first one that sent (locked in)."""
+        if self.controller is not None:
+            return tuple(sender) == self.controller
+        if self._controller is not None:
+            host, port = self._controller
+            if sender[0] != host or (port is not None and sender[1] != port):
+                return False
+        self.controller = (sender[0], sender[1])
+        return True
+
+    def _cycle_time(self, state, arrival: float) -> float | None:
+        """This cycle's length on the robot's clock (s), or None for a packet the driver
+        does not follow (an IPOC that did not advance: counted, and the robot brakes). The
+        first packets check the home pose and measure the IPOC's unit."""
+        cycle_s = self.config.motion.cycle_s
+        if self._ipoc is None:
+            self._check_home(state.axes_deg)
+            self._ipoc_check.append((state.ipoc, arrival))
+            return cycle_s
+        elapsed = state.ipoc - self._ipoc
+        if elapsed <= 0:
+            self.counters["bad_state"] += 1
+            self.follower.halt(f"IPOC went from {self._ipoc} to {state.ipoc}")
+            return None
+        if self._ipoc_s is None:
+            self._ipoc_check.append((state.ipoc, arrival))
+            if len(self._ipoc_check) >= IPOC_CHECK_PACKETS:
+                self._settle_ipoc_unit()
+                self._tell_loop(ROBOT_READY)
+            return cycle_s  # holding home until the unit is known
+        self.counters["missed_cycles"] += max(0, round(elapsed * self._ipoc_s / cycle_s) - 1)
+        return elapsed * self._ipoc_s
+
+    def _settle_ipoc_unit(self) -> None:
+        """Sets the IPOC's unit from its rate on the local clock over the first packets."""
+        (ipoc0, t0), (ipoc1, t1) = self._ipoc_check[0], self._ipoc_check[-1]
+        rate = (ipoc1 - ipoc0) / max(t1 - t0, 1e-9)
+        cycle_s = self.config.motion.cycle_s
+        measured = ipoc_unit_of(rate, cycle_s)
+        configured = self.config.ipoc_unit
+        if measured is None or configured not in ("auto", measured):
+            says = f"counts {measured}" if measured else "is neither milliseconds nor cycles"
+            raise RsiRefused(
+                f"the controller's IPOC advanced {rate:.1f} a second over its first "
+                f"{len(self._ipoc_check)} packets: it {says}, at a {cycle_s * 1e3:g} ms cycle; "
+                f"rsi.ipoc_unit is {configured!r} (ms, cycles or auto) and rsi_cycle_ms "
+                f"{cycle_s * 1e3:g}: set them to the controller's; nothing has moved"
+            )
+        self.ipoc_unit = measured
+        self._ipoc_s = 1e-3 if measured == "ms" else cycle_s
+
+    def _commanded(self, ipoc: int, dt: float) -> list[float]:
+        """The positions to command this cycle (rad): home until the loop's first segment,
+        then the followed trajectory; a lead out of its bounds brakes with its reason."""
+        if self._ipoc_s is None:
+            return self.follower.q  # at home while the IPOC's unit is measured
+        self._take_segments()
+        if self._anchor is None:
+            return self.follower.q  # at home, for the loop's first segment
+        ipoc0, k0 = self._anchor
+        s = k0 * self.config.period_s + (ipoc - ipoc0) * self._ipoc_s
+        s -= self.config.motion.delay_s
+        if self.follower.mode == "following":
+            lead = self.buffer.lead_s(s)
+            self._note_lead(lead, ipoc)
+            self._check_lead(lead)
+        return self.follower.step(s, dt, self.buffer)
+
+    def _check_lead(self, lead_s: float) -> None:
+        """Brakes when the robot's clock and the loop's part: a lead beyond delay_s +
+        LEAD_MARGIN_S (the robot's clock slower), or none while segments still arrive (its
+        clock faster); a lead lost because segments stopped is the follower's to judge."""
+        delay = self.config.motion.delay_s
+        if lead_s > delay + LEAD_MARGIN_S:
+            self.follower.halt(
+                f"the robot's clock runs slower than the loop's: the trajectory leads by "
+                f"{lead_s:.3f} s, beyond delay_s + {LEAD_MARGIN_S} s (rsi.ipoc_unit, "
+                "rsi_cycle_ms?)"
+            )
+        elif lead_s < 0 and time.perf_counter() - self._segment_seen < 2 * self.config.period_s:
+            self.follower.halt(
+                f"the robot's clock runs faster than the loop's: the trajectory is {-lead_s:.3f}"
+                " s behind while segments still arrive (rsi.ipoc_unit, rsi_cycle_ms?)"
+            )
+
     def summary(self) -> dict:
         """Counters, reply latency (median, p99, max, s; NaN before a cycle), trajectory
         lead (min, median, s), the follower's mode and why it left "following"."""
@@ -321,6 +455,8 @@ class RsiDriver:
         )
         out["mode"] = self.follower.mode
         out["reason"] = self.follower.reason
+        out["controller"] = "" if self.controller is None else "{}:{}".format(*self.controller)
+        out["ipoc_unit"] = self.ipoc_unit
         return out
 
     def timing(self) -> dict[str, np.ndarray]:
@@ -353,7 +489,7 @@ class RsiDriver:
         if self._report_from is None:
             self._report_from = (ipoc, len(self.leads_s) - 1)
         first_ipoc, first = self._report_from
-        if (ipoc - first_ipoc) * 1e-3 >= LEAD_REPORT_EVERY_S - 1e-9:
+        if (ipoc - first_ipoc) * self._ipoc_s >= LEAD_REPORT_EVERY_S - 1e-9:
             window = self.leads_s[first:-1]
             self._tell_loop(lead_report(sum(window) / len(window)))
             self._report_from = (ipoc, len(self.leads_s) - 1)
@@ -382,10 +518,32 @@ class RsiDriver:
                 continue
             if self.buffer.add(segment):
                 self.counters["segments"] += 1
+                self._segment_seen = time.perf_counter()
         if self._anchor is None and self.buffer.newest_k >= 0:
             # the newest segment now is the loop's present: play `delay_s` behind it (a
             # backlog that waited for the robot's first cycle is the past)
             self._anchor = (self._ipoc, self.buffer.newest_k)
+
+
+# Linux's prctl(PR_SET_PDEATHSIG): a signal the kernel sends when the parent dies.
+_PR_SET_PDEATHSIG = 1
+
+
+def stop_with_parent(parent_pid: int, driver: RsiDriver) -> None:
+    """Makes the driver brake and end when the live loop's process dies, however it dies
+    (killed, crashed, ended by a signal before the robot connected): the kernel sends
+    SIGTERM on the parent's death (Linux); where it cannot, or the parent is already gone,
+    the driver stops now rather than run an orphan that holds the RSI port."""
+    try:
+        # ctypes: the prctl system call, which Python's standard library does not wrap
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass  # no prctl (not Linux): the parent's own stop is the only way
+    if os.getppid() != parent_pid:  # it died before the request took effect
+        driver.request_stop("the live loop's process ended")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -393,6 +551,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--job", required=True, help="JSON: config, limits, home")
     parser.add_argument("--command-fd", type=int, help="the loop's segment socket (inherited)")
     parser.add_argument("--status", help="write the counters here (JSON) at the end")
+    parser.add_argument(
+        "--parent-pid", type=int, help="the live loop's process: its death stops the driver"
+    )
     args = parser.parse_args(argv)
     job = json.loads(Path(args.job).read_text())
     config = RsiDriverConfig.from_dict(job["config"])
@@ -402,6 +563,8 @@ def main(argv: list[str] | None = None) -> int:
     # a stop request of either kind brakes the robot to rest before the driver ends
     signal.signal(signal.SIGTERM, lambda *_: driver.request_stop())
     signal.signal(signal.SIGINT, lambda *_: driver.request_stop())
+    if args.parent_pid is not None:
+        stop_with_parent(args.parent_pid, driver)
     host, port = driver.address
     # what was built leaves the garbage collector's view, as in the live loop: a full
     # collection of it would hold this SCHED_FIFO process past an RSI cycle; its own cycles

@@ -81,8 +81,11 @@ class RsiEmulatorConfig:
     start_deg: list[float] = dataclasses.field(default_factory=lambda: [0.0] * NUM_JOINTS)
     # Stop after this many cycles in a row without an on-time reply.
     max_missed: int = 10
-    # IPOC of the first cycle, ms (a controller's counter does not start at 0).
+    # IPOC of the first cycle (a controller's counter does not start at 0).
     first_ipoc: int = 1_000_000
+    # How the IPOC counts: "ms", as KUKA controllers stamp it, or "cycles" (+1 a cycle), as
+    # ROS-Industrial's kuka_rsi_simulator counts.
+    ipoc_unit: str = "ms"
     # Slack on the limit checks, relative (round-off of the driver's degrees, not room).
     relative_tolerance: float = 1e-6
 
@@ -96,6 +99,10 @@ class RsiEmulatorConfig:
         if len(self.start_deg) != NUM_JOINTS:
             raise ValueError(
                 f"RsiEmulatorConfig.start_deg must hold six angles; got {self.start_deg}"
+            )
+        if self.ipoc_unit not in ("ms", "cycles"):
+            raise ValueError(
+                f"RsiEmulatorConfig.ipoc_unit must be ms or cycles; got {self.ipoc_unit!r}"
             )
         if self.max_missed < 1 or self.first_ipoc < 0:
             raise ValueError("RsiEmulatorConfig.max_missed must be >= 1 and first_ipoc >= 0")
@@ -193,7 +200,7 @@ class RsiEmulator:
                 due += behind * cycle
                 if n >= n_cycles:
                     break
-            ipoc = cfg.first_ipoc + n * cycle_ms
+            ipoc = cfg.first_ipoc + n * (cycle_ms if cfg.ipoc_unit == "ms" else 1)
             sent = time.perf_counter()
             self._socket.sendto(self._state_packet(n, ipoc, axes), self._driver)
             if self._departures:

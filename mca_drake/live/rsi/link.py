@@ -14,7 +14,9 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import select
+import shutil
 import socket
 import subprocess
 import sys
@@ -111,9 +113,13 @@ class RsiLink:
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait()
-        if self.status_path.exists():
-            return json.loads(self.status_path.read_text())
-        return {"error": f"the RSI driver ended with code {self.process.returncode}, no status"}
+        try:
+            if self.status_path.exists():
+                return json.loads(self.status_path.read_text())
+            return {"error": f"the RSI driver ended with code {self.process.returncode}, no status"}
+        finally:
+            # the job and status files live in a folder of their own: nothing is left behind
+            shutil.rmtree(self.status_path.parent, ignore_errors=True)
 
     def stop_and_say_why(self) -> str:
         """`stop`, and why the driver ended: its refusal, its error, or its counters."""
@@ -246,6 +252,9 @@ def start_rsi_driver(
         str(theirs.fileno()),
         "--status",
         str(status),
+        # the driver brakes and ends if this process dies, however it dies
+        "--parent-pid",
+        str(os.getpid()),
     ]
     process = subprocess.Popen(
         command,
@@ -261,6 +270,7 @@ def start_rsi_driver(
     if "listening on udp://" not in line:
         process.kill()
         process.wait()
+        shutil.rmtree(folder, ignore_errors=True)
         raise RuntimeError(f"the RSI driver did not start (its error output above): {line!r}")
     host, _, port = line.strip().rpartition("udp://")[2].rpartition(":")
     return RsiLink(process, (host, int(port)), status)

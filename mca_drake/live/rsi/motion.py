@@ -26,8 +26,6 @@ hold at speed.
 Nothing here touches a socket: `mca_drake.live.rsi.driver` does, around a `MotionFollower`.
 """
 
-from __future__ import annotations
-
 import dataclasses
 import math
 import struct
@@ -86,7 +84,7 @@ class CommandSegment:
         return SEGMENT_STRUCT.pack(SEGMENT_MAGIC, flags, self.k, *self.q, *self.qd, *self.u)
 
     @classmethod
-    def unpack(cls, datagram: bytes) -> CommandSegment:
+    def unpack(cls, datagram: bytes) -> "CommandSegment":
         """The segment in `datagram`; BadSegment for anything else."""
         if len(datagram) != SEGMENT_STRUCT.size:
             raise BadSegment(

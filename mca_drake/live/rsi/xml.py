@@ -22,8 +22,6 @@ microseconds and raises `BadRsiPacket`, never anything else. The
 writers produce well-formed XML (checked in the tests with Python's own parser).
 """
 
-from __future__ import annotations
-
 import dataclasses
 import math
 import re
@@ -40,11 +38,13 @@ class BadRsiPacket(ValueError):  # noqa: N818 (named like the telemetry layer's 
     """An RSI datagram that does not hold what the driver needs; the message says why."""
 
 
-@dataclasses.dataclass(frozen=True)
+# Not frozen: scenarios set it from YAML (`LiveScenario.rsi.tags`), which fills fields in.
+@dataclasses.dataclass
 class RsiTags:
     """The XML names of the RSI object configuration (ROS-Industrial's defaults)."""
 
-    # Root element and its Type attribute of the controller's message.
+    # Root element of the controller's message, and the Type attribute the emulator writes
+    # in it (a state's Type is not checked when read: controllers differ).
     state_root: str = "Rob"
     state_type: str = "KUKA"
     # Element of the actual axis positions, deg.
@@ -57,7 +57,9 @@ class RsiTags:
     # The cycle counter element (in both messages).
     ipoc: str = "IPOC"
     # Attribute names of the six axes.
-    axes: tuple[str, ...] = ("A1", "A2", "A3", "A4", "A5", "A6")
+    axes: list[str] = dataclasses.field(
+        default_factory=lambda: ["A1", "A2", "A3", "A4", "A5", "A6"]
+    )
 
     def validate(self) -> None:
         """Raises ValueError for a name that is not a plain XML name, naming it."""
@@ -92,13 +94,27 @@ class _Patterns:
 
 _PATTERNS: dict[tuple[str, str, str, str], _Patterns] = {}
 # Tag sets already validated (a driver checks its tags once, not every 4 ms cycle).
-_VALID_TAGS: set[RsiTags] = set()
+_VALID_TAGS: set[tuple] = set()  # the tags validated so far, by value
+
+
+# The tags of ROS-Industrial's defaults, the functions' default (read, never changed).
+DEFAULT_TAGS = RsiTags()
 
 
 def _checked(tags: RsiTags) -> RsiTags:
-    if tags not in _VALID_TAGS:
+    key = (
+        tags.state_root,
+        tags.state_type,
+        tags.actual_positions,
+        tags.reply_root,
+        tags.reply_type,
+        tags.corrections,
+        tags.ipoc,
+        *tags.axes,
+    )
+    if key not in _VALID_TAGS:
         tags.validate()
-        _VALID_TAGS.add(tags)
+        _VALID_TAGS.add(key)
     return tags
 
 
@@ -129,11 +145,9 @@ def _parse(packet: bytes, root: str, kind: str, element: str, tags: RsiTags) -> 
     whole = found.root.fullmatch(text)
     if whole is None:
         raise BadRsiPacket(f"RSI packet is not one <{root}> element")
-    root_attributes = dict(_ATTRIBUTE.findall(whole.group(1)))
-    if root_attributes.get("Type") != kind:
-        raise BadRsiPacket(
-            f'RSI <{root}> has Type="{root_attributes.get("Type")}"; expected Type="{kind}"'
-        )
+    # The root's Type attribute is not read: controllers and simulators write it in any case
+    # (ROS-Industrial's simulator sends TYPE="KUKA") or leave it out, and ROS-Industrial's
+    # kuka_rsi_hw_interface reads none of it; the root's name and the elements decide.
     body = whole.group(2)
     elements = found.element.findall(body)
     if len(elements) != 1:
@@ -164,18 +178,18 @@ def _parse(packet: bytes, root: str, kind: str, element: str, tags: RsiTags) -> 
     return RsiMessage(ipoc=ipoc, axes_deg=tuple(axes))
 
 
-def parse_state(packet: bytes, tags: RsiTags = RsiTags()) -> RsiMessage:
+def parse_state(packet: bytes, tags: RsiTags = DEFAULT_TAGS) -> RsiMessage:
     """The controller's cycle counter and actual axis positions (deg) in `packet`.
 
     Raises:
-        BadRsiPacket: too long, not ASCII, not one root element of the right Type, no or
+        BadRsiPacket: too long, not ASCII, not one root element of the right name, no or
             several position elements, a missing, repeated, non-numeric or non-finite axis,
             no or several counters, a counter beyond 64 bits.
     """
     return _parse(packet, tags.state_root, tags.state_type, tags.actual_positions, tags)
 
 
-def parse_reply(packet: bytes, tags: RsiTags = RsiTags()) -> RsiMessage:
+def parse_reply(packet: bytes, tags: RsiTags = DEFAULT_TAGS) -> RsiMessage:
     """The echoed cycle counter and the axis corrections (deg) of an external reply (what a
     controller, or the loopback emulator, reads). Raises BadRsiPacket as `parse_state`."""
     return _parse(packet, tags.reply_root, tags.reply_type, tags.corrections, tags)
@@ -196,7 +210,7 @@ def _format(root: str, kind: str, element: str, ipoc: int, axes_deg, tags: RsiTa
     ).encode("ascii")
 
 
-def format_reply(ipoc: int, corrections_deg, tags: RsiTags = RsiTags()) -> bytes:
+def format_reply(ipoc: int, corrections_deg, tags: RsiTags = DEFAULT_TAGS) -> bytes:
     """The external system's reply: the echoed `ipoc` and six axis corrections (deg).
 
     Raises:
@@ -206,7 +220,7 @@ def format_reply(ipoc: int, corrections_deg, tags: RsiTags = RsiTags()) -> bytes
     return _format(tags.reply_root, tags.reply_type, tags.corrections, ipoc, corrections_deg, tags)
 
 
-def format_state(ipoc: int, positions_deg, tags: RsiTags = RsiTags()) -> bytes:
+def format_state(ipoc: int, positions_deg, tags: RsiTags = DEFAULT_TAGS) -> bytes:
     """A controller's state message (what the loopback emulator sends): `ipoc` and the six
     actual axis positions (deg). Raises ValueError as `format_reply`."""
     return _format(
