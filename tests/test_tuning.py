@@ -18,6 +18,7 @@ from mca_drake.cueing import NmpcConfig, WashoutConfig
 from mca_drake.studies.tuning import (
     TuningConfig,
     config_from_parameters,
+    load_trials,
     run_tuning,
     search_space,
     starting_point,
@@ -141,3 +142,18 @@ def test_a_killed_tune_resumes_and_its_best_config_runs(tmp_path):
     assert scenario.mca.output_weights == report["best_config"]["output_weights"]
     summary = run_scenario(scenario, progress=False)
     assert summary["mca_config"]["washout_weight"] == report["best_config"]["washout_weight"]
+
+
+def test_a_resumed_tune_draws_the_trials_of_an_uninterrupted_one(tmp_path):
+    """Two trials, then a resume to three, against three in one go (one trial at a time):
+    the same parameters, trial by trial; the sampler's state is replayed, not reseeded."""
+    whole = run_tuning(TuningConfig(**TINY), tmp_path / "whole", progress=False)
+    run_tuning(TuningConfig(**{**TINY, "trials": 2}), tmp_path / "split", progress=False)
+    split = run_tuning(TuningConfig(**TINY), tmp_path / "split", resume=True, progress=False)
+    assert whole and split
+    drawn = [
+        [r["parameters"] for r in load_trials(tmp_path / name / "trials")]
+        for name in ("whole", "split")
+    ]
+    assert len(drawn[0]) == len(drawn[1]) == 3
+    assert drawn[0] == drawn[1]

@@ -267,6 +267,37 @@ def load_trials(trials_dir: Path) -> list[dict]:
     return sorted(records, key=lambda r: r.get("finished_at", 0.0))
 
 
+def replayed_sampler(seed: int, done: list[dict], space: dict):
+    """The TPE sampler of seed `seed` in the state a tune leaves it in after the trials
+    `done` (oldest first), so that a resumed tune draws what an uninterrupted one would.
+
+    The sampler's random state advances with every trial it draws: each finished trial is
+    asked again in order (the first, the starting point, enqueued as a new tune enqueues
+    it, which draws nothing) and told its score. With one trial at a time (`workers` 1) the
+    tune is then the uninterrupted one; with several, trials finish in the order the
+    machines give, and no two runs are alike anyway.
+
+    Args:
+        seed: the tune's `TuningConfig.seed`.
+        done: the finished trials' records (`load_trials`).
+        space: the Optuna distributions of the search space (as Ray's OptunaSearch has them).
+    """
+    # optuna (heavy) only where a tune runs
+    import optuna
+
+    sampler = optuna.samplers.TPESampler(seed=seed)
+    if not done:
+        return sampler
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = optuna.create_study(sampler=sampler, direction="minimize")
+    for index, record in enumerate(done):
+        if index == 0:
+            study.enqueue_trial(record["parameters"])
+        trial = study.ask(fixed_distributions=space)
+        study.tell(trial, float(record["objective"]))
+    return sampler
+
+
 def run_tuning(
     tuning: TuningConfig,
     out_dir: str | Path,
@@ -294,8 +325,7 @@ def run_tuning(
     Returns:
         The report as a dict (best config, its scores, the baseline's).
     """
-    # optuna and ray (heavy: seconds to import) only where a tune runs
-    import optuna
+    # ray (heavy: seconds to import) only where a tune runs
     from ray import tune
     from ray.tune.search import ConcurrencyLimiter
     from ray.tune.search.optuna import OptunaSearch
@@ -326,10 +356,11 @@ def run_tuning(
                 FlightSpec(vehicle=vehicle, seed=seed), tuning.duration_s, cache_dir=flights_dir
             )
         with ray_session(workers, ray_address(address)):
+            space = OptunaSearch.convert_search_space(search_space(tuning.mca))
             searcher = OptunaSearch(
                 metric="objective",
                 mode="min",
-                sampler=optuna.samplers.TPESampler(seed=tuning.seed + len(done)),
+                sampler=replayed_sampler(tuning.seed, done, space),
                 # A resume hands over every finished trial with its score; a new tune
                 # starts at the shipped defaults.
                 points_to_evaluate=[d["parameters"] for d in done] or [starting_point(tuning.mca)],
