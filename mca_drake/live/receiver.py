@@ -44,6 +44,7 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import check_config_numbers
+from mca_drake.live.endpoints import parse_endpoint
 from mca_drake.live.socket_stamps import (
     arrival_time,
     enable_drop_counter,
@@ -143,18 +144,8 @@ def allowed_senders(items: list[str]) -> list[tuple[int, int | None]]:
     """
     senders = []
     for item in items:
-        host, _, port = str(item).strip().partition(":")
-        try:
-            address = int(ipaddress.IPv4Address(host))
-            number = int(port) if port else None
-        except ValueError:
-            raise ValueError(
-                f"allowed sender {item!r} is not HOST or HOST:PORT (IPv4, e.g. 192.168.1.20 "
-                "or 127.0.0.1:5501)"
-            ) from None
-        if number is not None and not 1 <= number <= 65535:
-            raise ValueError(f"allowed sender {item!r}: port must be in [1, 65535]")
-        senders.append((address, number))
+        host, port = parse_endpoint(item, "allowed sender")
+        senders.append((int(ipaddress.IPv4Address(host)), port))
     return senders
 
 

@@ -32,7 +32,6 @@ import argparse
 import array
 import dataclasses
 import gc
-import ipaddress
 import json
 import math
 import os
@@ -48,6 +47,7 @@ import numpy as np
 from mca_drake.atomic_io import atomic_write_json, atomic_write_npz
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import check_config_numbers
+from mca_drake.live.endpoints import parse_endpoint
 from mca_drake.live.realtime import request_realtime_priority
 from mca_drake.live.rsi.motion import (
     BadSegment,
@@ -207,22 +207,12 @@ class RsiDriverConfig:
 
 
 def controller_address(text: str) -> tuple[str, int | None]:
-    """(IPv4 address, port or None) of "HOST" / "HOST:PORT".
+    """(IPv4 address, port or None) of `RsiDriverConfig.controller` ("HOST" / "HOST:PORT").
 
     Raises:
         ValueError: naming the setting, for anything else.
     """
-    host, _, port = text.strip().partition(":")
-    try:
-        address = str(ipaddress.IPv4Address(host))
-        number = int(port) if port else None
-    except ValueError:
-        raise ValueError(
-            f"RsiDriverConfig.controller {text!r} is not HOST or HOST:PORT (IPv4)"
-        ) from None
-    if number is not None and not 1 <= number <= 65535:
-        raise ValueError(f"RsiDriverConfig.controller {text!r}: port must be in [1, 65535]")
-    return address, number
+    return parse_endpoint(text, "RsiDriverConfig.controller")
 
 
 def ipoc_unit_of(rate_per_s: float, cycle_s: float) -> str | None:
