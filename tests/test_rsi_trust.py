@@ -21,12 +21,12 @@ from dataclasses import astuple
 import numpy as np
 import pytest
 from conftest import RSI_LOOP_PERIOD as H
-from conftest import mca_like_segments
+from conftest import limits_of, mca_like_segments
 from test_rsi_driver import CYCLE, feed
 
 from mca_drake.app.jobs import run_live_scenario
 from mca_drake.app.scenarios import load_scenario
-from mca_drake.live.rsi.driver import RsiDriverConfig, ipoc_unit_of
+from mca_drake.live.rsi.driver import RsiDriver, RsiDriverConfig, ipoc_unit_of
 from mca_drake.live.rsi.emulator import AxisLimits, RsiEmulator, RsiEmulatorConfig
 from mca_drake.live.rsi.link import segment_socket_pair, start_rsi_driver
 from mca_drake.live.rsi.motion import RsiMotionConfig
@@ -252,3 +252,33 @@ def test_the_driver_ends_with_its_parent_before_any_robot(tmp_path, how):
     if how == signal.SIGTERM:
         assert live.returncode == 130
         assert not list(tmp_path.glob("mca_drake_rsi_*"))
+
+
+@pytest.mark.parametrize(
+    ("lead_s", "segments_arriving", "reason"),
+    [
+        (0.6, True, "runs slower than the loop's"),
+        (-0.01, True, "runs faster than the loop's"),
+        (-0.01, False, ""),  # no segments: a stalled loop, the follower's to judge
+        (0.03, True, ""),
+    ],
+)
+def test_a_lead_out_of_its_bounds_brakes_with_that_reason(robot, lead_s, segments_arriving, reason):
+    driver = RsiDriver(
+        RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE)),
+        limits_of(robot),
+        np.zeros(6),
+        None,
+    )
+    try:
+        driver.follower.mode = "following"  # as after the loop's first segments
+        driver._segment_seen = time.perf_counter() if segments_arriving else -1e9
+        driver._check_lead(lead_s)
+        if reason:
+            # at rest already, braking ends at once
+            assert driver.follower.mode in ("braking", "stopped")
+            assert reason in driver.follower.reason
+        else:
+            assert driver.follower.mode == "following"
+    finally:
+        driver.close()
