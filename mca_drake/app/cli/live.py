@@ -6,7 +6,7 @@ import argparse
 import signal
 
 from mca_drake.app.cli.closed_loop_flags import add_mca_flags
-from mca_drake.app.cli.flags import add_config_flags
+from mca_drake.app.cli.flags import add_config_flags, given_fields
 from mca_drake.app.cli.report import hold_meshcat
 from mca_drake.app.jobs import run_live_scenario, start_meshcat
 from mca_drake.app.scenarios import LiveScenario
@@ -52,7 +52,7 @@ def _scenario_from_flags(args: argparse.Namespace) -> LiveScenario:
         **({"mca": mca_config_from_name(args.mca)} if args.mca is not None else {}),
         robot=args.robot or "",
         output_json=args.json or "",
-        **{f: getattr(args, f) for f in LIVE_FLAGS if getattr(args, f) is not None},
+        **given_fields(args, LIVE_FLAGS),
     )
     if args.demo:
         # the demo sender is JSBSim streaming FGNetFDM at its own time resolution

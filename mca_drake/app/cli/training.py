@@ -11,7 +11,13 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from mca_drake.app.cli.flags import ADDRESS_HELP, add_config_flags, add_quiet, check_outputs
+from mca_drake.app.cli.flags import (
+    ADDRESS_HELP,
+    add_config_flags,
+    add_quiet,
+    check_outputs,
+    given_fields,
+)
 from mca_drake.learning.configs import DpcTrainingConfig
 from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
 from mca_drake.studies.closed_loop_dataset import (
@@ -115,14 +121,12 @@ def run_train_policy(args: argparse.Namespace) -> int:
     from mca_drake.learning.dpc_training import train_policy
 
     base = DpcTrainingConfig.paper() if args.objective == "paper" else DpcTrainingConfig()
-    given = {f: getattr(args, f) for f in POLICY_FLAGS if getattr(args, f) is not None}
-    config = dataclasses.replace(base, **given)
+    config = dataclasses.replace(base, **given_fields(args, POLICY_FLAGS))
     if args.no_compile:
         config.compile = False
     if args.channel_weights is not None:
         config.tracking_channel_weights = channel_weights(args.channel_weights)
-    train = {f: getattr(args, f) for f in POLICY_TRAIN_FLAGS if getattr(args, f) is not None}
-    config.train = dataclasses.replace(config.train, **train)
+    config.train = dataclasses.replace(config.train, **given_fields(args, POLICY_TRAIN_FLAGS))
     _, path = train_policy(
         config,
         args.dataset,
@@ -211,8 +215,7 @@ def run_table2(args: argparse.Namespace) -> int:
 
     out = Path(args.out_dir)
     config = _table2_config(args, out)
-    given = {k: getattr(args, k) for k in ("device", "max_epochs") if getattr(args, k) is not None}
-    config.train = dataclasses.replace(config.train, **given)
+    config.train = dataclasses.replace(config.train, **given_fields(args, ("device", "max_epochs")))
     if args.only:
         wanted = set(args.only.split(","))
         config.state_models = tuple(n for n in config.state_models if f"state_{n}" in wanted)
