@@ -100,6 +100,10 @@ def performance_index(target, achieved) -> float:
 # 3.0, 3.6 and 2.6 deg/s (Reid & Nahon 1985, the values motion-cueing studies use). A false
 # rotation below them goes unnoticed; tilt coordination is rate-limited to about these.
 ROTATION_THRESHOLD_RAD_S = tuple(float(v) for v in np.radians([3.0, 3.6, 2.6]))
+# Specific-force thresholds of the otoliths along the head's x, y and z axes, m/s^2: 0.17,
+# 0.17 and 0.28 (Reid & Nahon 1985, from the same review). A specific-force error below them
+# goes unnoticed.
+SPECIFIC_FORCE_THRESHOLD_M_S2 = (0.17, 0.17, 0.28)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -20,6 +20,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "mca_drake"
 LAYERS = (
     "core",
     "references",
+    "perception",
     "cueing",
     "learning",
     "systems",

@@ -63,6 +63,11 @@ def test_simulate_command_runs_the_multibody_closed_loop(tmp_path, capsys):
     zero = [float(v) for v in rows["RMSE zero motion"]]
     assert sum(zero) == pytest.approx(summary["pi_zero_motion"], abs=4e-3)
     assert f"PI {summary['pi']:.3f}" in printed and str(out_json) in printed
+    # the perceived block beside it
+    perceived = summary["perceived"]
+    for name, key in (("perceived RMSE", "rmse"), ("perceived CC", "cc")):
+        np.testing.assert_allclose([float(v) for v in rows[name]], perceived[key], atol=6e-4)
+    assert f"perceived PI {perceived['pi']:.3f}" in printed
 
 
 def test_simulate_command_on_the_analytical_plant(tmp_path):

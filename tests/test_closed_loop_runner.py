@@ -7,7 +7,10 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 
+from mca_drake.conventions import GRAVITY
 from mca_drake.cueing import NmpcConfig, WashoutConfig
+from mca_drake.kinematics import head_pose
+from mca_drake.perception import perceive, subjective_vertical_conflict
 from mca_drake.references.recording import Recording
 from mca_drake.references.reference import Reference, reference_from_recording
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop
@@ -43,6 +46,21 @@ def test_summary_records_zero_motion_pi_and_the_config(reference):
     assert s["mca_config"]["type"] == "NmpcConfig"
     assert s["mca_config"]["washout_weight"] == 0.3
     assert s["mca_config"]["output_weights"] == NmpcConfig().output_weights
+    # the perceived block: the same figures on the vestibular model's outputs of the run's
+    # signals, the simulator's vertical specific force with gravity along the tilted head
+    perceived = s["perceived"]
+    target, achieved = perceive(r), perceive(result.outputs)
+    np.testing.assert_allclose(perceived["rmse"], np.sqrt(np.mean((achieved - target) ** 2, 0)))
+    zero = np.sqrt(np.mean(target**2, 0)).sum()
+    assert perceived["pi_zero_motion"] == pytest.approx(zero, abs=1e-12)
+    assert perceived["pi"] < perceived["pi_zero_motion"]
+    tilt = head_pose(result.states[:, :6])[:, 2, 2]
+    sickness = subjective_vertical_conflict(
+        np.column_stack([result.outputs[:, 3:5], result.outputs[:, 5] + GRAVITY * tilt]),
+        result.outputs[:, :3],
+        0.01,
+    )
+    assert perceived["sickness"]["simulator"] == pytest.approx(sickness.summary())
 
 
 def test_random_seed_reaches_the_imu_noise(reference):

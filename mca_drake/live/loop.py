@@ -532,6 +532,7 @@ def _scored_summary(
         statistics=rows("statistics"),
         wall_s=wall_s,
         robot=robot,
+        time_step=h,
     )
     return summary
 

@@ -27,8 +27,10 @@ from tqdm.auto import tqdm
 
 from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
-from mca_drake.kinematics import plant_output
+from mca_drake.kinematics import head_pose, plant_output
 from mca_drake.metrics import false_rotation, joint_range_used, joint_usage, tracking_score
+from mca_drake.perception.models import PerceptionConfig
+from mca_drake.perception.scores import perceived_run
 from mca_drake.references.reference import Reference
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop, MakeMultibodyClosedLoop
@@ -109,6 +111,8 @@ def closed_loop_summary(
     statistics: np.ndarray,
     wall_s: float,
     robot: KR500,
+    time_step: float,
+    perception: PerceptionConfig | None = None,
 ) -> tuple[dict, np.ndarray]:
     """The result summary (README, "Result summary") for n aligned samples, and the MCA step times.
 
@@ -121,6 +125,9 @@ def closed_loop_summary(
         statistics: the MCA's `statistics` log (row k published at t_k, so row n holds the
             totals after n steps), shape (n + 1 or more, 4).
         wall_s: wall time of the simulation, s.
+        time_step: the sample period of the signals, s.
+        perception: the vestibular model of the `perceived` block (default
+            PerceptionConfig()).
     """
     n = reference.shape[0]
     step_times = statistics[1 : n + 1, 0]
@@ -128,6 +135,9 @@ def closed_loop_summary(
     # Not moving at all renders y = 0 (at rest, the head is level at every home pose).
     zero_motion = tracking_score(reference, np.zeros_like(reference))
     usage = joint_usage(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], accelerations, robot)
+    # the vertical specific force needs the head's tilt: R_WH[2, 2] from the joint positions
+    head_z_up = head_pose(states[:, :NUM_JOINTS], robot)[:, 2, 2]
+    perceived = perceived_run(reference, outputs, time_step, perception, head_z_up)
     summary = {
         "mca": mca_name(config),
         "mca_config": mca_config_record(config),
@@ -140,6 +150,8 @@ def closed_loop_summary(
         "cc": score.cc.tolist(),
         # rotation felt that the vehicle did not make (metrics.false_rotation)
         "false_rotation": dataclasses.asdict(false_rotation(reference, outputs)),
+        # what the occupant perceives (vestibular models), scored the same way
+        "perceived": perceived.summary(),
         "step_time_s": step_time_summary(step_times),
         "violations": usage.violations(),
         "joint_range_used": joint_range_used(states[:, :NUM_JOINTS], robot).round(4).tolist(),
@@ -284,6 +296,7 @@ def _collect_result(
         statistics=log("statistics_log"),
         wall_s=wall_s,
         robot=robot,
+        time_step=h,
     )
     if plant == "multibody":
         summary |= _station_summary(handles, context, station, states, desired)

@@ -1,8 +1,9 @@
 """What the closed-loop commands print: a readable result table, not the summary JSON.
 
 The full summary goes to its JSON file; the terminal gets the figures an engineer reads
-first: the PI beside not moving at all, each channel's RMSE and CC, how much of each joint's
-range the run used, the MCA's step time and the real-time factor.
+first: the PI beside not moving at all, each channel's RMSE and CC, the same for the
+perceived signals (vestibular models) with the wrong cues felt and the sickness estimate, how
+much of each joint's range the run used, the MCA's step time and the real-time factor.
 """
 
 from __future__ import annotations
@@ -19,8 +20,10 @@ def format_closed_loop_report(result) -> str:
     """The result table of a closed-loop run (a `ClosedLoopResult`), as text.
 
     Rows: per output channel, the RMSE and CC of the run and the RMSE of zero motion (whose
-    CC is 0); the PI of both; the share of each joint's range swept; the step time (median,
-    p99, max, us); the real-time factor; limit violations and interventions.
+    CC is 0); the PI of both; the perceived RMSE, CC, share of time a wrong cue is felt and
+    perceived PI; the sickness model's conflict and incidence; the share of each joint's
+    range swept; the step time (median, p99, max, us); the real-time factor; limit
+    violations and interventions.
     """
     summary = result.summary
     width = 9
@@ -41,6 +44,7 @@ def format_closed_loop_report(result) -> str:
         "",
         f"PI {summary['pi']:.3f}   zero motion {summary['pi_zero_motion']:.3f}   "
         "(sum of RMSE - CC over the channels; lower is better, minimum -6)",
+        *_perceived_rows(summary.get("perceived"), row),
         "joint range used  "
         + "  ".join(f"j{i + 1} {v:.0%}" for i, v in enumerate(summary["joint_range_used"])),
         f"MCA step time     median {steps['median'] * 1e6:.1f} us, p99 {steps['p99'] * 1e6:.1f}"
@@ -52,12 +56,36 @@ def format_closed_loop_report(result) -> str:
     return "\n".join(lines)
 
 
+def _perceived_rows(perceived: dict | None, row) -> list[str]:
+    """The table's perceived block (none for a summary without one)."""
+    if not perceived:
+        return []
+    sim, ref = perceived["sickness"]["simulator"], perceived["sickness"]["reference"]
+    return [
+        "",
+        f"perceived ({perceived['model']} vestibular model)",
+        row("perceived RMSE", perceived["rmse"]),
+        row("perceived CC", perceived["cc"]),
+        row("wrong cue felt", perceived["false_cue_share"]),
+        f"perceived PI {perceived['pi']:.3f}   zero motion {perceived['pi_zero_motion']:.3f}",
+        f"sickness          conflict RMS {sim['conflict_rms_m_s2']:.3f} m/s^2 (reference "
+        f"{ref['conflict_rms_m_s2']:.3f}), incidence at the end {sim['msi_final_percent']:.2g} %"
+        f" (reference {ref['msi_final_percent']:.2g} %)",
+    ]
+
+
 def format_pi(summary: dict) -> str:
-    """One line: the PI beside zero motion's."""
-    return (
+    """One line: the PI beside zero motion's, and the perceived PI where there is one."""
+    line = (
         f"PI {summary['pi']:.3f} (zero motion {summary['pi_zero_motion']:.3f}; lower is "
         "better, minimum -6)"
     )
+    perceived = summary.get("perceived")
+    if perceived:
+        line += (
+            f"; perceived PI {perceived['pi']:.3f} (zero motion {perceived['pi_zero_motion']:.3f})"
+        )
+    return line
 
 
 def hold_meshcat(meshcat) -> None:
