@@ -122,18 +122,21 @@ def plot_loss_curves(history, title: str = ""):
     return fig
 
 
-def plot_pi_boxes(report: dict):
+def plot_pi_boxes(report: dict, key: str = "pi"):
     """PI distributions per MCA, one panel per case (the paper's Fig. 3). `report`: the
-    dictionary of `mca_drake.studies.evaluation.write_report`."""
+    dictionary of `mca_drake.studies.evaluation.write_report`; `key`: the figure per run,
+    "pi" or "perceived_pi"."""
     cases = [(name, c) for name, c in report["cases"].items() if c["mcas"]]
     if not cases:
         raise ValueError("the report has no runs to plot")
     fig, axes = plt.subplots(1, len(cases), figsize=(5 * len(cases), 4), squeeze=False)
     for ax, (name, case) in zip(axes[0], cases, strict=True):
         labels = list(case["mcas"])
-        ax.boxplot([case["mcas"][m]["pi"] for m in labels], tick_labels=labels)
+        labels = [m for m in labels if key in case["mcas"][m]]
+        ax.boxplot([case["mcas"][m][key] for m in labels], tick_labels=labels)
         ax.set_title(f"Case {name}: {case['vehicle']}")
-        ax.set_ylabel("PI (lower is better)")
+        ax.set_ylabel(f"{key.replace('_', ' ').replace('pi', 'PI')} (lower is better)")
+        ax.tick_params(axis="x", labelrotation=30)
         ax.grid(alpha=0.3, axis="y")
     fig.tight_layout()
     return fig

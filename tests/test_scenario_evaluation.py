@@ -29,6 +29,7 @@ def test_small_suite_report_and_resume(tmp_path):
     for m in case["mcas"].values():
         assert m["runs"] == 2 and m["violations"] == 0 and len(m["pi"]) == 2
     assert (tmp_path / "evaluation.png").stat().st_size > 1000
+    assert (tmp_path / "evaluation_perceived.png").stat().st_size > 1000
     assert "Case A" in (tmp_path / "evaluation.md").read_text()
     run = json.loads((tmp_path / "runs" / "A_washout_1001.json").read_text())
     assert run["mca"] == "washout" and run["seed"] == 1001
@@ -86,11 +87,21 @@ def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
         "solver_failures": 0,
     }
     pis = {"dpc": [-1.0, -1.1, -0.9], "nmpc-converged": [-1.2, -1.0, -1.1]}
+    perceived_pis = {"dpc": [-2.0, -2.3, -2.1], "nmpc-converged": [-1.9, -2.0, -1.5]}
     for mca, values in pis.items():
         config = mca_config_from_name(mca)
-        for seed, pi in zip((1000, 1001, 1002), values, strict=True):
+        for seed, pi, felt in zip((1000, 1001, 1002), values, perceived_pis[mca], strict=True):
             step = {"median": 5e-5 if mca == "dpc" else 5e-2, "max": 1e-1}
             run = {**base, "pi": pi, "step_time_s": step, "mca_config": mca_config_record(config)}
+            run["perceived"] = {
+                "pi": felt,
+                "pi_zero_motion": 1.0,
+                "false_cue_share": [0.1 * seed % 7] * 6,
+                "sickness": {
+                    "simulator": {"conflict_rms_m_s2": 0.1, "msi_final_percent": 0.5},
+                    "reference": {"conflict_rms_m_s2": 0.2, "msi_final_percent": 0.7},
+                },
+            }
             if mca == "dpc":
                 run["policy_sha256"] = policy_fingerprint(config)
             (runs / f"A_{mca}_{seed}.json").write_text(json.dumps(run))
@@ -113,8 +124,21 @@ def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
     assert paired["seeds"] == [1000, 1001, 1002] and paired["dpc_better"] == 1
     assert paired["median_difference"] == pytest.approx(0.2)
     assert paired["p"] == pytest.approx(wilcoxon(pis["dpc"], pis["nmpc-converged"]).pvalue)
+    # the same tests on the perceived PI
+    felt = test["perceived"]
+    z, p = ranksums(perceived_pis["dpc"], perceived_pis["nmpc-converged"])
+    assert felt["z"] == pytest.approx(z) and felt["p"] == pytest.approx(p)
+    assert felt["median_gap"] == pytest.approx(-2.1 - (-1.9))
+    assert felt["paired"]["dpc_better"] == 3
+    expected = wilcoxon(perceived_pis["dpc"], perceived_pis["nmpc-converged"]).pvalue
+    assert felt["paired"]["p"] == pytest.approx(expected)
+    dpc = report["cases"]["A"]["mcas"]["dpc"]
+    assert dpc["perceived_pi_median"] == pytest.approx(-2.1)
+    assert dpc["false_cue_share_median"] == pytest.approx([0.1 * 1001 % 7] * 6)
     markdown = (tmp_path / "evaluation.md").read_text()
     assert "Paired on the 3 flights both ran: DPC better on 1" in markdown
+    assert "Paired on the 3 flights both ran: DPC better on 3" in markdown
+    assert "Perceived PI: rank-sum" in markdown
     assert "Incomplete" not in markdown
     # a fourth flight that neither has run: the report says so and how to resume
     four = dataclasses.replace(

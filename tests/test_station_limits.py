@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mca_drake.cueing import NmpcConfig
 from mca_drake.metrics import joint_usage
 from mca_drake.references.adversarial import ADVERSARIAL_KINDS, adversarial_reference
 from mca_drake.safety import ViabilityClamp, substep_position_coefficient
@@ -39,7 +40,15 @@ def _assert_no_violation(result, robot) -> None:
 
 
 @pytest.mark.parametrize("kind", KINDS)
-@pytest.mark.parametrize("mca", ["dpc", "washout", "nmpc-rti"])
+@pytest.mark.parametrize(
+    "mca",
+    [
+        "dpc",
+        "washout",
+        "nmpc-rti",
+        pytest.param(NmpcConfig(objective="perceived"), id="nmpc-rti-perceived"),
+    ],
+)
 def test_station_holds_the_limits(mca, kind, robot):
     result = run_closed_loop(
         mca=mca, reference=adversarial_reference(kind), plant="multibody", progress=False
@@ -48,10 +57,11 @@ def test_station_holds_the_limits(mca, kind, robot):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("objective", ["inertial", "perceived"])
 @pytest.mark.parametrize("kind", KINDS)
-def test_station_holds_the_limits_with_converged_nmpc(kind, robot):
+def test_station_holds_the_limits_with_converged_nmpc(kind, objective, robot):
     result = run_closed_loop(
-        mca="nmpc-converged",
+        mca=NmpcConfig(mode="converged", objective=objective),
         reference=adversarial_reference(kind),
         plant="multibody",
         progress=False,

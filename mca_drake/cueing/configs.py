@@ -4,7 +4,8 @@ Every motion cueing algorithm is chosen and configured by its typed dataclass: `
 `NmpcConfig` or `WashoutConfig`. A scenario's `mca` field is their union, so YAML picks one
 by its tag and sets any of its fields (`mca: !NmpcConfig {mode: rti, washout_weight: 0.3}`).
 The names `dpc`, `nmpc-rti`, `nmpc-converged` and `washout` are shorthands for the default
-config of each (`--mca nmpc-rti`), and name an MCA in summaries and reports.
+config of each (`--mca nmpc-rti`), and name an MCA in summaries and reports; the NMPC's
+names take `-perceived` for its perceived objective (`nmpc-rti-perceived`).
 """
 
 import dataclasses
@@ -17,7 +18,14 @@ from mca_drake.cueing.washout import WashoutConfig
 # typing.Union, not `|`: Drake's YAML loader reads the members' tags from it.
 McaConfig = Union[DpcConfig, NmpcConfig, WashoutConfig]  # noqa: UP007
 MCA_CONFIG_TYPES = (DpcConfig, NmpcConfig, WashoutConfig)
-MCA_NAMES = ("dpc", "nmpc-rti", "nmpc-converged", "washout")
+MCA_NAMES = (
+    "dpc",
+    "nmpc-rti",
+    "nmpc-converged",
+    "washout",
+    "nmpc-rti-perceived",
+    "nmpc-converged-perceived",
+)
 
 
 def mca_config_from_name(name: str) -> McaConfig:
@@ -28,8 +36,9 @@ def mca_config_from_name(name: str) -> McaConfig:
     """
     if name == "dpc":
         return DpcConfig()
-    if name in ("nmpc-rti", "nmpc-converged"):
-        return NmpcConfig(mode=name.removeprefix("nmpc-"))
+    if name in MCA_NAMES and name.startswith("nmpc-"):
+        mode, _, objective = name.removeprefix("nmpc-").partition("-")
+        return NmpcConfig(mode=mode, objective=objective or "inertial")
     if name == "washout":
         return WashoutConfig()
     raise ValueError(f"unknown MCA '{name}'; valid: {', '.join(MCA_NAMES)}")
@@ -47,9 +56,10 @@ def as_mca_config(mca: McaConfig | str) -> McaConfig:
 
 def mca_name(config: McaConfig) -> str:
     """The name of the MCA that `config` configures (MCA_NAMES): "nmpc-" plus the NMPC's
-    mode, "dpc" or "washout"."""
+    mode (and "-perceived" for its perceived objective), "dpc" or "washout"."""
     if isinstance(config, NmpcConfig):
-        return f"nmpc-{config.mode}"
+        suffix = "-perceived" if config.objective == "perceived" else ""
+        return f"nmpc-{config.mode}{suffix}"
     if isinstance(config, DpcConfig):
         return "dpc"
     if isinstance(config, WashoutConfig):

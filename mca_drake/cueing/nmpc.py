@@ -16,9 +16,14 @@ first, longer later: downsampling), with u_k (6) constant over interval k of dur
                is always feasible while the exact constraint on u_0 keeps it safe.
 
 w_k = T_k / horizon, so the cost approximates the time average of the paper's loss
-(equation 9: output tracking, 0.1 u^2, washout q^2). The dynamics are linear, so the states
-are condensed out: the decision variables are U = (u_0, ..., u_(N-1)) only and every
-constraint is linear in U with a matrix fixed at build time; only the bounds move with x_0.
+(equation 9: output tracking, 0.1 u^2, washout q^2). With the perceived objective
+(`NmpcConfig.objective`), the tracking term weighs the vestibular model's outputs instead:
+the model (`mca_drake.perception`) of y - r over the grid, started from the controller's
+state of it, which turns the output cost into a constant quadratic form in the residuals
+(`MotionCueingOcp._build_perceived_objective`); the rest of the method is the same. The
+dynamics are linear, so the states are condensed out: the decision variables are
+U = (u_0, ..., u_(N-1)) only and every constraint is linear in U with a matrix fixed at
+build time; only the bounds move with x_0.
 The cost is nonlinear through y; each Gauss-Newton QP linearises y with the exact Jacobians
 of `mca_drake.kinematics`. Because the constraints are exact and linear, every QP iterate is
 feasible, and a backtracking line search on the true cost makes the `converged` mode a
@@ -75,6 +80,8 @@ from mca_drake.cueing.output_curvature import (
 )
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
+from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
+from mca_drake.perception.models import PerceptionConfig
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.safety import viable_acceleration_bounds
 
@@ -84,6 +91,7 @@ QP_SOLVERS = ("auto", "clarabel", "osqp")
 # that follows verifies the guess; OSQP's polished solutions are exact, Clarabel's to 1e-10).
 ACTIVE_ROW_TOLERANCE = 1e-6
 MODES = ("rti", "converged")
+OBJECTIVES = ("inertial", "perceived")
 
 
 @dataclasses.dataclass
@@ -117,6 +125,11 @@ class NmpcConfig:
             0.2642331791643142,
         ]
     )
+    # What the output weights weigh: "inertial" (y - r, equation 9) or "perceived" (the
+    # vestibular model's outputs of y against those of r, `mca_drake.perception`).
+    objective: str = "inertial"
+    # Vestibular model of the perceived objective: "telban-cardullo" or "ormsby".
+    perception_model: str = "telban-cardullo"
     # Weight of ||u||^2 (rad/s^2)^-2.
     input_weight: float = 0.0018886712789807029
     # Washout weight on ||q||^2.
@@ -187,6 +200,10 @@ class NmpcConfig:
         check_config_numbers(self)
         if self.mode not in MODES:
             raise ValueError(f"unknown NMPC mode '{self.mode}'; valid: {', '.join(MODES)}")
+        if self.objective not in OBJECTIVES:
+            valid = ", ".join(OBJECTIVES)
+            raise ValueError(f"unknown NMPC objective '{self.objective}'; valid: {valid}")
+        PerceptionConfig(model=self.perception_model).validate()
         if self.qp_solver not in QP_SOLVERS:
             valid = ", ".join(QP_SOLVERS)
             raise ValueError(f"unknown QP solver '{self.qp_solver}'; valid: {valid}")
@@ -303,8 +320,8 @@ class _GaussNewtonModel:
     """The Gauss-Newton model of the cost at a plan U: H (6N, 6N) and the exact gradient g
     (6N,); jac: the output Jacobians at the nodes; residual (N, 6): y - r; cost: the true
     cost at U; node_jacobian (N, 6, 18): dy/dv_k;
-    weighted_residual (N, 6): c_ka = 2 w_k W_a (y - r)_ka, the weights of the output
-    Hessians in the cost's Hessian."""
+    weighted_residual (N, 6): c_ka = d cost / d y_ka (2 w_k W_a (y - r)_ka for the inertial
+    objective), the weights of the output Hessians in the cost's Hessian."""
 
     H: np.ndarray
     g: np.ndarray
@@ -390,6 +407,12 @@ class MotionCueingOcp:
             + cfg.terminal_velocity_weight * self._Gqd[6 * N :].T @ self._Gqd[6 * N :]
         )
         self._output_weights = np.asarray(cfg.output_weights, float)
+        # The perceived objective's quadratic form in the stacked residuals (6N, 6N) and the
+        # map from the perception state to its equivalent reference shift; None: inertial.
+        self.perception_filter: DiscreteFilter | None = None
+        self._output_form = self._state_to_reference = self._condensed = None
+        if cfg.objective == "perceived":
+            self._build_perceived_objective()
 
         self._u_max = np.tile(r.qdd_max, N)
         self._condensing = NodeCondensing(Sq, Sqd)
@@ -398,6 +421,52 @@ class MotionCueingOcp:
             np.r_[np.full(6, cfg.washout_weight), np.zeros(6), np.full(6, cfg.input_weight)]
         )
         self._build_program()
+
+    def _build_perceived_objective(self) -> None:
+        """The perceived objective as a quadratic form in the residuals e_k = y_k - r_k.
+
+        The vestibular model is linear, so the perceived error (perceived y minus perceived r)
+        is the model applied to e, from the difference of the two models' states, eps. Over
+        the grid, with e_k held over interval k (the model's exact steps of T_k):
+
+            eps_(k+1) = Phi_k eps_k + Gamma_k e_k,   P_(k+1) = C eps_(k+1) + D e_k,
+
+        P_(k+1) the perceived error at the end of interval k, weighed by w_k W. Stacked,
+        P = M e + L eps_0, and the output cost is (M e + L eps_0)' diag(w W) (M e + L eps_0).
+        M is block lower-triangular with the invertible C Gamma_k + D on its diagonal, so
+        M e + L eps_0 = M (e + M^-1 L eps_0): eps_0 shifts the reference by -M^-1 L eps_0 and
+        the cost is e' S e with S = M' diag(w W) M, a constant matrix (`_output_form`).
+        """
+        cfg, N = self.config, self.N
+        f = vestibular_filter(PerceptionConfig(model=cfg.perception_model), cfg.time_step)
+        Phi, Gamma = f.steps(self.interval_steps)
+        n = f.num_states
+        M, L = np.zeros((NU * N, NU * N)), np.zeros((NU * N, n))
+        free, forced = np.eye(n), np.zeros((n, NU * N))  # eps_k = free eps_0 + forced e
+        for k in range(N):
+            free, forced = Phi[k] @ free, Phi[k] @ forced
+            forced[:, NU * k : NU * k + NU] += Gamma[k]
+            rows = slice(NU * k, NU * k + NU)  # P_(k+1)
+            M[rows] = f.C @ forced
+            M[rows, NU * k : NU * k + NU] += f.D
+            L[rows] = f.C @ free
+        weights = np.repeat(self.weights, NU) * np.tile(self._output_weights, N)
+        self.perception_filter = f
+        self._output_form = M.T @ (weights[:, None] * M)
+        self._state_to_reference = np.linalg.solve(M, L)
+
+    def perceived_references(self, refs: np.ndarray, perception_state) -> np.ndarray:
+        """The references (N, 6) that make the inertial-form cost of the perceived objective
+        start from `perception_state` (the model's state of perceived y minus perceived r,
+        shape (n,); `perception_filter`): refs - M^-1 L eps_0 (`_build_perceived_objective`).
+        """
+        eps = np.asarray(perception_state, dtype=float)
+        if eps.shape != (self.perception_filter.num_states,) or not np.all(np.isfinite(eps)):
+            raise ValueError(
+                f"perception_state must be {self.perception_filter.num_states} finite values; "
+                f"got shape {eps.shape}"
+            )
+        return refs - (self._state_to_reference @ eps).reshape(self.N, NU)
 
     def _build_program(self) -> None:
         """The sparse QP of one Gauss-Newton step, built once. Variables: u_0..u_(N-1) and
@@ -484,15 +553,16 @@ class MotionCueingOcp:
         self.qp_solver_name = auto if cfg.qp_solver == "auto" else cfg.qp_solver
         self._solver, self._options = self._make_solver(self.qp_solver_name)
 
-    def _make_solver(self, name: str):
-        """(solver, options) of one of Drake's QP solvers, with this config's settings."""
+    def _make_solver(self, name: str, clarabel_tolerance: float | None = None):
+        """(solver, options) of one of Drake's QP solvers, with this config's settings
+        (Clarabel's tolerance `clarabel_tolerance` where given)."""
         cfg = self.config
         solver = ClarabelSolver() if name == "clarabel" else OsqpSolver()
         options = SolverOptions()
         sid = solver.solver_id()
         if name == "clarabel":
             for option in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
-                options.SetOption(sid, option, cfg.clarabel_tolerance)
+                options.SetOption(sid, option, clarabel_tolerance or cfg.clarabel_tolerance)
         else:
             for option, value in (
                 ("eps_abs", cfg.osqp_tolerance),
@@ -529,12 +599,16 @@ class MotionCueingOcp:
     def _cost_of(self, q, qd, U, residual) -> float:
         """The cost from node states q, qd (N + 1, 6), U (N, 6) and y - r (N, 6)."""
         cfg = self.config
-        e = residual**2 @ self._output_weights
-        stage = e + cfg.input_weight * (U**2).sum(1) + cfg.washout_weight * (q[:-1] ** 2).sum(1)
+        stage = cfg.input_weight * (U**2).sum(1) + cfg.washout_weight * (q[:-1] ** 2).sum(1)
+        if self._output_form is None:
+            output = self.weights @ (residual**2 @ self._output_weights)
+        else:
+            e = residual.reshape(-1)
+            output = e @ self._output_form @ e
         terminal = cfg.terminal_position_weight * (q[-1] ** 2).sum() + (
             cfg.terminal_velocity_weight * (qd[-1] ** 2).sum()
         )
-        return float(self.weights @ stage + terminal)
+        return float(output + self.weights @ stage + terminal)
 
     def constraint_bounds(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Bounds lb <= A U <= ub for the current state (shape (rows,) each)."""
@@ -582,9 +656,18 @@ class MotionCueingOcp:
         # 2 w_k J_k^T W J_k and the output part of the gradient, 2 w_k J_k^T W r_k, mapped to U
         # by the condensing (the condensed 6N x 6N Jacobian is never formed: 3x faster).
         node_jacobian = node_jacobians(jac)
-        weighted = 2 * self.weights[:, None] * self._output_weights[None, :] * residual
-        WJ = (self.weights[:, None] * self._output_weights[None, :])[:, :, None] * node_jacobian
-        H = self._condensing.assemble(2 * np.swapaxes(node_jacobian, 1, 2) @ WJ) + self._H_const
+        if self._output_form is None:
+            weighted = 2 * self.weights[:, None] * self._output_weights[None, :] * residual
+            W = self.weights[:, None] * self._output_weights[None, :]
+            WJ = W[:, :, None] * node_jacobian
+            H = self._condensing.assemble(2 * np.swapaxes(node_jacobian, 1, 2) @ WJ)
+        else:
+            # perceived: the output cost e' S e couples the nodes; with the condensed
+            # Jacobian J (6N, 6N), Gauss-Newton's Hessian is 2 J' S J and dcost/dy = 2 S e
+            weighted = (2 * self._output_form @ residual.reshape(-1)).reshape(N, NU)
+            J = self._condensing.jacobian(node_jacobian)
+            H = 2 * J.T @ self._output_form @ J
+        H = H + self._H_const
         # gradient of the true cost at U (exact: Gauss-Newton changes only the Hessian)
         Uf = U.reshape(-1)
         q_nodes = q[:-1].reshape(-1)
@@ -652,6 +735,7 @@ class MotionCueingOcp:
         mode: str | None = None,
         active_guess: np.ndarray | None = None,
         output_hessians: np.ndarray | None = None,
+        perception_state: np.ndarray | None = None,
     ) -> SolveResult:
         """Solves from state x0 (12) for references refs (N, 6) (or (6,), held constant).
 
@@ -668,7 +752,17 @@ class MotionCueingOcp:
                 start's nodes, shape (N, 6, 18, 18) (the previous step's
                 `SolveResult.output_hessians` after `shift_output_hessians`); default, or
                 when they do not fit or are not finite: finite differences at the warm start.
+            perception_state: perceived objective: the vestibular model's state of the
+                perceived output minus the perceived reference so far, shape (n,)
+                (`perception_filter`; the controller carries it); default zeros (both at
+                rest). Ignored by the inertial objective.
         """
+        if self._output_form is not None:
+            refs = np.broadcast_to(np.asarray(refs, dtype=float), (self.N, NU))
+            state = perception_state
+            if state is None:
+                state = np.zeros(self.perception_filter.num_states)
+            refs = self.perceived_references(refs, state)
         # One BLAS thread: these matrices are small (6N = 120), and OpenBLAS's worker threads
         # spin; on a loaded machine they made the step's p99 four times longer.
         with self._blas.limit(limits=1, user_api="blas"):
@@ -919,11 +1013,18 @@ class MotionCueingOcp:
         if gauss_newton is not H:
             H, factor = gauss_newton, cholesky(gauss_newton)
         x0, U, refs, jac = linearisation
-        x_bar = self._update_qp(x0, U, refs, jac)
-        U_qp, message = self._solve_qp(U, x_bar)
-        if U_qp is None:
-            return None, None, False, message
-        d = (U_qp - U).reshape(-1)
+        if self._output_form is None:
+            x_bar = self._update_qp(x0, U, refs, jac)
+            U_qp, message = self._solve_qp(U, x_bar)
+            if U_qp is None:
+                return None, None, False, message
+            d = (U_qp - U).reshape(-1)
+        else:
+            # the perceived cost couples the nodes: the sparse program's stage costs cannot
+            # hold it, so Drake's solver takes the condensed QP in the step itself
+            d, message = self._solve_condensed_qp(gauss_newton, g, d_lo, d_hi)
+            if d is None:
+                return None, None, False, message
         if factor is not None:
             # the solver's active set, made exact (and given multipliers) by one KKT solve;
             # a couple of corrections at most: the solver's active set is nearly right, and
@@ -933,6 +1034,33 @@ class MotionCueingOcp:
             if solution is not None:
                 return solution.d.reshape(self.N, NU), solution, False, ""
         return d.reshape(self.N, NU), None, False, ""
+
+    def _solve_condensed_qp(self, H, g, d_lo, d_hi):
+        """min 1/2 d'Hd + g'd subject to d_lo <= C d <= d_hi by Drake's solver, on a dense
+        program built at the first call: (d (6N,) or None, message). With qp_solver "auto"
+        the solver is Clarabel in both modes: on this dense, condensed QP OSQP's answer at
+        rti's tolerance is too rough to cue with (jumps of 0.3 m/s^2 on a surge pulse)."""
+        if self._condensed is None:
+            prog = MathematicalProgram()
+            d = prog.NewContinuousVariables(NU * self.N, "d")
+            cost = prog.AddQuadraticCost(np.eye(NU * self.N), np.zeros(NU * self.N), d, True)
+            rows = prog.AddLinearConstraint(
+                self._C, np.full(self.num_rows, -np.inf), np.full(self.num_rows, np.inf), d
+            )
+            name = "clarabel" if self.config.qp_solver == "auto" else self.qp_solver_name
+            solver = self._make_solver(name, CONDENSED_CLARABEL_TOLERANCE)
+            self._condensed = (prog, d, cost.evaluator(), rows.evaluator(), solver)
+        prog, d, cost, rows, (solver, options) = self._condensed
+        cost.UpdateCoefficients(H, g, 0.0, is_convex=True)
+        rows.set_bounds(d_lo, d_hi)
+        result = solver.Solve(prog, None, options)
+        status = result.get_solution_result()
+        if not (result.is_success() or status == SolutionResult.kIterationLimit):
+            return None, str(status)
+        step = result.GetSolution(d)
+        if not np.all(np.isfinite(step)):
+            return None, "non-finite QP solution"
+        return step, ""
 
     def _on_active_set(self, H, factor, g, d_lo, d_hi, guess, corrections=None):
         """`solve_on_active_set` of this OCP's rows from `guess` (None: not settled) with
@@ -975,6 +1103,11 @@ class MotionCueingOcp:
             qd = qd + T * U[k]
         return U
 
+
+# Clarabel's tolerance on the perceived objective's dense condensed QP (the fallback of
+# `_solve_condensed_qp`): at 1e-10 it stops short on it (insufficient progress); the KKT
+# solve on its active set that follows makes a verified answer exact anyway.
+CONDENSED_CLARABEL_TOLERANCE = 1e-8
 
 # `_convex_model`'s multiples of N_A^T N_A (the guessed active rows' normals; H's entries are
 # of order 1e-2 to 1) and fractions of the residual curvature, in the order tried.

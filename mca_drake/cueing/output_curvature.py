@@ -146,6 +146,13 @@ class NodeCondensing:
         n = node_gradients.reshape(self.N, 3, NUM_JOINTS)
         return np.einsum("kbj,kbx->jx", self.coefficients, n).reshape(-1)
 
+    def jacobian(self, node_jacobian: np.ndarray) -> np.ndarray:
+        """The condensed Jacobian d y_k / d U of node Jacobians dy/dv (N, 6, 18): shape
+        (6N, 6N), rows (node, output), columns (interval, joint)."""
+        blocks = node_jacobian.reshape(self.N, NUM_OUTPUTS, 3, NUM_JOINTS)
+        J = np.einsum("kabx,kbj->kajx", blocks, self.coefficients)
+        return J.reshape(self.N * NUM_OUTPUTS, self.N * NUM_JOINTS)
+
     def assemble(self, B: np.ndarray) -> np.ndarray:
         """sum_k G_k^T B_k G_k for node matrices B (N, 18, 18): shape (6N, 6N)."""
         n, nu, c = self.N, NUM_JOINTS, self.coefficients

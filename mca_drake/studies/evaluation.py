@@ -7,11 +7,12 @@ closed loop on the analytical plant is run over each flight; per run the result 
 (README, "Result summary") is written as one JSON file, atomically. A re-run skips
 finished runs of the same MCA config, duration and policy, so a killed evaluation resumes.
 
-The report gives per case and MCA the PI distribution beside the zero-motion PI, the false
-rotation cues (`mca_drake.metrics.false_rotation`, which the PI prices cheaply), step
-times, violations and safety interventions; the Wilcoxon rank-sum test of DPC against
-every other MCA and the paired signed-rank test; the step-time ratios; a box-plot figure
-like the paper's Fig. 3; markdown and JSON.
+The report gives per case and MCA the PI distribution beside the zero-motion PI, the same
+for the perceived PI (`mca_drake.perception`) with the wrong cues felt and the sickness
+estimate, the false rotation cues (`mca_drake.metrics.false_rotation`, which the PI prices
+cheaply), step times, violations and safety interventions; the Wilcoxon rank-sum test of DPC
+against every other MCA and the paired signed-rank test, on the PI and on the perceived PI;
+the step-time ratios; box-plot figures like the paper's Fig. 3; markdown and JSON.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.parallel import run_tasks
 
 # The MCAs a suite compares by default (DPC is tested against each other one).
-DEFAULT_MCAS = ("dpc", "nmpc-converged", "nmpc-rti", "washout")
+DEFAULT_MCAS = ("dpc", "nmpc-converged", "nmpc-rti", "washout", "nmpc-rti-perceived")
 
 
 @dataclasses.dataclass
@@ -161,7 +162,8 @@ def _finished_run(
     if not isinstance(summary, dict):  # valid JSON but no summary (a list, a number): redo
         return None
     same = (
-        summary.get("mca_config") == mca_config_record(config)
+        "perceived" in summary  # every figure of the report, perceived ones included
+        and summary.get("mca_config") == mca_config_record(config)
         and summary.get("duration_s") == duration_s
         and summary.get("policy_sha256", "") == policy_fingerprint(config)
     )
@@ -264,6 +266,7 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                     np.median([r.get("false_rotation", {}).get("rms_deg_s", np.nan) for r in rs])
                 ),
                 **_channel_medians(rs),
+                **_perceived_medians(rs),
                 "step_time_median_s": float(np.median(steps)),
                 "step_time_max_s": float(max(r["step_time_s"]["max"] for r in rs)),
                 "violations": int(sum(sum(r["violations"].values()) for r in rs)),
@@ -285,12 +288,14 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                 "median_gap": m["dpc"]["pi_median"] - m[other]["pi_median"],
                 "step_time_ratio": m[other]["step_time_median_s"] / m["dpc"]["step_time_median_s"],
                 "paired": _paired_test(runs[(case.name, "dpc")], runs[(case.name, other)]),
+                "perceived": _perceived_tests(runs[(case.name, "dpc")], runs[(case.name, other)]),
             }
         report["cases"][case.name] = entry
     atomic_write_json(out / "evaluation.json", report)
     atomic_write_text(out / "evaluation.md", evaluation_markdown(report))
     if any(e["mcas"] for e in report["cases"].values()):
         save_figure(plot_pi_boxes(report), out / "evaluation.png")
+        save_figure(plot_pi_boxes(report, "perceived_pi"), out / "evaluation_perceived.png")
     return report
 
 
@@ -305,14 +310,55 @@ def _channel_medians(runs: list[dict]) -> dict:
     }
 
 
-def _paired_test(dpc: dict, other: dict) -> dict | None:
+def _perceived_medians(runs: list[dict]) -> dict:
+    """The perceived figures of the runs (`mca_drake.perception.scores`): each run's
+    perceived PI, their median and quartiles, zero motion's median, the median share of time
+    a wrong cue is felt per channel (6) and the median sickness figures of the simulator."""
+    perceived = [r["perceived"] for r in runs]
+    pis = np.array([p["pi"] for p in perceived])
+    sickness = [p["sickness"]["simulator"] for p in perceived]
+    return {
+        "perceived_pi": pis.tolist(),
+        "perceived_pi_median": float(np.median(pis)),
+        "perceived_pi_iqr": [float(np.percentile(pis, 25)), float(np.percentile(pis, 75))],
+        "perceived_pi_zero_motion_median": float(
+            np.median([p["pi_zero_motion"] for p in perceived])
+        ),
+        "false_cue_share_median": np.median(
+            [p["false_cue_share"] for p in perceived], axis=0
+        ).tolist(),
+        "conflict_rms_median_m_s2": float(np.median([s["conflict_rms_m_s2"] for s in sickness])),
+        "msi_final_median_percent": float(np.median([s["msi_final_percent"] for s in sickness])),
+    }
+
+
+def _perceived_tests(dpc: dict, other: dict) -> dict | None:
+    """DPC against another MCA on the perceived PI: the rank-sum test over their runs and the
+    signed-rank test on the flights both finished; None below two runs each.
+    `dpc`, `other`: {seed: run summary}."""
+    if min(len(dpc), len(other)) < 2:
+        return None
+    a = [r["perceived"]["pi"] for r in dpc.values()]
+    b = [r["perceived"]["pi"] for r in other.values()]
+    test = wilcoxon_rank_sum(a, b)
+    return {
+        "z": test.z,
+        "p": test.p,
+        "alpha": SIGNIFICANCE_LEVEL,
+        "significant": test.significant(SIGNIFICANCE_LEVEL),
+        "median_gap": test.median_a - test.median_b,
+        "paired": _paired_test(dpc, other, lambda r: r["perceived"]["pi"]),
+    }
+
+
+def _paired_test(dpc: dict, other: dict, score=lambda run: run["pi"]) -> dict | None:
     """Signed-rank test of DPC against another MCA on the flights both have finished (the
     same flights, so the flight-to-flight spread cancels); None below two shared flights.
-    `dpc`, `other`: {seed: run summary}."""
+    `dpc`, `other`: {seed: run summary}; `score`: the figure compared (default the PI)."""
     shared = sorted(dpc.keys() & other.keys())
     if len(shared) < 2:
         return None
-    test = wilcoxon_signed_rank([dpc[s]["pi"] for s in shared], [other[s]["pi"] for s in shared])
+    test = wilcoxon_signed_rank([score(dpc[s]) for s in shared], [score(other[s]) for s in shared])
     return {
         "seeds": shared,
         "p": test.p,
@@ -363,6 +409,39 @@ def _channel_table(mcas: dict) -> list[str]:
     return lines
 
 
+def _paired_line(paired: dict | None) -> list[str]:
+    """The report's line on a signed-rank test (`_paired_test`); none without one."""
+    if not paired:
+        return []
+    return [
+        f"Paired on the {len(paired['seeds'])} flights both ran: DPC better on "
+        f"{paired['dpc_better']}, median difference {paired['median_difference']:+.3f}, "
+        f"Wilcoxon signed-rank {format_p(paired['p'])}."
+    ]
+
+
+def _perceived_table(mcas: dict) -> list[str]:
+    """Markdown lines: per MCA, the median share of time a wrong cue is felt per channel and
+    the sickness model's median conflict and incidence; none without perceived figures."""
+    if not all("false_cue_share_median" in m for m in mcas.values()):
+        return []
+    lines = [
+        "",
+        "What the occupant perceives (vestibular model): median share of time a wrong cue is "
+        "felt per channel, median conflict RMS and incidence of the sickness model:",
+        "",
+        "| MCA | " + " | ".join(CHANNELS) + " | conflict RMS | incidence |",
+        "|---|" + "---|" * (len(CHANNELS) + 2),
+    ]
+    for mca, m in mcas.items():
+        cells = " | ".join(f"{v:.0%}" for v in m["false_cue_share_median"])
+        lines.append(
+            f"| {mca} | {cells} | {m['conflict_rms_median_m_s2']:.3f} m/s^2 | "
+            f"{m['msi_final_median_percent']:.2g} % |"
+        )
+    return lines
+
+
 def evaluation_markdown(report: dict) -> str:
     """The report as markdown tables, one per case."""
     lines = [
@@ -374,10 +453,10 @@ def evaluation_markdown(report: dict) -> str:
             f"## Case {name}: {case['vehicle']} flights, seeds "
             f"{case['seeds'][0]}-{case['seeds'][-1]}",
             "",
-            "| MCA | runs | PI median | PI IQR | zero-motion PI median | joint range used | "
-            "false rotation | step median | step max | violations | safety interventions | "
-            "solver failures |",
-            "|---|---|---|---|---|---|---|---|---|---|---|---|",
+            "| MCA | runs | PI median | PI IQR | zero-motion PI median | perceived PI median | "
+            "perceived zero-motion | joint range used | false rotation | step median | "
+            "step max | violations | safety interventions | solver failures |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         flights = len(case["seeds"])
         for mca, m in case["mcas"].items():
@@ -385,6 +464,8 @@ def evaluation_markdown(report: dict) -> str:
             lines.append(
                 f"| {mca} | {runs} | {m['pi_median']:.3f} | {m['pi_iqr'][0]:.3f} to "
                 f"{m['pi_iqr'][1]:.3f} | {m['pi_zero_motion_median']:.3f} | "
+                f"{m.get('perceived_pi_median', math.nan):.3f} | "
+                f"{m.get('perceived_pi_zero_motion_median', math.nan):.3f} | "
                 f"{m['joint_range_used_median']:.0%} | "
                 f"{m.get('false_rotation_median_deg_s', math.nan):.1f} deg/s | "
                 f"{m['step_time_median_s'] * 1e3:.3f} ms | "
@@ -392,6 +473,7 @@ def evaluation_markdown(report: dict) -> str:
                 f"{m['safety_interventions']} | {m['solver_failures']} |"
             )
         lines += _channel_table(case["mcas"])
+        lines += _perceived_table(case["mcas"])
         for key, test in case.items():
             if not key.startswith("dpc_vs_"):
                 continue
@@ -401,14 +483,15 @@ def evaluation_markdown(report: dict) -> str:
                 f"{format_p(test['p'])} ({rank_sum_verdict(test)}); median PI gap "
                 f"{test['median_gap']:+.3f}; step-time ratio {test['step_time_ratio']:.0f}x.",
             ]
-            paired = test.get("paired")
-            if paired:
-                lines.append(
-                    f"Paired on the {len(paired['seeds'])} flights both ran: DPC better on "
-                    f"{paired['dpc_better']}, median difference "
-                    f"{paired['median_difference']:+.3f}, Wilcoxon signed-rank "
-                    f"{format_p(paired['p'])}."
-                )
+            lines += _paired_line(test.get("paired"))
+            perceived = test.get("perceived")
+            if perceived:
+                lines += [
+                    f"Perceived PI: rank-sum z = {perceived['z']:.3f}, "
+                    f"{format_p(perceived['p'])} ({rank_sum_verdict(perceived)}); median gap "
+                    f"{perceived['median_gap']:+.3f}.",
+                    *_paired_line(perceived.get("paired")),
+                ]
         # every configured MCA, including one without a single finished run
         ran = {mca: m["runs"] for mca, m in case["mcas"].items()}
         missing = [mca for mca in report["mcas"] if ran.get(mca, 0) < flights]

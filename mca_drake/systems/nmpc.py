@@ -9,6 +9,7 @@ from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from mca_drake.conventions import MCA_STATISTICS
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
+from mca_drake.kinematics import plant_output
 from mca_drake.robot import KR500, NUM_JOINTS
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
@@ -33,12 +34,15 @@ class NmpcController(LeafSystem):
     from the previous active set (both kept in the context), and stores the first input u_0
     (rad/s^2, 6), which `joint_acceleration` outputs. The update runs before the plant's
     discrete update at the same instant, so the command computed from x_n is applied at t_n
-    (no extra delay). Over the horizon the
-    reference is held constant (causal, the default) or, when `reference_preview` is
-    connected, read from the preview at each grid node (clamped to the preview's end).
-    A failed solve falls back to the shifted previous plan. Whatever the plan, the command
-    passes the viability clamp of `mca_drake.safety` (the robot can always brake inside its
-    limits); failures and clamp interventions are counted and the output is never NaN.
+    (no extra delay). Over the horizon the reference is held constant (causal, the default)
+    or, when `reference_preview` is connected, read from the preview at each grid node
+    (clamped to the preview's end). With the perceived objective (`NmpcConfig.objective`),
+    the state also holds the vestibular model's state of the perceived output minus the
+    perceived reference, advanced every step with the output of the applied command against
+    the reference (the OCP starts each solve from it). A failed solve falls back to the
+    shifted previous plan. Whatever the plan, the command passes the viability clamp of
+    `mca_drake.safety` (the robot can always brake inside its limits); failures and clamp
+    interventions are counted and the output is never NaN.
 
     `statistics` (4) holds MCA_STATISTICS: the wall-clock time of the last control step (s) and
     running counts of solver failures, safety-filter interventions and QPs solved; log it to get the
@@ -84,6 +88,12 @@ class NmpcController(LeafSystem):
         if self._config.mode == "converged":
             self._hessians_shape = (self._ocp.N, 6, 3 * NUM_JOINTS, 3 * NUM_JOINTS)
             self._hessians_index = self.DeclareDiscreteState(int(np.prod(self._hessians_shape)))
+        # perceived objective: the vestibular model's state of perceived y minus perceived r
+        # (`MotionCueingOcp.perceived_references`), advanced with each applied command
+        self._perception_index = None
+        if self._ocp.perception_filter is not None:
+            size = self._ocp.perception_filter.num_states
+            self._perception_index = self.DeclareDiscreteState(size)
         self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
         DeclareMcaUpdate(self, self._config.time_step, self._update, update_event)
         self._command_port = self.DeclareStateOutputPort("joint_acceleration", self._command_index)
@@ -98,6 +108,14 @@ class NmpcController(LeafSystem):
         """The controller's `statistics` in its `context`, by name."""
         values = context.get_discrete_state(self._statistics_index).value()
         return dict(zip(MCA_STATISTICS, (float(v) for v in values), strict=True))
+
+    def perception_state(self, context: Context) -> np.ndarray | None:
+        """The perceived objective's state in `context`: the vestibular model's state of the
+        perceived output minus the perceived reference (`MotionCueingOcp.perception_filter`),
+        shape (n,); None for the inertial objective."""
+        if self._perception_index is None:
+            return None
+        return context.get_discrete_state(self._perception_index).value().copy()
 
     def _node_references(self, context: Context) -> np.ndarray:
         reference = self._reference_port.Eval(context)
@@ -128,8 +146,16 @@ class NmpcController(LeafSystem):
             stored = context.get_discrete_state(self._hessians_index).value()
             if np.any(stored):
                 hessians = self._ocp.shift_output_hessians(stored.reshape(self._hessians_shape))
+        perception = None
+        if self._perception_index is not None:
+            perception = context.get_discrete_state(self._perception_index).value()
         result = self._ocp.solve(
-            x, refs, U_guess=warm, active_guess=active, output_hessians=hessians
+            x,
+            refs,
+            U_guess=warm,
+            active_guess=active,
+            output_hessians=hessians,
+            perception_state=perception,
         )
         plan = result.U
         if not result.success:
@@ -146,6 +172,13 @@ class NmpcController(LeafSystem):
             discrete.set_value(self._active_index, result.active.astype(float))
         if self._hessians_index is not None and result.output_hessians is not None:
             discrete.set_value(self._hessians_index, result.output_hessians.reshape(-1))
+        if perception is not None:
+            # the error the occupant's model integrates over this period: the output the
+            # command makes now against the reference now
+            f = self._ocp.perception_filter
+            error = plant_output(x[:NUM_JOINTS], x[NUM_JOINTS:], command, self._ocp.robot)
+            error = error - refs[0]
+            discrete.set_value(self._perception_index, f.A @ perception + f.B @ error)
         step_time = time.perf_counter() - start
         discrete.set_value(
             self._statistics_index,
