@@ -40,6 +40,8 @@ TINY = dict(trials=3, duration_s=2.0, flights=(("light", 100),), max_false_rotat
         (dict(trials=0), "trials must be at least 1"),
         (dict(flights=()), "flights is empty"),
         (dict(max_false_rotation_deg_s=-1.0), "max_false_rotation_deg_s"),
+        (dict(score="felt"), "unknown score 'felt'"),
+        (dict(nmpc_objective="felt"), "unknown NMPC objective 'felt'"),
     ],
 )
 def test_bad_tuning_settings_are_refused(change, match):
@@ -97,6 +99,25 @@ def test_a_config_over_the_false_rotation_limit_is_infeasible(tmp_path):
         tight["pi_median"] + INFEASIBLE_PENALTY + FALSE_ROTATION_PENALTY_PER_LIMIT
     )
     assert tight["false_rotation_deg_s"] == pytest.approx(loose["false_rotation_deg_s"])
+
+
+def test_trials_can_be_scored_on_the_perceived_pi(tmp_path):
+    """score "perceived_pi": the objective is the median over the flights of the runs'
+    perceived PI (their summaries' `perceived` block), which the score reports per flight;
+    the NMPC of the trials takes the tune's objective."""
+    from mca_drake.studies.tuning import score_config
+
+    flights = (("light", 100), ("jet", 100), ("light", 101))
+    tuning = TuningConfig(
+        duration_s=3.0, flights=flights, score="perceived_pi", max_false_rotation_deg_s=0.0
+    )
+    scores = score_config(NmpcConfig(mode="rti"), tuning, tmp_path)
+    assert scores["feasible"]
+    assert scores["objective"] == pytest.approx(np.median(scores["perceived_pi"]))
+    assert scores["objective"] == scores["perceived_pi_median"] != scores["pi_median"]
+    assert len(scores["perceived_pi"]) == 3
+    config = config_from_parameters("nmpc-rti", starting_point("nmpc-rti"), "perceived")
+    assert config.objective == "perceived"
 
 
 def _trial_results(out: Path) -> list[Path]:

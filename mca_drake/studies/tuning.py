@@ -1,7 +1,8 @@
 """MCA tuning: Ray Tune with Optuna's TPE searcher over an MCA's typed config.
 
 A trial is one MCA config (`NmpcConfig` in rti mode, or `WashoutConfig`) run in closed loop
-on the analytical plant over a set of training flights; its objective is the median PI.
+on the analytical plant over a set of training flights; its objective is the median PI, or
+the median perceived PI (`TuningConfig.score`: the vestibular models of `mca_drake.perception`).
 Any limit violation or solver failure makes a trial infeasible: it then scores its median
 PI plus `INFEASIBLE_PENALTY`, so the searcher learns to avoid it. Optionally a trial whose
 99th-percentile step time exceeds a budget is infeasible too, and so is one whose false
@@ -54,6 +55,8 @@ INFEASIBLE_PENALTY = 10.0
 # flat penalty the best infeasible trials are those that bought PI with the most rotation).
 FALSE_ROTATION_PENALTY_PER_LIMIT = 2.0
 TUNABLE_MCAS = ("nmpc-rti", "washout")
+# What a trial is scored on: the median over the flights of the PI or of the perceived PI.
+SCORES = ("pi", "perceived_pi")
 CHANNELS_WEIGHTED = ("w_x", "w_y", "w_z", "f_x", "f_y", "a_z")
 
 
@@ -87,6 +90,11 @@ class TuningConfig:
     # for tilt coordination at its usual rate limits (the policy_v6 DPC and the washout:
     # 1-4 deg/s); docs/decisions/0007-nmpc-tuning-limits-false-rotation.md.
     max_false_rotation_deg_s: float = 5.0
+    # The figure a trial is scored on, median over the flights: "pi" or "perceived_pi" (the
+    # PI of the vestibular models' outputs, `mca_drake.perception`).
+    score: str = "pi"
+    # The objective of the tuned NMPC (nmpc-rti only): "inertial" or "perceived".
+    nmpc_objective: str = "inertial"
     # Seed of the TPE sampler.
     seed: int = 0
 
@@ -96,6 +104,9 @@ class TuningConfig:
         check_config_numbers(self)
         if self.mca not in TUNABLE_MCAS:
             raise ValueError(f"cannot tune '{self.mca}'; valid: {', '.join(TUNABLE_MCAS)}")
+        if self.score not in SCORES:
+            raise ValueError(f"unknown score '{self.score}'; valid: {', '.join(SCORES)}")
+        NmpcConfig(objective=self.nmpc_objective).validate()
         if self.trials < 1:
             raise ValueError(f"trials must be at least 1; got {self.trials}")
         check_range(
@@ -156,12 +167,15 @@ def search_space(mca: str) -> dict:
     raise ValueError(f"cannot tune '{mca}'; valid: {', '.join(TUNABLE_MCAS)}")
 
 
-def config_from_parameters(mca: str, parameters: dict) -> NmpcConfig | WashoutConfig:
-    """The MCA config a trial's parameters stand for (fields not tuned at their defaults)."""
+def config_from_parameters(
+    mca: str, parameters: dict, nmpc_objective: str = "inertial"
+) -> NmpcConfig | WashoutConfig:
+    """The MCA config a trial's parameters stand for (fields not tuned at their defaults;
+    an NMPC with the objective `nmpc_objective`)."""
     if mca == "nmpc-rti":
         weights = [float(parameters[f"weight_{c}"]) for c in CHANNELS_WEIGHTED]
         rest = {k: float(v) for k, v in parameters.items() if not k.startswith("weight_")}
-        return NmpcConfig(mode="rti", output_weights=weights, **rest)
+        return NmpcConfig(mode="rti", output_weights=weights, objective=nmpc_objective, **rest)
     return WashoutConfig(**{k: float(v) for k, v in parameters.items()})
 
 
@@ -189,17 +203,20 @@ def starting_point(mca: str) -> dict[str, float]:
     }
 
 
-def baseline_config(mca: str) -> NmpcConfig | WashoutConfig:
-    """What a tuned config is compared with: the paper's NMPC weights, or the washout's
-    textbook cut-offs."""
-    return NmpcConfig.paper() if mca == "nmpc-rti" else WashoutConfig.classic()
+def baseline_config(mca: str, nmpc_objective: str = "inertial") -> NmpcConfig | WashoutConfig:
+    """What a tuned config is compared with: the paper's NMPC weights (with the objective
+    `nmpc_objective`), or the washout's textbook cut-offs."""
+    if mca == "nmpc-rti":
+        return dataclasses.replace(NmpcConfig.paper(), objective=nmpc_objective)
+    return WashoutConfig.classic()
 
 
 def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
     """Runs `config` over the training flights: {"objective", "pi_median", "feasible",
-    "pi" (per flight), "pi_zero_motion" (per flight), "false_rotation_deg_s" (per flight,
-    RMS), "step_time_p99_s", "why"}."""
-    pis, zero, false, p99, why = [], [], [], 0.0, ""
+    "pi" (per flight), "pi_zero_motion" (per flight), "perceived_pi" (per flight),
+    "perceived_pi_median", "false_rotation_deg_s" (per flight, RMS), "step_time_p99_s",
+    "why"}; the objective is the median of `tuning.score`, plus the penalties."""
+    pis, zero, perceived, false, p99, why = [], [], [], [], 0.0, ""
     for vehicle, seed in tuning.flights:
         reference = flight_reference(
             FlightSpec(vehicle=vehicle, seed=seed), tuning.duration_s, cache_dir=flights_dir
@@ -210,6 +227,7 @@ def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
         s = result.summary
         pis.append(s["pi"])
         zero.append(s["pi_zero_motion"])
+        perceived.append(s["perceived"]["pi"])
         false.append(s["false_rotation"]["rms_deg_s"])
         p99 = max(p99, s["step_time_s"]["p99"])
         if sum(s["violations"].values()):
@@ -224,9 +242,12 @@ def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
         why = why or f"false rotation {np.median(false):.1f} deg/s RMS over {limit:g}"
         excess = FALSE_ROTATION_PENALTY_PER_LIMIT * (float(np.median(false)) / limit - 1.0)
     median = float(np.median(pis))
+    scored = median if tuning.score == "pi" else float(np.median(perceived))
     return {
-        "objective": median + (INFEASIBLE_PENALTY + excess if why else 0.0),
+        "objective": scored + (INFEASIBLE_PENALTY + excess if why else 0.0),
         "pi_median": median,
+        "perceived_pi": perceived,
+        "perceived_pi_median": float(np.median(perceived)),
         "feasible": not why,
         "why": why,
         "pi": pis,
@@ -236,11 +257,17 @@ def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
     }
 
 
+def _optional_float(value) -> float | None:
+    """`value` as a float, None where it is missing or NaN (JSON has no NaN)."""
+    return None if value is None or math.isnan(float(value)) else float(value)
+
+
 def _trial(parameters: dict, *, tuning: TuningConfig, flights_dir: str, trials_dir: str) -> None:
     """A Ray Tune trial: score one config, keep it as a JSON file, report its objective."""
     from ray import tune  # ray (heavy) only where a tune runs
 
-    scores = score_config(config_from_parameters(tuning.mca, parameters), tuning, flights_dir)
+    config = config_from_parameters(tuning.mca, parameters, tuning.nmpc_objective)
+    scores = score_config(config, tuning, flights_dir)
     record = {
         "parameters": {k: float(v) for k, v in parameters.items()},
         **scores,
@@ -401,6 +428,8 @@ def write_tuning_report(
         row = {"trial": r["trial"]}
         row |= {f"config/{k}": v for k, v in r["parameters"].items()}
         row |= {k: r[k] for k in ("objective", "pi_median", "feasible", "why", "step_time_p99_s")}
+        # (a trial file without the perceived measure has none)
+        row["perceived_pi_median"] = r.get("perceived_pi_median", math.nan)
         row |= {"pi": json.dumps(r["pi"]), "pi_zero_motion": json.dumps(r["pi_zero_motion"])}
         # (a trial file without the false-rotation measure has none)
         row["false_rotation_deg_s"] = json.dumps(r.get("false_rotation_deg_s", []))
@@ -415,8 +444,8 @@ def write_tuning_report(
     feasible = table[table["feasible"]].sort_values("objective")
     best_row = feasible.iloc[0]
     parameters = {c.removeprefix("config/"): float(best_row[c]) for c in parameter_columns}
-    best = config_from_parameters(tuning.mca, parameters)
-    baseline = baseline_config(tuning.mca)
+    best = config_from_parameters(tuning.mca, parameters, tuning.nmpc_objective)
+    baseline = baseline_config(tuning.mca, tuning.nmpc_objective)
     baseline_scores = score_config(baseline, tuning, out / "flights")
     best_pis = json.loads(best_row["pi"])
     zero = json.loads(best_row["pi_zero_motion"])
@@ -439,14 +468,17 @@ def write_tuning_report(
         "trials": len(table),
         "feasible_trials": int(table["feasible"].sum()),
         "best_config": mca_config_record(best),
+        "score": tuning.score,
         "best": {
             "pi_median": float(best_row["pi_median"]),
+            "perceived_pi_median": _optional_float(best_row.get("perceived_pi_median")),
             "pi": best_pis,
             "false_rotation_deg_s": json.loads(best_row["false_rotation_deg_s"]),
         },
         "baseline": {
             "config": mca_config_record(baseline),
             "pi_median": float(np.median(baseline_scores["pi"])),
+            "perceived_pi_median": baseline_scores["perceived_pi_median"],
             "pi": baseline_scores["pi"],
             "feasible": baseline_scores["feasible"],
             "false_rotation_deg_s": baseline_scores["false_rotation_deg_s"],
@@ -463,6 +495,17 @@ def write_tuning_report(
     return report
 
 
+def _perceived_line(report: dict) -> str:
+    """The report's line on the perceived PI: what the trials were scored on and the best
+    and baseline configs' median perceived PI."""
+    best, base = report["best"]["perceived_pi_median"], report["baseline"]["perceived_pi_median"]
+    scored = "the median perceived PI" if report["score"] == "perceived_pi" else "the median PI"
+    figures = ""
+    if best is not None:
+        figures = f" Median perceived PI: best {best:.3f}, baseline {base:.3f}."
+    return f"Trials scored on {scored}.{figures}"
+
+
 def _markdown(report: dict, feasible, parameter_columns) -> str:
     lines = [
         f"# Tuning of {report['mca']} ({report['trials']} trials, {report['feasible_trials']} "
@@ -473,6 +516,7 @@ def _markdown(report: dict, feasible, parameter_columns) -> str:
         f"Best median PI {report['best']['pi_median']:.3f}; baseline "
         f"{report['baseline']['pi_median']:.3f}; zero motion "
         f"{report['zero_motion']['pi_median']:.3f}.",
+        _perceived_line(report),
         "",
         f"False rotation limit (median RMS over the flights): "
         f"{report['max_false_rotation_deg_s']:g} deg/s (0: none).",

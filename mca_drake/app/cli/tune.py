@@ -16,6 +16,8 @@ TUNING_FLAGS = {
     "trials": "",
     "duration_s": "--duration",
     "max_false_rotation_deg_s": "--max-false-rotation",
+    "score": "",
+    "nmpc_objective": "",
     "seed": "",
 }
 
