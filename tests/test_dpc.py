@@ -419,6 +419,34 @@ def test_channel_weights_make_every_channel_count_alike():
             DpcTrainingConfig(tracking_channel_weights=bad).validate()
 
 
+def test_perceived_tracking_term_is_the_vestibular_model_of_the_errors():
+    """tracking_signals "perceived": the tracking term compares the vestibular model's
+    outputs, here against numpy's model of each rollout's outputs and targets from rest;
+    the config follows a perceived NMPC's objective and refuses an unknown one."""
+    from mca_drake.cueing import NmpcConfig
+    from mca_drake.learning.dpc_training import dpc_loss_terms
+    from mca_drake.learning.perception import TorchVestibularFilter
+    from mca_drake.perception import perceive
+
+    g = torch.Generator().manual_seed(3)
+    policy, T = PolicyNetwork(), 60
+    roll = type("R", (), {})()
+    roll.Y = torch.randn(3, T, 6, generator=g, dtype=torch.float64)
+    roll.U, roll.X_hat = torch.zeros(3, T, 6), torch.zeros(3, T, 12)
+    roll.X = torch.zeros(3, T + 1, 12)
+    tgt = torch.randn(3, T, 6, generator=g, dtype=torch.float64)
+    c = torch.tensor([1.0, 0.5, 2.0, 0.3, 0.5, 3.0], dtype=torch.float64)
+    got = dpc_loss_terms(roll, tgt, policy, c, perception=TorchVestibularFilter())["tracking"]
+    errors = [perceive(y) - perceive(t) for y, t in zip(roll.Y.numpy(), tgt.numpy(), strict=True)]
+    expected = np.mean([(e**2 @ c.numpy()) for e in errors])
+    assert got.item() == pytest.approx(expected, rel=1e-10)
+    matched = DpcTrainingConfig.matching(NmpcConfig(objective="perceived"))
+    assert matched.tracking_signals == "perceived"
+    assert DpcTrainingConfig().tracking_signals == NmpcConfig().objective
+    with pytest.raises(ValueError, match="tracking_signals"):
+        DpcTrainingConfig(tracking_signals="felt").validate()
+
+
 def test_training_can_start_from_a_policy_file(trained, tmp_path):
     """initial_policy: with a vanishing learning rate the result is the starting policy."""
     policy, policy_path, _ = trained

@@ -10,6 +10,8 @@ import math
 from pathlib import Path
 
 from mca_drake.cueing import NmpcConfig
+from mca_drake.cueing.nmpc import OBJECTIVES
+from mca_drake.perception.models import PerceptionConfig
 
 # Typical magnitudes of the output channels [w_x, w_y, w_z, f_x, f_y, a_z]: rad/s, m/s^2.
 # The scaled references' rates have a spread of 0.02-0.06 rad/s (the mixed-vehicle set; p99
@@ -115,6 +117,12 @@ class DpcTrainingConfig:
     # the training targets: every channel counts alike, as in the PI, whose CC term ignores
     # scale, while doing nothing costs what it costs with uniform weights).
     tracking_channel_weights: str | tuple[float, ...] = tuple(_NMPC.output_weights)
+    # What the tracking term compares: "inertial" (y with the targets) or "perceived" (the
+    # vestibular model's outputs of both, `mca_drake.perception`: the model of y - Y over
+    # each rollout, from rest at its start).
+    tracking_signals: str = _NMPC.objective
+    # Vestibular model of the perceived tracking term: "telban-cardullo" or "ormsby".
+    perception_model: str = _NMPC.perception_model
     # Weight of the state-prediction term ||x_hat_(t+1) - x_(t+1)||^2 (paper: 1).
     state_estimate_weight: float = 1.0
     # Weight of ||u_t||^2, (rad/s^2)^-2: the tuned NMPC's (paper: 0.1).
@@ -205,6 +213,8 @@ class DpcTrainingConfig:
         weights = dict(
             targets="reference",
             tracking_channel_weights=tuple(float(w) for w in nmpc.output_weights),
+            tracking_signals=nmpc.objective,
+            perception_model=nmpc.perception_model,
             input_weight=nmpc.input_weight,
             washout_weight=nmpc.washout_weight,
             terminal_position_weight=nmpc.terminal_position_weight,
@@ -240,6 +250,10 @@ class DpcTrainingConfig:
             raise ValueError(f"unknown targets '{self.targets}'; valid: {', '.join(TARGETS)}")
         if self.plant not in PLANTS:
             raise ValueError(f"unknown plant '{self.plant}'; valid: {', '.join(PLANTS)}")
+        if self.tracking_signals not in OBJECTIVES:
+            valid = ", ".join(OBJECTIVES)
+            raise ValueError(f"unknown tracking_signals '{self.tracking_signals}'; valid: {valid}")
+        PerceptionConfig(model=self.perception_model).validate()
         weights = self.tracking_channel_weights
         if isinstance(weights, str):
             if weights not in ("uniform", "normalized"):

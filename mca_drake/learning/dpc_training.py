@@ -48,6 +48,7 @@ from mca_drake.cueing.dpc import load_policy_arrays
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
 from mca_drake.learning.configs import DpcTrainingConfig
 from mca_drake.learning.output_models import MixedAnalyticalOutput
+from mca_drake.learning.perception import TorchVestibularFilter
 from mca_drake.learning.policy_network import (
     PolicyNetwork,
     load_policy_network,
@@ -57,6 +58,7 @@ from mca_drake.learning.state_models import Node2State
 from mca_drake.learning.torch_plant import TorchPlant, viable_acceleration_bounds_torch
 from mca_drake.learning.trainer import CurriculumTrainer
 from mca_drake.metrics import STILL_TOLERANCE
+from mca_drake.perception.models import PerceptionConfig
 from mca_drake.robot import KR500, MIRROR_JOINT_SIGNS, NUM_JOINTS, load_kr500
 from mca_drake.segments import SegmentDataset, long_windows, package_versions, split_of
 
@@ -180,14 +182,20 @@ def dpc_loss_terms(
     policy: PolicyNetwork,
     channel_weights: torch.Tensor | None = None,
     correlation: bool = False,
+    perception: TorchVestibularFilter | None = None,
 ) -> dict[str, torch.Tensor]:
     """The loss terms (unweighted), each averaged over segments and steps; the tracking
-    term's channels weighted by `channel_weights` (6) if given; with `correlation`, also
-    sum_k (1 - CC_k) of `pooled_correlation` (0 to 12)."""
+    term's channels weighted by `channel_weights` (6) if given; with `perception`, the
+    tracking term compares what the occupant perceives (the vestibular model of y - Y over
+    the rollout, from rest); with `correlation`, also sum_k (1 - CC_k) of
+    `pooled_correlation` (0 to 12)."""
     X_next = rollout.X[:, 1:]
     lower, upper = policy.lower[NUM_JOINTS:], policy.upper[NUM_JOINTS:]
     violation = torch.relu(X_next - upper) + torch.relu(lower - X_next)
-    squared_error = (rollout.Y - targets) ** 2
+    error = rollout.Y - targets
+    if perception is not None:
+        error = perception(error)
+    squared_error = error**2
     if channel_weights is not None:
         squared_error = squared_error * channel_weights
     terms = {
@@ -348,6 +356,10 @@ def dpc_objective(
     }
     key = target_array(config)
     cells = {}
+    perception = None
+    if config.tracking_signals == "perceived":
+        model = PerceptionConfig(model=config.perception_model)
+        perception = TorchVestibularFilter(model, CONTROL_PERIOD_S)
 
     def objective(policy: PolicyNetwork, batch: dict[str, torch.Tensor]) -> torch.Tensor:
         if id(policy) not in cells:
@@ -367,7 +379,12 @@ def dpc_objective(
         rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)])
         weights_here = None if channel_weights is None else channel_weights.to(targets)
         terms = dpc_loss_terms(
-            rollout, targets, policy, weights_here, correlation=config.correlation_weight > 0
+            rollout,
+            targets,
+            policy,
+            weights_here,
+            correlation=config.correlation_weight > 0,
+            perception=perception,
         )
         if config.terminal_weight_horizon > 0:
             scale = config.terminal_weight_horizon / targets.shape[1]

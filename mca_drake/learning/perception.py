@@ -37,6 +37,7 @@ class TorchVestibularFilter(nn.Module):
         super().__init__()
         self.discrete = discrete or vestibular_filter(config, time_step)
         self._operators: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._tensor_cache: dict[tuple, tuple[torch.Tensor, torch.Tensor]] = {}
         # a stack of single-axis filters (the vestibular model): each input drives its own
         # output only, so the convolution is per channel (p times fewer products)
         f = self.discrete
@@ -74,6 +75,17 @@ class TorchVestibularFilter(nn.Module):
             self._operators[length] = (G, free)
         return self._operators[length]
 
+    def _tensors(self, length: int, dtype, device) -> tuple[torch.Tensor, torch.Tensor]:
+        """`_operator(length)` as tensors of `dtype` on `device` (kept: a training step
+        would otherwise copy megabytes each call)."""
+        key = (length, dtype, str(device))
+        if key not in self._tensor_cache:
+            G, F = self._operator(length)
+            self._tensor_cache[key] = tuple(
+                torch.as_tensor(M, dtype=dtype, device=device) for M in (G, F)
+            )
+        return self._tensor_cache[key]
+
     def forward(self, signals: torch.Tensor, state: torch.Tensor | None = None) -> torch.Tensor:
         """Perceived signals (B, T, p) of `signals` (B, T, m) from states `state` (B, n)
         (default zeros: at rest)."""
@@ -82,12 +94,10 @@ class TorchVestibularFilter(nn.Module):
                 f"signals must have shape (B, T, {self.discrete.B.shape[1]}); "
                 f"got {tuple(signals.shape)}"
             )
-        G, F = self._operator(signals.shape[1])
-        G = torch.as_tensor(G, dtype=signals.dtype, device=signals.device)
+        G, F = self._tensors(signals.shape[1], signals.dtype, signals.device)
         pattern = "tjm,bjm->btm" if self._channelwise else "tjpm,bjm->btp"
         out = torch.einsum(pattern, G, signals)
         if state is not None:
-            F = torch.as_tensor(F, dtype=signals.dtype, device=signals.device)
             out = out + torch.einsum("tpn,bn->btp", F, state)
         return out
 

@@ -29,6 +29,8 @@ from mca_drake.studies.closed_loop_dataset import (
 # DpcTrainingConfig fields with a flag, by flag name where it differs from the field's.
 POLICY_FLAGS = {
     "targets": "",
+    "tracking_signals": "",
+    "perception_model": "",
     "plant": "",
     "learned_output_weights": "",
     "window_segments": "",
