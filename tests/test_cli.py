@@ -51,7 +51,7 @@ def test_simulate_command_runs_the_multibody_closed_loop(tmp_path, capsys):
     assert summary["plant"] == "multibody" and summary["mca"] == "dpc"
     assert summary["duration_s"] == 1.0 and summary["realtime_factor"] > 0
     assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
-    for name in ("tracking.png", "joint_usage.png"):
+    for name in ("tracking.png", "perceived.png", "joint_usage.png"):
         assert (plots / name).stat().st_size > 10_000
     # The terminal gets a result table, not the JSON; its figures are the summary's.
     printed = capsys.readouterr().out

@@ -132,8 +132,8 @@ def run_closed_loop_scenario(
         meshcat: a Meshcat to draw in (default: one is started when the scenario has a
             `visualization`).
         json_path: the result summary (default `output_dir/summary.json`; "" for none).
-        plot_dir: folder of tracking.png and joint_usage.png (default `output_dir`; "" for
-            none).
+        plot_dir: folder of tracking.png, perceived.png and joint_usage.png (default
+            `output_dir`; "" for none).
     """
     scenario.validate()
     json_path, plot_dir = closed_loop_outputs(scenario, json_path, plot_dir)

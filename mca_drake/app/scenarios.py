@@ -104,7 +104,8 @@ class ClosedLoopScenario:
     visualization: Optional[VisualizationConfig] = None  # noqa: UP045 (YAML loader)
     # Seed of the diagram's random sources (the IMU noise of `station`).
     random_seed: int = 0
-    # Folder for summary.json, tracking.png (Fig. 4) and joint_usage.png (Fig. 5).
+    # Folder for summary.json, tracking.png (Fig. 4), perceived.png and joint_usage.png
+    # (Fig. 5).
     output_dir: str = "results/closed_loop"
 
     def __post_init__(self) -> None:

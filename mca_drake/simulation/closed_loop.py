@@ -197,7 +197,8 @@ def run_closed_loop(
         random_seed: seed of the diagram's random sources (the IMU noise); None keeps Drake's
             default seeds.
         json_path: optional result summary (JSON), written atomically.
-        plot_dir: optional folder for `tracking.png` (Fig. 4) and `joint_usage.png` (Fig. 5).
+        plot_dir: optional folder for `tracking.png` (Fig. 4), `perceived.png` and
+            `joint_usage.png` (Fig. 5).
 
     Raises:
         ValueError: an unknown plant or MCA, a bad duration, or settings the plant cannot

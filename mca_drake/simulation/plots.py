@@ -1,10 +1,13 @@
-"""The plots of a closed-loop run: tracking (the paper's Fig. 4) and joint usage (Fig. 5)."""
+"""The plots of a closed-loop run: tracking (the paper's Fig. 4), the same for what the
+occupant perceives (the vestibular models) and joint usage (Fig. 5)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from mca_drake.metrics import joint_usage
+from mca_drake.perception.filters import perceive
+from mca_drake.perception.models import PerceptionConfig
 from mca_drake.plotting import plot_joint_usage, plot_tracking, save_figure
 from mca_drake.robot import KR500, NUM_JOINTS
 
@@ -22,6 +25,26 @@ def tracking_figure(result):
     return plot_tracking(result.times, result.reference, result.outputs, title)
 
 
+def perceived_figure(result):
+    """What the occupant perceives: the vestibular model's outputs of the reference against
+    those of the simulator's motion per channel, perceived RMSE and CC in the panel titles
+    and the perceived PI in the title. `result`: a ClosedLoopResult."""
+    s = result.summary
+    perceived = s["perceived"]
+    config = PerceptionConfig(model=perceived["model"])
+    step = float(result.times[1] - result.times[0])
+    title = (
+        f"{s['mca']}, perceived ({perceived['model']}): PI {perceived['pi']:.3f} "
+        f"(zero motion {perceived['pi_zero_motion']:.3f})"
+    )
+    return plot_tracking(
+        result.times,
+        perceive(result.reference, config, step),
+        perceive(result.outputs, config, step),
+        title,
+    )
+
+
 def joint_usage_figure(result, robot: KR500 | None = None):
     """Normalised joint positions, velocities and accelerations as strip charts (Fig. 5)."""
     usage = joint_usage(
@@ -32,12 +55,15 @@ def joint_usage_figure(result, robot: KR500 | None = None):
 
 def write_closed_loop_plots(
     result, folder: str | Path, robot: KR500 | None = None
-) -> tuple[Path, Path]:
-    """Writes `tracking.png` (Fig. 4) and `joint_usage.png` (Fig. 5) of a ClosedLoopResult
-    into `folder` (created if missing); returns their paths."""
+) -> tuple[Path, Path, Path]:
+    """Writes `tracking.png` (Fig. 4), `perceived.png` (the same, perceived) and
+    `joint_usage.png` (Fig. 5) of a ClosedLoopResult into `folder` (created if missing);
+    returns their paths."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    tracking, usage = folder / "tracking.png", folder / "joint_usage.png"
+    tracking, perceived = folder / "tracking.png", folder / "perceived.png"
+    usage = folder / "joint_usage.png"
     save_figure(tracking_figure(result), tracking)
+    save_figure(perceived_figure(result), perceived)
     save_figure(joint_usage_figure(result, robot), usage)
-    return tracking, usage
+    return tracking, perceived, usage

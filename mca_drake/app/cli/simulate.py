@@ -38,8 +38,8 @@ def add_parser(commands) -> None:
     parser.add_argument("--realtime", action="store_true", help="run at real-time rate 1")
     parser.add_argument(
         "--plots",
-        help="folder for tracking.png (Fig. 4) and joint_usage.png (Fig. 5) (default: the "
-        f"scenario's output_dir, {defaults.output_dir}); '' for none",
+        help="folder for tracking.png (Fig. 4), perceived.png and joint_usage.png (Fig. 5) "
+        f"(default: the scenario's output_dir, {defaults.output_dir}); '' for none",
     )
     add_quiet(parser)
     parser.set_defaults(func=run)
@@ -71,6 +71,6 @@ def run(args: argparse.Namespace) -> int:
     if summary:
         print(f"summary (the full MCA config, every figure): {summary}")
     if plots:
-        print(f"plots: {plots}/tracking.png, {plots}/joint_usage.png")
+        print(f"plots: {plots}/tracking.png, {plots}/perceived.png, {plots}/joint_usage.png")
     hold_meshcat(meshcat)
     return 0
