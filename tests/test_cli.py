@@ -158,6 +158,8 @@ def test_console_script_reports_errors_without_traceback():
         ("{plant: mujoco}", "plant must be one of analytical, multibody"),
         ("{station: {measurement_delay_s: -1}}", "measurement_delay_s"),
         ("{flight: {recording: no/such.csv}}", "not found"),
+        ("{perception: {model: young}}", "unknown vestibular model 'young'"),
+        ("{mca: !NmpcConfig {objective: felt}}", "unknown NMPC objective 'felt'"),
     ],
 )
 def test_bad_closed_loop_scenario_values_fail_clearly(override, match):
@@ -321,3 +323,23 @@ def test_train_policy_flags_reach_the_training_config(tmp_path, monkeypatch, cap
         capsys.readouterr()
         assert cli.main([*args, flag, bad]) != 0
         assert name in capsys.readouterr().err
+
+
+def test_scenario_chooses_the_perceived_objective_and_the_vestibular_model(tmp_path):
+    """A scenario's `perception` sets the summary's vestibular model and the NMPC's
+    `objective` its cost; the summary's perceived figures are those of that model."""
+    from mca_drake.app.jobs import run_closed_loop_scenario
+    from mca_drake.perception import PerceptionConfig, perceive
+
+    override = (
+        "{plant: analytical, duration_s: 3.0, perception: {model: ormsby}, "
+        "mca: !NmpcConfig {objective: perceived, perception_model: ormsby}}"
+    )
+    scenario = load_scenario(REPO / "diagrams" / "closed_loop_dpc.yaml", override)
+    result = run_closed_loop_scenario(scenario, progress=False, json_path="", plot_dir="")
+    s = result.summary
+    assert s["mca"] == "nmpc-rti-perceived" and s["mca_config"]["perception_model"] == "ormsby"
+    assert s["perceived"]["model"] == "ormsby"
+    config = PerceptionConfig(model="ormsby")
+    errors = perceive(result.outputs, config) - perceive(result.reference, config)
+    np.testing.assert_allclose(s["perceived"]["rmse"], np.sqrt(np.mean(errors**2, axis=0)))

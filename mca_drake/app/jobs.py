@@ -158,6 +158,7 @@ def run_closed_loop_scenario(
         progress=progress,
         json_path=json_path,
         plot_dir=plot_dir,
+        perception=scenario.perception,
     )
 
 

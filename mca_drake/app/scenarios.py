@@ -40,6 +40,7 @@ from mca_drake.input_checks import (
 )
 from mca_drake.live.receiver import allowed_senders
 from mca_drake.live.rsi.driver import RsiDriverConfig
+from mca_drake.perception.models import PerceptionConfig
 from mca_drake.references.flights import FlightSpec
 from mca_drake.resources import scenario_path
 from mca_drake.simulation.closed_loop import PLANTS
@@ -104,6 +105,9 @@ class ClosedLoopScenario:
     visualization: Optional[VisualizationConfig] = None  # noqa: UP045 (YAML loader)
     # Seed of the diagram's random sources (the IMU noise of `station`).
     random_seed: int = 0
+    # The vestibular model and thresholds of the summary's perceived figures
+    # (`mca_drake.perception`).
+    perception: PerceptionConfig = dataclasses.field(default_factory=PerceptionConfig)
     # Folder for summary.json, tracking.png (Fig. 4), perceived.png and joint_usage.png
     # (Fig. 5).
     output_dir: str = "results/closed_loop"
@@ -130,6 +134,7 @@ class ClosedLoopScenario:
         self.mca.validate()
         self.flight.validate()
         self.station.validate()
+        self.perception.validate()
 
 
 @dataclasses.dataclass

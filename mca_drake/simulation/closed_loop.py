@@ -178,6 +178,7 @@ def run_closed_loop(
     progress: bool = True,
     json_path: str | Path | None = None,
     plot_dir: str | Path | None = None,
+    perception: PerceptionConfig | None = None,
 ) -> ClosedLoopResult:
     """Runs the closed loop of an MCA over `reference` on the analytical or multibody plant.
 
@@ -199,6 +200,8 @@ def run_closed_loop(
         json_path: optional result summary (JSON), written atomically.
         plot_dir: optional folder for `tracking.png` (Fig. 4), `perceived.png` and
             `joint_usage.png` (Fig. 5).
+        perception: the vestibular model and thresholds of the summary's perceived figures
+            (default PerceptionConfig()).
 
     Raises:
         ValueError: an unknown plant or MCA, a bad duration, or settings the plant cannot
@@ -241,7 +244,7 @@ def run_closed_loop(
         meshcat.StopRecording()
         meshcat.PublishRecording()
     result = _collect_result(
-        handles, context, config, plant, reference, duration, wall_s, robot, station
+        handles, context, config, plant, reference, duration, wall_s, robot, station, perception
     )
     if random_seed is not None:
         result.summary["random_seed"] = int(random_seed)
@@ -264,6 +267,7 @@ def _collect_result(
     wall_s: float,
     robot: KR500,
     station: StationConfig | None,
+    perception: PerceptionConfig | None = None,
 ) -> ClosedLoopResult:
     """The aligned signals and the summary of a finished run, from the diagram's logs."""
     h = reference.time_step
@@ -298,6 +302,7 @@ def _collect_result(
         wall_s=wall_s,
         robot=robot,
         time_step=h,
+        perception=perception,
     )
     if plant == "multibody":
         summary |= _station_summary(handles, context, station, states, desired)
