@@ -85,8 +85,9 @@ class ClosedLoopScenario:
     """Closed-loop motion cueing on the KR500 (MultibodyPlant station or analytical plant)."""
 
     # The motion cueing algorithm and its settings: !DpcConfig, !NmpcConfig or
-    # !WashoutConfig (`mca_drake.cueing`), or a name (dpc, nmpc-rti, nmpc-converged,
-    # washout) for its default config.
+    # !WashoutConfig (`mca_drake.cueing`), or a name (`mca_drake.cueing.MCA_NAMES`: dpc,
+    # nmpc-rti, nmpc-converged, washout, nmpc-rti-perceived, nmpc-converged-perceived) for
+    # its default config.
     mca: McaConfig = dataclasses.field(default_factory=DpcConfig)
     # "multibody" (KR500 MultibodyPlant, inverse dynamics, head IMU) or "analytical".
     plant: str = "multibody"

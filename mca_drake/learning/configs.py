@@ -157,6 +157,7 @@ class DpcTrainingConfig:
     # rollouts' losses drown the tracking of small signals
     # (docs/decisions/0009-training-windows-near-neutral.md).
     perturbed_fraction: float = 0.0
+    # Noise of the perturbed starts (`perturbed_fraction`), in joint half-ranges.
     initial_state_noise: float = 0.1
     # Fraction of each training batch whose rollouts fly their window's mirror image (left
     # and right swapped: `conventions.MIRROR_CHANNEL_SIGNS`, `robot.MIRROR_JOINT_SIGNS`).
@@ -174,6 +175,7 @@ class DpcTrainingConfig:
     # policy chases a sustained pull or turn into the joint limits, which no 10.24 s rollout
     # of the flown targets shows (docs/decisions/0002-time-stretched-windows.md).
     time_stretch_fraction: float = 0.5
+    # Largest slow-down factor of the stretched windows (`time_stretch_fraction`).
     time_stretch_max: float = 3.0
     # Weight of the correlation term: sum over the six channels of 1 - CC_k, with CC_k the
     # Pearson correlation of the rollouts' outputs with their targets, each window centred

@@ -184,7 +184,7 @@ def run_closed_loop(
 
     Args:
         mca: an MCA config (`mca_drake.cueing`: DpcConfig, NmpcConfig, WashoutConfig) or the
-            name of a default one ("dpc", "nmpc-rti", "nmpc-converged", "washout").
+            name of a default one (`mca_drake.cueing.MCA_NAMES`).
         reference: the target outputs; its time step is the control period.
         plant: "analytical" (the paper's joint-space plant) or "multibody" (the KR500
             station).
