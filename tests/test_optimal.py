@@ -1,0 +1,65 @@
+"""The offline-optimal bound: it reaches the optimum an independent solver finds, holds the
+limits, never costs more than the causal trajectory it starts from, and refuses bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.optimize
+
+from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing
+from mca_drake.references.reference import Reference
+from mca_drake.simulation.closed_loop import run_closed_loop
+
+
+def _reference(T: int, seed: int = 0) -> np.ndarray:
+    t = np.arange(T) * 0.01
+    rng = np.random.default_rng(seed)
+    return 0.8 * np.sin(np.outer(t, rng.uniform(1.0, 6.0, 6)) + rng.uniform(0, 3, 6))
+
+
+def test_a_short_bound_is_the_optimum_scipy_finds(robot):
+    T = 6
+    reference = _reference(T)
+    ocp = OptimalCueing(T, OptimalConfig(kkt_tolerance=1e-9), robot)
+    ours = ocp.solve(reference)
+    u_max = np.tile(robot.qdd_max, T)
+    theirs = scipy.optimize.minimize(
+        lambda u: ocp.cost(np.zeros(12), u.reshape(T, 6), reference),
+        np.zeros(6 * T),
+        method="SLSQP",
+        bounds=list(zip(-u_max, u_max, strict=True)),
+        options={"ftol": 1e-15, "maxiter": 2000},
+    )
+    assert theirs.success, theirs.message
+    assert ours.converged and ours.kkt_residual <= 1e-9
+    assert ours.cost == pytest.approx(theirs.fun, rel=1e-6)
+
+
+def test_the_bound_holds_the_limits_and_improves_on_its_causal_start(robot):
+    T = 300
+    y = _reference(T, seed=3) * [1, 1, 1, 4, 4, 4]  # beyond what the robot can render
+    reference = Reference(y, 0.01, "sines")
+    causal = run_closed_loop(mca="nmpc-rti", reference=reference, progress=False)
+    ocp = OptimalCueing(T, OptimalConfig(max_iterations=15), robot)
+    start = causal.commands[:T]
+    start_cost = ocp.cost(np.zeros(12), start, y)
+    bound = ocp.solve(y, U_start=start)
+    assert bound.cost <= start_cost
+    assert all(b <= a for a, b in zip(bound.costs, bound.costs[1:], strict=False))
+    q, qd = bound.states[:, :6], bound.states[:, 6:]
+    assert np.all(q <= robot.q_max + 1e-9) and np.all(q >= robot.q_min - 1e-9)
+    assert np.all(np.abs(qd) <= robot.qd_max + 1e-9)
+    assert np.all(np.abs(bound.U) <= robot.qdd_max + 1e-9)
+
+
+def test_bad_input_is_refused(robot):
+    ocp = OptimalCueing(5, robot=robot)
+    with pytest.raises(ValueError, match="reference must have shape"):
+        ocp.solve(np.zeros((4, 6)))
+    with pytest.raises(ValueError, match="non-finite"):
+        ocp.solve(np.full((5, 6), np.nan))
+    with pytest.raises(ValueError, match="U_start leaves the robot's limits"):
+        ocp.solve(np.zeros((5, 6)), U_start=np.full((5, 6), 1e3))
+    with pytest.raises(ValueError, match="output_weights"):
+        OptimalConfig(output_weights=[1.0] * 5).validate()
