@@ -343,3 +343,14 @@ def test_scenario_chooses_the_perceived_objective_and_the_vestibular_model(tmp_p
     config = PerceptionConfig(model="ormsby")
     errors = perceive(result.outputs, config) - perceive(result.reference, config)
     np.testing.assert_allclose(s["perceived"]["rmse"], np.sqrt(np.mean(errors**2, axis=0)))
+
+
+def test_optimal_command_prints_the_bound_and_writes_its_summary(tmp_path, capsys):
+    out_json = tmp_path / "bound.json"
+    args = ["optimal", "--duration", "1", "--max-iterations", "3", "--json", str(out_json)]
+    assert cli.main([*args, "--quiet"]) == 0
+    summary = json.loads(out_json.read_text())
+    assert summary["mca"] == "optimal" and summary["solver"]["iterations"] <= 3
+    assert summary["step_time_s"] is None and summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    printed = capsys.readouterr().out
+    assert f"PI {summary['pi']:.3f}" in printed and "Gauss-Newton iterations" in printed

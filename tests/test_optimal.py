@@ -63,3 +63,33 @@ def test_bad_input_is_refused(robot):
         ocp.solve(np.zeros((5, 6)), U_start=np.full((5, 6), 1e3))
     with pytest.raises(ValueError, match="output_weights"):
         OptimalConfig(output_weights=[1.0] * 5).validate()
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_bound_costs_no_more_than_any_causal_mca_on_a_flight(seed, robot):
+    """Over several flights: the bound, started from the cheapest of the causal MCAs'
+    closed-loop trajectories, tracks at a cost no causal MCA beats, within every limit; its
+    summary is a closed-loop summary with `mca: optimal` and the solver's figures."""
+    from mca_drake.cueing.optimal import OptimalCueing
+    from mca_drake.simulation.optimal_bound import run_optimal_bound
+
+    y = _reference(151, seed) * [0.3, 0.3, 0.3, 2.0, 2.0, 2.0]
+    reference = Reference(y, 0.01, f"sines {seed}")
+    mcas = ("dpc", "nmpc-rti", "washout")
+    result = run_optimal_bound(
+        reference=reference,
+        config=OptimalConfig(max_iterations=10),
+        starts=mcas,
+        progress=False,
+    )
+    s = result.summary
+    assert s["mca"] == "optimal" and s["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    ocp = OptimalCueing(y.shape[0], robot=robot)
+    for mca in mcas:
+        causal = run_closed_loop(mca=mca, reference=reference, progress=False)
+        causal_cost = ocp.cost(np.zeros(12), causal.commands[: y.shape[0]], y)
+        assert s["solver"]["cost"] <= causal_cost + 1e-12, mca
+        assert s["solver"]["start_costs"][mca] == pytest.approx(causal_cost)
+    # the summary's outputs are the plant's for the bound's inputs: its cost recomputed
+    assert ocp.cost(np.zeros(12), result.commands, y) == pytest.approx(s["solver"]["cost"])
+    assert s["pi"] < s["pi_zero_motion"] and "perceived" in s

@@ -20,7 +20,17 @@ import sys
 import numpy as np
 
 from mca_drake import __version__
-from mca_drake.app.cli import dataset, evaluate, live, recordings, run, simulate, training, tune
+from mca_drake.app.cli import (
+    dataset,
+    evaluate,
+    live,
+    optimal,
+    recordings,
+    run,
+    simulate,
+    training,
+    tune,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -38,6 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     recordings.add_parsers(commands)
     dataset.add_parser(commands)
     evaluate.add_parser(commands)
+    optimal.add_parser(commands)
     tune.add_parser(commands)
     live.add_parser(commands)
     training.add_parsers(commands)

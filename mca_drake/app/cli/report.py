@@ -32,7 +32,6 @@ def format_closed_loop_report(result) -> str:
     def row(name: str, values) -> str:
         return f"{name:<18}" + "".join(f"{v:>{width}.3f}" for v in values)
 
-    steps = summary["step_time_s"]
     lines = [
         f"{summary['mca']} on the {summary['plant']} plant, {summary['reference']}, "
         f"{summary['duration_s']:g} s",
@@ -47,13 +46,29 @@ def format_closed_loop_report(result) -> str:
         *_perceived_rows(summary.get("perceived"), row),
         "joint range used  "
         + "  ".join(f"j{i + 1} {v:.0%}" for i, v in enumerate(summary["joint_range_used"])),
-        f"MCA step time     median {steps['median'] * 1e6:.1f} us, p99 {steps['p99'] * 1e6:.1f}"
-        f" us, max {steps['max'] * 1e6:.1f} us; real-time factor "
-        f"{summary['realtime_factor']:.1f}",
+        _timing_row(summary),
         f"limits            violations {summary['violations']}, safety interventions "
         f"{summary['safety_interventions']}, solver failures {summary['solver_failures']}",
     ]
     return "\n".join(lines)
+
+
+def _timing_row(summary: dict) -> str:
+    """The MCA's step times and the real-time factor; for an offline solve (no control
+    steps: the optimal bound) its solver's figures instead."""
+    steps = summary["step_time_s"]
+    if steps is None:
+        solver = summary["solver"]
+        return (
+            f"solver            {solver['iterations']} Gauss-Newton iterations, KKT residual "
+            f"{solver['kkt_residual']:.1e}, {solver['solve_time_s']:.1f} s, started from "
+            f"{solver['start']}"
+        )
+    return (
+        f"MCA step time     median {steps['median'] * 1e6:.1f} us, p99 {steps['p99'] * 1e6:.1f}"
+        f" us, max {steps['max'] * 1e6:.1f} us; real-time factor "
+        f"{summary['realtime_factor']:.1f}"
+    )
 
 
 def _perceived_rows(perceived: dict | None, row) -> list[str]:
