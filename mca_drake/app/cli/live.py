@@ -7,7 +7,7 @@ import signal
 
 from mca_drake.app.cli.closed_loop_flags import add_mca_flags
 from mca_drake.app.cli.flags import add_config_flags, given_fields
-from mca_drake.app.cli.report import hold_meshcat
+from mca_drake.app.cli.report import format_pi, hold_meshcat
 from mca_drake.app.jobs import run_live_scenario, start_meshcat
 from mca_drake.app.scenarios import LiveScenario
 from mca_drake.cueing import mca_config_from_name
@@ -89,8 +89,8 @@ def format_live_report(summary: dict) -> str:
         f"order, {live['time_jumps']} ahead of the clock, {live['restarts']} clock restarts), "
         f"{live['stale_events']} stale events; "
         f"latency {_ms(live['latency_s'])} (of which waiting for the poll "
-        f"{_ms(live['wait_s'])}); health {live['health']}; PI {summary['pi']:.3f} "
-        f"(zero motion {summary['pi_zero_motion']:.3f}); violations {summary['violations']}"
+        f"{_ms(live['wait_s'])}); health {live['health']}; {format_pi(summary)}; "
+        f"violations {summary['violations']}"
     ]
     if "rsi" in summary:
         r = summary["rsi"]
