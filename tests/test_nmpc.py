@@ -293,3 +293,57 @@ def test_damping_restarts_from_the_last_that_was_in_use():
     assert mu == pytest.approx(DAMPING_GROWTH * used[-1]) and mu < DAMPING_START
     # a rejection while damped grows it, at least to DAMPING_START
     assert _next_damping(mu, False, shed)[0] == max(DAMPING_GROWTH * mu, DAMPING_START)
+
+
+def _surge_step() -> Reference:
+    """A 1 m/s^2 surge step at 1.5 s, nothing else."""
+    t = np.arange(301) * 0.01
+    y = np.zeros((t.size, 6))
+    y[t >= 1.5, 3] = 1.0
+    return Reference(y, 0.01, "surge step")
+
+
+def test_preview_lets_the_nmpc_anticipate_what_the_causal_one_cannot_know():
+    """With a preview the NMPC reads the known future at its nodes and moves before a step;
+    causal, it holds the present reference and stays still until the step comes."""
+    reference = _surge_step()
+    causal = run_closed_loop(mca=NmpcConfig(), reference=reference, progress=False)
+    preview = run_closed_loop(
+        mca=NmpcConfig(preview_steps=256), reference=reference, progress=False
+    )
+    before = causal.times < 1.5
+    assert np.max(np.abs(causal.states[before])) < 1e-12
+    assert np.max(np.abs(preview.states[before, 6:])) > 1e-3
+    assert preview.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    # knowing the step, it renders it better
+    assert preview.summary["rmse"][3] < causal.summary["rmse"][3]
+
+
+def test_the_preview_reaches_the_nodes_as_the_ocp_reads_it(robot):
+    """The controller's first command from rest is the OCP's own solve for the reference
+    samples at the grid's node times."""
+    from mca_drake.systems.nmpc import NmpcController
+
+    config = NmpcConfig(preview_steps=100)
+    controller = NmpcController(config, robot)
+    context = controller.CreateDefaultContext()
+    future = _surge_step().y[:100]
+    controller.GetInputPort("state").FixValue(context, np.zeros(12))
+    controller.GetInputPort("reference").FixValue(context, future[0])
+    controller.GetInputPort("reference_preview").FixValue(context, future.reshape(-1))
+    updated = context.Clone()
+    controller.CalcForcedUnrestrictedUpdate(context, updated.get_mutable_state())
+    command = controller.GetOutputPort("joint_acceleration").Eval(updated)
+    ocp = controller.ocp
+    rows = np.minimum(ocp.node_steps[:-1], 99)
+    expected = ocp.solve(np.zeros(12), future[rows]).U[0]
+    np.testing.assert_allclose(command, expected, atol=1e-9)
+
+
+def test_preview_longer_than_the_horizon_and_live_preview_are_refused():
+    with pytest.raises(ValueError, match="preview_steps"):
+        NmpcConfig(preview_steps=300).validate()
+    from mca_drake.app.scenarios import LiveScenario
+
+    with pytest.raises(ValueError, match="no future"):
+        LiveScenario(mca=NmpcConfig(preview_steps=10)).validate()

@@ -236,3 +236,19 @@ def test_a_run_file_that_is_not_an_object_is_run_again(tmp_path, text):
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
     assert _finished_run(tmp_path, "A", WashoutConfig(), 1000, 5.0) is None
+
+
+def test_a_run_older_than_a_config_field_matches_that_fields_default():
+    """A run file whose record lacks a field (made before it existed) counts as made with
+    its default: it is reused for a config at the default, run again for any other value;
+    a record with a field the config no longer has is another config."""
+    from mca_drake.studies.evaluation import same_config
+
+    config = NmpcConfig(mode="rti")
+    older = mca_config_record(config)
+    del older["preview_steps"]
+    assert same_config(older, config)
+    assert not same_config(older, NmpcConfig(mode="rti", preview_steps=10))
+    assert not same_config({**older, "horizon_seconds": 2.56}, config)
+    assert not same_config(older, NmpcConfig(mode="converged"))
+    assert not same_config(None, config)

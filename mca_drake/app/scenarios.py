@@ -326,6 +326,8 @@ class LiveScenario:
             )
         if self.robot and self.plant != "analytical":
             raise ValueError("a robot over RSI follows the analytical plant: plant analytical")
+        if getattr(self.mca, "preview_steps", 0):
+            raise ValueError("live telemetry has no future: the NMPC's preview_steps must be 0")
         self.mca.validate()
 
 

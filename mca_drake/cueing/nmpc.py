@@ -106,6 +106,11 @@ class NmpcConfig:
     horizon_steps: int = 256
     # Number of intervals of the non-uniform grid over the horizon.
     nodes: int = 20
+    # Reference preview in control periods: 0 (causal, the default) holds the current
+    # reference over the horizon; N > 0 reads the next N samples of a known future (a planned
+    # manoeuvre, a recorded flight) at the grid's nodes, the last held beyond them. Offline
+    # only: live telemetry has no future.
+    preview_steps: int = 0
     # The weights below are tuned (the paper's are `NmpcConfig.paper()`):
     #   mca-drake tune --mca nmpc-rti --trials 30 --duration 120 --workers 2 --budget-ms 10
     #       --vehicles light,jet --seeds 100,101,102 --seed 3
@@ -211,6 +216,11 @@ class NmpcConfig:
             raise ValueError("osqp_max_iterations and stoppability_tangents must be >= 0")
         if self.active_set_corrections is not None and self.active_set_corrections < 0:
             raise ValueError("active_set_corrections must be >= 0 (or None: by mode)")
+        if not 0 <= self.preview_steps <= self.horizon_steps:
+            raise ValueError(
+                f"preview_steps must be in [0, horizon_steps = {self.horizon_steps}]; got "
+                f"{self.preview_steps}"
+            )
         if self.horizon_steps < 1 or self.max_iterations < 1:
             raise ValueError("horizon_steps and max_iterations must be at least 1")
         tolerances = (

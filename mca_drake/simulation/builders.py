@@ -118,9 +118,17 @@ def AddMca(
 def _add_source_and_mca(builder, reference, mca, robot):
     """ReferenceSource and the MCA, wired together; returns (source, mca, initial_state):
     the robot starts at rest at the MCA's home pose (q = 0 unless the MCA has one)."""
-    source = builder.AddNamedSystem("reference_source", ReferenceSource(reference))
-    controller = AddMca(builder, mca, robot, reference.time_step)
+    config = as_mca_config(mca)
+    preview = config.preview_steps if isinstance(config, NmpcConfig) else 0
+    source = builder.AddNamedSystem(
+        "reference_source", ReferenceSource(reference, preview_samples=max(preview, 1))
+    )
+    controller = AddMca(builder, config, robot, reference.time_step)
     builder.Connect(source.GetOutputPort("reference"), controller.GetInputPort("reference"))
+    if preview:  # a known future: the NMPC reads it at its grid's nodes
+        builder.Connect(
+            source.GetOutputPort("reference_preview"), controller.GetInputPort("reference_preview")
+        )
     home = getattr(controller, "home_position", np.zeros(len(robot.joint_names)))
     return source, controller, np.concatenate([home, np.zeros_like(home)])
 

@@ -163,11 +163,27 @@ def _finished_run(
         return None
     same = (
         "perceived" in summary  # every figure of the report, perceived ones included
-        and summary.get("mca_config") == mca_config_record(config)
+        and same_config(summary.get("mca_config"), config)
         and summary.get("duration_s") == duration_s
         and summary.get("policy_sha256", "") == policy_fingerprint(config)
     )
     return summary if same else None
+
+
+def same_config(recorded, config: McaConfig) -> bool:
+    """Whether a run file's `mca_config` record is that of `config`. A field the record
+    lacks (the run is older than the field) counts as the field's default: the run was made
+    with the behaviour the default stands for, so a config at that default matches it."""
+    if not isinstance(recorded, dict):
+        return False
+    current = mca_config_record(config)
+    defaults = mca_config_record(type(config)())
+    missing = current.keys() - recorded.keys()
+    if recorded.keys() - current.keys():
+        return False  # a field this code no longer has: another config
+    return all(recorded[k] == current[k] for k in recorded) and all(
+        current[k] == defaults[k] for k in missing
+    )
 
 
 def _run_one(

@@ -53,7 +53,7 @@ class NmpcController(LeafSystem):
         config: NMPC settings (mode "rti" or "converged", horizon, weights, QP solver).
         robot: the KR500 description.
         preview_samples: length N of the `reference_preview` port (6 N values, sample after
-            sample); 0 declares no preview port.
+            sample); 0 declares no preview port; default `config.preview_steps`.
         update_event: the phase of t_k the step runs in (`mca_update.MCA_UPDATE_EVENTS`):
             "unrestricted" offline, "discrete" in the live loop (after its telemetry poll).
     """
@@ -62,13 +62,15 @@ class NmpcController(LeafSystem):
         self,
         config: NmpcConfig | None = None,
         robot: KR500 | None = None,
-        preview_samples: int = 0,
+        preview_samples: int | None = None,
         update_event: str = "unrestricted",
     ):
         super().__init__()
         self._ocp = MotionCueingOcp(config, robot)
         self._clamp = ViabilityClamp.for_robot(self._ocp.robot, self._ocp.config.time_step)
         self._config = self._ocp.config
+        if preview_samples is None:
+            preview_samples = self._config.preview_steps
         self._preview_samples = int(preview_samples)
         self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
         self._reference_port = self.DeclareVectorInputPort("reference", 6)
