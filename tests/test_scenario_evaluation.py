@@ -252,3 +252,36 @@ def test_a_run_older_than_a_config_field_matches_that_fields_default():
     assert not same_config({**older, "horizon_seconds": 2.56}, config)
     assert not same_config(older, NmpcConfig(mode="converged"))
     assert not same_config(None, config)
+
+
+def test_the_suite_reports_the_bound_and_each_mcas_share(tmp_path):
+    """With a bound, each flight's offline-optimal bound is solved, cached like the runs
+    (a resumed suite reuses it), and every MCA's share of the achievable improvement is
+    (PI_zero - PI) / (PI_zero - PI_bound) on its flights."""
+    from mca_drake.cueing.optimal import OptimalConfig
+
+    config = EvaluationConfig(
+        mcas=("nmpc-rti", "washout"),
+        cases=(EvaluationCase("A", "light", (1000, 1001)),),
+        duration_s=1.0,
+        bound=OptimalConfig(max_iterations=4),
+    )
+    report = run_evaluation(config, tmp_path, progress=False)
+    case = report["cases"]["A"]
+    bound = case["bound"]
+    assert bound["runs"] == 2 and len(bound["pi"]) == 2
+    for mca in ("nmpc-rti", "washout"):
+        runs = {
+            seed: json.loads((tmp_path / "runs" / f"A_{mca}_{seed}.json").read_text())
+            for seed in (1000, 1001)
+        }
+        expected = [
+            (runs[s]["pi_zero_motion"] - runs[s]["pi"]) / (runs[s]["pi_zero_motion"] - b)
+            for s, b in zip((1000, 1001), bound["pi"], strict=True)
+        ]
+        assert case["shares"][mca]["share"] == pytest.approx(expected)
+    assert "Offline-optimal bound" in (tmp_path / "evaluation.md").read_text()
+    path = tmp_path / "runs" / "A_optimal_1000.json"
+    stamp = path.stat().st_mtime_ns
+    run_evaluation(config, tmp_path, progress=False)  # resumed: nothing solved again
+    assert path.stat().st_mtime_ns == stamp

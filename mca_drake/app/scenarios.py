@@ -30,6 +30,7 @@ from mca_drake.cueing import (
     as_mca_config,
     mca_config_from_name,
 )
+from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.input_checks import (
     MAX_DURATION_S,
     MAX_YAML_BYTES,
@@ -170,6 +171,9 @@ class EvaluationScenario:
     address: str = ""
     # Folder of the per-run JSON files (resumable), evaluation.md/json and the box plot.
     output_dir: str = "results/evaluation"
+    # Each flight's offline-optimal bound too, with these settings, and every MCA's share
+    # of the achievable improvement; null: no bound.
+    bound: Optional[OptimalConfig] = None  # noqa: UP045 (YAML loader)
 
     def __post_init__(self) -> None:
         self.mcas = [as_mca_config(m) for m in self.mcas]
@@ -202,7 +206,7 @@ class EvaluationScenario:
                 )
             )
         return EvaluationConfig(
-            mcas=tuple(self.mcas), cases=tuple(cases), duration_s=self.duration_s
+            mcas=tuple(self.mcas), cases=tuple(cases), duration_s=self.duration_s, bound=self.bound
         )
 
 

@@ -39,12 +39,14 @@ from mca_drake.cueing import (
     mca_config_record,
     mca_name,
 )
+from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.input_checks import MAX_DURATION_S, check_range
 from mca_drake.metrics import wilcoxon_rank_sum, wilcoxon_signed_rank
 from mca_drake.plotting import plot_pi_boxes, save_figure
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.references.jsbsim import UNSEEN_VEHICLES, check_vehicle
 from mca_drake.simulation.closed_loop import run_closed_loop
+from mca_drake.simulation.optimal_bound import run_optimal_bound
 from mca_drake.studies.parallel import run_tasks
 
 # The MCAs a suite compares by default (DPC is tested against each other one).
@@ -76,6 +78,8 @@ class EvaluationCase:
         return ", ".join(self.vehicles) if self.vehicles else self.vehicle
 
 
+# The name of the bound's run files and report entries.
+BOUND = "optimal"
 # Level of the report's rank-sum tests (the paper's).
 SIGNIFICANCE_LEVEL = 0.05
 
@@ -103,6 +107,10 @@ class EvaluationConfig:
     cases: tuple[EvaluationCase, ...] = dataclasses.field(default_factory=default_cases)
     # Simulated seconds per flight.
     duration_s: float = 300.0
+    # The offline-optimal bound's settings: each flight's bound is solved too
+    # (`mca_drake.simulation.optimal_bound`) and every MCA's share of the achievable
+    # improvement reported; None: no bound.
+    bound: OptimalConfig | None = None
 
     def __post_init__(self) -> None:
         self.mcas = tuple(as_mca_config(m) for m in self.mcas)
@@ -127,6 +135,8 @@ class EvaluationConfig:
                 raise ValueError(f"case {case.name}: a flight seed repeats")
             for vehicle in case.vehicles or (case.vehicle,):
                 check_vehicle(vehicle)
+        if self.bound is not None:
+            self.bound.validate()
         names = self.names()
         if len(set(names)) != len(names):
             raise ValueError(f"two MCAs share a name in {names}; compare distinct MCAs")
@@ -140,7 +150,7 @@ def _run_path(out: Path, case: str, mca: str, seed: int) -> Path:
     return out / "runs" / f"{case}_{mca}_{seed}.json"
 
 
-def policy_fingerprint(config: McaConfig) -> str:
+def policy_fingerprint(config) -> str:
     """SHA-256 of a DpcConfig's policy file (recorded in every DPC run so that a resumed
     evaluation never mixes runs of two policies); "" for other MCAs."""
     return file_sha256(config.policy_path()) if isinstance(config, DpcConfig) else ""
@@ -187,19 +197,46 @@ def same_config(recorded, config: McaConfig) -> bool:
 
 
 def _run_one(
-    config: McaConfig, case: EvaluationCase, seed: int, duration_s: float, out: str
+    config: McaConfig | OptimalConfig,
+    case: EvaluationCase,
+    seed: int,
+    duration_s: float,
+    out: str,
 ) -> dict:
+    """One flight of a case through an MCA, or its offline-optimal bound; its summary is
+    written to the run's file."""
     out_dir = Path(out)
     vehicle = case.vehicle_of(seed)
     flight = FlightSpec(vehicle=vehicle, seed=seed)
     reference = flight_reference(flight, duration_s, cache_dir=out_dir / "flights")
-    result = run_closed_loop(mca=config, reference=reference, duration_s=duration_s, progress=False)
+    if isinstance(config, OptimalConfig):
+        result = run_optimal_bound(
+            reference=reference, config=config, duration_s=duration_s, progress=False
+        )
+    else:
+        result = run_closed_loop(
+            mca=config, reference=reference, duration_s=duration_s, progress=False
+        )
     summary = {**result.summary, "case": case.name, "seed": seed, "vehicle": vehicle}
     fingerprint = policy_fingerprint(config)
     if fingerprint:
         summary["policy_sha256"] = fingerprint
-    atomic_write_json(_run_path(out_dir, case.name, mca_name(config), seed), summary)
+    atomic_write_json(_run_path(out_dir, case.name, summary["mca"], seed), summary)
     return summary
+
+
+def _finished_bound(out: Path, case: str, config: OptimalConfig, seed: int, duration_s: float):
+    """The summary of a finished bound of (case, seed) on disk made with `config` and
+    `duration_s`, or None (then it is solved again)."""
+    path = _run_path(out, case, BOUND, seed)
+    try:
+        summary = json.loads(path.read_text()) if path.is_file() else None
+    except (OSError, ValueError):
+        return None
+    record = {"type": "OptimalConfig", **dataclasses.asdict(config)}
+    if not isinstance(summary, dict) or summary.get("mca_config") != record:
+        return None
+    return summary if summary.get("duration_s") == duration_s else None
 
 
 def run_evaluation(
@@ -226,7 +263,15 @@ def run_evaluation(
         for mca in config.mcas
         if _finished_run(out, case.name, mca, seed, config.duration_s) is None
     ]
-    total = sum(len(c.seeds) for c in config.cases) * len(config.mcas)
+    if config.bound is not None:
+        tasks += [
+            (config.bound, case, seed, config.duration_s, str(out))
+            for case in config.cases
+            for seed in case.seeds
+            if _finished_bound(out, case.name, config.bound, seed, config.duration_s) is None
+        ]
+    per_flight = len(config.mcas) + (config.bound is not None)
+    total = sum(len(c.seeds) for c in config.cases) * per_flight
     run_tasks(
         _run_one,
         tasks,
@@ -289,6 +334,8 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                 "safety_interventions": int(sum(r["safety_interventions"] for r in rs)),
                 "solver_failures": int(sum(r["solver_failures"] for r in rs)),
             }
+        if config.bound is not None:
+            entry |= _bound_entry(config, out, case, runs)
         m = entry["mcas"]
         # DPC against every other MCA (the paper: against converged NMPC).
         for other in m:
@@ -313,6 +360,51 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
         save_figure(plot_pi_boxes(report), out / "evaluation.png")
         save_figure(plot_pi_boxes(report, "perceived_pi"), out / "evaluation_perceived.png")
     return report
+
+
+def _bound_entry(config: EvaluationConfig, out: Path, case: EvaluationCase, runs: dict) -> dict:
+    """The case's bound (per flight: its PI, KKT residual and solve time) and, per MCA,
+    its share of the achievable improvement on the flights both have:
+    (PI_zero - PI_mca) / (PI_zero - PI_bound); {} without a finished bound."""
+    bounds = {}
+    for seed in case.seeds:
+        bound = _finished_bound(out, case.name, config.bound, seed, config.duration_s)
+        if bound is not None:
+            bounds[seed] = bound
+    if not bounds:
+        return {}
+    pis = [b["pi"] for b in bounds.values()]
+    entry = {
+        "bound": {
+            "runs": len(bounds),
+            "seeds": list(bounds),
+            "pi": pis,
+            "pi_median": float(np.median(pis)),
+            "kkt_residual_max": float(max(b["solver"]["kkt_residual"] for b in bounds.values())),
+            "solve_time_median_s": float(
+                np.median([b["solver"]["solve_time_s"] for b in bounds.values()])
+            ),
+        },
+        "shares": {},
+    }
+    for mca in config.names():
+        mine = runs[(case.name, mca)]
+        shares = [
+            improvement_share(mine[s]["pi_zero_motion"], mine[s]["pi"], bounds[s]["pi"])
+            for s in sorted(mine.keys() & bounds.keys())
+        ]
+        if shares:
+            entry["shares"][mca] = {"share": shares, "share_median": float(np.median(shares))}
+    return entry
+
+
+def improvement_share(pi_zero: float, pi_mca: float, pi_bound: float) -> float:
+    """An MCA's share of the achievable improvement on a flight: (PI_zero - PI_mca) /
+    (PI_zero - PI_bound); 1 at the bound, 0 at no motion, above 1 where the MCA beats the
+    bound on the PI (its correlation part, which the bound does not optimise); NaN where
+    the bound gains nothing over no motion."""
+    gain = pi_zero - pi_bound
+    return float((pi_zero - pi_mca) / gain) if gain > 0 else float("nan")
 
 
 def _channel_medians(runs: list[dict]) -> dict:
@@ -458,6 +550,25 @@ def _perceived_table(mcas: dict) -> list[str]:
     return lines
 
 
+def _bound_lines(case: dict) -> list[str]:
+    """Markdown lines: the case's offline-optimal bound and each MCA's median share of the
+    achievable improvement; none without a bound."""
+    bound = case.get("bound")
+    if not bound:
+        return []
+    shares = ", ".join(
+        f"{mca} {entry['share_median']:.0%}" for mca, entry in case.get("shares", {}).items()
+    )
+    return [
+        "",
+        f"Offline-optimal bound (perfect preview, the tracking objective): median PI "
+        f"{bound['pi_median']:.3f} over {bound['runs']} flights, largest KKT residual "
+        f"{bound['kkt_residual_max']:.1e}, median solve {bound['solve_time_median_s']:.0f} s. "
+        f"Median share of the achievable improvement, (PI_zero - PI) / (PI_zero - PI_bound): "
+        f"{shares}.",
+    ]
+
+
 def evaluation_markdown(report: dict) -> str:
     """The report as markdown tables, one per case."""
     lines = [
@@ -490,6 +601,7 @@ def evaluation_markdown(report: dict) -> str:
             )
         lines += _channel_table(case["mcas"])
         lines += _perceived_table(case["mcas"])
+        lines += _bound_lines(case)
         for key, test in case.items():
             if not key.startswith("dpc_vs_"):
                 continue

@@ -21,6 +21,7 @@ from mca_drake.app.cli.report import format_pi
 from mca_drake.app.jobs import run_closed_loop_scenario, run_scenario
 from mca_drake.app.scenarios import ClosedLoopScenario, EvaluationScenario
 from mca_drake.cueing import DpcConfig, mca_config_from_name, mca_name
+from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.plotting import save_figure
 from mca_drake.references.recording import load_recording
 from mca_drake.simulation.plots import tracking_figure
@@ -48,6 +49,12 @@ def add_parser(commands) -> None:
     )
     parser.add_argument(
         "--flights", type=int, help="suite: the first N flights of each case (default all)"
+    )
+    parser.add_argument(
+        "--bound",
+        action="store_true",
+        help="suite: also each flight's offline-optimal bound and every MCA's share of the "
+        "achievable improvement",
     )
     parser.add_argument(
         "--mcas",
@@ -98,6 +105,8 @@ def run_suite(args: argparse.Namespace) -> int:
         scenario.mcas = [
             DpcConfig(policy=args.policy) if isinstance(m, DpcConfig) else m for m in scenario.mcas
         ]
+    if args.bound:
+        scenario.bound = OptimalConfig()
     if args.flights is not None and args.flights < 1:
         raise ValueError(f"--flights must be at least 1; got {args.flights}")
     cases = {c.name: c for c in default_cases()}  # A: light, B: jet, C: unseen seeds
