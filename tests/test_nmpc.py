@@ -315,8 +315,9 @@ def test_preview_lets_the_nmpc_anticipate_what_the_causal_one_cannot_know():
     assert np.max(np.abs(causal.states[before])) < 1e-12
     assert np.max(np.abs(preview.states[before, 6:])) > 1e-3
     assert preview.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
-    # knowing the step, it renders it better
+    # knowing the step, it renders it better; its name says it has a preview
     assert preview.summary["rmse"][3] < causal.summary["rmse"][3]
+    assert preview.summary["mca"] == "nmpc-rti-preview256"
 
 
 def test_the_preview_reaches_the_nodes_as_the_ocp_reads_it(robot):

@@ -56,9 +56,12 @@ def as_mca_config(mca: McaConfig | str) -> McaConfig:
 
 def mca_name(config: McaConfig) -> str:
     """The name of the MCA that `config` configures (MCA_NAMES): "nmpc-" plus the NMPC's
-    mode (and "-perceived" for its perceived objective), "dpc" or "washout"."""
+    mode (and "-perceived" for its perceived objective, "-previewN" for a preview of N
+    samples), "dpc" or "washout"."""
     if isinstance(config, NmpcConfig):
         suffix = "-perceived" if config.objective == "perceived" else ""
+        if config.preview_steps:
+            suffix += f"-preview{config.preview_steps}"
         return f"nmpc-{config.mode}{suffix}"
     if isinstance(config, DpcConfig):
         return "dpc"
