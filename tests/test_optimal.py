@@ -93,3 +93,41 @@ def test_the_bound_costs_no_more_than_any_causal_mca_on_a_flight(seed, robot):
     # the summary's outputs are the plant's for the bound's inputs: its cost recomputed
     assert ocp.cost(np.zeros(12), result.commands, y) == pytest.approx(s["solver"]["cost"])
     assert s["pi"] < s["pi_zero_motion"] and "perceived" in s
+
+
+def test_the_perceived_bound_weighs_what_the_occupant_perceives(robot):
+    """objective "perceived": the cost is the vestibular model's outputs of y against those
+    of r (computed here by `perceive` on each signal apart), and the bound reaches the
+    optimum an independent solver finds on it."""
+    from mca_drake.perception import PerceptionConfig, perceive
+
+    T = 8
+    reference = _reference(T, seed=5)
+    config = OptimalConfig(objective="perceived", kkt_tolerance=1e-9)
+    ocp = OptimalCueing(T, config, robot)
+    U = np.random.default_rng(2).uniform(-0.3, 0.3, (T, 6)) * robot.qdd_max
+    x = ocp.states(np.zeros(12), U)
+    from mca_drake.kinematics import plant_output
+
+    y = plant_output(x[:-1, :6], x[:-1, 6:], U, robot)
+    model = PerceptionConfig(model=config.perception_model)
+    perceived_error = perceive(y, model) - perceive(reference, model)
+    expected = np.mean(
+        perceived_error**2 @ np.asarray(config.output_weights)
+        + config.input_weight * (U**2).sum(1)
+        + config.washout_weight * (x[:-1, :6] ** 2).sum(1)
+    )
+    assert ocp.cost(np.zeros(12), U, reference) == pytest.approx(expected, rel=1e-12)
+    ours = ocp.solve(reference)
+    u_max = np.tile(robot.qdd_max, T)
+    theirs = scipy.optimize.minimize(
+        lambda u: ocp.cost(np.zeros(12), u.reshape(T, 6), reference),
+        np.zeros(6 * T),
+        method="SLSQP",
+        bounds=list(zip(-u_max, u_max, strict=True)),
+        options={"ftol": 1e-15, "maxiter": 3000},
+    )
+    assert theirs.success, theirs.message
+    assert ours.converged
+    assert ours.cost == pytest.approx(theirs.fun, rel=1e-6)
+    assert ours.cost <= theirs.fun * (1 + 1e-9)

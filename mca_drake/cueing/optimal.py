@@ -8,8 +8,12 @@ For a reference r_0..r_(T-1) at the control period h, from the robot at rest at 
                |u_k| <= qdd_max
 
 with the NMPC's weights (`NmpcConfig`: the same tracking objective, here with perfect
-preview over the whole recording and no horizon). The limits are the robot's own (Table I),
-at every sample, as the summaries count violations.
+preview over the whole recording and no horizon). With the perceived objective
+(`OptimalConfig.objective`) the tracking term weighs the vestibular model's outputs of the
+errors instead, P_k = C eps_k + D (y_k - r_k) with eps_(k+1) = A eps_k + B (y_k - r_k) from
+rest (`mca_drake.perception`: the perceived output minus the perceived reference); the
+model's states become variables of the program, tied to the errors by its dynamics. The
+limits are the robot's own (Table I), at every sample, as the summaries count violations.
 
 Method: Gauss-Newton sequential quadratic programming. Each QP linearises y at the current
 trajectory with the exact Jacobians of `mca_drake.kinematics` and is solved in full by
@@ -31,9 +35,11 @@ import scipy.sparse as sp
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, SolverOptions
 
 from mca_drake.conventions import CONTROL_PERIOD_S
-from mca_drake.cueing.nmpc import NmpcConfig
+from mca_drake.cueing.nmpc import OBJECTIVES, NmpcConfig
 from mca_drake.input_checks import as_float_array, check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
+from mca_drake.perception.filters import vestibular_filter
+from mca_drake.perception.models import PerceptionConfig
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 
 NU, NX = NUM_JOINTS, 2 * NUM_JOINTS
@@ -53,6 +59,11 @@ class OptimalConfig:
     input_weight: float = _TUNED.input_weight
     # Washout weight of ||q||^2, rad^-2.
     washout_weight: float = _TUNED.washout_weight
+    # What the output weights weigh: "inertial" (y - r) or "perceived" (the vestibular
+    # model's outputs of y against those of r).
+    objective: str = "inertial"
+    # Vestibular model of the perceived objective: "telban-cardullo" or "ormsby".
+    perception_model: str = "telban-cardullo"
     # Control period, s.
     time_step: float = CONTROL_PERIOD_S
     # Gauss-Newton iterations at most.
@@ -65,6 +76,9 @@ class OptimalConfig:
     def validate(self) -> None:
         """Raises ValueError for settings that cannot run."""
         check_config_numbers(self)
+        if self.objective not in OBJECTIVES:
+            raise ValueError(f"unknown objective '{self.objective}'; valid: {OBJECTIVES}")
+        PerceptionConfig(model=self.perception_model).validate()
         if len(self.output_weights) != 6 or min(self.output_weights) < 0:
             raise ValueError("output_weights must be six non-negative values")
         if min(self.input_weight, self.washout_weight) < 0 or not self.time_step > 0:
@@ -120,6 +134,15 @@ class OptimalCueing:
         eye = np.eye(NU)
         self._Phi = np.block([[eye, h * eye], [np.zeros((NU, NU)), eye]])
         self._Gamma = np.vstack([0.5 * h * h * eye, h * eye])
+        # the tracking term's model of the errors: none (inertial: P = e) or the vestibular
+        # model's (A, B, C, D) with n states
+        if self.config.objective == "perceived":
+            model = PerceptionConfig(model=self.config.perception_model)
+            f = vestibular_filter(model, h)
+            self._model = _modal(f.A, f.B, f.C, f.D)
+        else:
+            self._model = (np.zeros((0, 0)), np.zeros((0, 6)), np.zeros((6, 0)), np.eye(6))
+        self.n = self._model[0].shape[0]
         self._build_program()
 
     def _build_program(self) -> None:
@@ -153,17 +176,38 @@ class OptimalCueing:
         self._box_x = prog.AddBoundingBoxConstraint(
             np.zeros(NX * T), np.zeros(NX * T), self.dX.reshape(-1)
         ).evaluator()
-        self._costs = [prog.AddQuadraticCost(np.eye(NU), np.zeros(NU), self.dU[0], is_convex=True)]
-        for k in range(1, T):
-            v = np.concatenate([self.dX[k - 1], self.dU[k]])
-            self._costs.append(
-                prog.AddQuadraticCost(np.eye(NX + NU), np.zeros(NX + NU), v, is_convex=True)
+        n = self.n
+        self.dE = prog.NewContinuousVariables(T, n, "de")  # de_1..de_T (perceived only)
+        # the model's dynamics, linearised: de_(k+1) - A de_k - B J_k (dx_k, du_k) = 0, one
+        # constraint per stage (its coefficients move with J_k)
+        self._perception = []
+        for k in range(T if n else 0):
+            stage = self._stage_variables(k)
+            A0 = np.zeros((n, n + stage.size))
+            self._perception.append(
+                prog.AddLinearEqualityConstraint(
+                    A0, np.zeros(n), np.concatenate([self.dE[k], stage])
+                ).evaluator()
             )
-        self._costs = [c.evaluator() for c in self._costs]
+        self._costs = []
+        for k in range(T):
+            v = self._stage_variables(k)
+            self._costs.append(
+                prog.AddQuadraticCost(
+                    np.eye(v.size), np.zeros(v.size), v, is_convex=True
+                ).evaluator()
+            )
         self._solver = ClarabelSolver()
         self._options = SolverOptions()
         for option in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
             self._options.SetOption(self._solver.solver_id(), option, self.config.qp_tolerance)
+
+    def _stage_variables(self, k: int) -> np.ndarray:
+        """The QP's variables of stage k: (de_k, dx_k, du_k), without the start's de_0 and
+        dx_0 (fixed) at k = 0."""
+        if k == 0:
+            return self.dU[0]
+        return np.concatenate([self.dE[k - 1], self.dX[k - 1], self.dU[k]])
 
     # ------------------------------------------------------------------ trajectories
     def states(self, x0: np.ndarray, U: np.ndarray) -> np.ndarray:
@@ -181,9 +225,22 @@ class OptimalCueing:
         y = plant_output(x[:-1, :NU], x[:-1, NU:], U, self.robot)
         return self._cost_of(x, U, y - reference)
 
+    def tracked(self, errors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(P (T, 6), eps (T + 1, n)): the signals the tracking term weighs, for the errors
+        y - r (T, 6): the errors themselves (inertial), or the vestibular model's outputs
+        P_k = C eps_k + D e_k and its states from rest (perceived)."""
+        A, B, C, D = self._model
+        eps = np.zeros((errors.shape[0] + 1, self.n))
+        if self.n:
+            drive = errors @ B.T
+            for k in range(errors.shape[0]):
+                eps[k + 1] = A @ eps[k] + drive[k]
+        return eps[:-1] @ C.T + errors @ D.T, eps
+
     def _cost_of(self, x, U, residual) -> float:
         cfg = self.config
-        stage = residual**2 @ np.asarray(cfg.output_weights) + cfg.input_weight * (U**2).sum(1)
+        tracked, _ = self.tracked(residual)
+        stage = tracked**2 @ np.asarray(cfg.output_weights) + cfg.input_weight * (U**2).sum(1)
         stage = stage + cfg.washout_weight * (x[:-1, :NU] ** 2).sum(1)
         return float(stage.mean())
 
@@ -218,12 +275,12 @@ class OptimalCueing:
         cost = self._cost_of(x, U, jac.y - reference)
         costs.append(cost)
         for iterations in range(1, cfg.max_iterations + 1):
-            Q, b = self._stage_terms(x, U, jac, jac.y - reference, weights, w)
-            d = self._solve_qp(x, U, Q, b)
+            Q, b, J = self._stage_terms(x, U, jac, jac.y - reference, weights, w)
+            d = self._solve_qp(x, U, Q, b, J)
             if d is None:
                 break
-            dU, dX = d
-            kkt = self._stationarity(Q, b, dU, dX)
+            dU, dX, dE = d
+            kkt = self._stationarity(Q, b, dU, dX, dE)
             alpha, trial = 1.0, None
             while alpha >= 1e-8:
                 U_try = U + alpha * dU
@@ -265,21 +322,27 @@ class OptimalCueing:
         )
 
     def _stage_terms(self, x, U, jac, residual, weights, w):
-        """Per stage, the Gauss-Newton Hessian Q_k (T, 18, 18) and gradient b_k (T, 18) on
-        v_k = (dx_k, du_k) of the cost."""
-        cfg = self.config
+        """Per stage, the Gauss-Newton Hessian Q_k (T, m, m) and gradient b_k (T, m) of the
+        cost on v_k = (de_k, dx_k, du_k) (m = n + 18), and the output Jacobians J_k
+        (T, 6, 18) on (dx_k, du_k). The tracked signal is P_k + G_k v_k with G_k =
+        [C, D J_k]."""
+        cfg, n = self.config, self.n
+        _, _, C, D = self._model
         J = np.concatenate([jac.dy_dq, jac.dy_dqd, jac.dy_dqdd], axis=2)  # (T, 6, 18)
-        WJ = weights[None, :, None] * J
-        Q = 2 * w * np.einsum("kai,kaj->kij", J, WJ)
-        diag = np.r_[np.full(NU, cfg.washout_weight), np.zeros(NU), np.full(NU, cfg.input_weight)]
+        tracked, _ = self.tracked(residual)
+        G = np.concatenate([np.broadcast_to(C, (self.T, *C.shape)), D @ J], axis=2)
+        WG = weights[None, :, None] * G
+        Q = 2 * w * np.einsum("kai,kaj->kij", G, WG)
+        washout, inputs = np.full(NU, cfg.washout_weight), np.full(NU, cfg.input_weight)
+        diag = np.r_[np.zeros(n), washout, np.zeros(NU), inputs]
         Q = Q + 2 * w * np.diag(diag)[None]
-        b = 2 * w * np.einsum("kai,ka->ki", WJ, residual)
-        b[:, :NU] += 2 * w * cfg.washout_weight * x[:-1, :NU]
-        b[:, 2 * NU :] += 2 * w * cfg.input_weight * U
-        return Q, b
+        b = 2 * w * np.einsum("kai,ka->ki", WG, tracked)
+        b[:, n : n + NU] += 2 * w * cfg.washout_weight * x[:-1, :NU]
+        b[:, n + 2 * NU :] += 2 * w * cfg.input_weight * U
+        return Q, b, J
 
-    def _solve_qp(self, x, U, Q, b):
-        """The QP step (dU (T, 6), dX (T, 12)) or None where Clarabel fails."""
+    def _solve_qp(self, x, U, Q, b, J):
+        """The QP step (dU (T, 6), dX (T, 12), dE (T, n)) or None where Clarabel fails."""
         r = self.robot
         lower_x = np.tile(np.r_[r.q_min, -r.qd_max], self.T) - x[1:].reshape(-1)
         upper_x = np.tile(np.r_[r.q_max, r.qd_max], self.T) - x[1:].reshape(-1)
@@ -287,21 +350,56 @@ class OptimalCueing:
         u = U.reshape(-1)
         u_max = np.tile(r.qdd_max, self.T)
         self._box_u.set_bounds(-u_max - u, u_max - u)
-        self._costs[0].UpdateCoefficients(Q[0, NX:, NX:], b[0, NX:], 0.0, is_convex=True)
+        first = slice(self.n + NX, None)  # stage 0: du_0 alone
+        self._costs[0].UpdateCoefficients(Q[0, first, first], b[0, first], 0.0, is_convex=True)
         for k in range(1, self.T):
             self._costs[k].UpdateCoefficients(Q[k], b[k], 0.0, is_convex=True)
+        if self.n:
+            A, B, _, _ = self._model
+            BJ = B @ J  # (T, n, 18)
+            for k, constraint in enumerate(self._perception):
+                # [I | -A | -B J_k] on (de_(k+1), de_k, dx_k, du_k); stage 0: [I | -B J_u]
+                row = [np.eye(self.n), -BJ[k, :, NX:]]
+                if k > 0:
+                    row = [np.eye(self.n), -A, -BJ[k]]
+                constraint.UpdateCoefficients(np.hstack(row), np.zeros(self.n))
         result = self._solver.Solve(self.prog, None, self._options)
         if not result.is_success():
             return None
-        return result.GetSolution(self.dU), result.GetSolution(self.dX)
+        dE = result.GetSolution(self.dE) if self.n else np.zeros((self.T, 0))
+        return result.GetSolution(self.dU), result.GetSolution(self.dX), dE.reshape(self.T, -1)
 
-    def _stationarity(self, Q, b, dU, dX) -> float:
+    def _stationarity(self, Q, b, dU, dX, dE) -> float:
         """|H d|_inf / max(1, |g|_inf) of the last QP's step: the nonlinear program's
         stationarity residual with that QP's multipliers."""
-        v = np.concatenate([np.vstack([np.zeros((1, NX)), dX[:-1]]), dU], axis=1)  # (T, 18)
-        v[0, :NX] = 0.0
+        start = np.zeros((1, self.n + NX))
+        v = np.concatenate([np.vstack([start, np.concatenate([dE, dX], 1)[:-1]]), dU], axis=1)
+        fixed = slice(0, self.n + NX)  # de_0 and dx_0: data, not variables
         Hd = np.einsum("kij,kj->ki", Q, v)
-        Hd[0, :NX] = 0.0
+        Hd[0, fixed] = 0.0
         g = b.copy()
-        g[0, :NX] = 0.0
+        g[0, fixed] = 0.0
         return float(np.max(np.abs(Hd)) / max(1.0, np.max(np.abs(g))))
+
+
+def _modal(A, B, C, D):
+    """The same filter in modal coordinates, each state scaled so that its input gain is 1:
+    A diagonal where its eigenvalues are real and distinct (the vestibular models' poles
+    are), which keeps the QP's rows of the model's dynamics well scaled (the controllable
+    canonical form's coefficients span five decades, and Clarabel stalls on them). Where A
+    has complex or repeated eigenvalues the filter is returned as it is."""
+    values, vectors = np.linalg.eig(A)
+    if np.any(np.abs(values.imag) > 0) or np.linalg.cond(vectors) > 1e8:
+        return A, B, C, D
+    vectors = vectors.real
+    inverse = np.linalg.inv(vectors)
+    B_modal = inverse @ B
+    scale = np.abs(B_modal).max(axis=1)
+    scale = np.where(scale > 0, scale, 1.0)
+    # x = V S z: z_(k+1) = diag(values) z_k + S^-1 V^-1 B e_k; outputs C V S z + D e
+    return (
+        np.diag(values.real),
+        B_modal / scale[:, None],
+        C @ vectors * scale[None, :],
+        D,
+    )

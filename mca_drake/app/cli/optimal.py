@@ -13,7 +13,12 @@ from mca_drake.references.recording import load_recording
 from mca_drake.simulation.optimal_bound import DEFAULT_STARTS, run_optimal_bound
 
 # OptimalConfig fields with a flag.
-OPTIMAL_FLAGS = {"max_iterations": "", "kkt_tolerance": ""}
+OPTIMAL_FLAGS = {
+    "objective": "",
+    "perception_model": "",
+    "max_iterations": "",
+    "kkt_tolerance": "",
+}
 
 
 def add_parser(commands) -> None:
