@@ -18,20 +18,49 @@ def _reference(T: int, seed: int = 0) -> np.ndarray:
     return 0.8 * np.sin(np.outer(t, rng.uniform(1.0, 6.0, 6)) + rng.uniform(0, 3, 6))
 
 
-def test_a_short_bound_is_the_optimum_scipy_finds(robot):
-    T = 6
-    reference = _reference(T)
-    ocp = OptimalCueing(T, OptimalConfig(kkt_tolerance=1e-9), robot)
-    ours = ocp.solve(reference)
+def _scipy_optimum(ocp, reference, robot):
+    """SciPy's SLSQP on the same objective over the inputs, within their limits (the short
+    references here keep the positions and velocities far inside theirs)."""
+    T = reference.shape[0]
     u_max = np.tile(robot.qdd_max, T)
     theirs = scipy.optimize.minimize(
         lambda u: ocp.cost(np.zeros(12), u.reshape(T, 6), reference),
         np.zeros(6 * T),
         method="SLSQP",
         bounds=list(zip(-u_max, u_max, strict=True)),
-        options={"ftol": 1e-15, "maxiter": 2000},
+        options={"ftol": 1e-15, "maxiter": 3000},
     )
     assert theirs.success, theirs.message
+    return theirs
+
+
+def test_shooting_dynamics_rows_are_the_exact_steps():
+    """A trajectory of the exact zero-order-hold step satisfies every row of the sparse
+    dynamics, block 0's right-hand side carrying x_0."""
+    from mca_drake.cueing.shooting import double_integrator_step, shooting_dynamics
+
+    rng = np.random.default_rng(1)
+    durations = np.array([0.01, 0.02, 0.05, 0.1])
+    x = [rng.normal(size=12)]
+    U = rng.normal(size=(4, 6))
+    for T, u in zip(durations, U, strict=True):
+        Phi, Gamma = double_integrator_step(T)
+        x.append(Phi @ x[-1] + Gamma @ u)
+        q, qd = x[-2][:6], x[-2][6:]
+        np.testing.assert_allclose(x[-1][:6], q + T * qd + 0.5 * T * T * u)
+    A, Phis = shooting_dynamics(durations)
+    z = np.concatenate([U.reshape(-1), np.concatenate(x[1:])])
+    rhs = np.zeros(48)
+    rhs[:12] = Phis[0] @ x[0]
+    np.testing.assert_allclose(A @ z, rhs, atol=1e-12)
+
+
+def test_a_short_bound_is_the_optimum_scipy_finds(robot):
+    T = 6
+    reference = _reference(T)
+    ocp = OptimalCueing(T, OptimalConfig(kkt_tolerance=1e-9), robot)
+    ours = ocp.solve(reference)
+    theirs = _scipy_optimum(ocp, reference, robot)
     assert ours.converged and ours.kkt_residual <= 1e-9
     assert ours.cost == pytest.approx(theirs.fun, rel=1e-6)
 
@@ -119,15 +148,7 @@ def test_the_perceived_bound_weighs_what_the_occupant_perceives(robot):
     )
     assert ocp.cost(np.zeros(12), U, reference) == pytest.approx(expected, rel=1e-12)
     ours = ocp.solve(reference)
-    u_max = np.tile(robot.qdd_max, T)
-    theirs = scipy.optimize.minimize(
-        lambda u: ocp.cost(np.zeros(12), u.reshape(T, 6), reference),
-        np.zeros(6 * T),
-        method="SLSQP",
-        bounds=list(zip(-u_max, u_max, strict=True)),
-        options={"ftol": 1e-15, "maxiter": 3000},
-    )
-    assert theirs.success, theirs.message
+    theirs = _scipy_optimum(ocp, reference, robot)
     assert ours.converged
     assert ours.cost == pytest.approx(theirs.fun, rel=1e-6)
     assert ours.cost <= theirs.fun * (1 + 1e-9)

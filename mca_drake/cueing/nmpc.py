@@ -78,6 +78,7 @@ from mca_drake.cueing.output_curvature import (
     psb_update,
     residual_curvature,
 )
+from mca_drake.cueing.shooting import shooting_dynamics
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
@@ -499,27 +500,7 @@ class MotionCueingOcp:
         )
         # Dynamics x_(k+1) = Phi_k x_k + Gamma_k u_k; the first row block carries x_0 in its
         # bounds. Columns: [u (6N), x (12N)].
-        nz = 6 * N + 12 * N
-        rows, cols, vals = [], [], []
-
-        def put(r0, c0, block):
-            ii, jj = np.nonzero(block)
-            rows.extend(r0 + ii)
-            cols.extend(c0 + jj)
-            vals.extend(block[ii, jj])
-
-        eye6 = np.eye(NU)
-        self._Phi = []
-        for k, T in enumerate(self.durations):
-            Phi = np.block([[eye6, T * eye6], [np.zeros((6, 6)), eye6]])
-            Gamma = np.vstack([0.5 * T * T * eye6, T * eye6])
-            self._Phi.append(Phi)
-            r0 = 12 * k
-            put(r0, 6 * N + 12 * k, np.eye(12))  # x_(k+1)
-            put(r0, 6 * k, -Gamma)
-            if k > 0:
-                put(r0, 6 * N + 12 * (k - 1), -Phi)
-        A_eq = sp.csc_matrix((vals, (rows, cols)), shape=(12 * N, nz))
+        A_eq, self._Phi = shooting_dynamics(self.durations)
         self._dynamics = prog.AddLinearEqualityConstraint(
             A_eq, np.zeros(12 * N), np.concatenate([u_all, x_all])
         ).evaluator()

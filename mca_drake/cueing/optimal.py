@@ -31,11 +31,11 @@ import dataclasses
 import time
 
 import numpy as np
-import scipy.sparse as sp
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, SolverOptions
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing.nmpc import OBJECTIVES, NmpcConfig
+from mca_drake.cueing.shooting import shooting_dynamics
 from mca_drake.input_checks import as_float_array, check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.perception.filters import vestibular_filter
@@ -131,9 +131,6 @@ class OptimalCueing:
         self.robot = robot if robot is not None else load_kr500()
         self.T = int(steps)
         h = self.config.time_step
-        eye = np.eye(NU)
-        self._Phi = np.block([[eye, h * eye], [np.zeros((NU, NU)), eye]])
-        self._Gamma = np.vstack([0.5 * h * h * eye, h * eye])
         # the tracking term's model of the errors: none (inertial: P = e) or the vestibular
         # model's (A, B, C, D) with n states
         if self.config.objective == "perceived":
@@ -152,22 +149,7 @@ class OptimalCueing:
         prog = self.prog = MathematicalProgram()
         self.dU = prog.NewContinuousVariables(T, NU, "du")
         self.dX = prog.NewContinuousVariables(T, NX, "dx")  # dx_1..dx_T
-        nz = NU * T + NX * T
-        rows, cols, vals = [], [], []
-
-        def put(r0, c0, block):
-            ii, jj = np.nonzero(block)
-            rows.extend(r0 + ii)
-            cols.extend(c0 + jj)
-            vals.extend(block[ii, jj])
-
-        for k in range(T):
-            r0 = NX * k
-            put(r0, NU * T + NX * k, np.eye(NX))
-            put(r0, NU * k, -self._Gamma)
-            if k > 0:
-                put(r0, NU * T + NX * (k - 1), -self._Phi)
-        A = sp.csc_matrix((vals, (rows, cols)), shape=(NX * T, nz))
+        A, _ = shooting_dynamics(np.full(T, self.config.time_step))
         all_vars = np.concatenate([self.dU.reshape(-1), self.dX.reshape(-1)])
         prog.AddLinearEqualityConstraint(A, np.zeros(NX * T), all_vars)
         self._box_u = prog.AddBoundingBoxConstraint(
