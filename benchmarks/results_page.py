@@ -37,9 +37,11 @@ MCA_LABELS = {
     "nmpc-converged": "NMPC, converged",
     "nmpc-rti": "NMPC, RTI",
     "washout": "Washout (tuned)",
+    "nmpc-rti-perceived": "NMPC, RTI, perceived objective",
+    "nmpc-converged-perceived": "NMPC, converged, perceived objective",
 }
 # The headline table's rows, in this order, where the suite ran them.
-HEADLINE_MCAS = ("dpc", "nmpc-converged", "nmpc-rti", "washout")
+HEADLINE_MCAS = ("dpc", "nmpc-converged", "nmpc-rti", "washout", "nmpc-rti-perceived")
 
 
 # --- number formats (fixed, so that a render is reproducible) ---------------------------
@@ -176,13 +178,15 @@ def _evaluation(results_dir: Path, data: dict) -> list[str]:
                     fmt_pi(m["pi_median"]),
                     f"{fmt_pi(m['pi_iqr'][0])} to {fmt_pi(m['pi_iqr'][1])}",
                     fmt_pi(m["pi_zero_motion_median"]),
+                    _perceived_cell(m),
                     str(m["violations"]),
                     str(m["safety_interventions"]),
                     fmt_step(m["step_time_median_s"]),
                 ]
             )
         header = ["MCA", "flights", "PI median", "PI IQR", "zero motion PI"]
-        header += ["violations", "clamp interventions", "step median"]
+        header += ["perceived PI (zero motion)", "violations", "clamp interventions"]
+        header += ["step median"]
         lines += [*_table(header, rows), ""]
         for key, test in case.items():
             if not key.startswith("dpc_vs_"):
@@ -198,6 +202,9 @@ def _evaluation(results_dir: Path, data: dict) -> list[str]:
                     f"; paired, DPC better on {paired['dpc_better']} of {len(paired['seeds'])} "
                     f"flights (signed-rank p {paired['p']:.3g})"
                 )
+            felt = test.get("perceived")
+            if felt:
+                text += f"; perceived PI gap {felt['median_gap']:+.3f}, rank-sum p {felt['p']:.3g}"
             lines.append(text)
         lines.append("")
     lines += _image(results_dir, "evaluation/evaluation.png", "PI per case and MCA")
@@ -205,6 +212,63 @@ def _evaluation(results_dir: Path, data: dict) -> list[str]:
         "Per-channel RMSE and CC: `benchmarks/results/evaluation/evaluation.md`.",
         "",
     ]
+    return lines
+
+
+def _perceived_cell(m: dict) -> str:
+    """A suite row's perceived PI median with zero motion's, or '-' for a report made
+    before the runs carried the perceived block."""
+    if "perceived_pi_median" not in m:
+        return "-"
+    return f"{fmt_pi(m['perceived_pi_median'])} ({fmt_pi(m['perceived_pi_zero_motion_median'])})"
+
+
+def _perceived(results_dir: Path, data: dict) -> list[str]:
+    flight = data["flight"]
+    lines = [
+        f"NMPC-rti at the shipped weights on a {flight['duration_s']:.0f} s {flight['vehicle']} "
+        f"flight (seed {flight['seed']}), both objectives alternated in one run; step times "
+        "are the median (min to max) over the runs.",
+        "",
+    ]
+    rows = []
+    for objective, o in data["objectives"].items():
+        rows.append(
+            [
+                objective,
+                _range(o["median_ms"], _ms_of),
+                _range(o["p99_ms"], _ms_of),
+                _range(o["max_ms"], _ms_of),
+                fmt_pi(o["pi"]),
+                fmt_pi(o["perceived_pi"]),
+            ]
+        )
+    header = ["objective", "step median", "step p99", "step max", "PI", "perceived PI"]
+    lines += [*_table(header, rows), ""]
+    suite = data.get("suite") or {}
+    if suite:
+        lines += [
+            "The evaluation suite's runs: median PI and perceived PI (IQR), and the runs' cost.",
+            "",
+        ]
+        rows = []
+        for case, mcas in suite.items():
+            for mca, m in mcas.items():
+                rows.append(
+                    [
+                        case,
+                        MCA_LABELS.get(mca, mca),
+                        str(m["flights"]),
+                        f"{fmt_pi(m['pi']['median'])} ({fmt_pi(m['pi']['iqr'][0])} to "
+                        f"{fmt_pi(m['pi']['iqr'][1])})",
+                        f"{fmt_pi(m['perceived_pi']['median'])} "
+                        f"({fmt_pi(m['perceived_pi']['iqr'][0])} to "
+                        f"{fmt_pi(m['perceived_pi']['iqr'][1])})",
+                        f"{m['core_hours']:.2f}",
+                    ]
+                )
+        header = ["case", "MCA", "flights", "PI", "perceived PI", "core-hours"]
+        lines += [*_table(header, rows), ""]
     return lines
 
 
@@ -487,6 +551,14 @@ SECTIONS = (
         _evaluation,
     ),
     Section(
+        "Perceived motion",
+        "perceived.json",
+        "the NMPC's perceived objective (vestibular models) against its inertial one: step "
+        "times, PI and perceived PI; and the suite's PI and perceived PI per MCA with the "
+        "runs' cost",
+        _perceived,
+    ),
+    Section(
         "DPC step time",
         "dpc.json",
         "the DPC policy's step time inside the Drake diagram and converged NMPC's on the same "
@@ -636,13 +708,16 @@ def render_headline_table(results_dir: Path) -> str:
             continue
         rows.append(
             [MCA_LABELS[mca]]
-            + [fmt_pi(case["mcas"][mca]["pi_median"]) for case in cases.values()]
+            + [_headline_cell(case["mcas"][mca]) for case in cases.values()]
             + [steps.get(mca, "-")]
         )
     zero = []
     for case in cases.values():
         first = next(iter(case["mcas"].values()))
-        zero.append(fmt_pi(first["pi_zero_motion_median"]))
+        cell = fmt_pi(first["pi_zero_motion_median"])
+        if "perceived_pi_zero_motion_median" in first:
+            cell += f" ({fmt_pi(first['perceived_pi_zero_motion_median'])})"
+        zero.append(cell)
     rows.append(["Zero motion", *zero, "-"])
     suite_date = provenance_of(suite, "evaluation/evaluation.json")["date"]
     dpc_date = provenance_of(dpc, "dpc.json")["date"]
@@ -651,7 +726,8 @@ def render_headline_table(results_dir: Path) -> str:
     lines = _table([*header, "step time (median)"], rows)
     lines += [
         "",
-        f"Median PI (lower is better) over each case's "
+        "Median PI (lower is better; the perceived PI, through the vestibular models, in "
+        f"brackets where the suite has it) over each case's "
         f"{'/'.join(str(n) for n in sorted(flights))} flights of {suite['duration_s']:.0f} s on "
         f"the analytical plant, evaluation suite of {suite_date}; step times on a "
         f"light-aircraft flight, DPC "
@@ -659,6 +735,14 @@ def render_headline_table(results_dir: Path) -> str:
         f"`{PAGE_COMMAND} --readme README.md` from `benchmarks/results/`.",
     ]
     return "\n".join(lines) + "\n"
+
+
+def _headline_cell(m: dict) -> str:
+    """A headline cell: the median PI, and the perceived PI's in brackets where there is one."""
+    cell = fmt_pi(m["pi_median"])
+    if "perceived_pi_median" in m:
+        cell += f" ({fmt_pi(m['perceived_pi_median'])})"
+    return cell
 
 
 def replace_headline_block(text: str, table: str) -> str:
