@@ -4,6 +4,8 @@
 - `washout`: WashoutConfig and the classical washout filters.
 - `dpc`: DpcConfig, the policy-file reader and numpy inference of the DPC policy.
 - `configs`: the union of the three configs (`McaConfig`) and their shorthand names.
+- `optimal`: the offline-optimal bound (whole recording, perfect preview) and its config.
+- `shooting`: the double integrator over a multiple-shooting program's intervals.
 
 The Drake systems that run them in a diagram are in `mca_drake.systems`.
 """
