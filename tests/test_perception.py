@@ -109,6 +109,19 @@ def test_numpy_torch_and_drake_system_agree():
         np.testing.assert_allclose(perceived, expected, atol=1e-12)
 
 
+def test_torch_filter_of_long_signals_steps_through_the_recursion():
+    from mca_drake.learning.perception import MAX_CONVOLUTION_LENGTH
+
+    rng = np.random.default_rng(7)
+    T = MAX_CONVOLUTION_LENGTH + 88
+    signals = rng.normal(size=(2, T, 6))
+    x0 = rng.normal(size=(2, vestibular_filter().num_states))
+    got = TorchVestibularFilter()(torch.tensor(signals), torch.tensor(x0)).numpy()
+    for row in range(2):
+        expected = vestibular_filter().run(signals[row], x0[row])[0]
+        np.testing.assert_allclose(got[row], expected, atol=1e-10)
+
+
 def test_torch_filter_is_differentiable():
     signals = torch.zeros(2, 50, 6, dtype=torch.float64, requires_grad=True)
     TorchVestibularFilter()(signals)[:, -1, 3].sum().backward()

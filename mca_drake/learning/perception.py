@@ -5,7 +5,8 @@ so the two cannot drift apart), applied to a batch at once: the filter is linear
 invariant, so over T samples its output is the input convolved with its impulse response
 (D, C B, C A B, ...) plus the free response C A^t x_0 of the initial state. Both are formed
 as (T, T) and (T, n) matrices per length T (cached), which makes a whole rollout's perceived
-signals one batched product instead of T sequential steps.
+signals one batched product instead of T sequential steps (up to MAX_CONVOLUTION_LENGTH
+samples; longer ones are filtered step by step, which costs T n^2 instead of T^2).
 """
 
 from __future__ import annotations
@@ -17,6 +18,10 @@ from torch import nn
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
+
+# Longer signals go through the step-by-step recursion: the convolution's operator takes
+# T^2 values per channel (50 MB at 1024 samples) and T^2 products per batch row.
+MAX_CONVOLUTION_LENGTH = 512
 
 
 class TorchVestibularFilter(nn.Module):
@@ -94,12 +99,30 @@ class TorchVestibularFilter(nn.Module):
                 f"signals must have shape (B, T, {self.discrete.B.shape[1]}); "
                 f"got {tuple(signals.shape)}"
             )
+        if signals.shape[1] > MAX_CONVOLUTION_LENGTH:
+            return self._recursion(signals, state)
         G, F = self._tensors(signals.shape[1], signals.dtype, signals.device)
         pattern = "tjm,bjm->btm" if self._channelwise else "tjpm,bjm->btp"
         out = torch.einsum(pattern, G, signals)
         if state is not None:
             out = out + torch.einsum("tpn,bn->btp", F, state)
         return out
+
+    def _recursion(self, signals: torch.Tensor, state: torch.Tensor | None) -> torch.Tensor:
+        """The filter step by step, x_(t+1) = A x_t + B u_t, y_t = C x_t + D u_t: for long
+        signals, where the convolution's (T, T) operator would cost T^2 per channel."""
+        f = self.discrete
+        A, B, C, D = (
+            torch.as_tensor(M, dtype=signals.dtype, device=signals.device)
+            for M in (f.A, f.B, f.C, f.D)
+        )
+        x = signals.new_zeros(signals.shape[0], f.num_states) if state is None else state
+        drive = signals @ B.T
+        states = []
+        for t in range(signals.shape[1]):
+            states.append(x)
+            x = x @ A.T + drive[:, t]
+        return torch.stack(states, dim=1) @ C.T + signals @ D.T
 
 
 def _pattern(A: np.ndarray) -> np.ndarray:
