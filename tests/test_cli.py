@@ -353,4 +353,4 @@ def test_optimal_command_prints_the_bound_and_writes_its_summary(tmp_path, capsy
     assert summary["mca"] == "optimal" and summary["solver"]["iterations"] <= 3
     assert summary["step_time_s"] is None and summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     printed = capsys.readouterr().out
-    assert f"PI {summary['pi']:.3f}" in printed and "Gauss-Newton iterations" in printed
+    assert f"PI {summary['pi']:.3f}" in printed and "SQP iterations" in printed

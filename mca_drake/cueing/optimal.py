@@ -15,8 +15,10 @@ rest (`mca_drake.perception`: the perceived output minus the perceived reference
 model's states become variables of the program, tied to the errors by its dynamics. The
 limits are the robot's own (Table I), at every sample, as the summaries count violations.
 
-Method: Gauss-Newton sequential quadratic programming. Each QP linearises y at the current
-trajectory with the exact Jacobians of `mca_drake.kinematics` and is solved in full by
+Method: sequential quadratic programming. Each QP linearises y at the current trajectory
+with the exact Jacobians of `mca_drake.kinematics`, its Hessian Gauss-Newton's (plus, for
+the inertial objective, the positive part of the residual curvature: `curvature`), and is
+solved in full by
 Drake's Clarabel (interior point) on the sparse multiple-shooting program (variables u_k and
 x_(k+1) per step: banded, linear in T). The dynamics are linear and the constraints are
 boxes, so every iterate is feasible and a backtracking line search on the true cost makes
@@ -35,6 +37,7 @@ from pydrake.solvers import ClarabelSolver, MathematicalProgram, SolverOptions
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing.nmpc import OBJECTIVES, NmpcConfig
+from mca_drake.cueing.output_curvature import finite_difference_hessians, residual_curvature
 from mca_drake.cueing.shooting import shooting_dynamics
 from mca_drake.input_checks import as_float_array, check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
@@ -43,6 +46,8 @@ from mca_drake.perception.models import PerceptionConfig
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 
 NU, NX = NUM_JOINTS, 2 * NUM_JOINTS
+# Stages whose output Hessians are formed at once (6 x 18 x 18 values per stage).
+CURVATURE_CHUNK = 2000
 
 _TUNED = NmpcConfig()
 
@@ -66,7 +71,14 @@ class OptimalConfig:
     perception_model: str = "telban-cardullo"
     # Control period, s.
     time_step: float = CONTROL_PERIOD_S
-    # Gauss-Newton iterations at most.
+    # Inertial objective: add to Gauss-Newton's Hessian the positive part of the residual
+    # curvature (second derivatives of the output, by finite differences of its exact
+    # Jacobians). Where Gauss-Newton underrates the cost's curvature its steps overshoot,
+    # and one stage's overshoot shortens the whole trajectory's step: on a 5 s light flight
+    # from rest, 25 iterations took steps of 1/8 to 1/4 and reached a KKT residual of 1.2e-2
+    # without it, full steps and 6.9e-4 with it.
+    curvature: bool = True
+    # Iterations (QPs) at most.
     max_iterations: int = 30
     # Stop once the KKT (stationarity) residual relative to max(1, |grad f|_inf) is below.
     kkt_tolerance: float = 1e-6
@@ -97,7 +109,7 @@ class OptimalResult:
         outputs: y(x_k, u_k), shape (T, 6).
         cost: the objective at U.
         kkt_residual: the last QP's stationarity residual relative to max(1, |grad f|_inf).
-        iterations: Gauss-Newton QPs solved.
+        iterations: QPs solved.
         converged: whether kkt_residual reached the tolerance.
         costs: the objective after each iteration (the start first).
         solve_time_s: wall-clock time.
@@ -232,7 +244,8 @@ class OptimalCueing:
         feasible from rest) and x0 (default rest at q = 0).
 
         Args:
-            progress: optional callable(iteration, cost, kkt_residual) called per iteration.
+            progress: optional callable(iteration, cost, kkt_residual, step_length) called
+                per iteration (step_length: the line search's share of the QP's step).
 
         Raises:
             ValueError: a reference or start of the wrong shape, non-finite, or a start
@@ -277,7 +290,7 @@ class OptimalCueing:
             U, x, jac, cost = U_try, x_try, jac_try, trial
             costs.append(cost)
             if progress is not None:
-                progress(iterations, cost, kkt)
+                progress(iterations, cost, kkt, alpha)
             if kkt <= cfg.kkt_tolerance and alpha == 1.0:
                 break
         y = plant_output(x[:-1, :NU], x[:-1, NU:], U, robot)
@@ -318,10 +331,29 @@ class OptimalCueing:
         washout, inputs = np.full(NU, cfg.washout_weight), np.full(NU, cfg.input_weight)
         diag = np.r_[np.zeros(n), washout, np.zeros(NU), inputs]
         Q = Q + 2 * w * np.diag(diag)[None]
+        if cfg.curvature and n == 0:
+            # the residual curvature's positive part on (dx_k, du_k): where Gauss-Newton
+            # underrates the cost's curvature, its steps overshoot, and one stage's overshoot
+            # shortens the whole trajectory's step
+            dcost_dy = 2 * w * weights * tracked
+            Q += _positive_part(self._residual_curvature(x, U, J, dcost_dy))
         b = 2 * w * np.einsum("kai,ka->ki", WG, tracked)
         b[:, n : n + NU] += 2 * w * cfg.washout_weight * x[:-1, :NU]
         b[:, n + 2 * NU :] += 2 * w * cfg.input_weight * U
         return Q, b, J
+
+    def _residual_curvature(self, x, U, J, weighted) -> np.ndarray:
+        """sum_a c_ka d^2 y_a / dv_k^2 per stage (T, 18, 18) for c (T, 6) = dcost/dy, the
+        output Hessians by finite differences of the exact Jacobians
+        (`output_curvature.finite_difference_hessians`), in chunks of stages."""
+        out = np.empty((self.T, NX + NU, NX + NU))
+        for lo in range(0, self.T, CURVATURE_CHUNK):
+            hi = min(lo + CURVATURE_CHUNK, self.T)
+            M = finite_difference_hessians(
+                x[lo:hi, :NU], x[lo:hi, NU:], U[lo:hi], self.robot, J[lo:hi]
+            )
+            out[lo:hi] = residual_curvature(M, weighted[lo:hi])
+        return out
 
     def _solve_qp(self, x, U, Q, b, J):
         """The QP step (dU (T, 6), dX (T, 12), dE (T, n)) or None where Clarabel fails."""
@@ -385,3 +417,13 @@ def _modal(A, B, C, D):
         C @ vectors * scale[None, :],
         D,
     )
+
+
+def _positive_part(S: np.ndarray) -> np.ndarray:
+    """Each stage's symmetric S_k (T, n, n) with its negative eigenvalues set to zero.
+    (The negative part cannot be taken in stage by stage: Gauss-Newton's Hessian is
+    singular along some of each stage's directions, and any share of it makes the stage's
+    model indefinite there.)"""
+    S = 0.5 * (S + np.swapaxes(S, -1, -2))
+    values, vectors = np.linalg.eigh(S)
+    return (vectors * np.maximum(values, 0.0)[..., None, :]) @ np.swapaxes(vectors, -1, -2)

@@ -85,8 +85,11 @@ def run_optimal_bound(
     start_costs = {name: ocp.cost(rest, U, target) for name, U in candidates.items()}
     start = min(start_costs, key=start_costs.get)
 
-    def report(iteration, cost, kkt):
-        print(f"iteration {iteration}: cost {cost:.6g}, KKT residual {kkt:.2e}", flush=True)
+    def report(iteration, cost, kkt, step):
+        print(
+            f"iteration {iteration}: cost {cost:.6g}, KKT residual {kkt:.2e}, step {step:g}",
+            flush=True,
+        )
 
     solution = ocp.solve(target, U_start=candidates[start], progress=report if progress else None)
     states = solution.states[:n]

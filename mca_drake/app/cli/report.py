@@ -60,7 +60,7 @@ def _timing_row(summary: dict) -> str:
     if steps is None:
         solver = summary["solver"]
         return (
-            f"solver            {solver['iterations']} Gauss-Newton iterations, KKT residual "
+            f"solver            {solver['iterations']} SQP iterations, KKT residual "
             f"{solver['kkt_residual']:.1e}, {solver['solve_time_s']:.1f} s, started from "
             f"{solver['start']}"
         )
