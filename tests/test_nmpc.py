@@ -323,21 +323,24 @@ def test_preview_lets_the_nmpc_anticipate_what_the_causal_one_cannot_know():
 def test_the_preview_reaches_the_nodes_as_the_ocp_reads_it(robot):
     """The controller's first command from rest is the OCP's own solve for the reference
     samples at the grid's node times."""
+    from pydrake.systems.analysis import Simulator
+
     from mca_drake.systems.nmpc import NmpcController
 
-    config = NmpcConfig(preview_steps=100)
+    config = NmpcConfig(preview_steps=200)
     controller = NmpcController(config, robot)
     context = controller.CreateDefaultContext()
-    future = _surge_step().y[:100]
+    future = _surge_step().y[:200]  # the step comes 1.5 s ahead, inside the preview
     controller.GetInputPort("state").FixValue(context, np.zeros(12))
     controller.GetInputPort("reference").FixValue(context, future[0])
     controller.GetInputPort("reference_preview").FixValue(context, future.reshape(-1))
-    updated = context.Clone()
-    controller.CalcForcedUnrestrictedUpdate(context, updated.get_mutable_state())
-    command = controller.GetOutputPort("joint_acceleration").Eval(updated)
+    simulator = Simulator(controller, context)  # the control step at t = 0, as in a diagram
+    simulator.AdvanceTo(0.005)
+    command = controller.GetOutputPort("joint_acceleration").Eval(simulator.get_context())
     ocp = controller.ocp
-    rows = np.minimum(ocp.node_steps[:-1], 99)
+    rows = np.minimum(ocp.node_steps[:-1], 199)
     expected = ocp.solve(np.zeros(12), future[rows]).U[0]
+    assert np.max(np.abs(expected)) > 1e-3  # the step ahead moves it already
     np.testing.assert_allclose(command, expected, atol=1e-9)
 
 

@@ -30,6 +30,7 @@ from mca_drake.cueing import (
     as_mca_config,
     mca_config_from_name,
 )
+from mca_drake.cueing.dpc import load_policy_arrays, policy_preview_steps
 from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.input_checks import (
     MAX_DURATION_S,
@@ -333,6 +334,12 @@ class LiveScenario:
         if getattr(self.mca, "preview_steps", 0):
             raise ValueError("live telemetry has no future: the NMPC's preview_steps must be 0")
         self.mca.validate()
+        if isinstance(self.mca, DpcConfig):
+            _, metadata = load_policy_arrays(self.mca.policy_path())
+            if policy_preview_steps(metadata):
+                raise ValueError(
+                    "live telemetry has no future: the DPC policy reads a reference preview"
+                )
 
 
 # Fastest live pace accepted: past 10x real time the loop's own step is the limit anyway.

@@ -2,9 +2,11 @@
 
 A policy file (.npz, no pickle) holds the exported weights of
 `mca_drake.learning.policy_network.PolicyNetwork` and a JSON metadata string: W1 (hidden, 24),
-W2 (18, hidden), input_scale (24), lower, upper (18). `PolicyInference` evaluates it in
-numpy, equal to the torch network (tested to 1e-6): the same scaled inputs, two bias-free
-layers with the exact (erf) GELU between, and the saturation to the limits.
+W2 (18, hidden), input_scale (24), lower, upper (18); a policy with a reference preview
+(metadata `preview_steps` > 0) has 24 more inputs, the reference at `preview_offsets`.
+`PolicyInference` evaluates it in numpy, equal to the torch network (tested to 1e-6): the
+same scaled inputs, two bias-free layers with the exact (erf) GELU between, and the
+saturation to the limits.
 """
 
 import dataclasses
@@ -26,6 +28,31 @@ POLICY_ARRAYS = ("W1", "W2", "input_scale", "lower", "upper")
 # Inputs [y (6), x = [q, qd] (12), target (6)] and outputs [u (6), x_hat (12)] of the policy.
 INPUT_SIZE = 6 + 2 * NUM_JOINTS + 6
 OUTPUT_SIZE = NUM_JOINTS + 2 * NUM_JOINTS
+# A policy with a reference preview of N control periods (its file's `preview_steps`) also
+# reads the reference at this many instants spread evenly over the next N periods
+# (`preview_offsets`): 6 more inputs each.
+PREVIEW_POINTS = 4
+
+
+def preview_offsets(preview_steps: int) -> np.ndarray:
+    """The samples ahead a policy with a preview of `preview_steps` periods reads, shape
+    (PREVIEW_POINTS,): N i / PREVIEW_POINTS rounded, i = 1..PREVIEW_POINTS (at least 1)."""
+    points = np.arange(1, PREVIEW_POINTS + 1)
+    return np.maximum(np.rint(preview_steps * points / PREVIEW_POINTS).astype(int), 1)
+
+
+def input_size(preview_steps: int) -> int:
+    """The policy's inputs: INPUT_SIZE, plus 6 per preview instant with a preview."""
+    return INPUT_SIZE + (6 * PREVIEW_POINTS if preview_steps else 0)
+
+
+def policy_preview_steps(metadata: dict) -> int:
+    """A policy file's reference preview, control periods (0: causal), from its metadata;
+    ValueError for a value that is not a whole number >= 0."""
+    value = metadata.get("preview_steps", 0)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise ValueError(f"policy preview_steps must be a whole number >= 0; got {value!r}")
+    return value
 
 
 @dataclasses.dataclass
@@ -103,10 +130,11 @@ def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
     if metadata.get("format") != POLICY_FORMAT:
         raise ValueError(f"{path}: unknown policy format {metadata.get('format')!r}")
     hidden = arrays["W1"].shape[0]
+    inputs = input_size(policy_preview_steps(metadata))
     expected = {
-        "W1": (hidden, INPUT_SIZE),
+        "W1": (hidden, inputs),
         "W2": (OUTPUT_SIZE, hidden),
-        "input_scale": (INPUT_SIZE,),
+        "input_scale": (inputs,),
         "lower": (OUTPUT_SIZE,),
         "upper": (OUTPUT_SIZE,),
     }
@@ -142,20 +170,21 @@ class PolicyInference:
             zip(self._lower[:NUM_JOINTS].tolist(), self._upper[:NUM_JOINTS].tolist(), strict=True)
         )
 
-    def __call__(self, y, x, target) -> tuple[np.ndarray, np.ndarray]:
-        """(u (6), x_hat (12)) for y (6), x (12), target (6); 1-D numpy arrays."""
+    def __call__(self, y, x, target, preview=()) -> tuple[np.ndarray, np.ndarray]:
+        """(u (6), x_hat (12)) for y (6), x (12), target (6) and, for a policy with a
+        preview, the reference at its `preview_offsets` (24); 1-D numpy arrays."""
         # A new feature vector per call (0.1 us), not a buffer on self: one inference object
         # may serve several contexts at once.
-        b = self._W1 @ np.concatenate((y, x, target))
+        b = self._W1 @ np.concatenate((y, x, target, preview))
         z = np.minimum(np.maximum(self._W2 @ (b + b * erf(b)), self._lower), self._upper)
         return z[:NUM_JOINTS], z[NUM_JOINTS:]
 
-    def command(self, y, x, target) -> list[float]:
+    def command(self, y, x, target, preview=()) -> list[float]:
         """u alone, as `__call__` computes it, in six Python floats: the live loop's step
         (fewer numpy calls, and none to bound u). NaN in all six where an input is not finite
         (their sum is not: one call instead of a check per input) or the network overflows,
         which the bounds would otherwise hide."""
-        features = np.concatenate((y, x, target))
+        features = np.concatenate((y, x, target, preview))
         if not math.isfinite(features.sum()):
             return [math.nan] * NUM_JOINTS
         b = self._W1 @ features

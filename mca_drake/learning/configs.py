@@ -123,6 +123,11 @@ class DpcTrainingConfig:
     tracking_signals: str = _NMPC.objective
     # Vestibular model of the perceived tracking term: "telban-cardullo" or "ormsby".
     perception_model: str = _NMPC.perception_model
+    # Reference preview of the policy, control periods: 0 (causal) or N, a policy that also
+    # reads the reference at 4 instants over the next N periods (a known future: offline
+    # use only; live runs refuse such a policy). Rollouts read it from their own targets,
+    # the last held beyond the window.
+    preview_steps: int = 0
     # Weight of the state-prediction term ||x_hat_(t+1) - x_(t+1)||^2 (paper: 1).
     state_estimate_weight: float = 1.0
     # Weight of ||u_t||^2, (rad/s^2)^-2: the tuned NMPC's (paper: 0.1).
@@ -256,6 +261,8 @@ class DpcTrainingConfig:
             valid = ", ".join(OBJECTIVES)
             raise ValueError(f"unknown tracking_signals '{self.tracking_signals}'; valid: {valid}")
         PerceptionConfig(model=self.perception_model).validate()
+        if isinstance(self.preview_steps, bool) or self.preview_steps < 0:
+            raise ValueError(f"preview_steps must be a whole number >= 0; got {self.preview_steps}")
         weights = self.tracking_channel_weights
         if isinstance(weights, str):
             if weights not in ("uniform", "normalized"):

@@ -44,7 +44,7 @@ from torch import nn
 
 from mca_drake.atomic_io import check_writable, file_sha256
 from mca_drake.conventions import CONTROL_PERIOD_S, MIRROR_CHANNEL_SIGNS
-from mca_drake.cueing.dpc import load_policy_arrays
+from mca_drake.cueing.dpc import load_policy_arrays, preview_offsets
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
 from mca_drake.learning.configs import DpcTrainingConfig
 from mca_drake.learning.output_models import MixedAnalyticalOutput
@@ -124,10 +124,11 @@ class Rollout:
 
 
 def rollout_cell(policy: PolicyNetwork, plant: RolloutPlant):
-    """One closed-loop step (y_t, x_t, Y_t) -> (u_t, x_hat, y_(t+1), x_(t+1))."""
+    """One closed-loop step (y_t, x_t, Y_t, preview_t) -> (u_t, x_hat, y_(t+1), x_(t+1));
+    preview_t is None for a causal policy."""
 
-    def cell(y, x, target):
-        u, x_hat = policy(y, x, target)
+    def cell(y, x, target, preview=None):
+        u, x_hat = policy(y, x, target, preview)
         u = plant.clamp(x, u)
         return u, x_hat, plant.output(x, u), plant.step(x, u)
 
@@ -148,14 +149,28 @@ def closed_loop_rollout(
     cell = cell or rollout_cell(policy, plant)
     x, y = x0, y0
     U, X, X_hat, Y = [], [x0], [], []
+    previews = rollout_previews(targets, policy.preview_steps)
     for t in range(targets.shape[1]):
-        u, x_hat, y, x = cell(y, x, targets[:, t])
+        preview = None if previews is None else previews[:, t]
+        u, x_hat, y, x = cell(y, x, targets[:, t], preview)
         U.append(u)
         X_hat.append(x_hat)
         Y.append(y)
         X.append(x)
     stack = lambda seq: torch.stack(seq, dim=1)  # noqa: E731
     return Rollout(stack(U), stack(X), stack(X_hat), stack(Y))
+
+
+def rollout_previews(targets: torch.Tensor, preview_steps: int) -> torch.Tensor | None:
+    """What a policy with a preview of `preview_steps` periods reads at each step of a
+    rollout over `targets` (B, T, 6): the targets at `preview_offsets` ahead, the last held
+    beyond the window, shape (B, T, 6 PREVIEW_POINTS); None for a causal policy."""
+    if not preview_steps:
+        return None
+    T = targets.shape[1]
+    ahead = torch.arange(T)[:, None] + torch.as_tensor(preview_offsets(preview_steps))[None, :]
+    rows = torch.clamp(ahead, max=T - 1).to(targets.device)  # (T, points)
+    return targets[:, rows].reshape(targets.shape[0], T, -1)
 
 
 def pooled_correlation(outputs: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
@@ -443,13 +458,18 @@ def train_policy(
     torch.manual_seed(config.seed)
     if config.initial_policy:
         policy = load_policy_network(config.initial_policy)
-        if policy.hidden != config.hidden:
+        if (policy.hidden, policy.preview_steps) != (config.hidden, config.preview_steps):
             raise ValueError(
-                f"initial_policy {config.initial_policy} has {policy.hidden} hidden neurons, "
-                f"the config {config.hidden}"
+                f"initial_policy {config.initial_policy} has {policy.hidden} hidden neurons "
+                f"and a preview of {policy.preview_steps} steps, the config {config.hidden} "
+                f"and {config.preview_steps}"
             )
     else:
-        policy = PolicyNetwork(hidden=config.hidden, output_scale=config.output_scale)
+        policy = PolicyNetwork(
+            hidden=config.hidden,
+            output_scale=config.output_scale,
+            preview_steps=config.preview_steps,
+        )
     plant = RolloutPlant(config)
     if config.mirror_fraction > 0:
         check_mirror_symmetry(plant)
@@ -459,7 +479,7 @@ def train_policy(
     channel_weights = tracking_channel_weights(config, train_targets)
     metadata = {
         "model": "dpc-policy",
-        "model_kwargs": {"hidden": config.hidden},
+        "model_kwargs": {"hidden": config.hidden, "preview_steps": config.preview_steps},
         "dataset": str(dataset),
         "dpc_config": json.loads(json.dumps(dataclasses.asdict(config))),
         "tracking_channel_weights": None if channel_weights is None else channel_weights.tolist(),
@@ -517,7 +537,10 @@ def export_checkpoint_policy(checkpoint: str | Path, out: str | Path) -> Path:
     payload, meta = load_checkpoint(checkpoint)
     if meta.get("model") != "dpc-policy":
         raise ValueError(f"{checkpoint} is not a DPC policy checkpoint (model {meta.get('model')})")
-    policy = PolicyNetwork(hidden=meta.get("model_kwargs", {}).get("hidden", 128))
+    kwargs = meta.get("model_kwargs", {})
+    policy = PolicyNetwork(
+        hidden=kwargs.get("hidden", 128), preview_steps=kwargs.get("preview_steps", 0)
+    )
     if "best_model" not in payload:
         raise CheckpointError(f"{checkpoint} holds no best weights (best_model) to export")
     load_state_into(policy, payload["best_model"], str(checkpoint))

@@ -26,10 +26,12 @@ from torch import nn
 
 from mca_drake.atomic_io import atomic_write_npz
 from mca_drake.cueing.dpc import (
-    INPUT_SIZE,
     OUTPUT_SIZE,
     POLICY_FORMAT,
+    PREVIEW_POINTS,
+    input_size,
     load_policy_arrays,
+    policy_preview_steps,
 )
 from mca_drake.learning.blocks import Mlp
 from mca_drake.learning.configs import OUTPUT_SCALE
@@ -50,6 +52,8 @@ class PolicyNetwork(nn.Module):
         robot: the KR500 description (limits of the saturation, input scales).
         hidden: neurons of the hidden layer (paper: 128).
         output_scale: the scales of y and Y (6; default `OUTPUT_SCALE`).
+        preview_steps: reference preview, control periods (0: causal); with one the network
+            also reads the reference at `mca_drake.cueing.dpc.preview_offsets`.
     """
 
     def __init__(
@@ -57,11 +61,15 @@ class PolicyNetwork(nn.Module):
         robot: KR500 | None = None,
         hidden: int = 128,
         output_scale: tuple[float, ...] | np.ndarray = OUTPUT_SCALE,
+        preview_steps: int = 0,
     ):
         super().__init__()
         robot = robot if robot is not None else load_kr500()
         self.hidden = int(hidden)
-        self.f_pi = Mlp(INPUT_SIZE, OUTPUT_SIZE, hidden)
+        self.preview_steps = int(preview_steps)
+        if self.preview_steps < 0:
+            raise ValueError(f"preview_steps must be >= 0; got {preview_steps}")
+        self.f_pi = Mlp(input_size(self.preview_steps), OUTPUT_SIZE, hidden)
         lower = np.concatenate([-robot.qdd_max, robot.q_min, -robot.qd_max])
         upper = np.concatenate([robot.qdd_max, robot.q_max, robot.qd_max])
         output_scale = np.asarray(output_scale, float)
@@ -69,6 +77,7 @@ class PolicyNetwork(nn.Module):
             raise ValueError(f"output_scale must be six positive values; got {output_scale}")
         input_scale = np.concatenate(
             [output_scale, np.maximum(-robot.q_min, robot.q_max), robot.qd_max, output_scale]
+            + [output_scale] * (PREVIEW_POINTS if self.preview_steps else 0)
         )
 
         def buffer(name, value):
@@ -79,10 +88,16 @@ class PolicyNetwork(nn.Module):
         buffer("input_scale", input_scale)
 
     def forward(
-        self, y: torch.Tensor, x: torch.Tensor, target: torch.Tensor
+        self,
+        y: torch.Tensor,
+        x: torch.Tensor,
+        target: torch.Tensor,
+        preview: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """(u (B, 6), x_hat (B, 12)) for y (B, 6), x (B, 12), target (B, 6)."""
-        features = torch.cat([y, x, target], dim=-1) / self.input_scale
+        """(u (B, 6), x_hat (B, 12)) for y (B, 6), x (B, 12), target (B, 6) and, with a
+        preview, the reference at the preview offsets (B, 24)."""
+        parts = [y, x, target] if preview is None else [y, x, target, preview]
+        features = torch.cat(parts, dim=-1) / self.input_scale
         out = relu_clamp(self.f_pi(features), self.lower, self.upper)
         return out[..., :NUM_JOINTS], out[..., NUM_JOINTS:]
 
@@ -103,7 +118,12 @@ def save_policy(path, policy: PolicyNetwork, metadata: dict) -> None:
     in the format that `mca_drake.cueing.dpc.load_policy_arrays` reads.
 
     `metadata` should say how the policy was made (command, config, dataset, versions)."""
-    meta = {**metadata, "format": POLICY_FORMAT, "hidden": policy.hidden}
+    meta = {
+        **metadata,
+        "format": POLICY_FORMAT,
+        "hidden": policy.hidden,
+        "preview_steps": policy.preview_steps,
+    }
     atomic_write_npz(path, {"metadata_json": np.array(json.dumps(meta)), **policy.export()})
 
 
@@ -111,9 +131,12 @@ def load_policy_network(path, robot: KR500 | None = None) -> PolicyNetwork:
     """A PolicyNetwork holding the weights and input scales of a policy file (for further
     training or torch inference). Raises ValueError if the file's bounds or joint scales are
     not this robot's limits."""
-    arrays, _ = load_policy_arrays(path)
+    arrays, metadata = load_policy_arrays(path)
     policy = PolicyNetwork(
-        robot, hidden=arrays["W1"].shape[0], output_scale=arrays["input_scale"][:6]
+        robot,
+        hidden=arrays["W1"].shape[0],
+        output_scale=arrays["input_scale"][:6],
+        preview_steps=policy_preview_steps(metadata),
     )
     for name in ("lower", "upper", "input_scale"):
         if not np.allclose(arrays[name], getattr(policy, name).double().numpy(), atol=1e-6):

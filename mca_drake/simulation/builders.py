@@ -15,7 +15,6 @@ from pydrake.visualization import VisualizationConfig
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import DpcConfig, McaConfig, NmpcConfig, WashoutConfig, as_mca_config
-from mca_drake.cueing.dpc import load_policy_arrays
 from mca_drake.demo_motion import demo_joint_motion
 from mca_drake.references.reference import Reference
 from mca_drake.robot import KR500, load_kr500
@@ -103,8 +102,9 @@ def AddMca(
         )
     if isinstance(config, DpcConfig):
         config.validate()
-        arrays, _ = load_policy_arrays(config.policy_path())
-        return builder.AddNamedSystem("mca", DpcPolicy(arrays, robot, time_step, update_event))
+        return builder.AddNamedSystem(
+            "mca", DpcPolicy(str(config.policy_path()), robot, time_step, update_event)
+        )
     if isinstance(config, WashoutConfig):
         return builder.AddNamedSystem(
             "mca",
@@ -118,14 +118,13 @@ def AddMca(
 def _add_source_and_mca(builder, reference, mca, robot):
     """ReferenceSource and the MCA, wired together; returns (source, mca, initial_state):
     the robot starts at rest at the MCA's home pose (q = 0 unless the MCA has one)."""
-    config = as_mca_config(mca)
-    preview = config.preview_steps if isinstance(config, NmpcConfig) else 0
+    controller = AddMca(builder, mca, robot, reference.time_step)
+    preview = controller.preview_samples if hasattr(controller, "preview_samples") else 0
     source = builder.AddNamedSystem(
         "reference_source", ReferenceSource(reference, preview_samples=max(preview, 1))
     )
-    controller = AddMca(builder, config, robot, reference.time_step)
     builder.Connect(source.GetOutputPort("reference"), controller.GetInputPort("reference"))
-    if preview:  # a known future: the NMPC reads it at its grid's nodes
+    if preview:  # a known future: the MCA reads it (the NMPC at its grid's nodes)
         builder.Connect(
             source.GetOutputPort("reference_preview"), controller.GetInputPort("reference_preview")
         )

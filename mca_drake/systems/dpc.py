@@ -10,7 +10,12 @@ import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from mca_drake.conventions import CONTROL_PERIOD_S, MCA_STATISTICS
-from mca_drake.cueing.dpc import PolicyInference, load_policy_arrays
+from mca_drake.cueing.dpc import (
+    PolicyInference,
+    load_policy_arrays,
+    policy_preview_steps,
+    preview_offsets,
+)
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
@@ -26,6 +31,7 @@ class DpcPolicy(LeafSystem):
         - reference
         - state
         - inertial_output
+        - reference_preview (optional)
         output_ports:
         - joint_acceleration
         - statistics
@@ -45,6 +51,8 @@ class DpcPolicy(LeafSystem):
         time_step: control period, s.
         update_event: the phase of t_k the step runs in (`mca_update.MCA_UPDATE_EVENTS`):
             "unrestricted" offline, "discrete" in the live loop (after its telemetry poll).
+        preview_steps: the reference preview of a policy given as arrays (a file says its
+            own).
     """
 
     def __init__(
@@ -53,11 +61,24 @@ class DpcPolicy(LeafSystem):
         robot: KR500 | None = None,
         time_step: float = CONTROL_PERIOD_S,
         update_event: str = "unrestricted",
+        preview_steps: int = 0,
     ):
         super().__init__()
-        arrays = load_policy_arrays(policy)[0] if isinstance(policy, str | Path) else policy
+        if isinstance(policy, str | Path):
+            arrays, metadata = load_policy_arrays(policy)
+            preview_steps = policy_preview_steps(metadata)
+        else:
+            arrays, preview_steps = policy, int(preview_steps)
         self._robot = robot if robot is not None else load_kr500()
         self._inference = PolicyInference(arrays)
+        # a policy with a preview reads the reference at its offsets ahead, from a preview
+        # of offsets[-1] + 1 samples (the current one first)
+        self._offsets = preview_offsets(preview_steps) if preview_steps else None
+        self._preview_port = None
+        if self._offsets is not None:
+            self._preview_port = self.DeclareVectorInputPort(
+                "reference_preview", 6 * self.preview_samples
+            )
         self._clamp = ViabilityClamp.for_robot(self._robot, time_step)
         self._reference_port = self.DeclareVectorInputPort("reference", 6)
         self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
@@ -68,6 +89,11 @@ class DpcPolicy(LeafSystem):
         self.DeclareStateOutputPort("joint_acceleration", self._command_index)
         self.DeclareStateOutputPort("statistics", self._statistics_index)
 
+    @property
+    def preview_samples(self) -> int:
+        """Samples of `reference_preview` the policy reads (0: causal, no such port)."""
+        return 0 if self._offsets is None else int(self._offsets[-1]) + 1
+
     def statistics(self, context: Context) -> dict[str, float]:
         """The `statistics` values in `context`, by name."""
         values = context.get_discrete_state(self._statistics_index).value()
@@ -77,10 +103,14 @@ class DpcPolicy(LeafSystem):
         x = self._state_port.Eval(context)
         y = self._output_port.Eval(context)
         reference = self._reference_port.Eval(context)
+        preview = ()
+        if self._preview_port is not None:
+            rows = self._preview_port.Eval(context).reshape(-1, 6)
+            preview = rows[self._offsets].reshape(-1)
         # Timed from here: evaluating the inputs computes upstream systems (the plant's
         # output), which is simulation, not this MCA's work.
         start = time.perf_counter()
-        u = self._inference.command(y, x, reference)
+        u = self._inference.command(y, x, reference, preview)
         # NaN from the network says an input is not finite (or it overflowed): only then are
         # the inputs checked one by one
         if not math.isfinite(u[0]):
@@ -90,7 +120,7 @@ class DpcPolicy(LeafSystem):
                 )
             if not np.all(np.isfinite(y)):
                 # a dropped IMU sample: the policy still sees state and target
-                u = self._inference.command(np.zeros(6), x, reference)
+                u = self._inference.command(np.zeros(6), x, reference, preview)
             # else the network overflowed on huge inputs: the clamp brakes on NaN
         command, intervened = self._clamp(x, u)
         # from `discrete`, which holds the current values on entry (DeclareMcaUpdate): one

@@ -102,6 +102,11 @@ class NmpcController(LeafSystem):
         self._statistics_port = self.DeclareStateOutputPort("statistics", self._statistics_index)
 
     @property
+    def preview_samples(self) -> int:
+        """Samples of `reference_preview` it reads (0: causal, no such port)."""
+        return self._preview_samples
+
+    @property
     def ocp(self) -> MotionCueingOcp:
         """The optimal control problem this controller solves."""
         return self._ocp

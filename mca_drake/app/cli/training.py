@@ -31,6 +31,7 @@ POLICY_FLAGS = {
     "targets": "",
     "tracking_signals": "",
     "perception_model": "",
+    "preview_steps": "",
     "plant": "",
     "learned_output_weights": "",
     "window_segments": "",
