@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from dataset_helpers import rest_segments
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pydrake.systems.analysis import Simulator
@@ -276,24 +277,7 @@ def _sine_target_dataset(n_segments=48, horizon=32, seed=0) -> SegmentDataset:
     R = np.stack(
         [_sine_motion(rng.uniform(0, 3) + 0.01 * np.arange(horizon))[1] for _ in range(n_segments)]
     )
-    zeros = lambda *s: np.zeros((n_segments, horizon, *s))  # noqa: E731
-    arrays = {
-        "U": zeros(6),
-        "X": zeros(12),
-        "Y": zeros(6),
-        "F": zeros(4, 4),
-        "dF": zeros(4, 4),
-        "ddF": zeros(4, 4),
-        "R": R,
-    }
-    split = np.zeros(n_segments, dtype=np.int64)
-    split[n_segments * 7 // 10 :] = 1
-    source = np.stack([np.zeros(n_segments), np.zeros(n_segments), split], 1).astype(np.int64)
-    meta = {
-        "source_columns": ["flight_seed", "start_step", "split"],
-        "split_names": ["train", "validation", "test"],
-    }
-    return SegmentDataset({k: v.astype(np.float32) for k, v in arrays.items()}, source, meta)
+    return rest_segments(R)
 
 
 @pytest.fixture(scope="module")

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from dataset_helpers import rest_segments
 from pydrake.systems.analysis import Simulator
 
 from mca_drake.cueing.dpc import (
@@ -59,17 +60,7 @@ def _dataset(n=24, horizon=40, seed=0) -> SegmentDataset:
     t = 0.01 * np.arange(horizon)
     R = np.zeros((n, horizon, 6))
     R[..., 3] = np.sin(rng.uniform(0, 3, (n, 1)) + 2.0 * t[None])  # a surge to anticipate
-    zeros = lambda *s: np.zeros((n, horizon, *s))  # noqa: E731
-    arrays = {"U": zeros(6), "X": zeros(12), "Y": zeros(6), "R": R}
-    arrays |= {name: zeros(4, 4) for name in ("F", "dF", "ddF")}
-    split = np.zeros(n, dtype=np.int64)
-    split[n * 7 // 10 :] = 1  # train, then validation
-    source = np.stack([np.zeros(n), np.zeros(n), split], 1).astype(np.int64)
-    meta = {
-        "source_columns": ["flight_seed", "start_step", "split"],
-        "split_names": ["train", "validation", "test"],
-    }
-    return SegmentDataset({k: v.astype(np.float32) for k, v in arrays.items()}, source, meta)
+    return rest_segments(R)
 
 
 @pytest.fixture(scope="module")

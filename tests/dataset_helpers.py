@@ -1,0 +1,25 @@
+"""Small training sets for the DPC tests: segments at rest at the neutral pose with given
+targets, 70 % training and 30 % validation."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mca_drake.segments import SegmentDataset
+
+
+def rest_segments(targets: np.ndarray) -> SegmentDataset:
+    """Segments of `targets` R (n, T, 6) starting at rest at the neutral pose (every other
+    array zero), the first 70 % for training and the rest for validation."""
+    n, horizon = targets.shape[:2]
+    zeros = lambda *s: np.zeros((n, horizon, *s))  # noqa: E731
+    arrays = {"U": zeros(6), "X": zeros(12), "Y": zeros(6), "R": targets}
+    arrays |= {name: zeros(4, 4) for name in ("F", "dF", "ddF")}
+    split = np.zeros(n, dtype=np.int64)
+    split[n * 7 // 10 :] = 1
+    source = np.stack([np.zeros(n), np.zeros(n), split], 1).astype(np.int64)
+    meta = {
+        "source_columns": ["flight_seed", "start_step", "split"],
+        "split_names": ["train", "validation", "test"],
+    }
+    return SegmentDataset({k: v.astype(np.float32) for k, v in arrays.items()}, source, meta)
