@@ -41,7 +41,7 @@ from mca_drake.cueing.output_curvature import finite_difference_hessians, residu
 from mca_drake.cueing.shooting import shooting_dynamics
 from mca_drake.input_checks import as_float_array, check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
-from mca_drake.perception.filters import vestibular_filter
+from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 
@@ -151,6 +151,7 @@ class OptimalCueing:
             self._model = _modal(f.A, f.B, f.C, f.D)
         else:
             self._model = (np.zeros((0, 0)), np.zeros((0, 6)), np.zeros((6, 0)), np.eye(6))
+        self._filter = DiscreteFilter(*self._model, time_step=h)
         self.n = self._model[0].shape[0]
         self._build_program()
 
@@ -223,13 +224,10 @@ class OptimalCueing:
         """(P (T, 6), eps (T + 1, n)): the signals the tracking term weighs, for the errors
         y - r (T, 6): the errors themselves (inertial), or the vestibular model's outputs
         P_k = C eps_k + D e_k and its states from rest (perceived)."""
-        A, B, C, D = self._model
-        eps = np.zeros((errors.shape[0] + 1, self.n))
-        if self.n:
-            drive = errors @ B.T
-            for k in range(errors.shape[0]):
-                eps[k + 1] = A @ eps[k] + drive[k]
-        return eps[:-1] @ C.T + errors @ D.T, eps
+        if not self.n:  # inertial: the errors themselves
+            return errors, np.zeros((errors.shape[0] + 1, 0))
+        _, eps = self._filter.trajectory(errors)
+        return eps[:-1] @ self._filter.C.T + errors @ self._filter.D.T, eps
 
     def _cost_of(self, x, U, residual) -> float:
         cfg = self.config

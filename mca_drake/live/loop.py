@@ -31,7 +31,7 @@ from pydrake.systems.framework import (
 )
 
 from mca_drake.conventions import CONTROL_PERIOD_S
-from mca_drake.cueing import McaConfig, as_mca_config
+from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
 from mca_drake.kinematics import plant_output
 from mca_drake.live.csv_udp import CsvDecoder
 from mca_drake.live.fgnetfdm import FgNetFdmDecoder
@@ -521,7 +521,8 @@ def _scored_summary(
             rows("true_state"), rows("measured_output"), n, h
         )
     summary, _ = closed_loop_summary(
-        config=config,
+        mca=mca_name(config),
+        mca_config=mca_config_record(config),
         plant=plant,
         reference_name=f"live {decoder.protocol} udp://{source.address[0]}:{source.address[1]}",
         duration_s=n * h,

@@ -57,20 +57,26 @@ class DiscreteFilter:
             inputs: shape (T, m).
             state: x_0, shape (n,); default zeros.
         """
+        u, states = self.trajectory(inputs, state)
+        return states[:-1] @ self.C.T + u @ self.D.T, states[-1]
+
+    def trajectory(self, inputs, state=None) -> tuple[np.ndarray, np.ndarray]:
+        """(inputs as a float array (T, m), the states x_0..x_T (T + 1, n)) for inputs
+        u_0..u_(T-1) from x_0 = `state` (default zeros)."""
         u = as_float_array("inputs", inputs, last_dim=self.B.shape[1])
         if u.ndim != 2:
             raise ValueError(f"inputs must have shape (T, {self.B.shape[1]}); got {u.shape}")
         x = np.zeros(self.num_states) if state is None else as_float_array("state", state)
         if x.shape != (self.num_states,):
             raise ValueError(f"state must have shape ({self.num_states},); got {x.shape}")
-        states = np.empty((u.shape[0], self.num_states))
-        A, B = self.A, self.B
+        states = np.empty((u.shape[0] + 1, self.num_states))
+        A = self.A
         # u enters the state through B only: B u for all samples at once, then the recursion
-        drive = u @ B.T
+        drive = u @ self.B.T
+        states[0] = x
         for n in range(u.shape[0]):
-            states[n] = x
-            x = A @ x + drive[n]
-        return states @ self.C.T + u @ self.D.T, x
+            states[n + 1] = A @ states[n] + drive[n]
+        return u, states
 
     def steps(self, durations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The filter over intervals of `durations` whole periods each (ints, shape (N,)):

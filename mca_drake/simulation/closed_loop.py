@@ -100,7 +100,8 @@ def checked_duration(reference: Reference, duration_s: float | None) -> float:
 
 def closed_loop_summary(
     *,
-    config: McaConfig,
+    mca: str,
+    mca_config: dict,
     plant: str,
     reference_name: str,
     duration_s: float,
@@ -108,7 +109,7 @@ def closed_loop_summary(
     outputs: np.ndarray,
     states: np.ndarray,
     accelerations: np.ndarray,
-    statistics: np.ndarray,
+    statistics: np.ndarray | None,
     wall_s: float,
     robot: KR500,
     time_step: float,
@@ -117,19 +118,25 @@ def closed_loop_summary(
     """The result summary (README, "Result summary") for n aligned samples, and the MCA step times.
 
     Args:
-        config: the MCA config that ran (recorded in full as `mca_config`).
+        mca: the name of what ran (`mca_drake.cueing.mca_name`; "optimal" for the bound).
+        mca_config: the full config that ran, as a record (`mca_config_record`).
         reference: r_n, shape (n, 6).
         outputs: y_n, shape (n, 6).
         states: x_n, shape (n, 12).
         accelerations: the joint accelerations over each step, rad/s^2, shape (n, 6).
         statistics: the MCA's `statistics` log (row k published at t_k, so row n holds the
-            totals after n steps), shape (n + 1 or more, 4).
+            totals after n steps), shape (n + 1 or more, 4); None for an offline solve
+            (the optimal bound), which has no control steps: `step_time_s` is then None
+            and no failure or intervention is counted.
         wall_s: wall time of the simulation, s.
         time_step: the sample period of the signals, s.
         perception: the vestibular model of the `perceived` block (default
             PerceptionConfig()).
     """
     n = reference.shape[0]
+    offline = statistics is None
+    if offline:
+        statistics = np.zeros((n + 1, 4))
     step_times = statistics[1 : n + 1, 0]
     score = tracking_score(reference, outputs)
     # Not moving at all renders y = 0 (at rest, the head is level at every home pose).
@@ -139,8 +146,8 @@ def closed_loop_summary(
     head_z_up = head_pose(states[:, :NUM_JOINTS], robot)[:, 2, 2]
     perceived = perceived_run(reference, outputs, time_step, perception, head_z_up)
     summary = {
-        "mca": mca_name(config),
-        "mca_config": mca_config_record(config),
+        "mca": mca,
+        "mca_config": mca_config,
         "plant": plant,
         "reference": reference_name,
         "duration_s": duration_s,
@@ -152,7 +159,7 @@ def closed_loop_summary(
         "false_rotation": dataclasses.asdict(false_rotation(reference, outputs)),
         # what the occupant perceives (vestibular models), scored the same way
         "perceived": perceived.summary(),
-        "step_time_s": step_time_summary(step_times),
+        "step_time_s": None if offline else step_time_summary(step_times),
         "violations": usage.violations(),
         "joint_range_used": joint_range_used(states[:, :NUM_JOINTS], robot).round(4).tolist(),
         "safety_interventions": int(statistics[n, 2]),
@@ -290,7 +297,8 @@ def _collect_result(
         desired = log("desired_state_log")[:n]
     ref = log("reference_log")[:n]
     summary, step_times = closed_loop_summary(
-        config=config,
+        mca=mca_name(config),
+        mca_config=mca_config_record(config),
         plant=plant,
         reference_name=reference.name,
         duration_s=duration,

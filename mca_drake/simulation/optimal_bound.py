@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 
 from mca_drake.atomic_io import atomic_write_json, check_writable
-from mca_drake.conventions import MCA_STATISTICS
 from mca_drake.cueing import as_mca_config, mca_name
 from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing
 from mca_drake.kinematics import plant_output
@@ -94,9 +93,9 @@ def run_optimal_bound(
     solution = ocp.solve(target, U_start=candidates[start], progress=report if progress else None)
     states = solution.states[:n]
     outputs = plant_output(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], solution.U, robot)
-    statistics = np.zeros((n + 1, len(MCA_STATISTICS)))
     summary, _ = closed_loop_summary(
-        config=as_mca_config("nmpc-rti"),  # replaced below: the bound is no MCA config
+        mca="optimal",
+        mca_config={"type": "OptimalConfig", **dataclasses.asdict(config)},
         plant="analytical",
         reference_name=reference.name,
         duration_s=duration,
@@ -104,17 +103,13 @@ def run_optimal_bound(
         outputs=outputs,
         states=states,
         accelerations=solution.U,
-        statistics=statistics,
+        statistics=None,  # an offline solve: no control steps
         wall_s=solution.solve_time_s,
         robot=robot,
         time_step=reference.time_step,
         perception=perception,
     )
     summary |= {
-        "mca": "optimal",
-        "mca_config": {"type": "OptimalConfig", **dataclasses.asdict(config)},
-        # an offline solve has no control steps; its time is the solver's
-        "step_time_s": None,
         "solver": {
             "cost": solution.cost,
             "kkt_residual": solution.kkt_residual,
