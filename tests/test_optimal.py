@@ -55,9 +55,48 @@ def test_shooting_dynamics_rows_are_the_exact_steps():
     np.testing.assert_allclose(A @ z, rhs, atol=1e-12)
 
 
-def test_a_short_bound_is_the_optimum_scipy_finds(robot):
+def _rest_output(robot, T: int) -> np.ndarray:
+    """The plant's output (T, 6) with the robot at rest at home (gravity in the specific
+    force)."""
+    from mca_drake.kinematics import plant_output
+
+    zeros = np.zeros((T, 6))
+    return plant_output(zeros, zeros, zeros, robot)
+
+
+def test_a_reference_the_robot_renders_at_rest_is_met_by_not_moving(robot):
+    """Closed form: where the reference is what the robot at rest outputs, not moving costs
+    nothing, and every other trajectory costs more; from a moving start the bound returns
+    to rest."""
+    T = 40
+    reference = _rest_output(robot, T)
+    ocp = OptimalCueing(T, OptimalConfig(kkt_tolerance=1e-9, max_iterations=30), robot)
+    start = 0.05 * robot.qdd_max * np.sign(np.sin(np.arange(T) / 4.0))[:, None]
+    assert ocp.cost(np.zeros(12), start, reference) > 1e-6
+    ours = ocp.solve(reference, U_start=start)
+    assert ours.cost <= 1e-10
+    np.testing.assert_allclose(ours.U, 0.0, atol=1e-4)
+
+
+def _short_reference(kind: str, T: int, robot) -> np.ndarray:
+    """Short references whose optimum SciPy finds by brute force: sines on every channel,
+    one channel alone, a constant specific force, and a step in surge."""
+    if kind == "sines":
+        return _reference(T)
+    rest = _rest_output(robot, T)
+    if kind == "single channel":  # a roll rate alone
+        return rest + np.outer(np.sin(np.arange(T) * 0.5), [0.4, 0, 0, 0, 0, 0])
+    if kind == "constant specific force":
+        return rest + np.array([0, 0, 0, 1.5, 0, 0])
+    steps = np.zeros((T, 6))
+    steps[T // 2 :, 3] = 2.0
+    return rest + steps
+
+
+@pytest.mark.parametrize("kind", ["sines", "single channel", "constant specific force", "step"])
+def test_a_short_bound_is_the_optimum_scipy_finds(kind, robot):
     T = 6
-    reference = _reference(T)
+    reference = _short_reference(kind, T, robot)
     ocp = OptimalCueing(T, OptimalConfig(kkt_tolerance=1e-9), robot)
     ours = ocp.solve(reference)
     theirs = _scipy_optimum(ocp, reference, robot)

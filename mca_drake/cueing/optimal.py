@@ -16,10 +16,9 @@ model's states become variables of the program, tied to the errors by its dynami
 limits are the robot's own (Table I), at every sample, as the summaries count violations.
 
 Method: sequential quadratic programming. Each QP linearises y at the current trajectory
-with the exact Jacobians of `mca_drake.kinematics`, its Hessian Gauss-Newton's (plus, for
-the inertial objective, the positive part of the residual curvature: `curvature`), and is
-solved in full by
-Drake's Clarabel (interior point) on the sparse multiple-shooting program (variables u_k and
+with the exact Jacobians of `mca_drake.kinematics`, its Hessian Gauss-Newton's (or, for
+the inertial objective, Newton's made convex stage by stage: `curvature`), and is solved in
+full by Drake's Clarabel (interior point) on the sparse multiple-shooting program (variables u_k and
 x_(k+1) per step: banded, linear in T). The dynamics are linear and the constraints are
 boxes, so every iterate is feasible and a backtracking line search on the true cost makes
 the method a descent method: started from a causal MCA's trajectory, the bound's cost is
@@ -71,13 +70,16 @@ class OptimalConfig:
     perception_model: str = "telban-cardullo"
     # Control period, s.
     time_step: float = CONTROL_PERIOD_S
-    # Inertial objective: add to Gauss-Newton's Hessian the positive part of the residual
-    # curvature (second derivatives of the output, by finite differences of its exact
-    # Jacobians). Where Gauss-Newton underrates the cost's curvature its steps overshoot,
-    # and one stage's overshoot shortens the whole trajectory's step: on a 5 s light flight
-    # from rest, 25 iterations took steps of 1/8 to 1/4 and reached a KKT residual of 1.2e-2
-    # without it, full steps and 6.9e-4 with it.
-    curvature: bool = True
+    # Inertial objective: Newton's stage Hessians (Gauss-Newton's plus the residual
+    # curvature, the output's second derivatives by finite differences of its exact
+    # Jacobians), each projected onto the convex ones, instead of Gauss-Newton's. Off by
+    # default: on 5 s flights from rest (light and jet, seeds 7 and 8) Gauss-Newton reached
+    # the KKT tolerance in 9 to 35 iterations and this in 19 to more than 40, and on a
+    # 30 s flight from the NMPC's trajectory it ended 0.7 % higher after 30; on
+    # six-sample references Gauss-Newton took 4 iterations, this 5 to 33. The problem is
+    # not convex: on one 5 s flight Gauss-Newton stopped at a point 0.25 % costlier than
+    # where this went.
+    curvature: bool = False
     # Iterations (QPs) at most.
     max_iterations: int = 30
     # Stop once the KKT (stationarity) residual relative to max(1, |grad f|_inf) is below.
@@ -330,11 +332,12 @@ class OptimalCueing:
         diag = np.r_[np.zeros(n), washout, np.zeros(NU), inputs]
         Q = Q + 2 * w * np.diag(diag)[None]
         if cfg.curvature and n == 0:
-            # the residual curvature's positive part on (dx_k, du_k): where Gauss-Newton
-            # underrates the cost's curvature, its steps overshoot, and one stage's overshoot
+            # Newton's stage Hessian, Gauss-Newton's plus the residual curvature on
+            # (dx_k, du_k), made convex stage by stage: where Gauss-Newton misjudges the
+            # cost's curvature its steps overshoot or creep, and one stage's overshoot
             # shortens the whole trajectory's step
             dcost_dy = 2 * w * weights * tracked
-            Q += _positive_part(self._residual_curvature(x, U, J, dcost_dy))
+            Q = _positive_part(Q + self._residual_curvature(x, U, J, dcost_dy))
         b = 2 * w * np.einsum("kai,ka->ki", WG, tracked)
         b[:, n : n + NU] += 2 * w * cfg.washout_weight * x[:-1, :NU]
         b[:, n + 2 * NU :] += 2 * w * cfg.input_weight * U
@@ -418,10 +421,11 @@ def _modal(A, B, C, D):
 
 
 def _positive_part(S: np.ndarray) -> np.ndarray:
-    """Each stage's symmetric S_k (T, n, n) with its negative eigenvalues set to zero.
-    (The negative part cannot be taken in stage by stage: Gauss-Newton's Hessian is
-    singular along some of each stage's directions, and any share of it makes the stage's
-    model indefinite there.)"""
+    """Each stage's symmetric S_k (T, n, n) with its negative eigenvalues set to zero: the
+    nearest positive semidefinite matrix (Frobenius). Projecting Newton's stage Hessian
+    keeps the residual curvature's negative part wherever Gauss-Newton's curvature absorbs
+    it (Gauss-Newton's Hessian is singular along some of each stage's directions, where
+    any negative curvature would make the stage's model indefinite)."""
     S = 0.5 * (S + np.swapaxes(S, -1, -2))
     values, vectors = np.linalg.eigh(S)
     return (vectors * np.maximum(values, 0.0)[..., None, :]) @ np.swapaxes(vectors, -1, -2)
