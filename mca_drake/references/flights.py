@@ -7,11 +7,25 @@ closed-loop dataset alike.
 """
 
 import dataclasses
+import json
 from pathlib import Path
 
-from mca_drake.references.jsbsim import check_vehicle, fly
+import numpy as np
+
+from mca_drake.references.jsbsim import FlightConfig, FlightError, check_vehicle, fly
+from mca_drake.references.jsbsim.style import PilotStyle, sample_pilot_style
 from mca_drake.references.recording import Recording, load_recording, save_recording
 from mca_drake.references.reference import Reference, ReferenceScaling, reference_from_recording
+
+# Who flies a built-in flight: the scripted pilot, or a pilot whose style is drawn from the
+# flight's seed (`jsbsim.style.sample_pilot_style`).
+PILOTS = ("scripted", "random-style")
+# The random pilot's style comes from its own stream of the seed, so the flight's own draws
+# (turbulence, heading, plan) are those of the scripted pilot's flight of that seed.
+STYLE_STREAM = 1
+# Styles drawn for one seed at most: a style whose flight leaves the airframe's envelope
+# (a FlightError, about 1 in 70 flights at the ranges' corners) is replaced by the next.
+MAX_STYLE_DRAWS = 5
 
 
 @dataclasses.dataclass
@@ -23,13 +37,17 @@ class FlightSpec:
     recording: str = ""
     # Built-in flight: "light" (c172p) or "jet" (global5000).
     vehicle: str = "light"
-    # Seed of the built-in flight's scripted pilot (training used 100-104; evaluation 1000 on).
+    # Seed of the built-in flight's pilot (training used 100-104; evaluation 1000 on).
     seed: int = 1000
+    # Who flies it (`PILOTS`): "scripted", or "random-style" (a style drawn from the seed).
+    pilot: str = "scripted"
 
     def validate(self) -> None:
-        """Raises ValueError for an unknown vehicle or a missing recording file."""
+        """Raises ValueError for an unknown vehicle or pilot, or a missing recording file."""
         if not self.recording:
             check_vehicle(self.vehicle)
+        if self.pilot not in PILOTS:
+            raise ValueError(f"unknown flight.pilot '{self.pilot}'; valid: {', '.join(PILOTS)}")
         if not self.recording and not 0 <= self.seed < 2**32:
             raise ValueError(f"flight.seed must be in [0, 2^32); got {self.seed}")
         if self.recording and not Path(self.recording).is_file():
@@ -39,7 +57,36 @@ class FlightSpec:
         """How summaries name the flight: the recording's path, or the built-in flight."""
         if self.recording:
             return self.recording
-        return f"built-in {self.vehicle} flight, seed {self.seed}"
+        pilot = "" if self.pilot == "scripted" else f", {self.pilot} pilot"
+        return f"built-in {self.vehicle} flight, seed {self.seed}{pilot}"
+
+
+def pilot_style(seed: int, draw: int = 0) -> PilotStyle:
+    """The random-style pilot's style for a flight seed: draw `draw` of its style stream."""
+    return sample_pilot_style(np.random.default_rng([seed, STYLE_STREAM, draw]))
+
+
+def _fly_random_style(vehicle: str, duration_s: float, seed: int, progress: bool) -> Recording:
+    """The flight of `seed` flown by its random-style pilot: the first of the seed's styles
+    (`pilot_style`) whose flight stays in the airframe's envelope; the style in the
+    metadata (`pilot_style`, JSON)."""
+    errors = []
+    for draw in range(MAX_STYLE_DRAWS):
+        style = pilot_style(seed, draw)
+        try:
+            recording = fly(
+                vehicle, duration_s, seed, config=FlightConfig(style=style), progress=progress
+            )
+        except FlightError as error:
+            errors.append(str(error))
+            continue
+        recording.metadata["pilot"] = "random-style"
+        recording.metadata["pilot_style"] = json.dumps(dataclasses.asdict(style))
+        return recording
+    raise FlightError(
+        f"{vehicle} seed {seed}: none of {MAX_STYLE_DRAWS} random pilot styles flew "
+        f"{duration_s:g} s; the last: {errors[-1]}"
+    )
 
 
 def flight_recording(
@@ -63,10 +110,14 @@ def flight_recording(
         return load_recording(flight.recording, max_duration_s=duration_s)
     cached = None
     if cache_dir is not None:
-        cached = Path(cache_dir) / f"{flight.vehicle}_{flight.seed}_{duration_s:g}s.csv"
+        pilot = "" if flight.pilot == "scripted" else f"{flight.pilot}_"
+        cached = Path(cache_dir) / f"{flight.vehicle}_{pilot}{flight.seed}_{duration_s:g}s.csv"
         if cached.is_file():
             return load_recording(cached)
-    recording = fly(flight.vehicle, duration_s, flight.seed, progress=progress)
+    if flight.pilot == "random-style":
+        recording = _fly_random_style(flight.vehicle, duration_s, flight.seed, progress)
+    else:
+        recording = fly(flight.vehicle, duration_s, flight.seed, progress=progress)
     if cached is not None:
         save_recording(cached, recording)
     return recording

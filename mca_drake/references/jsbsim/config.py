@@ -7,6 +7,7 @@ import dataclasses
 from mca_drake.references.jsbsim.aircraft import DEG
 from mca_drake.references.jsbsim.fleet import VEHICLE_DEFAULTS, check_vehicle
 from mca_drake.references.jsbsim.maneuvers import Doublet, Maneuver, Turbulence
+from mca_drake.references.jsbsim.style import PilotStyle
 
 
 @dataclasses.dataclass
@@ -39,10 +40,17 @@ class FlightConfig:
     # Maneuvers flown in order instead of the random plan; afterwards level flight (or parked
     # on the ground) to the end. A ground start needs Taxi/Takeoff first.
     maneuvers: tuple[Maneuver, ...] | None = None
+    # How the pilot flies (`style.PilotStyle`); None: the scripted pilot.
+    style: PilotStyle | None = None
 
     def resolved(self, vehicle: str) -> FlightConfig:
-        """A copy with every None field (except from_ground, heading) set to the vehicle's."""
-        defaults = VEHICLE_DEFAULTS[check_vehicle(vehicle)]
+        """A copy with every None field (except from_ground, heading, style) set: the style's
+        turbulence where it has one, else the vehicle's default."""
+        defaults = dict(VEHICLE_DEFAULTS[check_vehicle(vehicle)])
+        for name in ("turbulence_severity", "turbulence_patch_severity"):
+            chosen = getattr(self.style, name, None)
+            if chosen is not None:
+                defaults[name] = chosen
         missing = {name: value for name, value in defaults.items() if getattr(self, name) is None}
         return dataclasses.replace(self, **missing)
 
@@ -65,6 +73,8 @@ def check_config(config: FlightConfig) -> None:
             "need 0 < min_altitude_m <= maneuver_altitude_m <= max_altitude_m; got "
             f"{config.min_altitude_m}, {config.maneuver_altitude_m}, {config.max_altitude_m}"
         )
+    if config.style is not None:
+        config.style.validate()
     for m in config.maneuvers or ():
         if isinstance(m, Doublet) and m.control not in ("elevator", "aileron", "rudder"):
             raise ValueError(

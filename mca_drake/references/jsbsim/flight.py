@@ -27,6 +27,7 @@ from mca_drake.references.jsbsim.loops import Loops
 from mca_drake.references.jsbsim.model import Model, QuietLogger
 from mca_drake.references.jsbsim.pilot import Pilot
 from mca_drake.references.jsbsim.plan import RandomPlan
+from mca_drake.references.jsbsim.style import PilotStyle
 from mca_drake.references.recording import Recording
 
 # Steps between the full sanity checks (a load spike is checked every step).
@@ -145,7 +146,8 @@ def _record(
     on_sample: Callable[[float], None] | None = None,
 ) -> tuple[Recording, FlightLog]:
     """Builds the flight, steps it to `duration_s` with the checks, and packages it."""
-    air = AIRFRAMES[vehicle]
+    style = config.style or PilotStyle()
+    air = style.airframe(AIRFRAMES[vehicle])  # the loops' gains and rates as this pilot flies
     rng = np.random.default_rng(seed)
     if config.from_ground is None:
         from_ground = duration_s >= FULL_FLIGHT_MIN_DURATION_S[vehicle]
@@ -170,7 +172,7 @@ def _record(
     if heading is None:
         heading = float(rng.uniform(0.0, 2.0 * math.pi))
     throttle = model.initialise(config, heading, from_ground)
-    loops = Loops(air, config, model.state, model.controls, throttle)
+    loops = Loops(air, config, model.state, model.controls, throttle, style)
     if config.maneuvers is None:
         plan = RandomPlan(
             rng,
@@ -181,6 +183,7 @@ def _record(
             time_s=lambda: model.t,
             height_m=lambda: model.state.h,
             held_altitude_m=loops.held_altitude,
+            style=style,
         )
     else:
         plan = config.maneuvers

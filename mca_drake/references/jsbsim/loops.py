@@ -16,10 +16,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import deque
 
 from mca_drake.references.jsbsim.aircraft import STEP_S, Airframe, G
 from mca_drake.references.jsbsim.config import FlightConfig
 from mca_drake.references.jsbsim.model import AircraftState, Controls
+from mca_drake.references.jsbsim.style import PilotStyle
 
 # Modes of the roll axis: hold a heading, hold a bank angle, hands off (aileron held),
 # on the ground (wings level; the yaw axis steers to the heading).
@@ -128,6 +130,9 @@ class Loops:
         state: the aircraft state, updated by the model each step.
         controls: JSBSim's command setters.
         throttle: the throttle the model was initialised at (the speed integrator's start).
+        style: how the pilot flies: the outer loops' gains, the hand's control rate and
+            the reaction delay (the inner gains and rate limits come with `air`,
+            `PilotStyle.airframe`); None: the scripted pilot.
     """
 
     def __init__(
@@ -137,8 +142,17 @@ class Loops:
         state: AircraftState,
         controls: Controls,
         throttle: float,
+        style: PilotStyle | None = None,
     ) -> None:
+        style = style or PilotStyle()
         self.air = air
+        self.outer_gain = style.outer_gain
+        self.control_rate = CONTROL_RATE * style.aggressiveness
+        # the surfaces' commands of the last `delay` steps, oldest first: what the pilot
+        # decided reaches the surfaces `reaction_delay_s` later
+        # (the first command is held until the delay has passed: the trim, not a bump)
+        self._delay = round(style.reaction_delay_s / STEP_S)
+        self._delayed: deque[tuple[float, float, float]] = deque()
         self.state = state
         self.controls = controls
         self.roll = RollAxis(mode=ROLL_HEADING, rate_max=air.roll_rate_max)
@@ -170,12 +184,18 @@ class Loops:
         # A pilot's hand (and the surface actuators) cannot step: rate-limit every control,
         # or a reversal or doublet would give a one-sample jump of the roll acceleration (and of
         # the lateral specific force at an eye point metres above the roll axis).
-        step = CONTROL_RATE * STEP_S
+        step = self.control_rate * STEP_S
         roll, pitch, yaw = self.roll, self.pitch, self.yaw
         aileron = clip(aileron, roll.output - step, roll.output + step)
         elevator = clip(elevator, pitch.output - step, pitch.output + step)
         rudder = clip(rudder, yaw.output - step, yaw.output + step)
         roll.output, pitch.output, yaw.output = aileron, elevator, rudder
+        if self._delay:
+            self._delayed.append((aileron, elevator, rudder))
+            if len(self._delayed) > self._delay:
+                aileron, elevator, rudder = self._delayed.popleft()
+            else:
+                aileron, elevator, rudder = self._delayed[0]
         self.controls.write(aileron, elevator, rudder, throttle, self.speed.brake)
 
     def _aileron(self, sched: float, airborne: bool) -> float:
@@ -185,11 +205,13 @@ class Loops:
         if mode == ROLL_HEADING or mode == ROLL_BANK:
             if mode == ROLL_HEADING:
                 bank_c = clip(
-                    1.5 * wrap(roll.heading_c - s.psi), -air.heading_bank, air.heading_bank
+                    1.5 * self.outer_gain * wrap(roll.heading_c - s.psi),
+                    -air.heading_bank,
+                    air.heading_bank,
                 )
             else:
                 bank_c = roll.bank_c
-            p_c = clip(2.0 * (bank_c - s.phi), -roll.rate_max, roll.rate_max)
+            p_c = clip(2.0 * self.outer_gain * (bank_c - s.phi), -roll.rate_max, roll.rate_max)
             error = p_c - s.p
             if airborne:
                 roll.integral = clip(roll.integral + 0.3 * error * dt, -0.3, 0.3)
@@ -211,7 +233,9 @@ class Loops:
             else:
                 if mode == PITCH_ALTITUDE:
                     vspeed_c = clip(
-                        0.15 * (pitch.altitude_c - s.h), -pitch.vspeed_limit, pitch.vspeed_limit
+                        0.15 * self.outer_gain * (pitch.altitude_c - s.h),
+                        -pitch.vspeed_limit,
+                        pitch.vspeed_limit,
                     )
                 else:
                     vspeed_c = pitch.vspeed_c
@@ -236,7 +260,9 @@ class Loops:
             cos_phi = max(math.cos(s.phi), 0.3)
             # Pitch rate of a coordinated level turn, q = (g / V) sin(phi) tan(phi).
             q_turn = G / v * math.sin(s.phi) ** 2 / cos_phi
-            q_c = clip(1.5 * (pitch_c - s.theta), -air.pitch_rate_max, air.pitch_rate_max)
+            q_c = clip(
+                1.5 * self.outer_gain * (pitch_c - s.theta), -air.pitch_rate_max, air.pitch_rate_max
+            )
             error = q_c * cos_phi + q_turn - s.q
             pitch.integral = clip(pitch.integral + 1.0 * error * dt, -1.0, 1.0)
             # Positive elevator is nose down in JSBSim (checked: +0.2 gives q < 0).

@@ -29,6 +29,7 @@ from mca_drake.references.jsbsim.maneuvers import (
     Turbulence,
     Turn,
 )
+from mca_drake.references.jsbsim.style import MANEUVER_KINDS, PilotStyle
 
 
 class RandomPlan:
@@ -48,6 +49,8 @@ class RandomPlan:
         time_s: the flight's simulation time now, s.
         height_m: height of the wheels above ground now, m.
         held_altitude_m: the altitude the pilot holds now (else the height), m.
+        style: how the pilot flies: the manoeuvre mix, bank and vertical-speed targets,
+            durations and doublet sizes (None: the scripted pilot).
     """
 
     def __init__(
@@ -61,8 +64,10 @@ class RandomPlan:
         time_s: Callable[[], float],
         height_m: Callable[[], float],
         held_altitude_m: Callable[[], float],
+        style: PilotStyle | None = None,
     ) -> None:
         self.rng = rng
+        self.style = style or PilotStyle()
         self.config = config
         self.air = air
         self.light = air.agile  # the small aircraft's ranges (`Airframe.agile`)
@@ -87,17 +92,18 @@ class RandomPlan:
                 heading_change_rad=float(rng.choice([-1, 1]) * rng.uniform(30, 150) * DEG),
             )
             yield SpeedChange(speed_mps=cfg.cruise_speed_mps, duration_s=15.0)
-        kinds = (
-            "level",
-            "turn",
-            "steep_turn",
-            "reversals",
-            "doublet",
-            "speed",
-            "altitude",
-            "stall",
-        )
-        weights = np.array([0.08, 0.17, 0.13, 0.13, 0.17, 0.1, 0.12, 0.1])
+        style = self.style
+        kinds = MANEUVER_KINDS
+        weights = style.weights()
+
+        # this pilot's bank targets (a larger bank than the scripted pilot's draw only up
+        # to the flight's limit) and durations
+        def bank_of(drawn_rad: float) -> float:
+            return min(drawn_rad * style.bank_scale, max(drawn_rad, cfg.max_bank_rad))
+
+        def lasting(drawn_s: float) -> float:
+            return drawn_s * style.duration_scale
+
         lesson = [
             kinds[i] for i in rng.permutation(len(kinds))[: len(kinds)] if kinds[i] != "level"
         ]
@@ -112,7 +118,7 @@ class RandomPlan:
             if height < cfg.min_altitude_m - 30.0:  # back up to the maneuver band first
                 yield AltitudeChange(cfg.maneuver_altitude_m - height, air.climb_rate)
                 continue
-            kind = lesson.pop(0) if lesson else str(rng.choice(kinds, p=weights / weights.sum()))
+            kind = lesson.pop(0) if lesson else str(rng.choice(kinds, p=weights))
             if cfg.turbulence_patch_severity > cfg.turbulence_severity and rng.uniform() < 0.25:
                 low, high = cfg.turbulence_severity + 1, cfg.turbulence_patch_severity
                 yield Turbulence(severity=int(rng.integers(low, high + 1)))
@@ -130,32 +136,32 @@ class RandomPlan:
                     turn = float(rng.choice([0.0, 1.0]) * rng.uniform(-120, 120) * DEG)
                     yield AltitudeChange(
                         altitude_change_m=change,
-                        vertical_speed_mps=float(rng.uniform(0.6, 1.0) * rate),
+                        vertical_speed_mps=float(rng.uniform(0.6, 1.0) * rate) * style.vspeed_scale,
                         heading_change_rad=turn,
                     )
                     continue
             longest = room - 10.0  # s; every maneuver below ends in time to head home
             if kind == "level":
-                yield Level(duration_s=min(float(rng.uniform(8.0, 25.0)), longest))
+                yield Level(duration_s=min(lasting(float(rng.uniform(8.0, 25.0))), longest))
             elif kind == "turn":
                 bank = rng.uniform(15, 35) if light else rng.uniform(15, 30)
                 yield Turn(
-                    bank_rad=side * float(bank) * DEG,
-                    duration_s=min(float(rng.uniform(10, 40)), longest - 10.0),
+                    bank_rad=side * bank_of(float(bank) * DEG),
+                    duration_s=min(lasting(float(rng.uniform(10, 40))), longest - 10.0),
                 )
             elif kind == "steep_turn":
                 low = min(45 * DEG if light else 35 * DEG, cfg.max_bank_rad)
                 yield Turn(
-                    bank_rad=side * float(rng.uniform(low, cfg.max_bank_rad)),
-                    duration_s=min(float(rng.uniform(20, 45)), longest - 10.0),
+                    bank_rad=side * bank_of(float(rng.uniform(low, cfg.max_bank_rad))),
+                    duration_s=min(lasting(float(rng.uniform(20, 45))), longest - 10.0),
                 )
             elif kind == "reversals":
                 low = min(30 * DEG if light else 20 * DEG, cfg.max_bank_rad)
                 half = rng.uniform(2.5, 6.0) if light else rng.uniform(5.0, 9.0)
                 yield BankReversals(
-                    bank_rad=side * float(rng.uniform(low, cfg.max_bank_rad)),
-                    half_period_s=float(half),
-                    duration_s=min(float(rng.uniform(15, 35)), longest - 10.0),
+                    bank_rad=side * bank_of(float(rng.uniform(low, cfg.max_bank_rad))),
+                    half_period_s=float(half) / style.aggressiveness,
+                    duration_s=min(lasting(float(rng.uniform(15, 35))), longest - 10.0),
                 )
             elif kind == "doublet":
                 yield self._draw_doublet(side)
@@ -163,7 +169,7 @@ class RandomPlan:
                 low = 0.75 if light else 0.8
                 yield SpeedChange(
                     speed_mps=float(rng.uniform(low, 1.1) * cfg.cruise_speed_mps),
-                    duration_s=min(float(rng.uniform(15, 35)), longest),
+                    duration_s=min(lasting(float(rng.uniform(15, 35))), longest),
                 )
             else:
                 yield Stall()
@@ -181,9 +187,12 @@ class RandomPlan:
             size = {"elevator": (0.05, 0.15), "aileron": (0.15, 0.4), "rudder": (0.2, 0.5)}
         else:
             size = {"elevator": (0.04, 0.1), "aileron": (0.08, 0.2), "rudder": (0.05, 0.12)}
+        # a gentler pilot's doublets are smaller; none is larger than the scripted pilot's,
+        # whose largest already rolls the trainers near the doublet's bank limit
+        amplitude = float(rng.uniform(*size[control])) * min(self.style.aggressiveness, 1.0)
         return Doublet(
             control=control,
-            amplitude=side * float(rng.uniform(*size[control])),
+            amplitude=side * amplitude,
             half_period_s=float(rng.uniform(0.5, 1.5)),
             settle_s=float(rng.uniform(3.0, 8.0)),
         )
