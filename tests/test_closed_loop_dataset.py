@@ -132,3 +132,49 @@ def test_join_keeps_every_segment_its_split_and_vehicle(generated, tmp_path):
         join_datasets([paths[0], bare.save(tmp_path / "bare.npz")], tmp_path / "bad.npz")
     with pytest.raises(ValueError, match="at least two"):
         join_datasets([paths[0]], tmp_path / "one.npz")
+
+
+def test_each_flight_draws_its_source_with_the_configured_shares():
+    """Over many seeds the sources come in the configured shares (binomial, 4 standard
+    errors); a seed keeps its source whatever the other seeds; the defaults are all the
+    scripted pilot's."""
+    config = ClosedLoopDatasetConfig(random_style_share=0.3, synthetic_share=0.2)
+    seeds = range(2000)
+    sources = [config.flight_source(s) for s in seeds]
+    for source, share in (("random-style", 0.3), ("synthetic", 0.2), ("scripted", 0.5)):
+        count = sources.count(source)
+        assert abs(count / len(seeds) - share) < 4 * np.sqrt(share * (1 - share) / len(seeds))
+    assert {ClosedLoopDatasetConfig().flight_source(s) for s in seeds} == {"scripted"}
+    with pytest.raises(ValueError, match="sum to at most 1"):
+        ClosedLoopDatasetConfig(random_style_share=0.7, synthetic_share=0.4).validate()
+    with pytest.raises(ValueError, match="non-negative"):
+        ClosedLoopDatasetConfig(synthetic_share=-0.1).validate()
+
+
+def test_a_mixed_set_cues_each_flights_own_reference(tmp_path):
+    """A set with every source: each flight's segments carry the reference its source
+    gives (the random-style pilot's flight, the synthetic motion), scaled as flights are."""
+    from mca_drake.references.flights import FlightSpec, flight_recording
+    from mca_drake.references.reference import reference_from_recording
+    from mca_drake.references.synthetic import SyntheticConfig, synthetic_recording
+
+    config = ClosedLoopDatasetConfig(
+        flight_seeds=(1, 2, 3, 4, 5, 6),
+        flight_duration_s=2.0,
+        horizon=50,
+        random_style_share=0.4,
+        synthetic_share=0.4,
+    )
+    sources = {s: config.flight_source(s) for s in config.flight_seeds}
+    assert set(sources.values()) == {"scripted", "random-style", "synthetic"}
+    data = SegmentDataset.load(generate_closed_loop_dataset(config, tmp_path, progress=False))
+    for seed, source in sources.items():
+        if source == "synthetic":
+            recording = synthetic_recording(SyntheticConfig(duration_s=2.0, seed=seed))
+        else:
+            recording = flight_recording(FlightSpec(seed=seed, pilot=source), 2.0)
+        expected = reference_from_recording(recording, config.scaling).y[:200]
+        mine = data.source[:, 0] == seed
+        np.testing.assert_allclose(data.R[mine].reshape(-1, 6), expected, atol=1e-5)
+        part = SegmentDataset.load(flight_path(tmp_path, seed))
+        assert part.metadata["reference_source"] == source

@@ -1,7 +1,9 @@
 """DPC on a mixed-vehicle closed-loop set, end to end; the shipped policy files.
 
-The tiny set: three short NMPC-rti flights of three aircraft classes (light single,
-fighter, airliner) from `generate_closed_loop_dataset`. A few epochs from random weights do
+The tiny set: three short NMPC-rti runs over three aircraft classes from
+`generate_closed_loop_dataset`, with every source of references but the scripted pilot:
+the light single and the fighter flown by random-style pilots, the airliner's reference
+synthetic motion in the transport envelope. A few epochs from random weights do
 not give a policy that stays near neutral for seconds (that takes 10 s rollouts and half an
 hour), so the test fine-tunes the policy_v6 file with the paper's loss: what it shows is the
 pipeline (mixed data, training, the policy file, the diagram) and that the result cues
@@ -40,6 +42,8 @@ TINY_MIXED = ClosedLoopDatasetConfig(
     flight_seeds=(31, 32, 33),
     flight_duration_s=8.0,
     horizon=50,
+    random_style_share=0.4,
+    synthetic_share=0.4,
 )
 
 
@@ -67,6 +71,8 @@ def test_the_mixed_set_holds_every_vehicle_with_its_own_seed(fine_tuned):
     dataset, _, _ = fine_tuned
     data = SegmentDataset.load(dataset)
     assert data.metadata["flight_vehicles"] == {"31": "light", "32": "f16", "33": "A320"}
+    sources = {s: TINY_MIXED.flight_source(s) for s in TINY_MIXED.flight_seeds}
+    assert sources == {31: "random-style", 32: "random-style", 33: "synthetic"}
     seeds = set(data.source[:, 0].tolist())
     assert seeds == {31, 32, 33}
     assert np.all(np.isfinite(data.arrays["R"]))

@@ -226,6 +226,12 @@ class DatasetScenario:
     )
     # Length of each flight, s.
     flight_duration_s: float = ClosedLoopDatasetConfig.flight_duration_s
+    # Share of the flights flown by a pilot whose style is drawn per flight (each flight's
+    # source is drawn from its seed).
+    random_style_share: float = ClosedLoopDatasetConfig.random_style_share
+    # Share of the flights replaced by synthetic motion in the vehicle's envelope; the rest
+    # of the flights are the scripted pilot's.
+    synthetic_share: float = ClosedLoopDatasetConfig.synthetic_share
     # Segment length n_p, steps.
     horizon: int = ClosedLoopDatasetConfig.horizon
     # MCA that generates the trajectories: a config or a name.
@@ -257,6 +263,8 @@ class DatasetScenario:
             vehicles=tuple(self.vehicles),
             flight_seeds=tuple(self.flight_seeds),
             flight_duration_s=self.flight_duration_s,
+            random_style_share=self.random_style_share,
+            synthetic_share=self.synthetic_share,
             horizon=self.horizon,
             mca=self.mca,
             split_seed=self.split_seed,

@@ -9,7 +9,12 @@ resumes. The flights run in parallel local processes. `merge` joins them and lab
 70:20:10 train/validation/test split with a fixed seed.
 
 The paper's size, the default: five 15-minute light-aircraft flights, n_p = 256 (about
-1750 segments). A mixed-vehicle set lists `vehicles`: the seeds are dealt to them in turn
+1750 segments). Each flight's reference comes from one of three sources (`REFERENCE_SOURCES`),
+drawn from its seed with the configured shares: the scripted pilot (the default, all of
+them), a pilot whose style is drawn per flight (`random_style_share`,
+`references.jsbsim.style`), or synthetic band-limited motion in the vehicle's envelope
+(`synthetic_share`, `references.synthetic`), so that the policy learns the task rather than
+one pilot's habits. A mixed-vehicle set lists `vehicles`: the seeds are dealt to them in turn
 (seed i flies vehicles[i % len(vehicles)]), so every flight keeps a seed of its own. The MCA
 defaults to NMPC in rti mode (at the tuned weights), which tracks the converged solution to
 within a few 1e-4 of PI (benchmarks/bench_nmpc.py) at a fraction of the cost.
@@ -34,10 +39,17 @@ from mca_drake.kinematics import head_motion, output_from_motion, pose_derivativ
 from mca_drake.references.flights import FlightSpec, flight_recording
 from mca_drake.references.jsbsim import check_training_vehicle
 from mca_drake.references.reference import ReferenceScaling, reference_from_recording
+from mca_drake.references.synthetic import VEHICLE_ENVELOPES, SyntheticConfig, synthetic_recording
 from mca_drake.robot import NUM_JOINTS, load_kr500
 from mca_drake.segments import SOURCE_COLUMNS, SPLIT_NAMES, SegmentDataset, package_versions
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.parallel import run_tasks
+
+# Where a flight's reference comes from: the scripted pilot, a random-style pilot, or
+# synthetic motion in the vehicle's envelope.
+REFERENCE_SOURCES = ("scripted", "random-style", "synthetic")
+# The stream of a seed that chooses its flight's source, apart from the flight's own draws.
+SOURCE_STREAM = 2
 
 # Where `mca-drake dataset closed-loop` writes, and where training looks by default.
 DEFAULT_DATASET_DIR = "datasets/closed_loop"
@@ -57,6 +69,12 @@ class ClosedLoopDatasetConfig:
     flight_seeds: tuple[int, ...] = (100, 101, 102, 103, 104)
     # Length of each flight, s.
     flight_duration_s: float = 900.0
+    # Probability that a flight is flown by a random-style pilot (each flight's source is
+    # drawn from its seed: `flight_source`).
+    random_style_share: float = 0.0
+    # Probability that a flight's reference is synthetic instead of flown; the rest are the
+    # scripted pilot's.
+    synthetic_share: float = 0.0
     # Segment length n_p, steps.
     horizon: int = 256
     # Motion cueing algorithm that generates the trajectories (a config, or a name for its
@@ -102,6 +120,12 @@ class ClosedLoopDatasetConfig:
         )
         if self.flight_duration_s < self.horizon * CONTROL_PERIOD_S:
             raise ValueError("flight_duration_s is shorter than one segment")
+        shares = (self.random_style_share, self.synthetic_share)
+        if min(shares) < 0 or sum(shares) > 1:
+            raise ValueError(
+                "random_style_share and synthetic_share must be non-negative and sum to at "
+                f"most 1; got {shares}"
+            )
         if not 0 <= self.split_seed < 2**32:
             raise ValueError(f"split_seed must be in [0, 2^32); got {self.split_seed}")
         fractions = self.split_fractions
@@ -118,6 +142,17 @@ class ClosedLoopDatasetConfig:
         turn, or all to `vehicle`."""
         vehicles = self.vehicles or (self.vehicle,)
         return [(vehicles[i % len(vehicles)], s) for i, s in enumerate(self.flight_seeds)]
+
+    def flight_source(self, seed: int) -> str:
+        """Where the flight of `seed` gets its reference (`REFERENCE_SOURCES`): drawn from
+        the seed's own stream with the configured shares, so a flight keeps its source
+        whatever the other seeds."""
+        u = np.random.default_rng([seed, SOURCE_STREAM]).uniform()
+        if u < self.synthetic_share:
+            return "synthetic"
+        if u < self.synthetic_share + self.random_style_share:
+            return "random-style"
+        return "scripted"
 
     def flight_key(self, vehicle: str) -> str:
         """Hash of everything that shapes one flight's file of `vehicle` (not the seeds, the
@@ -142,11 +177,19 @@ def simulate_flight(
     vehicle = vehicle or config.vehicle
     robot = load_kr500()
     started = time.perf_counter()
-    flight = FlightSpec(vehicle=vehicle, seed=seed)
-    recording = flight_recording(flight, config.flight_duration_s)
-    reference = reference_from_recording(
-        recording, config.scaling, name=f"{vehicle} flight seed {seed}"
-    )
+    origin = config.flight_source(seed)
+    if origin == "synthetic":
+        envelope = VEHICLE_ENVELOPES[vehicle]
+        synthetic = SyntheticConfig(
+            envelope=envelope, duration_s=config.flight_duration_s, seed=seed
+        )
+        recording = synthetic_recording(synthetic)
+        name = f"synthetic {envelope} reference seed {seed}"
+    else:
+        flight = FlightSpec(vehicle=vehicle, seed=seed, pilot=origin)
+        recording = flight_recording(flight, config.flight_duration_s)
+        name = f"{vehicle} flight seed {seed}" + ("" if origin == "scripted" else f", {origin}")
+    reference = reference_from_recording(recording, config.scaling, name=name)
     result = run_closed_loop(mca=config.mca, reference=reference, robot=robot, progress=False)
     n_p = config.horizon
     n_segments = result.commands.shape[0] // n_p
@@ -177,6 +220,7 @@ def simulate_flight(
         "config_key": config.flight_key(vehicle),
         "flight_seed": seed,
         "vehicle": vehicle,
+        "reference_source": origin,
         "source_columns": list(SOURCE_COLUMNS),
         "summary": result.summary,
         "recording_metadata": recording.metadata,

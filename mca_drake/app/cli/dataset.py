@@ -28,6 +28,8 @@ OPEN_LOOP_FLAGS = {
 }
 CLOSED_LOOP_FLAGS = {
     "vehicle": "",
+    "random_style_share": "",
+    "synthetic_share": "",
     "horizon": "",
     "workers": "",
     "output_dir": "--out-dir",
