@@ -163,6 +163,15 @@ class EvaluationScenario:
     unseen_vehicles: list[str] = dataclasses.field(
         default_factory=lambda: list(default_cases()[2].vehicles)
     )
+    # Case E flight seeds, flown by the route pilot (dealt to `route_vehicles` in turn);
+    # empty: skip the case.
+    route_seeds: list[int] = dataclasses.field(
+        default_factory=lambda: list(default_cases()[3].seeds)
+    )
+    # Case E's aircraft.
+    route_vehicles: list[str] = dataclasses.field(
+        default_factory=lambda: list(default_cases()[3].vehicles)
+    )
     # Simulated seconds per flight.
     duration_s: float = EvaluationConfig.duration_s
     # CPUs of the local Ray the runs go to (1: one after the other, in this process).
@@ -181,12 +190,15 @@ class EvaluationScenario:
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""
-        if not (self.light_seeds or self.jet_seeds or self.unseen_seeds):
+        if not (self.light_seeds or self.jet_seeds or self.unseen_seeds or self.route_seeds):
             raise ValueError(
-                "light_seeds, jet_seeds and unseen_seeds are all empty: nothing to evaluate"
+                "light_seeds, jet_seeds, unseen_seeds and route_seeds are all empty: nothing "
+                "to evaluate"
             )
         if self.unseen_seeds and not self.unseen_vehicles:
             raise ValueError("unseen_seeds given but unseen_vehicles is empty")
+        if self.route_seeds and not self.route_vehicles:
+            raise ValueError("route_seeds given but route_vehicles is empty")
         if self.workers < 1:
             raise ValueError(f"workers must be >= 1; got {self.workers}")
         for mca in self.mcas:
@@ -204,6 +216,16 @@ class EvaluationScenario:
             cases.append(
                 EvaluationCase(
                     "C", "", tuple(self.unseen_seeds), vehicles=tuple(self.unseen_vehicles)
+                )
+            )
+        if self.route_seeds:
+            cases.append(
+                EvaluationCase(
+                    "E",
+                    "",
+                    tuple(self.route_seeds),
+                    vehicles=tuple(self.route_vehicles),
+                    pilot="route",
                 )
             )
         return EvaluationConfig(

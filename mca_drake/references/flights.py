@@ -12,14 +12,17 @@ from pathlib import Path
 
 import numpy as np
 
+from mca_drake.conventions import FIRST_EVALUATION_SEED
 from mca_drake.references.jsbsim import FlightConfig, FlightError, check_vehicle, fly
+from mca_drake.references.jsbsim.route import EVALUATION_ONLY
 from mca_drake.references.jsbsim.style import PilotStyle, sample_pilot_style
 from mca_drake.references.recording import Recording, load_recording, save_recording
 from mca_drake.references.reference import Reference, ReferenceScaling, reference_from_recording
 
-# Who flies a built-in flight: the scripted pilot, or a pilot whose style is drawn from the
-# flight's seed (`jsbsim.style.sample_pilot_style`).
-PILOTS = ("scripted", "random-style")
+# Who flies a built-in flight: the scripted pilot, a pilot whose style is drawn from the
+# flight's seed (`jsbsim.style.sample_pilot_style`), or the independent route pilot
+# (`jsbsim.route`), which flies evaluation flights only.
+PILOTS = ("scripted", "random-style", "route")
 # The random pilot's style comes from its own stream of the seed, so the flight's own draws
 # (turbulence, heading, plan) are those of the scripted pilot's flight of that seed.
 STYLE_STREAM = 1
@@ -39,7 +42,8 @@ class FlightSpec:
     vehicle: str = "light"
     # Seed of the built-in flight's pilot (training used 100-104; evaluation 1000 on).
     seed: int = 1000
-    # Who flies it (`PILOTS`): "scripted", or "random-style" (a style drawn from the seed).
+    # Who flies it (`PILOTS`): "scripted", "random-style" (a style drawn from the seed) or
+    # "route" (the independent route pilot; evaluation seeds only).
     pilot: str = "scripted"
 
     def validate(self) -> None:
@@ -48,6 +52,11 @@ class FlightSpec:
             check_vehicle(self.vehicle)
         if self.pilot not in PILOTS:
             raise ValueError(f"unknown flight.pilot '{self.pilot}'; valid: {', '.join(PILOTS)}")
+        if self.pilot in EVALUATION_ONLY and self.seed < FIRST_EVALUATION_SEED:
+            raise ValueError(
+                f"the {self.pilot} pilot flies evaluation flights only (seeds from "
+                f"{FIRST_EVALUATION_SEED} on); got seed {self.seed}"
+            )
         if not self.recording and not 0 <= self.seed < 2**32:
             raise ValueError(f"flight.seed must be in [0, 2^32); got {self.seed}")
         if self.recording and not Path(self.recording).is_file():
@@ -117,7 +126,8 @@ def flight_recording(
     if flight.pilot == "random-style":
         recording = _fly_random_style(flight.vehicle, duration_s, flight.seed, progress)
     else:
-        recording = fly(flight.vehicle, duration_s, flight.seed, progress=progress)
+        pilot = "route" if flight.pilot == "route" else "scripted"
+        recording = fly(flight.vehicle, duration_s, flight.seed, progress=progress, pilot=pilot)
     if cached is not None:
         save_recording(cached, recording)
     return recording

@@ -66,6 +66,8 @@ class EvaluationCase:
     seeds: tuple[int, ...]
     # Several vehicles, dealt to the seeds in turn.
     vehicles: tuple[str, ...] = ()
+    # Who flies the flights (`references.flights.PILOTS`).
+    pilot: str = "scripted"
 
     def vehicle_of(self, seed: int) -> str:
         """The vehicle that flight `seed` of this case flies."""
@@ -74,8 +76,10 @@ class EvaluationCase:
         return self.vehicles[self.seeds.index(seed) % len(self.vehicles)]
 
     def label(self) -> str:
-        """The case's vehicles for the report: "light", or "t6texan2, T38, ..."."""
-        return ", ".join(self.vehicles) if self.vehicles else self.vehicle
+        """The case's vehicles for the report: "light", or "t6texan2, T38, ...", and who
+        flies them where it is not the scripted pilot."""
+        vehicles = ", ".join(self.vehicles) if self.vehicles else self.vehicle
+        return vehicles if self.pilot == "scripted" else f"{vehicles} ({self.pilot} pilot)"
 
 
 # The name of the bound's run files and report entries.
@@ -84,13 +88,20 @@ BOUND = "optimal"
 SIGNIFICANCE_LEVEL = 0.05
 
 
+# Case E's aircraft: those of cases A to C, flown by the route pilot.
+ROUTE_VEHICLES = ("light", "jet", *UNSEEN_VEHICLES)
+
+
 def default_cases() -> tuple[EvaluationCase, ...]:
-    """The paper's two cases, 10 light-aircraft and 10 jet flights unseen in training, and
-    case C: 10 flights of aircraft neither trained nor tuned on."""
+    """The paper's two cases, 10 light-aircraft and 10 jet flights unseen in training;
+    case C: 10 flights of aircraft neither trained nor tuned on; case E: 10 flights of
+    cases A to C's aircraft flown by the route pilot, a pilot no training, tuning or
+    recipe choice ever saw (`references.jsbsim.route`)."""
     return (
         EvaluationCase("A", "light", tuple(range(1000, 1010))),
         EvaluationCase("B", "jet", tuple(range(2000, 2010))),
         EvaluationCase("C", "", tuple(range(3000, 3010)), vehicles=UNSEEN_VEHICLES),
+        EvaluationCase("E", "", tuple(range(5000, 5010)), vehicles=ROUTE_VEHICLES, pilot="route"),
     )
 
 
@@ -135,6 +146,7 @@ class EvaluationConfig:
                 raise ValueError(f"case {case.name}: a flight seed repeats")
             for vehicle in case.vehicles or (case.vehicle,):
                 check_vehicle(vehicle)
+                FlightSpec(vehicle=vehicle, seed=case.seeds[0], pilot=case.pilot).validate()
         if self.bound is not None:
             self.bound.validate()
         names = self.names()
@@ -207,7 +219,7 @@ def _run_one(
     written to the run's file."""
     out_dir = Path(out)
     vehicle = case.vehicle_of(seed)
-    flight = FlightSpec(vehicle=vehicle, seed=seed)
+    flight = FlightSpec(vehicle=vehicle, seed=seed, pilot=case.pilot)
     reference = flight_reference(flight, duration_s, cache_dir=out_dir / "flights")
     if isinstance(config, OptimalConfig):
         result = run_optimal_bound(

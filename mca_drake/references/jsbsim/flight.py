@@ -27,8 +27,12 @@ from mca_drake.references.jsbsim.loops import Loops
 from mca_drake.references.jsbsim.model import Model, QuietLogger
 from mca_drake.references.jsbsim.pilot import Pilot
 from mca_drake.references.jsbsim.plan import RandomPlan
+from mca_drake.references.jsbsim.route import RoutePilot, draw_route
 from mca_drake.references.jsbsim.style import PilotStyle
 from mca_drake.references.recording import Recording
+
+# The pilots a built-in flight may be flown by (`fly(pilot=...)`).
+PILOT_KINDS = ("scripted", "route")
 
 # Steps between the full sanity checks (a load spike is checked every step).
 CHECK_EVERY = 10
@@ -71,6 +75,7 @@ def fly(
     *,
     config: FlightConfig | None = None,
     progress: bool = False,
+    pilot: str = "scripted",
 ) -> Recording:
     """Flies `vehicle` for `duration_s` with the pilot seeded by `seed`; the eye-point IMU.
 
@@ -80,6 +85,8 @@ def fly(
         seed: seeds the pilot's plan and JSBSim's turbulence; same seed, same recording.
         config: knobs (None: `default_config(vehicle)`).
         progress: show a tqdm bar over simulated time.
+        pilot: "scripted" (`pilot.Pilot` flying the plan of manoeuvres) or "route" (the
+            independent `route.RoutePilot`, airborne only, for evaluation flights alone).
 
     Returns:
         Recording at 100 Hz with round(duration_s * 100) + 1 samples (t = 0, 0.01, ...):
@@ -91,7 +98,7 @@ def fly(
         ValueError: unknown vehicle, bad duration or config.
         FlightError: the flight left the sane envelope (crash, overload, overspeed, NaN).
     """
-    return fly_with_log(vehicle, duration_s, seed, config=config, progress=progress)[0]
+    return fly_with_log(vehicle, duration_s, seed, config=config, progress=progress, pilot=pilot)[0]
 
 
 def fly_with_log(
@@ -103,6 +110,7 @@ def fly_with_log(
     progress: bool = False,
     output_directive: str | None = None,
     on_sample: Callable[[float], None] | None = None,
+    pilot: str = "scripted",
 ) -> tuple[Recording, FlightLog]:
     """`fly`, plus the vehicle's attitude, height, airspeed and phases on the same grid.
 
@@ -113,6 +121,8 @@ def fly_with_log(
             paces the flight to the wall clock with it).
     """
     check_vehicle(vehicle)
+    if pilot not in PILOT_KINDS:
+        raise ValueError(f"unknown pilot '{pilot}'; valid: {', '.join(PILOT_KINDS)}")
     if not (math.isfinite(duration_s) and duration_s >= STEP_S):
         raise ValueError(f"duration_s must be a finite number >= {STEP_S}; got {duration_s}")
     config = (config or FlightConfig()).resolved(vehicle)
@@ -130,6 +140,7 @@ def fly_with_log(
             progress,
             output_directive=output_directive,
             on_sample=on_sample,
+            pilot=pilot,
         )
     finally:
         jsbsim.set_logger(previous)
@@ -144,15 +155,18 @@ def _record(
     progress: bool,
     output_directive: str | None = None,
     on_sample: Callable[[float], None] | None = None,
+    pilot: str = "scripted",
 ) -> tuple[Recording, FlightLog]:
     """Builds the flight, steps it to `duration_s` with the checks, and packages it."""
     style = config.style or PilotStyle()
     air = style.airframe(AIRFRAMES[vehicle])  # the loops' gains and rates as this pilot flies
     rng = np.random.default_rng(seed)
     if config.from_ground is None:
-        from_ground = duration_s >= FULL_FLIGHT_MIN_DURATION_S[vehicle]
+        from_ground = duration_s >= FULL_FLIGHT_MIN_DURATION_S[vehicle] and pilot != "route"
     else:
         from_ground = bool(config.from_ground)
+    if from_ground and pilot == "route":
+        raise ValueError("the route pilot flies airborne only; set from_ground False")
     if from_ground and not air.ground_ops:
         raise ValueError(
             f"{vehicle} ({air.model}) flies airborne only: the pilot's taxi, take-off and "
@@ -172,6 +186,10 @@ def _record(
     if heading is None:
         heading = float(rng.uniform(0.0, 2.0 * math.pi))
     throttle = model.initialise(config, heading, from_ground)
+    if pilot == "route":
+        route = draw_route(rng, air, config, heading, duration_s)
+        flier = RoutePilot(model, config, route, throttle)
+        return _fly_and_package(model, flier, flier, duration_s, False, progress, on_sample)
     loops = Loops(air, config, model.state, model.controls, throttle, style)
     if config.maneuvers is None:
         plan = RandomPlan(
@@ -187,7 +205,14 @@ def _record(
         )
     else:
         plan = config.maneuvers
-    pilot = Pilot(model, loops, config, from_ground, plan, heading if from_ground else None)
+    scripted = Pilot(model, loops, config, from_ground, plan, heading if from_ground else None)
+    return _fly_and_package(model, loops, scripted, duration_s, from_ground, progress, on_sample)
+
+
+def _fly_and_package(model, loops, pilot, duration_s, from_ground, progress, on_sample):
+    """Steps `pilot` (its `fly()`) and `loops` (their `step()`) with the model to
+    `duration_s` under the checks (`_run`), and packages the recording (`_package`)."""
+    vehicle = model.vehicle
     n_samples = round(duration_s * SAMPLE_RATE_HZ) + 1
     bar = None
     if progress:
@@ -263,7 +288,8 @@ def _package(
     omega = np.column_stack([imu[:, 3], -imu[:, 4], -imu[:, 5]])
     f = FT * np.column_stack([imu[:, 0], -imu[:, 1], -imu[:, 2]])
     metadata = {
-        "source": "jsbsim scripted pilot (mca_drake.references.jsbsim)",
+        "source": f"jsbsim {'route' if isinstance(pilot, RoutePilot) else 'scripted'} pilot "
+        "(mca_drake.references.jsbsim)",
         "vehicle": model.vehicle,
         "jsbsim_model": air.model,
         "jsbsim_version": jsbsim.__version__,
