@@ -516,22 +516,50 @@ def _tuning(results_dir: Path, data: dict) -> list[str]:
     return lines
 
 
-def _coverage(results_dir: Path, data: dict) -> list[str]:
+def _spread_table(tables: dict) -> list[str]:
+    """Markdown lines: one row per set and vehicle of coverage spread tables."""
     header = ["set", "vehicle", "flights", "minutes", *(f"std {c}" for c in CHANNELS)]
     rows = []
-    for title, table in data["tables"].items():
+    for title, table in tables.items():
         for vehicle, s in table.items():
             rows.append(
                 [title, vehicle, str(s["flights"]), f"{s['minutes']:.1f}"]
                 + [f"{v:.3f}" for v in s["std"]]
                 + [f"{s['a_z_p99']:.2f}"]
             )
+    return _table([*header, "p99 abs a_z"], rows)
+
+
+def _coverage(results_dir: Path, data: dict) -> list[str]:
     lines = [
         f"Dataset `{data['dataset']}`: spread of each scaled reference channel (rad/s, m/s^2) "
         "and the 99th percentile of |a_z| (m/s^2), beside the evaluation flights'.",
         "",
     ]
-    return [*lines, *_table([*header, "p99 abs a_z"], rows), ""]
+    return [*lines, *_spread_table(data["tables"]), ""]
+
+
+def _coverage_sources(results_dir: Path, data: dict) -> list[str]:
+    sources = data["sources"]
+    lines = [
+        f"References of each training source ({', '.join(sources['sources'])}) over "
+        f"{len(sources['flights'])} flights of the training aircraft, before any MCA cues "
+        "them, beside the evaluation cases' flights: each channel's spread (rad/s, m/s^2) "
+        "and the 99th percentile of |a_z|.",
+        "",
+    ]
+    lines += [*_spread_table(data["tables"]), ""]
+    lines += [
+        "Share of each evaluation case's reference samples inside the 0.5-99.5 percentile "
+        "range of a source's references, per channel.",
+        "",
+    ]
+    rows = [
+        [source, case, *(f"{v:.1%}" for v in shares)]
+        for source, cases in data["inside"].items()
+        for case, shares in cases.items()
+    ]
+    return [*lines, *_table(["training", "evaluation case", *CHANNELS], rows), ""]
 
 
 def _live(results_dir: Path, data: dict) -> list[str]:
@@ -660,6 +688,13 @@ SECTIONS = (
         "what the shipped policy's closed-loop training set covers per vehicle, beside the "
         "evaluation flights",
         _coverage,
+    ),
+    Section(
+        "Training sources' coverage",
+        "coverage_sources.json",
+        "what the scripted pilot's, the random-style pilots' and the synthetic references "
+        "cover beside the evaluation flights, cases A to E",
+        _coverage_sources,
     ),
     Section(
         "Live loop",

@@ -45,3 +45,33 @@ def test_dataset_spread_is_per_vehicle_of_the_flight_seeds():
     del arrays["R"]
     with pytest.raises(ValueError, match="no references R"):
         dataset_reference_spread(SegmentDataset(arrays, source, meta))
+
+
+def test_inside_share_counts_the_evaluation_samples_in_the_training_range():
+    """Closed form: training uniform on [0, 1] (its 0.5-99.5 percentiles 0.005 and 0.995),
+    evaluation uniform on [0.5, 1.5]: 49.5 % of it inside; a channel both span alike: all."""
+    from mca_drake.studies.coverage import inside_share
+
+    grid = np.linspace(0.0, 1.0, 100001)
+    training = np.column_stack([grid] * 6)
+    evaluation = training.copy()
+    evaluation[:, 0] += 0.5
+    shares = inside_share(training, evaluation)
+    assert shares[0] == pytest.approx(0.495, abs=1e-3)
+    assert shares[1:] == pytest.approx([0.99] * 5, abs=1e-3)  # both tails left out
+
+
+def test_source_references_are_each_sources_training_recordings():
+    from mca_drake.references.flights import training_recording
+    from mca_drake.references.reference import reference_from_recording
+    from mca_drake.studies.coverage import grouped_spread, source_references
+
+    flights = [("light", 11), ("jet", 12)]
+    for source in ("random-style", "synthetic"):
+        grouped = source_references(source, flights, 5.0)
+        assert set(grouped) == {"light", "jet"}
+        expected = reference_from_recording(training_recording(source, "jet", 12, 5.0)).y
+        np.testing.assert_array_equal(grouped["jet"][0], expected)
+        assert grouped_spread(grouped)["all"]["flights"] == 2
+    with pytest.raises(ValueError, match="unknown source"):
+        training_recording("route", "light", 11, 5.0)

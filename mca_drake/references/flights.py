@@ -18,6 +18,7 @@ from mca_drake.references.jsbsim.route import EVALUATION_ONLY
 from mca_drake.references.jsbsim.style import PilotStyle, sample_pilot_style
 from mca_drake.references.recording import Recording, load_recording, save_recording
 from mca_drake.references.reference import Reference, ReferenceScaling, reference_from_recording
+from mca_drake.references.synthetic import VEHICLE_ENVELOPES, SyntheticConfig, synthetic_recording
 
 # Who flies a built-in flight: the scripted pilot, a pilot whose style is drawn from the
 # flight's seed (`jsbsim.style.sample_pilot_style`), or the independent route pilot
@@ -26,6 +27,9 @@ PILOTS = ("scripted", "random-style", "route")
 # The random pilot's style comes from its own stream of the seed, so the flight's own draws
 # (turbulence, heading, plan) are those of the scripted pilot's flight of that seed.
 STYLE_STREAM = 1
+# Where a training flight's reference comes from: the scripted pilot, a random-style
+# pilot, or synthetic motion in the vehicle's envelope (never the route pilot).
+TRAINING_SOURCES = ("scripted", "random-style", "synthetic")
 # Styles drawn for one seed at most: a style whose flight leaves the airframe's envelope
 # (a FlightError, about 1 in 70 flights at the ranges' corners) is replaced by the next.
 MAX_STYLE_DRAWS = 5
@@ -68,6 +72,29 @@ class FlightSpec:
             return self.recording
         pilot = "" if self.pilot == "scripted" else f", {self.pilot} pilot"
         return f"built-in {self.vehicle} flight, seed {self.seed}{pilot}"
+
+
+def training_recording(
+    source: str,
+    vehicle: str,
+    seed: int,
+    duration_s: float,
+    *,
+    cache_dir: str | Path | None = None,
+) -> Recording:
+    """The recording of a training flight from `source` (`TRAINING_SOURCES`): the
+    scripted or a random-style pilot's flight of `vehicle` and `seed`, or synthetic motion
+    in the vehicle's envelope (`references.synthetic`, seeded by `seed`)."""
+    if source not in TRAINING_SOURCES:
+        raise ValueError(f"unknown source '{source}'; valid: {', '.join(TRAINING_SOURCES)}")
+    if source == "synthetic":
+        check_vehicle(vehicle)
+        config = SyntheticConfig(
+            envelope=VEHICLE_ENVELOPES[vehicle], duration_s=duration_s, seed=seed
+        )
+        return synthetic_recording(config)
+    spec = FlightSpec(vehicle=vehicle, seed=seed, pilot=source)
+    return flight_recording(spec, duration_s, cache_dir=cache_dir)
 
 
 def pilot_style(seed: int, draw: int = 0) -> PilotStyle:

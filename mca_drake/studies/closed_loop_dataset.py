@@ -9,7 +9,7 @@ resumes. The flights run in parallel local processes. `merge` joins them and lab
 70:20:10 train/validation/test split with a fixed seed.
 
 The paper's size, the default: five 15-minute light-aircraft flights, n_p = 256 (about
-1750 segments). Each flight's reference comes from one of three sources (`REFERENCE_SOURCES`),
+1750 segments). Each flight's reference comes from one of three sources (`TRAINING_SOURCES`),
 drawn from its seed with the configured shares: the scripted pilot (the default, all of
 them), a pilot whose style is drawn per flight (`random_style_share`,
 `references.jsbsim.style`), or synthetic band-limited motion in the vehicle's envelope
@@ -36,18 +36,14 @@ from mca_drake.conventions import CONTROL_PERIOD_S, FIRST_EVALUATION_SEED
 from mca_drake.cueing import McaConfig, NmpcConfig, as_mca_config, mca_config_record
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
 from mca_drake.kinematics import head_motion, output_from_motion, pose_derivatives_from_motion
-from mca_drake.references.flights import FlightSpec, flight_recording
+from mca_drake.references.flights import training_recording
 from mca_drake.references.jsbsim import check_training_vehicle
 from mca_drake.references.reference import ReferenceScaling, reference_from_recording
-from mca_drake.references.synthetic import VEHICLE_ENVELOPES, SyntheticConfig, synthetic_recording
 from mca_drake.robot import NUM_JOINTS, load_kr500
 from mca_drake.segments import SOURCE_COLUMNS, SPLIT_NAMES, SegmentDataset, package_versions
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.parallel import run_tasks
 
-# Where a flight's reference comes from: the scripted pilot, a random-style pilot, or
-# synthetic motion in the vehicle's envelope.
-REFERENCE_SOURCES = ("scripted", "random-style", "synthetic")
 # The stream of a seed that chooses its flight's source, apart from the flight's own draws.
 SOURCE_STREAM = 2
 
@@ -144,7 +140,7 @@ class ClosedLoopDatasetConfig:
         return [(vehicles[i % len(vehicles)], s) for i, s in enumerate(self.flight_seeds)]
 
     def flight_source(self, seed: int) -> str:
-        """Where the flight of `seed` gets its reference (`REFERENCE_SOURCES`): drawn from
+        """Where the flight of `seed` gets its reference (`TRAINING_SOURCES`): drawn from
         the seed's own stream with the configured shares, so a flight keeps its source
         whatever the other seeds."""
         u = np.random.default_rng([seed, SOURCE_STREAM]).uniform()
@@ -178,17 +174,8 @@ def simulate_flight(
     robot = load_kr500()
     started = time.perf_counter()
     origin = config.flight_source(seed)
-    if origin == "synthetic":
-        envelope = VEHICLE_ENVELOPES[vehicle]
-        synthetic = SyntheticConfig(
-            envelope=envelope, duration_s=config.flight_duration_s, seed=seed
-        )
-        recording = synthetic_recording(synthetic)
-        name = f"synthetic {envelope} reference seed {seed}"
-    else:
-        flight = FlightSpec(vehicle=vehicle, seed=seed, pilot=origin)
-        recording = flight_recording(flight, config.flight_duration_s)
-        name = f"{vehicle} flight seed {seed}" + ("" if origin == "scripted" else f", {origin}")
+    recording = training_recording(origin, vehicle, seed, config.flight_duration_s)
+    name = f"{vehicle} flight seed {seed}" + ("" if origin == "scripted" else f", {origin}")
     reference = reference_from_recording(recording, config.scaling, name=name)
     result = run_closed_loop(mca=config.mca, reference=reference, robot=robot, progress=False)
     n_p = config.horizon
