@@ -3,6 +3,7 @@ PI and perceived PI per MCA.
 
     python benchmarks/bench_perceived.py [--duration 300] [--vehicle light] [--seed 1000]
         [--repeats 2] [--suite benchmarks/results/evaluation] [--json results/perceived.json]
+        [--suite-only]
 
 1. NMPC-rti at the shipped (tuned) weights with the inertial and the perceived objective on
    one evaluation flight (analytical plant, closed loop), alternated `--repeats` times in
@@ -120,14 +121,25 @@ def main() -> None:
         help="the evaluation suite's folder (its runs/ are read)",
     )
     parser.add_argument("--json", default=default_result_path("perceived.json"))
+    parser.add_argument(
+        "--suite-only",
+        action="store_true",
+        help="refresh the suite's figures only, keeping the step times already in --json "
+        "(their measurement's provenance kept beside the new one)",
+    )
     args = parser.parse_args()
     calibration = print_calibration()
-    result = {
-        "provenance": result_header(calibration),
-        "flight": {"vehicle": args.vehicle, "seed": args.seed, "duration_s": args.duration},
-        "objectives": measure_objectives(args.vehicle, args.seed, args.duration, args.repeats),
-        "suite": suite_figures(Path(args.suite) / "runs"),
-    }
+    result = {"provenance": result_header(calibration)}
+    if args.suite_only:
+        kept = json.loads(Path(args.json).read_text())
+        result["timing_provenance"] = kept.get("timing_provenance", kept["provenance"])
+        result |= {"flight": kept["flight"], "objectives": kept["objectives"]}
+    else:
+        result["flight"] = {"vehicle": args.vehicle, "seed": args.seed, "duration_s": args.duration}
+        result["objectives"] = measure_objectives(
+            args.vehicle, args.seed, args.duration, args.repeats
+        )
+    result["suite"] = suite_figures(Path(args.suite) / "runs")
     for case, mcas in result["suite"].items():
         for mca, m in mcas.items():
             print(

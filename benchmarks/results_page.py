@@ -279,6 +279,13 @@ def _perceived(results_dir: Path, data: dict) -> list[str]:
         "are the median (min to max) over the runs.",
         "",
     ]
+    timing = data.get("timing_provenance")
+    if timing:  # the suite's figures refreshed later than the step times
+        lines += [
+            f"Step times measured {timing['date']} ({_machine_text(timing.get('machine'))}; "
+            f"{_calibration_text(timing.get('calibration'))}) by `{timing['command']}`.",
+            "",
+        ]
     rows = []
     for objective, o in data["objectives"].items():
         rows.append(
