@@ -4,7 +4,7 @@ library function; flags that set a typed config's field are derived from that co
 
     simulate       simulate.py      the main job: a closed loop with a readable result table
     run            run.py           any scenario, from a YAML file or a packaged name
-    flight, plot-recording          recordings.py
+    flight, drive, plot-recording   recordings.py
     dataset        dataset.py       open-loop, closed-loop, join
     evaluate       evaluate.py      one recording, or the evaluation suite
     tune           tune.py          Ray Tune + Optuna over an MCA's config

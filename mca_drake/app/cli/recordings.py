@@ -1,4 +1,4 @@
-"""`mca-drake flight` and `mca-drake plot-recording`: vehicle recordings."""
+"""`mca-drake flight`, `mca-drake drive` and `mca-drake plot-recording`: vehicle recordings."""
 
 from __future__ import annotations
 
@@ -6,6 +6,13 @@ import argparse
 
 from mca_drake.app.cli.flags import add_quiet, check_outputs
 from mca_drake.plotting import plot_recording, save_figure
+from mca_drake.references.driving import (
+    CARS,
+    DEFAULT_HEAD_OFFSET_M,
+    MANOEUVRES,
+    ROAD_CLASSES,
+    drive,
+)
 from mca_drake.references.jsbsim import VEHICLES, fly
 from mca_drake.references.recording import load_recording, save_recording
 
@@ -25,6 +32,32 @@ def add_parsers(commands) -> None:
     add_quiet(flight)
     flight.set_defaults(func=run_flight)
 
+    drive = commands.add_parser(
+        "drive", help="drive a car through a manoeuvre and record the driver's head IMU"
+    )
+    drive.add_argument("--manoeuvre", default="double-lane-change", help=", ".join(MANOEUVRES))
+    drive.add_argument(
+        "--seed", type=int, default=0, help="seed of the manoeuvre's settings and the road"
+    )
+    drive.add_argument(
+        "--seconds",
+        type=float,
+        help="drive length, s (default: the manoeuvre's course to its end; laps need it)",
+    )
+    drive.add_argument("--car", default="bmw-320i", help=", ".join(CARS))
+    drive.add_argument(
+        "--road", default="B", help=f"ISO 8608 road class, {'-'.join(ROAD_CLASSES)}, or none"
+    )
+    drive.add_argument(
+        "--head-offset",
+        default=",".join(f"{v:g}" for v in DEFAULT_HEAD_OFFSET_M),
+        help="the driver's head from the centre of gravity, m: x,y,z (forward, left, up)",
+    )
+    drive.add_argument("--out", default="drive.csv", help="recording CSV to write")
+    drive.add_argument("--plot", help="also write a PNG of the six channels")
+    add_quiet(drive)
+    drive.set_defaults(func=run_drive)
+
     plot = commands.add_parser("plot-recording", help="plot a recording CSV (six channels, PNG)")
     plot.add_argument("recording", help="recording CSV (t, omega_x..z, f_x..z)")
     plot.add_argument("--out", help="PNG to write (default: next to the recording)")
@@ -39,6 +72,37 @@ def run_flight(args: argparse.Namespace) -> int:
     print(
         f"{args.vehicle} flight, seed {args.seed}: {recording.duration_s:.0f} s at "
         f"{recording.rate_hz:.0f} Hz written to {args.out}"
+    )
+    if args.plot:
+        save_figure(plot_recording(recording), args.plot)
+        print(f"plot written to {args.plot}")
+    return 0
+
+
+def run_drive(args: argparse.Namespace) -> int:
+    """Drives the manoeuvre and writes its recording (and a plot)."""
+    check_outputs(args.out, args.plot)
+    try:
+        offset = [float(v) for v in args.head_offset.split(",")]
+    except ValueError:
+        raise ValueError(
+            f"--head-offset must be three numbers x,y,z; got {args.head_offset}"
+        ) from None
+    road = "" if args.road.lower() == "none" else args.road
+    recording = drive(
+        args.manoeuvre,
+        args.seconds,
+        args.seed,
+        car=args.car,
+        road_class=road,
+        head_offset_m=offset,
+        progress=not args.quiet,
+    )
+    save_recording(args.out, recording)
+    print(
+        f"{recording.metadata['description']} ({args.car}, road {recording.metadata['road_class']},"
+        f" seed {args.seed}): {recording.duration_s:.0f} s at {recording.rate_hz:.0f} Hz "
+        f"written to {args.out}"
     )
     if args.plot:
         save_figure(plot_recording(recording), args.plot)
