@@ -160,3 +160,28 @@ def test_the_drive_command_writes_a_recording(tmp_path):
     recording = load_recording(out)
     assert recording.metadata["manoeuvre"] == "braking"
     assert recording.f[:, 0].min() < -3.0  # it braked
+
+
+def test_a_drive_spec_is_driven_once_and_cached(tmp_path):
+    from mca_drake.references.drives import DriveSpec, motion_reference
+
+    spec = DriveSpec(manoeuvre="braking", seed=9, road_class="", head_offset_m=[0.0, 0.0, 0.0])
+    reference = motion_reference(spec, 12.0, cache_dir=tmp_path)
+    (cached,) = tmp_path.iterdir()
+    assert cached.name == "drive_braking_bmw-320i_smooth_0_0_0_9_12s.csv"
+    again = motion_reference(spec, 12.0, cache_dir=tmp_path)
+    np.testing.assert_allclose(again.y, reference.y, atol=1e-6)
+    assert reference.name == "built-in braking drive (bmw-320i), seed 9"
+    # the reference is the drive's recording, scaled as flights are
+    from mca_drake.references.reference import reference_from_recording
+
+    direct = drive("braking", 12.0, 9, road_class="", head_offset_m=(0.0, 0.0, 0.0))
+    np.testing.assert_allclose(reference.y, reference_from_recording(direct).y, atol=1e-6)
+    for bad, match in (
+        (DriveSpec(manoeuvre="drift"), "unknown drive manoeuvre"),
+        (DriveSpec(car="tractor"), "unknown car"),
+        (DriveSpec(road_class="Q"), "unknown road class"),
+        (DriveSpec(head_offset_m=[0.0]), "head_offset_m"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            bad.validate()
