@@ -39,6 +39,8 @@ MCA_LABELS = {
     "washout": "Washout (tuned)",
     "nmpc-rti-perceived": "NMPC, RTI, perceived objective",
     "nmpc-converged-perceived": "NMPC, converged, perceived objective",
+    "nmpc-rti-preview256": "NMPC, RTI, 2.56 s preview",
+    "nmpc-rti-preview1000": "NMPC, RTI, 10 s horizon and preview",
 }
 # The headline table's rows, in this order, where the suite ran them.
 HEADLINE_MCAS = ("dpc", "nmpc-converged", "nmpc-rti", "washout", "nmpc-rti-perceived")
@@ -235,6 +237,53 @@ def _suite_bound_lines(case: dict) -> list[str]:
         *_table(["MCA", "flights", "median share"], rows),
         "",
     ]
+
+
+def _preview(results_dir: Path, data: dict) -> list[str]:
+    """The preview study: per case, the median PI (IQR) of the causal NMPC-rti and of the
+    previews, their median paired gain over the causal one, and the bound where solved."""
+    lines = [
+        f"NMPC-rti on the evaluation suite's {data['duration_s']:.0f} s flights, causal (the "
+        "reference held over the horizon) and with a preview: the reference known over its "
+        "horizon. Gain: the median over the flights of the causal PI minus the preview's "
+        "(positive: the preview is better).",
+        "",
+    ]
+    rows = []
+    for case_name, case in data["cases"].items():
+        causal = case["mcas"].get("nmpc-rti")
+        for mca, m in case["mcas"].items():
+            gain = "-"
+            if causal and mca != "nmpc-rti":
+                mine = dict(zip(m["seeds"], m["pi"], strict=True))
+                theirs = dict(zip(causal["seeds"], causal["pi"], strict=True))
+                pairs = [theirs[seed] - mine[seed] for seed in mine.keys() & theirs.keys()]
+                gain = f"{statistics.median(pairs):+.3f}" if pairs else "-"
+            rows.append(
+                [
+                    case_name,
+                    MCA_LABELS.get(mca, mca),
+                    str(m["runs"]),
+                    f"{fmt_pi(m['pi_median'])} ({fmt_pi(m['pi_iqr'][0])} to "
+                    f"{fmt_pi(m['pi_iqr'][1])})",
+                    _perceived_cell(m),
+                    gain,
+                ]
+            )
+        bound = case.get("bound")
+        if bound:
+            rows.append(
+                [
+                    case_name,
+                    "offline-optimal bound",
+                    str(bound["runs"]),
+                    fmt_pi(bound["pi_median"]),
+                    "-",
+                    "-",
+                ]
+            )
+    header = ["case", "MCA", "flights", "PI median (IQR)", "perceived PI (zero motion)", "gain"]
+    return [*lines, *_table(header, rows), ""]
 
 
 def _optimal(results_dir: Path, data: dict) -> list[str]:
