@@ -185,3 +185,22 @@ def test_a_drive_spec_is_driven_once_and_cached(tmp_path):
     ):
         with pytest.raises(ValueError, match=match):
             bad.validate()
+
+
+def test_a_scenario_cues_a_drive_where_a_flight_would_be(tmp_path):
+    """A !DriveSpec in a closed-loop scenario's `flight`: loaded, driven, cued."""
+    from mca_drake.app.jobs import run_scenario
+    from mca_drake.app.scenarios import load_scenario
+    from mca_drake.references.drives import DriveSpec
+
+    path = tmp_path / "drive.yaml"
+    path.write_text(
+        "scenario: !ClosedLoopScenario\n  mca: washout\n  plant: analytical\n"
+        "  flight: !DriveSpec {manoeuvre: slalom, seed: 3, road_class: ''}\n"
+        f"  duration_s: 4.0\n  output_dir: {tmp_path / 'out'}\n"
+    )
+    scenario = load_scenario(path, ["{flight: {seed: 4}}"])
+    assert scenario.flight == DriveSpec(manoeuvre="slalom", seed=4, road_class="")
+    summary = run_scenario(scenario, progress=False)
+    assert summary["reference"] == "built-in slalom drive (bmw-320i), seed 4"
+    assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}

@@ -25,7 +25,7 @@ from mca_drake.conventions import CHANNELS
 from mca_drake.cueing import mca_config_record, mca_name
 from mca_drake.metrics import joint_usage
 from mca_drake.plotting import plot_outputs, save_figure
-from mca_drake.references.flights import flight_reference
+from mca_drake.references.drives import motion_reference
 from mca_drake.robot import NUM_JOINTS, load_kr500
 from mca_drake.segments import SegmentDataset
 from mca_drake.simulation.builders import MakePlantDemoDiagram
@@ -141,7 +141,7 @@ def run_closed_loop_scenario(
         check_writable(json_path)
     if plot_dir:
         check_writable(plot_dir, folder=True)
-    reference = flight_reference(scenario.flight, scenario.duration_s)
+    reference = motion_reference(scenario.flight, scenario.duration_s)
     multibody = scenario.plant == "multibody"
     if multibody and scenario.visualization is not None and meshcat is None:
         meshcat = start_meshcat()

@@ -43,6 +43,7 @@ from mca_drake.input_checks import (
 from mca_drake.live.receiver import allowed_senders
 from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.perception.models import PerceptionConfig
+from mca_drake.references.drives import DriveSpec
 from mca_drake.references.flights import FlightSpec
 from mca_drake.resources import scenario_path
 from mca_drake.simulation.closed_loop import PLANTS
@@ -93,8 +94,9 @@ class ClosedLoopScenario:
     mca: McaConfig = dataclasses.field(default_factory=DpcConfig)
     # "multibody" (KR500 MultibodyPlant, inverse dynamics, head IMU) or "analytical".
     plant: str = "multibody"
-    # The flight to cue.
-    flight: FlightSpec = dataclasses.field(default_factory=FlightSpec)
+    # The vehicle motion to cue: a flight (a recording file or a built-in JSBSim flight),
+    # or a built-in drive tagged !DriveSpec (`mca_drake.references.drives`).
+    flight: Union[FlightSpec, DriveSpec] = dataclasses.field(default_factory=FlightSpec)  # noqa: UP007 (YAML loader)
     # Simulated time, s.
     duration_s: float = 60.0
     # The simulated robot, its controller and sensors (multibody plant only).
@@ -420,7 +422,9 @@ def _prepare(schema, raw, current, where: str):
     - a tagged value replaces the field with a config of that class, every field not given
       at its default (`mca: !NmpcConfig {washout_weight: 0.1}`);
     - an untagged mapping changes fields of the `current` value and keeps its class (an
-      override `{mca: {washout_weight: 0.1}}` of an NmpcConfig stays that NmpcConfig).
+      override `{mca: {washout_weight: 0.1}}` of an NmpcConfig stays that NmpcConfig);
+      without a current value it is the union's default type where it has one
+      (`_UNTAGGED_DEFAULTS`: a `flight:` mapping is a FlightSpec).
 
     Returns the prepared raw value. Raises ValueError.
     """
@@ -458,6 +462,11 @@ def _prepare(schema, raw, current, where: str):
     }
 
 
+# The type an untagged mapping of a union field is, where nothing else says: a flight
+# field's mapping names a flight (a drive is tagged !DriveSpec).
+_UNTAGGED_DEFAULTS = {frozenset({FlightSpec, DriveSpec}): FlightSpec}
+
+
 def _prepare_union(members: tuple, raw, current, where: str):
     """`_prepare` for a union field (the MCA, or a file's scenario)."""
     is_mca = set(members) == set(typing.get_args(McaConfig))
@@ -475,12 +484,12 @@ def _prepare_union(members: tuple, raw, current, where: str):
     tag = raw.get("_tag")
     body = {k: v for k, v in raw.items() if k != "_tag"}
     if tag is None:
-        if type(current) not in members:
+        kind = type(current)
+        if kind not in members:
+            kind = _UNTAGGED_DEFAULTS.get(frozenset(members), kind)
+        if kind not in members:
             raise ValueError(f"{_at(where)}give {expected}: the type is not known here")
-        return {
-            "_tag": f"!{type(current).__name__}",
-            **_prepare(type(current), body, current, where),
-        }
+        return {"_tag": f"!{kind.__name__}", **_prepare(kind, body, current, where)}
     if tag not in by_tag:
         raise ValueError(f"{_at(where)}unknown type {tag}; valid: {', '.join(by_tag)}")
     kind = by_tag[tag]

@@ -6,6 +6,7 @@ import argparse
 
 from mca_drake.app.scenarios import ClosedLoopScenario
 from mca_drake.cueing import MCA_NAMES, DpcConfig, mca_config_from_name, mca_name
+from mca_drake.references.flights import FlightSpec
 
 
 def add_mca_flags(parser: argparse.ArgumentParser, default_mca, *, policy: bool = True) -> None:
@@ -34,7 +35,7 @@ def closed_loop_scenario_from_flags(args: argparse.Namespace, **fixed) -> Closed
     scenario = ClosedLoopScenario(**fixed)
     scenario.mca = mca_from_flags(args, scenario.mca)
     if args.reference is not None:
-        scenario.flight.recording = args.reference
+        scenario.flight = FlightSpec(recording=args.reference)
     if args.duration_s is not None:
         scenario.duration_s = args.duration_s
     return scenario
