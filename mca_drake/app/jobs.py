@@ -235,6 +235,9 @@ def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None
         scenario.protocol,
         xplane_version=scenario.xplane_version or None,
         fgnetfdm_time_resolution_s=scenario.fgnetfdm_time_resolution_s or None,
+        beamng=scenario.beamng,
+        outsim=scenario.outsim,
+        f1=scenario.f1,
     )
     rsi = None
     if scenario.robot:

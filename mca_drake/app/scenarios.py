@@ -40,6 +40,9 @@ from mca_drake.input_checks import (
     check_yaml_size,
     quoted,
 )
+from mca_drake.live.beamng import BeamNGConfig
+from mca_drake.live.f1 import F1Config
+from mca_drake.live.outsim import OutSimConfig
 from mca_drake.live.receiver import allowed_senders
 from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.perception.models import PerceptionConfig
@@ -297,16 +300,23 @@ class DatasetScenario:
 
 @dataclasses.dataclass
 class LiveScenario:
-    """Live motion cueing of a running flight simulator's UDP telemetry (`mca-drake live`),
-    optionally driving a KUKA robot over RSI."""
+    """Live motion cueing of a running flight or racing simulator's UDP telemetry
+    (`mca-drake live`), optionally driving a KUKA robot over RSI."""
 
-    # Telemetry protocol: fgnetfdm, xplane or csv.
+    # Telemetry protocol: fgnetfdm, xplane, csv, beamng (BeamNG.drive MotionSim), outsim
+    # (Live for Speed) or f1 (EA Sports F1 23/24).
     protocol: str = "fgnetfdm"
     # X-Plane's version, 11 or 12 (protocol xplane only; 0 otherwise).
     xplane_version: int = 0
     # FGNetFDM: the unit (s) of the packets' time, as JSBSim's <time resolution="..."/> sets
     # it; 0: the packets carry none (arrival times).
     fgnetfdm_time_resolution_s: float = 0.0
+    # BeamNG MotionSim: the signs of its angles and angular rates (protocol beamng).
+    beamng: BeamNGConfig = dataclasses.field(default_factory=BeamNGConfig)
+    # Live for Speed: the cfg.txt OutSim Opts the packets follow (protocol outsim).
+    outsim: OutSimConfig = dataclasses.field(default_factory=OutSimConfig)
+    # F1 games: the UDP format year and the signs of the motion values (protocol f1).
+    f1: F1Config = dataclasses.field(default_factory=F1Config)
     # Address to listen on (loopback by default) and UDP port (0: any free one).
     host: str = "127.0.0.1"
     port: int = 5500
@@ -357,6 +367,11 @@ class LiveScenario:
             self.rsi.validate()
         except ValueError as err:
             raise ValueError(f"LiveScenario.rsi: {err}") from None
+        for name in ("beamng", "outsim", "f1"):
+            try:
+                getattr(self, name).validate()
+            except ValueError as err:
+                raise ValueError(f"LiveScenario.{name}: {err}") from None
         if self.robot and self.realtime_rate != 1.0:
             raise ValueError(
                 f"a robot runs in real time: realtime_rate 1, not {self.realtime_rate}"

@@ -33,8 +33,11 @@ from pydrake.systems.framework import (
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
 from mca_drake.kinematics import plant_output
+from mca_drake.live.beamng import BeamNGConfig, BeamNGDecoder
 from mca_drake.live.csv_udp import CsvDecoder
+from mca_drake.live.f1 import F1Config, F1Decoder
 from mca_drake.live.fgnetfdm import FgNetFdmDecoder
+from mca_drake.live.outsim import OutSimConfig, OutSimDecoder
 from mca_drake.live.pacing import RealTimePacer
 from mca_drake.live.phase_lock import PhaseLockConfig, phase_correction
 from mca_drake.live.receiver import TELEMETRY_FIELDS, ReceiverConfig, TelemetryReceiver
@@ -66,15 +69,22 @@ from mca_drake.systems.kr500_station import AddKR500Station, StationConfig
 
 _ARRIVAL = TELEMETRY_FIELDS.index("arrival_s")
 _POLL = TELEMETRY_FIELDS.index("poll_s")
-PROTOCOLS = ("fgnetfdm", "xplane", "csv")
+PROTOCOLS = ("fgnetfdm", "xplane", "csv", "beamng", "outsim", "f1")
 
 
 def make_decoder(
-    protocol: str, *, xplane_version: int | None = None, fgnetfdm_time_resolution_s=None
+    protocol: str,
+    *,
+    xplane_version: int | None = None,
+    fgnetfdm_time_resolution_s=None,
+    beamng: BeamNGConfig | None = None,
+    outsim: OutSimConfig | None = None,
+    f1: F1Config | None = None,
 ) -> Decoder:
     """The decoder of `protocol` (PROTOCOLS). X-Plane needs its version (11 or 12: they
     differ in the body-rate row); FGNetFDM reads the sender's time only when JSBSim's
-    directive sets a resolution (else arrival times)."""
+    directive sets a resolution (else arrival times). The racing simulators take their
+    configs (None: the defaults: BeamNG's signs, LFS's classic OutSimPack, F1's 2024 format)."""
     if protocol == "fgnetfdm":
         return FgNetFdmDecoder(time_resolution_s=fgnetfdm_time_resolution_s)
     if protocol == "xplane":
@@ -83,6 +93,12 @@ def make_decoder(
         return XPlaneDecoder(version=xplane_version)
     if protocol == "csv":
         return CsvDecoder()
+    if protocol == "beamng":
+        return BeamNGDecoder(config=beamng)
+    if protocol == "outsim":
+        return OutSimDecoder(config=outsim)
+    if protocol == "f1":
+        return F1Decoder(config=f1)
     raise ValueError(f"unknown protocol '{protocol}'; valid: {', '.join(PROTOCOLS)}")
 
 

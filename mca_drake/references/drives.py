@@ -6,7 +6,6 @@ motion-cueing `Reference`. `motion_recording` and `motion_reference` take either
 that scenarios, datasets and studies take drives as they take flights.
 """
 
-
 import dataclasses
 from pathlib import Path
 

@@ -20,10 +20,25 @@ def add_parser(commands) -> None:
     """Adds `live` to the sub-command parsers `commands`."""
     defaults = LiveScenario()
     parser = commands.add_parser(
-        "live", help="cue a running flight simulator's UDP telemetry in real time"
+        "live", help="cue a running flight or racing simulator's UDP telemetry in real time"
     )
-    parser.add_argument("--protocol", help="fgnetfdm, xplane or csv")
+    parser.add_argument(
+        "--protocol",
+        help="fgnetfdm, xplane, csv, beamng (BeamNG.drive MotionSim), outsim (Live for Speed) "
+        "or f1 (F1 23/24)",
+    )
     parser.add_argument("--xplane-version", type=int, help="11 or 12 (protocol xplane)")
+    parser.add_argument(
+        "--outsim-opts",
+        type=_hexadecimal,
+        help="LFS cfg.txt OutSim Opts, hexadecimal as there (protocol outsim; default 0: the "
+        "classic OutSimPack)",
+    )
+    parser.add_argument(
+        "--f1-format",
+        type=int,
+        help="the game's UDP Format, 2023 or 2024 (protocol f1; default 2024)",
+    )
     add_config_flags(parser, defaults, LIVE_FLAGS)
     parser.add_argument("--duration", type=float, help="s of live cueing (demo: 60)")
     add_mca_flags(parser, defaults.mca, policy=False)
@@ -44,6 +59,14 @@ def add_parser(commands) -> None:
         "cued on the KR500 station in Meshcat",
     )
     parser.set_defaults(func=run)
+
+
+def _hexadecimal(text: str) -> int:
+    """An OutSim Opts value as LFS's cfg.txt writes it: hexadecimal, `1ff` or `0x1ff`."""
+    try:
+        return int(text, 16)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a hexadecimal number: {text!r}") from None
 
 
 def _scenario_from_flags(args: argparse.Namespace) -> LiveScenario:
@@ -67,6 +90,10 @@ def _scenario_from_flags(args: argparse.Namespace) -> LiveScenario:
         raise ValueError("live needs --protocol and --duration (or --demo)")
     else:
         scenario.protocol, scenario.xplane_version = args.protocol, args.xplane_version or 0
+        if args.outsim_opts is not None:
+            scenario.outsim.opts = args.outsim_opts
+        if args.f1_format is not None:
+            scenario.f1.packet_format = args.f1_format
     scenario.plant = args.plant or "analytical"
     scenario.duration_s = args.duration
     if args.meshcat and scenario.plant != "multibody":
