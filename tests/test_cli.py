@@ -84,8 +84,8 @@ SMOKE_OVERRIDES = {
     "PlantDemoScenario": "{duration_s: 0.2}",
     "ClosedLoopScenario": "{duration_s: 0.3, output_dir: OUT}",
     "EvaluationScenario": (
-        "{duration_s: 0.5, light_seeds: [1000], jet_seeds: [2000], mcas: [dpc, washout],"
-        " output_dir: OUT}"
+        "{duration_s: 0.5, light_seeds: [1000], jet_seeds: [2000], unseen_seeds: [],"
+        " drive_seeds: [4000], route_seeds: [5000], mcas: [dpc, washout], output_dir: OUT}"
     ),
     "DatasetScenario": (
         "{flight_seeds: [100], flight_duration_s: 3.0, horizon: 32, output_dir: OUT}"

@@ -285,3 +285,26 @@ def test_the_suite_reports_the_bound_and_each_mcas_share(tmp_path):
     stamp = path.stat().st_mtime_ns
     run_evaluation(config, tmp_path, progress=False)  # resumed: nothing solved again
     assert path.stat().st_mtime_ns == stamp
+
+
+def test_case_d_drives_cars_through_its_manoeuvres(tmp_path):
+    """Case D deals cars and manoeuvres to its seeds; its runs cue drives (cached like
+    flights) and report like every case."""
+    from mca_drake.references.drives import DriveSpec
+    from mca_drake.studies.evaluation import DRIVE_CARS, DRIVE_MANOEUVRES, default_cases
+
+    case = {c.name: c for c in default_cases()}["D"]
+    specs = [case.spec_of(seed) for seed in case.seeds]
+    assert all(isinstance(s, DriveSpec) for s in specs)
+    assert [s.car for s in specs[:3]] == list(DRIVE_CARS)
+    assert [s.manoeuvre for s in specs[:2]] == list(DRIVE_MANOEUVRES)
+    assert "drives" in case.label()
+    small = EvaluationCase("D", "", (4000, 4001), vehicles=DRIVE_CARS, manoeuvres=DRIVE_MANOEUVRES)
+    config = EvaluationConfig(mcas=("washout",), cases=(small,), duration_s=2.0)
+    report = run_evaluation(config, tmp_path, progress=False)
+    assert report["cases"]["D"]["mcas"]["washout"]["runs"] == 2
+    cached = sorted(p.name for p in (tmp_path / "flights").iterdir())
+    assert cached == [
+        "drive_lap_ford-escort_B_0.1_0.37_0.55_4001_2s.csv",
+        "drive_proving-ground_bmw-320i_B_0.1_0.37_0.55_4000_2s.csv",
+    ]

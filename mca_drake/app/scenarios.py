@@ -145,6 +145,11 @@ class ClosedLoopScenario:
         self.perception.validate()
 
 
+def _default_case(name: str):
+    """The default evaluation case called `name` (`studies.evaluation.default_cases`)."""
+    return {case.name: case for case in default_cases()}[name]
+
+
 @dataclasses.dataclass
 class EvaluationScenario:
     """The scenario evaluation of the MCAs (Case A light aircraft, Case B jet, Case C
@@ -156,26 +161,38 @@ class EvaluationScenario:
     )
     # Case A flight seeds (light aircraft); empty: skip the case.
     light_seeds: list[int] = dataclasses.field(
-        default_factory=lambda: list(default_cases()[0].seeds)
+        default_factory=lambda: list(_default_case("A").seeds)
     )
     # Case B flight seeds (jet); empty: skip the case.
-    jet_seeds: list[int] = dataclasses.field(default_factory=lambda: list(default_cases()[1].seeds))
+    jet_seeds: list[int] = dataclasses.field(default_factory=lambda: list(_default_case("B").seeds))
     # Case C flight seeds (dealt to `unseen_vehicles` in turn); empty: skip the case.
     unseen_seeds: list[int] = dataclasses.field(
-        default_factory=lambda: list(default_cases()[2].seeds)
+        default_factory=lambda: list(_default_case("C").seeds)
     )
     # Case C's aircraft.
     unseen_vehicles: list[str] = dataclasses.field(
-        default_factory=lambda: list(default_cases()[2].vehicles)
+        default_factory=lambda: list(_default_case("C").vehicles)
+    )
+    # Case D drive seeds (dealt to `drive_cars` and `drive_manoeuvres` in turn); empty:
+    # skip the case.
+    drive_seeds: list[int] = dataclasses.field(
+        default_factory=lambda: list(_default_case("D").seeds)
+    )
+    # Case D's cars (`mca_drake.references.driving.CARS`) and manoeuvres.
+    drive_cars: list[str] = dataclasses.field(
+        default_factory=lambda: list(_default_case("D").vehicles)
+    )
+    drive_manoeuvres: list[str] = dataclasses.field(
+        default_factory=lambda: list(_default_case("D").manoeuvres)
     )
     # Case E flight seeds, flown by the route pilot (dealt to `route_vehicles` in turn);
     # empty: skip the case.
     route_seeds: list[int] = dataclasses.field(
-        default_factory=lambda: list(default_cases()[3].seeds)
+        default_factory=lambda: list(_default_case("E").seeds)
     )
     # Case E's aircraft.
     route_vehicles: list[str] = dataclasses.field(
-        default_factory=lambda: list(default_cases()[3].vehicles)
+        default_factory=lambda: list(_default_case("E").vehicles)
     )
     # Simulated seconds per flight.
     duration_s: float = EvaluationConfig.duration_s
@@ -195,11 +212,19 @@ class EvaluationScenario:
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""
-        if not (self.light_seeds or self.jet_seeds or self.unseen_seeds or self.route_seeds):
+        if not (
+            self.light_seeds
+            or self.jet_seeds
+            or self.unseen_seeds
+            or self.drive_seeds
+            or self.route_seeds
+        ):
             raise ValueError(
-                "light_seeds, jet_seeds, unseen_seeds and route_seeds are all empty: nothing "
-                "to evaluate"
+                "light_seeds, jet_seeds, unseen_seeds, drive_seeds and route_seeds are all "
+                "empty: nothing to evaluate"
             )
+        if self.drive_seeds and not (self.drive_cars and self.drive_manoeuvres):
+            raise ValueError("drive_seeds given but drive_cars or drive_manoeuvres is empty")
         if self.unseen_seeds and not self.unseen_vehicles:
             raise ValueError("unseen_seeds given but unseen_vehicles is empty")
         if self.route_seeds and not self.route_vehicles:
@@ -221,6 +246,16 @@ class EvaluationScenario:
             cases.append(
                 EvaluationCase(
                     "C", "", tuple(self.unseen_seeds), vehicles=tuple(self.unseen_vehicles)
+                )
+            )
+        if self.drive_seeds:
+            cases.append(
+                EvaluationCase(
+                    "D",
+                    "",
+                    tuple(self.drive_seeds),
+                    vehicles=tuple(self.drive_cars),
+                    manoeuvres=tuple(self.drive_manoeuvres),
                 )
             )
         if self.route_seeds:

@@ -43,8 +43,9 @@ from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.input_checks import MAX_DURATION_S, check_range
 from mca_drake.metrics import wilcoxon_rank_sum, wilcoxon_signed_rank
 from mca_drake.plotting import plot_pi_boxes, save_figure
-from mca_drake.references.flights import FlightSpec, flight_reference
-from mca_drake.references.jsbsim import UNSEEN_VEHICLES, check_vehicle
+from mca_drake.references.drives import DriveSpec, motion_reference
+from mca_drake.references.flights import FlightSpec
+from mca_drake.references.jsbsim import UNSEEN_VEHICLES
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.simulation.optimal_bound import run_optimal_bound
 from mca_drake.studies.parallel import run_tasks
@@ -55,12 +56,15 @@ DEFAULT_MCAS = ("dpc", "nmpc-converged", "nmpc-rti", "washout", "nmpc-rti-percei
 
 @dataclasses.dataclass
 class EvaluationCase:
-    """A set of flights: of one vehicle, or of several (`vehicles`, dealt to the seeds in
-    turn: seed i flies vehicles[i % len(vehicles)])."""
+    """A set of flights, or of drives: of one vehicle, or of several (`vehicles`, dealt to
+    the seeds in turn: seed i flies vehicles[i % len(vehicles)]). With `manoeuvres` the
+    case drives cars (`references.drives`): seed i drives manoeuvres[i % n] in the car
+    vehicles[i % len(vehicles)]."""
 
     # Label in the report ("A", "B", "C").
     name: str
-    # The vehicle (`mca_drake.references.jsbsim.VEHICLES`) when `vehicles` is empty.
+    # The vehicle (`mca_drake.references.jsbsim.VEHICLES`, or a car of
+    # `references.driving.CARS` for drives) when `vehicles` is empty.
     vehicle: str
     # Flight seeds: evaluation flights, from FIRST_EVALUATION_SEED on.
     seeds: tuple[int, ...]
@@ -68,6 +72,9 @@ class EvaluationCase:
     vehicles: tuple[str, ...] = ()
     # Who flies the flights (`references.flights.PILOTS`).
     pilot: str = "scripted"
+    # Drives instead of flights: the manoeuvres (`references.driving.MANOEUVRES`), dealt
+    # to the seeds in turn.
+    manoeuvres: tuple[str, ...] = ()
 
     def vehicle_of(self, seed: int) -> str:
         """The vehicle that flight `seed` of this case flies."""
@@ -75,10 +82,20 @@ class EvaluationCase:
             return self.vehicle
         return self.vehicles[self.seeds.index(seed) % len(self.vehicles)]
 
+    def spec_of(self, seed: int) -> FlightSpec | DriveSpec:
+        """The flight, or the drive, of seed `seed` of this case."""
+        vehicle = self.vehicle_of(seed)
+        if self.manoeuvres:
+            manoeuvre = self.manoeuvres[self.seeds.index(seed) % len(self.manoeuvres)]
+            return DriveSpec(manoeuvre=manoeuvre, seed=seed, car=vehicle)
+        return FlightSpec(vehicle=vehicle, seed=seed, pilot=self.pilot)
+
     def label(self) -> str:
         """The case's vehicles for the report: "light", or "t6texan2, T38, ...", and who
-        flies them where it is not the scripted pilot."""
+        flies them where it is not the scripted pilot (or what the cars drive)."""
         vehicles = ", ".join(self.vehicles) if self.vehicles else self.vehicle
+        if self.manoeuvres:
+            return f"{vehicles} ({', '.join(self.manoeuvres)} drives)"
         return vehicles if self.pilot == "scripted" else f"{vehicles} ({self.pilot} pilot)"
 
 
@@ -88,19 +105,26 @@ BOUND = "optimal"
 SIGNIFICANCE_LEVEL = 0.05
 
 
+# Case D's cars and drives: the three cars, each driving proving-ground roads and laps.
+DRIVE_CARS = ("bmw-320i", "ford-escort", "vw-vanagon")
+DRIVE_MANOEUVRES = ("proving-ground", "lap")
 # Case E's aircraft: those of cases A to C, flown by the route pilot.
 ROUTE_VEHICLES = ("light", "jet", *UNSEEN_VEHICLES)
 
 
 def default_cases() -> tuple[EvaluationCase, ...]:
     """The paper's two cases, 10 light-aircraft and 10 jet flights unseen in training;
-    case C: 10 flights of aircraft neither trained nor tuned on; case E: 10 flights of
+    case C: 10 flights of aircraft neither trained nor tuned on; case D: 10 drives of
+    three cars over proving-ground roads and laps (`references.driving`); case E: 10 flights of
     cases A to C's aircraft flown by the route pilot, a pilot no training, tuning or
     recipe choice ever saw (`references.jsbsim.route`)."""
     return (
         EvaluationCase("A", "light", tuple(range(1000, 1010))),
         EvaluationCase("B", "jet", tuple(range(2000, 2010))),
         EvaluationCase("C", "", tuple(range(3000, 3010)), vehicles=UNSEEN_VEHICLES),
+        EvaluationCase(
+            "D", "", tuple(range(4000, 4010)), vehicles=DRIVE_CARS, manoeuvres=DRIVE_MANOEUVRES
+        ),
         EvaluationCase("E", "", tuple(range(5000, 5010)), vehicles=ROUTE_VEHICLES, pilot="route"),
     )
 
@@ -144,9 +168,8 @@ class EvaluationConfig:
                 )
             if len(set(case.seeds)) != len(case.seeds):
                 raise ValueError(f"case {case.name}: a flight seed repeats")
-            for vehicle in case.vehicles or (case.vehicle,):
-                check_vehicle(vehicle)
-                FlightSpec(vehicle=vehicle, seed=case.seeds[0], pilot=case.pilot).validate()
+            for seed in case.seeds[: max(len(case.vehicles), len(case.manoeuvres), 1)]:
+                case.spec_of(seed).validate()
         if self.bound is not None:
             self.bound.validate()
         names = self.names()
@@ -219,8 +242,7 @@ def _run_one(
     written to the run's file."""
     out_dir = Path(out)
     vehicle = case.vehicle_of(seed)
-    flight = FlightSpec(vehicle=vehicle, seed=seed, pilot=case.pilot)
-    reference = flight_reference(flight, duration_s, cache_dir=out_dir / "flights")
+    reference = motion_reference(case.spec_of(seed), duration_s, cache_dir=out_dir / "flights")
     if isinstance(config, OptimalConfig):
         result = run_optimal_bound(
             reference=reference, config=config, duration_s=duration_s, progress=False

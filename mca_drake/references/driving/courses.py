@@ -17,7 +17,10 @@ ends with a run-out:
   speed of `max_lateral_m_s2` (ISO 4138's constant-radius method), then held;
 - `lap`: laps of a closed centre line (a `track` array, or the built-in `TRACK`), the
   target speed from its curvature (`max_lateral_m_s2`) within acceleration and braking
-  limits, as a driver takes a track at a brisk pace.
+  limits, as a driver takes a track at a brisk pace;
+- `proving_ground`: a long drive of the above in a random order on one road: lane changes
+  and slaloms on its straights, bends of random radius, braking zones to a lower speed and
+  acceleration back, until the drive's length is reached.
 """
 
 from __future__ import annotations
@@ -29,7 +32,9 @@ from scipy.interpolate import CubicSpline
 
 SPACING_M = 0.1
 LEAD_IN_S = 3.0
-MANOEUVRES = ("double-lane-change", "slalom", "braking", "circle", "lap")
+# Braking into a slower segment of a proving-ground drive, m/s^2.
+BETWEEN_SEGMENTS_M_S2 = 3.0
+MANOEUVRES = ("double-lane-change", "slalom", "braking", "circle", "lap", "proving-ground")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -183,3 +188,101 @@ def lap(
     c, s = np.cos(-heading), np.sin(-heading)
     x0, y0 = x - x[0], y - y[0]
     return Course(c * x0 - s * y0, s * x0 + c * y0, speed, closed=True)
+
+
+def proving_ground(rng: np.random.Generator, duration_s: float) -> Course:
+    """A road of `duration_s` s or more of driving, drawn from `rng`: segments one after the
+    other, each on the road's centre line (given by its curvature along its length) with a
+    lateral offset and a target speed of its own:
+
+    - straight with an ISO 3888-1 lane change (3-3.8 m) at 60-90 km/h;
+    - straight with a slalom (cones 18-24 m apart, up to 6 m/s^2) at 40-60 km/h;
+    - a bend of 40-150 m radius and 45-180 degrees either way, entered through 20 m
+      clothoids, at the speed of 3-5 m/s^2;
+    - a braking zone from the speed before it to 30-60 % of it at 3-7 m/s^2, then
+      accelerating back at 2-3 m/s^2 on a straight.
+
+    The target speed between segments falls at most at `BETWEEN_SEGMENTS_M_S2` (braking
+    into the slower one before it starts)."""
+    kappa, offset, speed, braking = [], [], [], []  # per SPACING_M of road
+    cruise = rng.uniform(60.0, 90.0) / 3.6
+
+    def straight(length, v, lateral=None, decel=BETWEEN_SEGMENTS_M_S2):
+        n = int(length / SPACING_M) if np.isscalar(v) else np.asarray(v).size
+        kappa.append(np.zeros(n))
+        offset.append(np.zeros(n) if lateral is None else lateral(np.arange(n) * SPACING_M))
+        speed.append(np.full(n, v) if np.isscalar(v) else v)
+        braking.append(np.full(n, decel))
+
+    straight(LEAD_IN_S * cruise + 20.0, cruise)
+    driven = 0.0
+    while driven < duration_s:
+        kind = rng.choice(["lane-change", "slalom", "bend", "bend", "braking"])
+        if kind == "lane-change":
+            v = rng.uniform(60.0, 90.0) / 3.6
+            shift = rng.uniform(3.0, 3.8) * rng.choice([-1.0, 1.0])
+            length = 15.0 + 30.0 + 25.0 + 25.0 + 15.0
+            straight(
+                length, v, lambda s, a=shift: a * (_ramp(s, 15.0, 30.0) - _ramp(s, 70.0, 25.0))
+            )
+        elif kind == "slalom":
+            v, spacing = rng.uniform(40.0, 60.0) / 3.6, rng.uniform(18.0, 24.0)
+            amplitude = min(rng.uniform(0.6, 1.2), 6.0 / (np.pi * v / spacing) ** 2)
+            cones = int(rng.integers(5, 9))
+            length = (cones + 1) * spacing
+
+            def weave(s, a=amplitude, d=spacing, c=cones):
+                fade = _ramp(s, 0.0, d) * (1.0 - _ramp(s, c * d, d))
+                return a * fade * np.sin(np.pi * s / d)
+
+            straight(length, v, weave)
+        elif kind == "bend":
+            radius = rng.uniform(40.0, 150.0)
+            turn = np.radians(rng.uniform(45.0, 180.0)) * rng.choice([-1.0, 1.0])
+            v = min(np.sqrt(rng.uniform(3.0, 5.0) * radius), 30.0)
+            spiral = 20.0  # m of clothoid either side
+            arc = max(abs(turn) * radius - spiral, 1.0)
+            n_spiral, n_arc = int(spiral / SPACING_M), int(arc / SPACING_M)
+            k = np.sign(turn) / radius
+            kappa.append(
+                np.concatenate(
+                    [np.linspace(0, k, n_spiral), np.full(n_arc, k), np.linspace(k, 0, n_spiral)]
+                )
+            )
+            n = 2 * n_spiral + n_arc
+            offset.append(np.zeros(n))
+            speed.append(np.full(n, v))
+            braking.append(np.full(n, BETWEEN_SEGMENTS_M_S2))
+        else:
+            before = float(speed[-1][-1])
+            slow = before * rng.uniform(0.3, 0.6)
+            decel, accel = rng.uniform(3.0, 7.0), rng.uniform(2.0, 3.0)
+            down = (before**2 - slow**2) / (2 * decel)
+            up = (cruise**2 - slow**2) / (2 * accel)
+            s = np.arange(int((down + 10.0 + up) / SPACING_M)) * SPACING_M
+            v = np.where(
+                s < down,
+                np.sqrt(np.maximum(before**2 - 2 * decel * s, slow**2)),
+                np.sqrt(
+                    np.minimum(slow**2 + 2 * accel * np.maximum(s - down - 10.0, 0.0), cruise**2)
+                ),
+            )
+            straight(s[-1] + SPACING_M, v, decel=decel)
+        straight(30.0, float(speed[-1][-1]))  # a short straight between segments
+        driven = SPACING_M * sum(a.size for a in speed) / max(cruise, 1.0)
+    kappa, offset, speed, braking = (np.concatenate(a) for a in (kappa, offset, speed, braking))
+    # the road: heading and position from the curvature, then the lateral offsets
+    heading = np.concatenate([[0.0], np.cumsum(kappa[:-1]) * SPACING_M])
+    x = np.concatenate([[0.0], np.cumsum(np.cos(heading[:-1])) * SPACING_M])
+    y = np.concatenate([[0.0], np.cumsum(np.sin(heading[:-1])) * SPACING_M])
+    x, y = x - offset * np.sin(heading), y + offset * np.cos(heading)
+    x, y = _with_arc_length(x, y)
+    s_road = np.arange(speed.size) * SPACING_M
+    along = np.arange(x.size) * SPACING_M
+    target = np.interp(along, s_road, speed)
+    decel = np.interp(along, s_road, braking)
+    # brake into a slower segment before it starts: the target asks for no more braking
+    # than the segment's (a braking zone's own, else BETWEEN_SEGMENTS_M_S2; a backward pass)
+    for i in range(target.size - 2, -1, -1):
+        target[i] = min(target[i], np.sqrt(target[i + 1] ** 2 + 2 * decel[i] * SPACING_M))
+    return Course(x, y, target)

@@ -45,6 +45,7 @@ from mca_drake.references.driving.courses import (
     circle,
     double_lane_change,
     lap,
+    proving_ground,
     slalom,
 )
 from mca_drake.references.driving.driver import Driver, DriverGains
@@ -67,13 +68,16 @@ class DriveSettings:
     gains: DriverGains
 
 
-def draw_course(manoeuvre: str, rng: np.random.Generator) -> DriveSettings:
+def draw_course(
+    manoeuvre: str, rng: np.random.Generator, duration_s: float | None = None
+) -> DriveSettings:
     """The manoeuvre's settings drawn from `rng`: speeds, sizes and the driver's pace.
 
     double-lane-change 70-90 km/h, offset 3-3.8 m; slalom 40-60 km/h, cones 18-24 m apart,
     0.6-1.2 m either side (at most 6 m/s^2); braking from 60-120 km/h at 4-9 m/s^2; circle
     radius 40-100 m up to 5-7 m/s^2; laps of a track whose shape is drawn too
-    (`random_track`) at up to 3.5-5 m/s^2.
+    (`random_track`) at up to 3.5-5 m/s^2; a proving-ground road of `duration_s` (default
+    300 s) of driving (`courses.proving_ground`).
     """
     if manoeuvre not in MANOEUVRES:
         raise ValueError(f"unknown manoeuvre '{manoeuvre}'; valid: {', '.join(MANOEUVRES)}")
@@ -100,6 +104,9 @@ def draw_course(manoeuvre: str, rng: np.random.Generator) -> DriveSettings:
         radius, lateral = rng.uniform(40, 100), rng.uniform(5, 7)
         course = circle(radius, lateral)
         text = f"steady-state circle, radius {radius:.0f} m, up to {lateral:.1f} m/s^2"
+    elif manoeuvre == "proving-ground":
+        course = proving_ground(rng, duration_s or 300.0)
+        text = f"proving ground: {course.length_m:.0f} m of lane changes, slaloms, bends, braking"
     else:
         lateral = rng.uniform(3.5, 5.0)
         course = lap(random_track(rng), max_lateral_m_s2=lateral)
@@ -143,7 +150,7 @@ def drive(
     if offset.shape != (3,) or not np.all(np.isfinite(offset)) or np.abs(offset).max() > 5:
         raise ValueError(f"head_offset_m must be 3 finite values within 5 m; got {head_offset_m}")
     rng = np.random.default_rng(seed)
-    settings = draw_course(manoeuvre, rng)
+    settings = draw_course(manoeuvre, rng, duration_s)
     course = settings.course
     if duration_s is None:
         if course.closed:
