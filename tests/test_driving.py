@@ -118,7 +118,9 @@ def test_road_profiles_have_the_iso_8608_spectrum():
     assert ROAD_CLASSES["B"] == pytest.approx(4 * ROAD_CLASSES["A"])
 
 
-@pytest.mark.parametrize("manoeuvre", ["double-lane-change", "slalom", "circle", "lap"])
+@pytest.mark.parametrize(
+    "manoeuvre", ["double-lane-change", "slalom", "circle", "lap", "proving-ground"]
+)
 def test_every_manoeuvre_drives_to_a_sane_recording(manoeuvre):
     recording = drive(manoeuvre, 8.0, seed=5)
     assert recording.rate_hz == pytest.approx(100.0) and recording.t[-1] == pytest.approx(8.0)
