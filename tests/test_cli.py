@@ -185,7 +185,7 @@ def test_bad_closed_loop_scenario_values_fail_clearly(override, match):
             "{simulator_config: {target_realtime_rat: 1}}",
             "'target_realtime_rat' of SimulatorConfig",
         ),
-        ("{flight: null}", "flight: a FlightSpec is required, not null"),
+        ("{flight: null}", "flight: a FlightSpec or DriveSpec is required, not null"),
         ("{duration_s: [1", "not valid YAML"),
     ],
 )

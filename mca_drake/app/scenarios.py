@@ -529,6 +529,9 @@ def _prepare_union(members: tuple, raw, current, where: str):
             raise ValueError(f"{_at(where)}unknown MCA '{raw}'; valid: {', '.join(MCA_NAMES)}")
         config = mca_config_from_name(raw)
         return {"_tag": f"!{type(config).__name__}", **dataclasses.asdict(config)}
+    if raw is None and not is_mca:
+        names = " or ".join(t.__name__ for t in members)
+        raise ValueError(f"{_at(where)}a {names} is required, not null")
     if not isinstance(raw, dict):
         raise ValueError(f"{_at(where)}give {expected}; got {raw!r}")
     tag = raw.get("_tag")
