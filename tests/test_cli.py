@@ -270,7 +270,7 @@ def test_scenarios_take_mca_names_in_python():
             ["run", "diagrams/closed_loop_dpc.yaml", "--set", "{mca: !NmpcConfig {nodez: 3}}"],
             "unknown field 'nodez' of NmpcConfig",
         ),
-        (["evaluate", "--suite", "--cases", "D"], "unknown case"),
+        (["evaluate", "--suite", "--cases", "Z"], "unknown case"),
         (["evaluate", "--suite", "--flights", "0"], "--flights must be at least 1"),
         (["evaluate", "--suite", "--mcas", "washout", "--policy", "p.npz"], "--policy"),
         (["simulate", "--mca", "lqr"], "unknown MCA 'lqr'"),
