@@ -68,10 +68,14 @@ def run_flight(args: argparse.Namespace) -> int:
     """Flies the aircraft and writes its recording (and a plot)."""
     check_outputs(args.out, args.plot)
     recording = fly(args.vehicle, args.minutes * 60.0, args.seed, progress=not args.quiet)
+    return _write(args, recording, f"{args.vehicle} flight, seed {args.seed}")
+
+
+def _write(args: argparse.Namespace, recording, what: str) -> int:
+    """Writes the recording to --out (and its plot to --plot) and says so."""
     save_recording(args.out, recording)
     print(
-        f"{args.vehicle} flight, seed {args.seed}: {recording.duration_s:.0f} s at "
-        f"{recording.rate_hz:.0f} Hz written to {args.out}"
+        f"{what}: {recording.duration_s:.0f} s at {recording.rate_hz:.0f} Hz written to {args.out}"
     )
     if args.plot:
         save_figure(plot_recording(recording), args.plot)
@@ -98,16 +102,9 @@ def run_drive(args: argparse.Namespace) -> int:
         head_offset_m=offset,
         progress=not args.quiet,
     )
-    save_recording(args.out, recording)
-    print(
-        f"{recording.metadata['description']} ({args.car}, road {recording.metadata['road_class']},"
-        f" seed {args.seed}): {recording.duration_s:.0f} s at {recording.rate_hz:.0f} Hz "
-        f"written to {args.out}"
-    )
-    if args.plot:
-        save_figure(plot_recording(recording), args.plot)
-        print(f"plot written to {args.plot}")
-    return 0
+    meta = recording.metadata
+    what = f"{meta['description']} ({args.car}, road {meta['road_class']}, seed {args.seed})"
+    return _write(args, recording, what)
 
 
 def run_plot_recording(args: argparse.Namespace) -> int:
