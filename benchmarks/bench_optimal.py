@@ -81,6 +81,18 @@ def main() -> None:
         return
     calibration = print_calibration()
     runs = []
+    from mca_drake.atomic_io import atomic_write_json
+
+    def write() -> None:
+        """The figures so far, with their provenance (after each objective: a killed run
+        keeps what it finished)."""
+        result = {
+            "provenance": result_header(calibration),
+            "flight": {"vehicle": args.vehicle, "seed": args.seed, "duration_s": args.duration},
+            "runs": runs,
+        }
+        atomic_write_json(args.json, result)
+
     for objective in args.objectives.split(","):
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "one.json"
@@ -98,14 +110,7 @@ def main() -> None:
             f"motion PI {figures['pi_zero_motion']:.3f})",
             flush=True,
         )
-    result = {
-        "provenance": result_header(calibration),
-        "flight": {"vehicle": args.vehicle, "seed": args.seed, "duration_s": args.duration},
-        "runs": runs,
-    }
-    from mca_drake.atomic_io import atomic_write_json
-
-    atomic_write_json(args.json, result)
+        write()
     print(f"figures: {args.json}")
 
 

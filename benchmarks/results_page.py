@@ -691,6 +691,13 @@ SECTIONS = (
         _perceived,
     ),
     Section(
+        "Offline-optimal bound",
+        "optimal.json",
+        "the whole-flight optimum with perfect preview (`mca-drake optimal`) of one 300 s "
+        "flight: solve time on one core, memory, iterations, KKT residual, PI",
+        _optimal,
+    ),
+    Section(
         "DPC step time",
         "dpc.json",
         "the DPC policy's step time inside the Drake diagram and converged NMPC's on the same "
