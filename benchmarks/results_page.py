@@ -691,6 +691,13 @@ SECTIONS = (
         _perceived,
     ),
     Section(
+        "Reference preview",
+        "evaluation_preview/evaluation.json",
+        "what knowing the future is worth: NMPC-rti causal against a 2.56 s preview over its "
+        "own horizon and a 10 s preview over a 10 s horizon, on the suite's flights",
+        _preview,
+    ),
+    Section(
         "Offline-optimal bound",
         "optimal.json",
         "the whole-flight optimum with perfect preview (`mca-drake optimal`) of one 300 s "
