@@ -80,7 +80,7 @@ def test_a_car_at_rest_and_a_stopped_drive_feel_gravity():
     # degree nose down: the model's front and rear springs under the weight)
     expected = GRAVITY * np.array(
         [-np.sin(theta), np.cos(theta) * np.sin(phi), np.cos(theta) * np.cos(phi)]
-    )
+    )  # written out here: the test's own oracle, not the package's helper
     np.testing.assert_allclose(f, expected, atol=1e-4)
     assert abs(theta) < np.radians(0.5) and abs(phi) < 1e-6
     np.testing.assert_allclose(omega, 0.0, atol=1e-4)  # the last of the settling

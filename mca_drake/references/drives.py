@@ -1,9 +1,9 @@
 """The car motion a run cues: a built-in drive (`references.driving`), named like a flight.
 
 `DriveSpec` names a drive (a scenario's `flight` field takes one where it takes a
-`FlightSpec`); `drive_recording` and `drive_reference` turn it into a `Recording` and a
-motion-cueing `Reference`. `motion_recording` and `motion_reference` take either spec, so
-that scenarios, datasets and studies take drives as they take flights.
+`FlightSpec`); `drive_recording` turns it into a `Recording`. `motion_recording` and
+`motion_reference` (the motion-cueing `Reference`) take either spec, so that scenarios and
+studies take drives as they take flights.
 """
 
 import dataclasses
@@ -113,17 +113,3 @@ def motion_reference(
     with `scaling`, default s_w = s_f = 0.5), named by the spec."""
     recording = motion_recording(spec, duration_s, cache_dir=cache_dir, progress=progress)
     return reference_from_recording(recording, scaling, name=spec.name())
-
-
-def drive_reference(
-    spec: DriveSpec,
-    duration_s: float,
-    *,
-    scaling: ReferenceScaling | None = None,
-    cache_dir: str | Path | None = None,
-    progress: bool = False,
-) -> Reference:
-    """The motion-cueing reference of a drive (`motion_reference`)."""
-    return motion_reference(
-        spec, duration_s, scaling=scaling, cache_dir=cache_dir, progress=progress
-    )

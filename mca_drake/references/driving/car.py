@@ -141,6 +141,15 @@ def body_motion(x: np.ndarray, dx: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     return omega, f, np.array([phi, theta])
 
 
+def gravity_in_body(phi, theta) -> np.ndarray:
+    """The specific force of gravity alone, m/s^2, in the body frame of a body rolled by
+    `phi` and pitched by `theta` (rad, ISO 8855; arrays broadcast): shape (..., 3)."""
+    phi, theta = np.asarray(phi, dtype=float), np.asarray(theta, dtype=float)
+    return GRAVITY * np.stack(
+        [-np.sin(theta), np.cos(theta) * np.sin(phi), np.cos(theta) * np.cos(phi)], axis=-1
+    )
+
+
 def lever_arm(
     omega: np.ndarray, f: np.ndarray, offset_m: np.ndarray, time_step: float
 ) -> np.ndarray:

@@ -31,11 +31,11 @@ from scipy import signal
 from tqdm.auto import tqdm
 
 from mca_drake.references.driving.car import (
-    GRAVITY,
     STEP_S,
     Car,
     body_motion,
     check_car,
+    gravity_in_body,
     lever_arm,
 )
 from mca_drake.references.driving.courses import (
@@ -286,9 +286,7 @@ def _stop(
     n = int(braking.sum())
     omega, force = _settling(angles, np.zeros(2), count - n)
     phi, theta = angles
-    held = GRAVITY * np.array(
-        [-np.sin(theta), np.cos(theta) * np.sin(phi), np.cos(theta) * np.cos(phi)]
-    )
+    held = gravity_in_body(phi, theta)
     held[0] -= deceleration * np.cos(theta)
     force = np.vstack([np.tile(held, (n, 1)), force])
     omega = np.vstack([np.zeros((n, 3)), omega])
@@ -311,9 +309,7 @@ def _settling(angles: np.ndarray, rates: np.ndarray, count: int) -> tuple[np.nda
     x = decay * (x0 * cos + b * sin)
     v = decay * ((-zeta * wn) * (x0 * cos + b * sin) + (-x0 * wd * sin + b * wd * cos))
     phi, theta = x[:, 0], x[:, 1]
-    force = GRAVITY * np.column_stack(
-        [-np.sin(theta), np.cos(theta) * np.sin(phi), np.cos(theta) * np.cos(phi)]
-    )
+    force = gravity_in_body(phi, theta)
     omega = np.column_stack([v[:, 0], v[:, 1], np.zeros(count)])
     return omega, force
 

@@ -258,14 +258,15 @@ class RoutePilot:
     def step(self) -> None:
         """One step of the three control laws, written to JSBSim."""
         s, air, dt = self.model.state, self.air, STEP_S
-        self.north += self._v_north.get_double_value() * FT * dt
-        self.east += self._v_east.get_double_value() * FT * dt
+        v_n, v_e = self._v_north.get_double_value() * FT, self._v_east.get_double_value() * FT
+        self.north += v_n * dt
+        self.east += v_e * dt
         v = max(s.v, 0.5 * air.stall_speed)
         sched = min(max(air.qbar_ref_psf / max(s.qbar, 1.0), 0.3), 5.0)
         # lateral: L1 guidance -> bank (slewed at the airframe's normal roll rate) ->
         # aileron (PD on the attitude)
         step = air.roll_rate_max * dt
-        self.bank_c += min(max(self._l1_bank(v) - self.bank_c, -step), step)
+        self.bank_c += min(max(self._l1_bank(v_n, v_e) - self.bank_c, -step), step)
         aileron = sched * air.roll_rate_gain * (1.2 * (self.bank_c - s.phi) - s.p)
         # longitudinal: total energy control -> throttle and pitch -> elevator
         throttle, pitch_c = self._energy(v)
@@ -285,10 +286,9 @@ class RoutePilot:
         self.model.controls.write(aileron, elevator, rudder, throttle, 0.0)
         self.model.controls.set_speedbrake(self.speedbrake)
 
-    def _l1_bank(self, v: float) -> float:
-        """The bank of the L1 lateral acceleration towards the path, rad."""
-        s = self.model.state
-        v_n, v_e = self._v_north.get_double_value() * FT, self._v_east.get_double_value() * FT
+    def _l1_bank(self, v_n: float, v_e: float) -> float:
+        """The bank of the L1 lateral acceleration towards the path, rad, from the ground
+        velocity (north, east; m/s): the bank is commanded from the ground track alone."""
         ground = max(math.hypot(v_n, v_e), 1.0)
         l1 = max(12.0 * ground, 150.0)  # m: the look-ahead, about 12 s of flight
         if self.circle is not None:
@@ -312,7 +312,6 @@ class RoutePilot:
         eta = min(max(eta, -math.pi / 2), math.pi / 2)
         lateral = 2.0 * ground * ground * math.sin(eta) / l1
         bank = math.atan(lateral / G)
-        del s  # the bank is commanded from the ground track alone
         return min(max(bank, -self.bank_max), self.bank_max)
 
     def _energy(self, v: float) -> tuple[float, float]:
