@@ -1,33 +1,41 @@
 """Live loop figures on JSBSim's own telemetry: latency, jitter and CPU load.
 
     python benchmarks/bench_live.py [--duration 600] [--mcas dpc,nmpc-rti]
-        [--plant analytical] [--phase-lock on|off|both] [--json results/live.json]
+        [--plant analytical] [--phase-lock on|off|both] [--protocol fgnetfdm|beamng]
+        [--json results/live.json]
 
 For each MCA, `mca-drake live --demo`'s set-up without Meshcat: a JSBSim process flies the
 light aircraft (a training seed) in real time and streams its FGNetFDM packets over
-loopback at 100 Hz; the loop cues them at real-time rate 1 for `--duration` s, with the
+loopback at 100 Hz, or (`--protocol beamng`, written to live_driving.json by default) a
+process streams a car's training drive as BeamNG MotionSim packets at 100 Hz
+(`mca_drake.live.drive_demo`); the loop cues them at real-time rate 1 for `--duration` s, with the
 phase lock (`mca_drake.live.phase_lock`) on, off or both one after the other. Prints the
 latency from a sample's arrival to the command computed from it (median, p99, max), the
 part of it the sample waited in the socket for its poll, the
 loop's jitter (|period - 10 ms| of its control instants on the wall clock), the loop
 process's CPU load and the sender's, and the stream's counters. The machine's calibration
 first. Writes the figures with their provenance (date, command, calibration, machine) to
-`--json`, by default `benchmarks/results/live.json`.
+`--json`, by default `benchmarks/results/live.json` (`live_driving.json` for beamng).
 """
 
 from __future__ import annotations
 
 import argparse
 import resource
+import tempfile
+from pathlib import Path
 
 from common import default_result_path, in_ms, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import mca_config_from_name
 from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S, start_demo_sender
+from mca_drake.live.drive_demo import DEMO_CAR, demo_drive, start_drive_sender
+from mca_drake.live.drive_demo import DEMO_SEED as DRIVE_SEED
 from mca_drake.live.loop import make_decoder, run_live
 from mca_drake.live.phase_lock import PhaseLockConfig
 from mca_drake.live.receiver import ReceiverConfig
+from mca_drake.references.recording import save_recording
 
 
 def children_cpu_s() -> float:
@@ -41,21 +49,40 @@ def main() -> None:
     parser.add_argument("--mcas", default="dpc,nmpc-rti")
     parser.add_argument("--plant", default="analytical")
     parser.add_argument("--phase-lock", choices=("on", "off", "both"), default="on")
-    parser.add_argument(
-        "--json", default=default_result_path("live.json"), help="write the figures here"
-    )
+    parser.add_argument("--protocol", choices=("fgnetfdm", "beamng"), default="fgnetfdm")
+    parser.add_argument("--json", help="write the figures here (default: by the protocol)")
     args = parser.parse_args()
+    args.json = args.json or default_result_path(
+        "live_driving.json" if args.protocol == "beamng" else "live.json"
+    )
     locks = {"on": (True,), "off": (False,), "both": (False, True)}[args.phase_lock]
     report = {"provenance": result_header(print_calibration()), "runs": {}}
+    tmp = tempfile.TemporaryDirectory()
+    if args.protocol == "beamng":
+        drive = Path(tmp.name) / "drive.csv"
+        save_recording(drive, demo_drive(args.duration + 3.0))
+        report["sender"] = (
+            f"BeamNG MotionSim packets of the demo drive ({DEMO_CAR}, seed {DRIVE_SEED})"
+        )
+    else:
+        report["sender"] = "JSBSim's FGNetFDM packets of the light aircraft, seed 7"
     for name, lock in ((n, lock) for n in args.mcas.split(",") for lock in locks):
         senders = []
 
         def start(address, senders=senders):
-            senders.append(start_demo_sender(address[1], args.duration + 3.0))
+            if args.protocol == "beamng":
+                senders.append(start_drive_sender(address[1], args.duration + 3.0, recording=drive))
+            else:
+                senders.append(start_demo_sender(address[1], args.duration + 3.0))
 
         cpu0 = children_cpu_s()
+        decoder = (
+            make_decoder("beamng")
+            if args.protocol == "beamng"
+            else make_decoder("fgnetfdm", fgnetfdm_time_resolution_s=DEMO_TIME_RESOLUTION_S)
+        )
         summary = run_live(
-            make_decoder("fgnetfdm", fgnetfdm_time_resolution_s=DEMO_TIME_RESOLUTION_S),
+            decoder,
             mca_config_from_name(name),
             args.duration,
             receiver=ReceiverConfig(port=0),
@@ -89,6 +116,7 @@ def main() -> None:
             f"motion {summary['pi_zero_motion']:.3f}); violations {summary['violations']}",
             flush=True,
         )
+    tmp.cleanup()
     if args.json:
         atomic_write_json(args.json, report)
 

@@ -9,7 +9,9 @@ Flies `VALIDATION_VEHICLES` (A4, F4N) over seeds 700 on (below the evaluation se
 training seeds), 300 s each on the analytical plant, every MCA on every flight. `--vehicles
 light,jet` flies development flights of the training aircraft of cases A and B at the same
 seeds (the evaluation's are 1000 on), so that a recipe's cost there is seen before the
-suite; `--first-seed 600 --seeds 14 --vehicles light` is the light aircraft's trap check
+suite; `--vehicles bmw-320i,ford-escort,vw-vanagon` drives validation drives of the cars
+(a lap on even seeds, the proving ground on odd ones; case D's are 4000 on);
+`--first-seed 600 --seeds 14 --vehicles light` is the light aircraft's trap check
 (fourteen more flights, where a policy that rides the joint limits shows). One JSON per run
 under out-dir/runs (atomic; a finished run is not flown again, so a killed study resumes).
 Prints per MCA the median PI per vehicle and over all flights, clamp interventions, and for
@@ -32,7 +34,8 @@ from common import default_result_path, parse_mca, print_calibration, result_hea
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.conventions import FIRST_EVALUATION_SEED
 from mca_drake.metrics import wilcoxon_signed_rank
-from mca_drake.references.flights import FlightSpec, flight_reference
+from mca_drake.references.drives import is_car, motion_reference, training_spec
+from mca_drake.references.flights import FlightSpec
 from mca_drake.references.jsbsim import UNSEEN_VEHICLES, VALIDATION_VEHICLES, check_vehicle
 from mca_drake.simulation.closed_loop import run_closed_loop
 
@@ -48,8 +51,12 @@ def run_flights(mcas, flights, out_dir: Path, duration_s: float, cache_dir: Path
             path = out_dir / "runs" / f"{label}_{vehicle}_{seed}.json"
             if not path.is_file():
                 if reference is None:
-                    spec = FlightSpec(vehicle=vehicle, seed=seed)
-                    reference = flight_reference(spec, duration_s, cache_dir=cache_dir)
+                    spec = (
+                        training_spec(vehicle, seed)
+                        if is_car(vehicle)
+                        else FlightSpec(vehicle=vehicle, seed=seed)
+                    )
+                    reference = motion_reference(spec, duration_s, cache_dir=cache_dir)
                 result = run_closed_loop(mca=config, reference=reference, progress=False)
                 keep = ("pi", "rmse", "cc", "safety_interventions", "violations", "step_time_s")
                 atomic_write_json(path, {k: result.summary[k] for k in keep})
@@ -130,7 +137,7 @@ def main() -> None:
             f"{FIRST_EVALUATION_SEED}): the evaluation's flights are never flown for choosing"
         )
     try:
-        vehicles = [check_vehicle(v) for v in args.vehicles.split(",")]
+        vehicles = [v if is_car(v) else check_vehicle(v) for v in args.vehicles.split(",")]
     except ValueError as error:  # unknown or reserved: a message, not a traceback
         raise SystemExit(f"--vehicles: {error}") from None
     if set(vehicles) & set(UNSEEN_VEHICLES):

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mca_drake.conventions import CHANNELS
+from mca_drake.resources import split_profile
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 HEADLINE_START = "<!-- headline-table:start -->"
@@ -42,8 +43,28 @@ MCA_LABELS = {
     "nmpc-rti-preview256": "NMPC, RTI, 2.56 s preview",
     "nmpc-rti-preview1000": "NMPC, RTI, 10 s horizon and preview",
 }
-# The headline table's rows, in this order, where the suite ran them.
-HEADLINE_MCAS = ("dpc", "nmpc-converged", "nmpc-rti", "washout", "nmpc-rti-perceived")
+
+
+def mca_label(mca: str) -> str:
+    """The display name of an MCA as the suite keys it, with its profile
+    (`mca_drake.cueing.profiles`): "washout-ground" -> "Washout (tuned), ground profile"."""
+    base, profile = split_profile(mca)
+    label = MCA_LABELS.get(base, base)
+    return f"{label}, {profile} profile" if profile else label
+
+
+# The headline table's rows, in this order, where the suite ran them (a case that did not
+# run one shows "-").
+HEADLINE_MCAS = (
+    "dpc",
+    "nmpc-converged",
+    "nmpc-rti",
+    "washout",
+    "nmpc-rti-perceived",
+    "dpc-ground",
+    "nmpc-rti-ground",
+    "washout-ground",
+)
 
 
 # --- number formats (fixed, so that a render is reproducible) ---------------------------
@@ -168,18 +189,22 @@ def _evaluation(results_dir: Path, data: dict) -> list[str]:
         "size. IQR: interquartile range of the flights' PIs.",
         "",
     ]
+    waiting = [name for name, case in data["cases"].items() if not case["mcas"]]
     for case_name, case in data["cases"].items():
+        if not case["mcas"]:
+            continue
         seeds = case["seeds"]
         lines += [f"### Case {case_name}: {case['vehicle']} (seeds {seeds[0]}-{seeds[-1]})", ""]
         rows = []
         for mca, m in case["mcas"].items():
             rows.append(
                 [
-                    MCA_LABELS.get(mca, mca),
+                    mca_label(mca),
                     str(m["runs"]),
                     fmt_pi(m["pi_median"]),
                     f"{fmt_pi(m['pi_iqr'][0])} to {fmt_pi(m['pi_iqr'][1])}",
                     fmt_pi(m["pi_zero_motion_median"]),
+                    str(m.get("better_than_zero_motion", "-")),
                     _perceived_cell(m),
                     str(m["violations"]),
                     str(m["safety_interventions"]),
@@ -187,15 +212,20 @@ def _evaluation(results_dir: Path, data: dict) -> list[str]:
                 ]
             )
         header = ["MCA", "flights", "PI median", "PI IQR", "zero motion PI"]
-        header += ["perceived PI (zero motion)", "violations", "clamp interventions"]
+        header += [
+            "flights better than zero motion",
+            "perceived PI (zero motion)",
+            "violations",
+            "clamp interventions",
+        ]
         header += ["step median"]
         lines += [*_table(header, rows), ""]
         for key, test in case.items():
-            if not key.startswith("dpc_vs_"):
+            if not (key.startswith("dpc_") and "_vs_" in key):  # a DPC's tests
                 continue
-            other = MCA_LABELS.get(test["other"], test["other"])
+            dpc, other = mca_label(test.get("dpc", "dpc")), mca_label(test["other"])
             text = (
-                f"- DPC vs {other}: median PI gap {test['median_gap']:+.3f}, rank-sum "
+                f"- {dpc} vs {other}: median PI gap {test['median_gap']:+.3f}, rank-sum "
                 f"p {test['p']:.3g}"
             )
             paired = test.get("paired")
@@ -210,6 +240,8 @@ def _evaluation(results_dir: Path, data: dict) -> list[str]:
             lines.append(text)
         lines.append("")
         lines += _suite_bound_lines(case)
+    if waiting:
+        lines += [f"Not yet run: case {', '.join(waiting)}.", ""]
     lines += _image(results_dir, "evaluation/evaluation.png", "PI per case and MCA")
     lines += [
         "Per-channel RMSE and CC: `benchmarks/results/evaluation/evaluation.md`.",
@@ -225,7 +257,7 @@ def _suite_bound_lines(case: dict) -> list[str]:
     if not bound:
         return []
     rows = [
-        [MCA_LABELS.get(mca, mca), str(len(entry["share"])), f"{entry['share_median']:.0%}"]
+        [mca_label(mca), str(len(entry["share"])), f"{entry['share_median']:.0%}"]
         for mca, entry in case.get("shares", {}).items()
     ]
     return [
@@ -262,7 +294,7 @@ def _preview(results_dir: Path, data: dict) -> list[str]:
             rows.append(
                 [
                     case_name,
-                    MCA_LABELS.get(mca, mca),
+                    mca_label(mca),
                     str(m["runs"]),
                     f"{fmt_pi(m['pi_median'])} ({fmt_pi(m['pi_iqr'][0])} to "
                     f"{fmt_pi(m['pi_iqr'][1])})",
@@ -361,7 +393,7 @@ def _perceived(results_dir: Path, data: dict) -> list[str]:
                 rows.append(
                     [
                         case,
-                        MCA_LABELS.get(mca, mca),
+                        mca_label(mca),
                         str(m["flights"]),
                         f"{fmt_pi(m['pi']['median'])} ({fmt_pi(m['pi']['iqr'][0])} to "
                         f"{fmt_pi(m['pi']['iqr'][1])})",
@@ -465,7 +497,7 @@ def _station(results_dir: Path, data: dict) -> list[str]:
     factors = [f["realtime_factor_multibody"] for f in flights]
     violations = sum(f["violations_multibody"] for f in flights)
     header = ["vehicle", "seed", "PI station", "PI analytical", "difference", "real-time factor"]
-    lines = [f"Case {data['case']}, {MCA_LABELS.get(data['mca'], data['mca'])}.", ""]
+    lines = [f"Case {data['case']}, {mca_label(data['mca'])}.", ""]
     lines += _table(header, rows)
     lines += [
         "",
@@ -490,7 +522,7 @@ def _validation(results_dir: Path, data: dict) -> list[str]:
     ]
     rows = []
     for label, entry in mcas.items():
-        row = [MCA_LABELS.get(label, label)]
+        row = [mca_label(label)]
         row += [fmt_pi(entry[v]) for v in vehicles]
         row += [fmt_pi(entry["all"]), str(entry["interventions"])]
         paired = [entry[k] for k in _paired_keys(entry)]
@@ -525,7 +557,7 @@ def _cue_response(results_dir: Path, data: dict) -> list[str]:
                 + [f"{worst[0]} {worst[1]:.3f}"]
             )
         header = ["channel (step)", *(f"{t:g} s" for t in times), "largest cross-talk"]
-        lines += [f"**{MCA_LABELS.get(label, label)}**", "", *_table(header, rows), ""]
+        lines += [f"**{mca_label(label)}**", "", *_table(header, rows), ""]
     return lines
 
 
@@ -637,9 +669,10 @@ def _live(results_dir: Path, data: dict) -> list[str]:
         )
     header = ["run", "sample to command: median / p99 / max", "wait for the poll (median)"]
     header += ["loop jitter p99", "CPU load", "packets / dropped", "violations"]
+    sender = data.get("sender", "JSBSim's FGNetFDM packets of the light aircraft, seed 7")
     lines = [
-        "JSBSim flies the light aircraft in real time and streams FGNetFDM telemetry over "
-        "loopback; the loop cues it at real-time rate 1.",
+        f"The sender: {sender}, streamed over loopback in real time at 100 Hz; the loop cues "
+        "them at real-time rate 1.",
         "",
     ]
     return [*lines, *_table(header, rows), ""]
@@ -774,6 +807,13 @@ SECTIONS = (
         _live,
     ),
     Section(
+        "Live loop, driving",
+        "live_driving.json",
+        "the same figures on a racing simulator's telemetry: a car's drive as BeamNG "
+        "MotionSim packets",
+        _live,
+    ),
+    Section(
         "KUKA RSI driver",
         "rsi.json",
         "reply latency and late replies per RSI cycle time, live, against a loopback robot",
@@ -848,7 +888,7 @@ def render_headline_table(results_dir: Path) -> str:
     suite = load_result(results_dir, "evaluation/evaluation.json")
     dpc = load_result(results_dir, "dpc.json")
     nmpc = load_result(results_dir, "nmpc.json")
-    cases = suite["cases"]
+    cases = {name: case for name, case in suite["cases"].items() if case["mcas"]}
     steps = {
         "dpc": fmt_us(dpc["dpc"]["step_median_s"]["median"]),
         "nmpc-converged": _ms_of(nmpc["flight"]["shipped/converged"]["median_ms"]),
@@ -857,11 +897,14 @@ def render_headline_table(results_dir: Path) -> str:
     header = ["MCA", *(f"case {name}: {case['vehicle']}" for name, case in cases.items())]
     rows = []
     for mca in HEADLINE_MCAS:
-        if not all(mca in case["mcas"] for case in cases.values()):
+        if not any(mca in case["mcas"] for case in cases.values()):
             continue
         rows.append(
-            [MCA_LABELS[mca]]
-            + [_headline_cell(case["mcas"][mca]) for case in cases.values()]
+            [mca_label(mca)]
+            + [
+                _headline_cell(case["mcas"][mca]) if mca in case["mcas"] else "-"
+                for case in cases.values()
+            ]
             + [steps.get(mca, "-")]
         )
     zero = []

@@ -14,7 +14,27 @@ from pathlib import Path
 # The folders a wheel carries, by their name in the source tree.
 PACKAGED_FOLDERS = ("models", "diagrams")
 # Policy files shipped with the package (mca_drake/data/<name>.npz).
-SHIPPED_POLICIES = ("default_policy", "policy_v6")
+SHIPPED_POLICIES = ("default_policy", "policy_v6", "ground_policy")
+# MCA profiles shipped for vehicle motion other than flight (`mca_drake.cueing.profiles`): the
+# NMPC's and washout's settings in data/profiles/<name>.yaml, the DPC's policy
+# <name>_policy; "" stands for the flight defaults.
+PROFILES = ("ground",)
+
+
+def split_profile(name: str) -> tuple[str, str]:
+    """(MCA name, profile) of an MCA name that may end in a profile: "washout-ground" ->
+    ("washout", "ground"); "nmpc-rti" -> ("nmpc-rti", "")."""
+    for profile in PROFILES:
+        if name.endswith(f"-{profile}"):
+            return name.removesuffix(f"-{profile}"), profile
+    return name, ""
+
+
+def check_profile(profile: str) -> str:
+    """`profile` if it is "" (the flight defaults) or a shipped profile, else ValueError."""
+    if profile and profile not in PROFILES:
+        raise ValueError(f"unknown MCA profile '{profile}'; valid: {', '.join(PROFILES)}")
+    return profile
 
 
 def data_dir() -> Path:

@@ -354,3 +354,47 @@ def test_optimal_command_prints_the_bound_and_writes_its_summary(tmp_path, capsy
     assert summary["step_time_s"] is None and summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     printed = capsys.readouterr().out
     assert f"PI {summary['pi']:.3f}" in printed and "SQP iterations" in printed
+
+
+def test_suite_cases_choose_exactly_their_flights(tmp_path, monkeypatch, capsys):
+    """`--cases A,D`: only cases A and D's flights run (not the jet's of B, the unseen
+    types' of C or the route flights of E); `--report-only` then runs nothing and reports
+    the runs on disk, leaving out an MCA that has none."""
+    import mca_drake.app.cli.evaluate as evaluate
+
+    out = tmp_path / "suite"
+    seen = []
+
+    def fake_run(scenario, **_):
+        seen.append(scenario)
+        out.mkdir(exist_ok=True)
+        (out / "evaluation.md").write_text("report")
+
+    monkeypatch.setattr(evaluate, "run_scenario", fake_run)
+    argv = ["evaluate", "--suite", "--cases", "A,D", "--flights", "2", "--out-dir", str(out)]
+    assert cli.main(argv) == 0
+    (scenario,) = seen
+    assert scenario.light_seeds == [1000, 1001] and scenario.drive_seeds == [4000, 4001]
+    assert scenario.jet_seeds == scenario.unseen_seeds == scenario.route_seeds == []
+    monkeypatch.undo()
+
+    base = ["evaluate", "--suite", "--cases", "A", "--flights", "1", "--duration", "2"]
+    base += ["--out-dir", str(out), "--quiet"]
+    assert cli.main([*base, "--mcas", "washout"]) == 0
+    run = out / "runs" / "A_washout_1000.json"
+    assert sorted(p.name for p in run.parent.iterdir()) == [run.name]
+    written = run.read_bytes()
+
+    def no_runs(*_, **__):
+        raise AssertionError("--report-only ran the suite")
+
+    monkeypatch.setattr(evaluate, "run_scenario", no_runs)
+    assert cli.main([*base, "--mcas", "washout,nmpc-rti", "--report-only"]) == 0
+    assert sorted(p.name for p in run.parent.iterdir()) == [run.name]
+    assert run.read_bytes() == written
+    report = json.loads((out / "evaluation.json").read_text())
+    assert list(report["cases"]["A"]["mcas"]) == ["washout"]
+    assert report["mcas"] == ["washout", "nmpc-rti"]
+    capsys.readouterr()
+    assert cli.main(["evaluate", "--report-only", "--reference", "x.csv"]) == 2
+    assert "add --suite" in capsys.readouterr().err

@@ -178,3 +178,32 @@ def test_a_mixed_set_cues_each_flights_own_reference(tmp_path):
         np.testing.assert_allclose(data.R[mine].reshape(-1, 6), expected, atol=1e-5)
         part = SegmentDataset.load(flight_path(tmp_path, seed))
         assert part.metadata["reference_source"] == source
+
+
+def test_a_car_among_the_vehicles_drives_its_training_drive(tmp_path):
+    """A car in `vehicles` drives the manoeuvre its seed deals (`training_spec`); its
+    segments carry that drive's reference and its source is "drive", while the aircraft
+    beside it fly as before."""
+    from mca_drake.references.drives import drive_recording, training_spec
+    from mca_drake.references.flights import FlightSpec, flight_recording
+    from mca_drake.references.reference import reference_from_recording
+
+    config = ClosedLoopDatasetConfig(
+        vehicles=("light", "ford-escort"), flight_seeds=(10, 11), flight_duration_s=2.0, horizon=50
+    )
+    config.validate()
+    assert [config.flight_source(s, v) for v, s in config.flights()] == ["scripted", "drive"]
+    data = SegmentDataset.load(generate_closed_loop_dataset(config, tmp_path, progress=False))
+    recordings = {
+        10: flight_recording(FlightSpec(vehicle="light", seed=10), 2.0),
+        11: drive_recording(training_spec("ford-escort", 11), 2.0),
+    }
+    for seed, recording in recordings.items():
+        expected = reference_from_recording(recording, config.scaling).y[:200]
+        mine = data.source[:, 0] == seed
+        np.testing.assert_allclose(data.R[mine].reshape(-1, 6), expected, atol=1e-5)
+    part = SegmentDataset.load(flight_path(tmp_path, 11))
+    assert part.metadata["reference_source"] == "drive"
+    assert part.metadata["vehicle"] == "ford-escort"
+    with pytest.raises(ValueError, match="unknown vehicle 'trabant'"):
+        ClosedLoopDatasetConfig(vehicles=("trabant",)).validate()

@@ -13,6 +13,7 @@ import pytest
 
 from mca_drake.cueing.dpc import shipped_policy_path
 from mca_drake.resources import (
+    PROFILES,
     SHIPPED_POLICIES,
     packaged_folder,
     packaged_scenarios,
@@ -49,17 +50,19 @@ def test_an_unknown_scenario_lists_the_packaged_ones(tmp_path):
 def test_bad_names_are_refused():
     with pytest.raises(ValueError, match="valid: models, diagrams"):
         packaged_folder("notebooks")
-    with pytest.raises(ValueError, match="valid: default_policy, policy_v6"):
+    with pytest.raises(ValueError, match="valid: default_policy, policy_v6, ground_policy"):
         shipped_policy_path("policy_v9")
     assert [shipped_policy_path(n).name for n in SHIPPED_POLICIES] == [
         "default_policy.npz",
         "policy_v6.npz",
+        "ground_policy.npz",
     ]
 
 
-def test_the_wheel_carries_the_model_the_scenarios_and_two_policies(tmp_path):
+def test_the_wheel_carries_the_model_the_scenarios_the_policies_and_profiles(tmp_path):
     """The wheel, built from this checkout, holds copies of models/ and diagrams/ where
-    `resources` looks in an installed package, and the two shipped policies only."""
+    `resources` looks in an installed package, the shipped policies and the profiles'
+    settings, and no other data."""
     source = tmp_path / "source"  # a copy: the build writes build/ into its source
     source.mkdir()
     for name in ("pyproject.toml", "setup.py", "MANIFEST.in", "README.md"):
@@ -74,5 +77,6 @@ def test_the_wheel_carries_the_model_the_scenarios_and_two_policies(tmp_path):
     expected = {"mca_drake/data/models/kr500.urdf"}
     expected |= {f"mca_drake/data/diagrams/{p.name}" for p in (REPO / "diagrams").glob("*.yaml")}
     expected |= {f"mca_drake/data/{n}.npz" for n in SHIPPED_POLICIES}
+    expected |= {f"mca_drake/data/profiles/{n}.yaml" for n in PROFILES}
     assert data == expected
     assert "mca_drake/live/rsi/driver.py" in names and "mca_drake/app/cli/__main__.py" in names

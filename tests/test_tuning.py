@@ -15,6 +15,8 @@ import pytest
 from mca_drake.app.jobs import run_scenario
 from mca_drake.app.scenarios import load_scenario
 from mca_drake.cueing import NmpcConfig, WashoutConfig
+from mca_drake.references.drives import training_spec
+from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.tuning import (
     TuningConfig,
     config_from_parameters,
@@ -32,7 +34,8 @@ TINY = dict(trials=3, duration_s=2.0, flights=(("light", 100),), max_false_rotat
 @pytest.mark.parametrize(
     ("change", "match"),
     [
-        (dict(flights=(("light", 1000),)), "evaluation flights are never tuned on"),
+        (dict(flights=(("light", 1000),)), "never trained or tuned on"),
+        (dict(flights=(("bmw-320i", 4000),)), "never trained or tuned on"),
         (dict(flights=(("boeing", 100),)), "unknown vehicle 'boeing'"),
         (dict(flights=(("737", 100),)), "reserved for unseen-vehicle checks"),
         (dict(flights=(("T38", 100),)), "kept for evaluation case C"),
@@ -118,6 +121,29 @@ def test_trials_can_be_scored_on_the_perceived_pi(tmp_path):
     assert len(scores["perceived_pi"]) == 3
     config = config_from_parameters("nmpc-rti", starting_point("nmpc-rti"), "perceived")
     assert config.objective == "perceived"
+
+
+def test_a_car_in_the_flights_is_tuned_on_its_training_drive(tmp_path):
+    """A car where an aircraft would be drives the manoeuvre its seed deals
+    (`training_spec`): the trial scores the same run as the drive's reference through the
+    closed loop directly, and the drive is kept in the study's folder."""
+    from mca_drake.references.drives import motion_reference
+    from mca_drake.studies.tuning import score_config
+
+    tuning = TuningConfig(
+        mca="washout", duration_s=4.0, flights=(("bmw-320i", 100),), max_false_rotation_deg_s=0
+    )
+    tuning.validate()
+    scores = score_config(WashoutConfig(), tuning, tmp_path)
+    spec = training_spec("bmw-320i", 100)
+    assert spec.manoeuvre == "lap" and spec.car == "bmw-320i"
+    assert training_spec("bmw-320i", 101).manoeuvre == "proving-ground"
+    direct = run_closed_loop(
+        mca=WashoutConfig(), reference=motion_reference(spec, 4.0), duration_s=4.0, progress=False
+    ).summary
+    assert scores["pi"] == [pytest.approx(direct["pi"])]
+    assert scores["pi_zero_motion"] == [pytest.approx(direct["pi_zero_motion"])]
+    assert list(tmp_path.glob("drive_lap_bmw-320i_*.csv"))
 
 
 def _trial_results(out: Path) -> list[Path]:

@@ -32,6 +32,7 @@ from mca_drake.cueing import (
 )
 from mca_drake.cueing.dpc import load_policy_arrays, policy_preview_steps
 from mca_drake.cueing.optimal import OptimalConfig
+from mca_drake.cueing.profiles import profile_config
 from mca_drake.input_checks import (
     MAX_DURATION_S,
     MAX_YAML_BYTES,
@@ -93,7 +94,8 @@ class ClosedLoopScenario:
     # The motion cueing algorithm and its settings: !DpcConfig, !NmpcConfig or
     # !WashoutConfig (`mca_drake.cueing`), or a name (`mca_drake.cueing.MCA_NAMES`: dpc,
     # nmpc-rti, nmpc-converged, washout, nmpc-rti-perceived, nmpc-converged-perceived) for
-    # its default config.
+    # its default config, or a name with a profile (`mca_drake.cueing.profiles`:
+    # nmpc-rti-ground, washout-ground, dpc-ground) for the profile's.
     mca: McaConfig = dataclasses.field(default_factory=DpcConfig)
     # "multibody" (KR500 MultibodyPlant, inverse dynamics, head IMU) or "analytical".
     plant: str = "multibody"
@@ -277,10 +279,10 @@ class EvaluationScenario:
 class DatasetScenario:
     """Closed-loop dataset generation (the training data of the plant models and DPC)."""
 
-    # Vehicle flown by JSBSim (`mca_drake.references.jsbsim.VEHICLES`) when `vehicles` is
-    # empty.
+    # Vehicle flown by JSBSim (`mca_drake.references.jsbsim.VEHICLES`), or a car that
+    # drives (`mca_drake.references.driving.CARS`), when `vehicles` is empty.
     vehicle: str = ClosedLoopDatasetConfig.vehicle
-    # Vehicles of a mixed set: flight_seeds[i] flies vehicles[i % len(vehicles)].
+    # Vehicles of a mixed set: flight_seeds[i] flies (or drives) vehicles[i % len(vehicles)].
     vehicles: list[str] = dataclasses.field(default_factory=list)
     # Flight seeds (evaluation uses 1000 on; keep these apart).
     flight_seeds: list[int] = dataclasses.field(
@@ -523,11 +525,12 @@ def _prepare_union(members: tuple, raw, current, where: str):
     by_tag = {f"!{t.__name__}": t for t in members}
     expected = f"a tagged value ({', '.join(by_tag)})"
     if is_mca:
-        expected += f" or an MCA name ({', '.join(MCA_NAMES)})"
+        expected += f" or an MCA name ({', '.join(MCA_NAMES)}, or one with a profile suffix)"
     if isinstance(raw, str) and is_mca:
-        if raw not in MCA_NAMES:
-            raise ValueError(f"{_at(where)}unknown MCA '{raw}'; valid: {', '.join(MCA_NAMES)}")
-        config = mca_config_from_name(raw)
+        try:
+            config = mca_config_from_name(raw)
+        except ValueError as error:
+            raise ValueError(f"{_at(where)}{error}") from None
         return {"_tag": f"!{type(config).__name__}", **dataclasses.asdict(config)}
     if raw is None and not is_mca:
         names = " or ".join(t.__name__ for t in members)
@@ -547,8 +550,14 @@ def _prepare_union(members: tuple, raw, current, where: str):
         raise ValueError(f"{_at(where)}unknown type {tag}; valid: {', '.join(by_tag)}")
     kind = by_tag[tag]
     body = _prepare(kind, body, None, where)
-    if is_mca:  # a fresh config of that class: every field not given at its default
-        body = {**dataclasses.asdict(kind()), **body}
+    if is_mca:
+        # a fresh config of that class, or of its profile's settings (`profile: ground`):
+        # every field not given at its default, or at the profile's
+        try:
+            base = profile_config(kind, body["profile"]) if body.get("profile") else kind()
+        except ValueError as error:
+            raise ValueError(f"{_at(where)}{error}") from None
+        body = {**dataclasses.asdict(base), **body}
     return {"_tag": tag, **body}
 
 

@@ -5,7 +5,9 @@ Every motion cueing algorithm is chosen and configured by its typed dataclass: `
 by its tag and sets any of its fields (`mca: !NmpcConfig {mode: rti, washout_weight: 0.3}`).
 The names `dpc`, `nmpc-rti`, `nmpc-converged` and `washout` are shorthands for the default
 config of each (`--mca nmpc-rti`), and name an MCA in summaries and reports; the NMPC's
-names take `-perceived` for its perceived objective (`nmpc-rti-perceived`).
+names take `-perceived` for its perceived objective (`nmpc-rti-perceived`). Any name takes a
+shipped profile's suffix for that profile's settings (`washout-ground`, `nmpc-rti-ground`,
+`dpc-ground`; `mca_drake.cueing.profiles`).
 """
 
 import dataclasses
@@ -13,6 +15,7 @@ from typing import Union
 
 from mca_drake.cueing.dpc import DpcConfig
 from mca_drake.cueing.nmpc import NmpcConfig
+from mca_drake.cueing.profiles import PROFILES, profile_config, split_profile
 from mca_drake.cueing.washout import WashoutConfig
 
 # typing.Union, not `|`: Drake's YAML loader reads the members' tags from it.
@@ -29,11 +32,24 @@ MCA_NAMES = (
 
 
 def mca_config_from_name(name: str) -> McaConfig:
-    """The default config of the MCA called `name` (one of MCA_NAMES).
+    """The default config of the MCA called `name` (one of MCA_NAMES), or its shipped
+    profile's config where the name ends in one ("washout-ground": `cueing.profiles`).
 
     Raises:
         ValueError: an unknown name; the message lists the valid ones.
     """
+    base, profile = split_profile(name)
+    if profile:
+        if base not in MCA_NAMES:
+            raise ValueError(
+                f"unknown MCA '{name}'; valid: {', '.join(MCA_NAMES)}, each with a profile "
+                f"suffix ({', '.join(f'-{p}' for p in PROFILES)})"
+            )
+        default = mca_config_from_name(base)
+        config = profile_config(type(default), profile)
+        if isinstance(config, NmpcConfig):
+            config = dataclasses.replace(config, mode=default.mode, objective=default.objective)
+        return config
     if name == "dpc":
         return DpcConfig()
     if name in MCA_NAMES and name.startswith("nmpc-"):
@@ -57,17 +73,16 @@ def as_mca_config(mca: McaConfig | str) -> McaConfig:
 def mca_name(config: McaConfig) -> str:
     """The name of the MCA that `config` configures (MCA_NAMES): "nmpc-" plus the NMPC's
     mode (and "-perceived" for its perceived objective, "-previewN" for a preview of N
-    samples), "dpc" or "washout"."""
+    samples), "dpc" or "washout", each with "-<profile>" for a shipped profile's settings."""
+    if not isinstance(config, MCA_CONFIG_TYPES):
+        raise TypeError(f"not an MCA config: {type(config).__name__}")
+    profile = f"-{config.profile}" if config.profile else ""
     if isinstance(config, NmpcConfig):
         suffix = "-perceived" if config.objective == "perceived" else ""
         if config.preview_steps:
             suffix += f"-preview{config.preview_steps}"
-        return f"nmpc-{config.mode}{suffix}"
-    if isinstance(config, DpcConfig):
-        return "dpc"
-    if isinstance(config, WashoutConfig):
-        return "washout"
-    raise TypeError(f"not an MCA config: {type(config).__name__}")
+        return f"nmpc-{config.mode}{suffix}{profile}"
+    return ("dpc" if isinstance(config, DpcConfig) else "washout") + profile
 
 
 def mca_config_record(config: McaConfig) -> dict:

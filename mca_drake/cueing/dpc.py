@@ -17,7 +17,7 @@ import numpy as np
 from scipy.special import erf
 
 from mca_drake.atomic_io import load_npz_with_metadata
-from mca_drake.resources import SHIPPED_POLICIES, data_dir
+from mca_drake.resources import SHIPPED_POLICIES, check_profile, data_dir
 from mca_drake.robot import NUM_JOINTS
 
 _SQRT_HALF = np.sqrt(0.5)
@@ -62,17 +62,29 @@ class DpcConfig:
     In YAML: `mca: !DpcConfig {policy: results/policy/policy.npz}`.
     """
 
-    # Policy file (`mca-drake train-policy`); empty: the policy shipped with the package.
+    # Policy file (`mca-drake train-policy`); empty: the policy shipped with the package for
+    # `profile`.
     policy: str = ""
+    # The shipped profile (`mca_drake.cueing.profiles`: "ground" for cars) whose policy runs
+    # when `policy` is empty, and which names the MCA ("dpc-ground"); "": the flight default.
+    profile: str = ""
 
     def validate(self) -> None:
-        """Raises FileNotFoundError when the policy file does not exist."""
+        """Raises ValueError for an unknown profile, FileNotFoundError when the policy file
+        does not exist."""
+        check_profile(self.profile)
         if self.policy and not Path(self.policy).is_file():
             raise FileNotFoundError(f"DpcConfig.policy: policy file {self.policy!r} not found")
+        if self.profile and not self.policy:
+            self.policy_path()  # the profile's shipped policy: ValueError or FileNotFoundError
 
     def policy_path(self) -> Path:
-        """The policy file this config runs: `policy`, or the shipped one."""
-        return Path(self.policy) if self.policy else default_policy_path()
+        """The policy file this config runs: `policy`, or the shipped one of `profile`."""
+        if self.policy:
+            return Path(self.policy)
+        if self.profile:
+            return shipped_policy_path(f"{check_profile(self.profile)}_policy")
+        return default_policy_path()
 
 
 def default_policy_path() -> Path:
@@ -88,8 +100,9 @@ def default_policy_path() -> Path:
 
 
 def shipped_policy_path(name: str) -> Path:
-    """A policy file shipped with the package: "default_policy" (the default DPC policy) or
-    "policy_v6" (the paper reproduction: five c172p flights, the paper's loss).
+    """A policy file shipped with the package: "default_policy" (the default DPC policy),
+    "policy_v6" (the paper reproduction: five c172p flights, the paper's loss) or
+    "ground_policy" (the ground profile's, trained on drives).
 
     Raises:
         ValueError: `name` is not a shipped policy (the message lists them).

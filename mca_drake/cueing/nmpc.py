@@ -83,6 +83,7 @@ from mca_drake.input_checks import check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
+from mca_drake.resources import check_profile
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.safety import viable_acceleration_bounds
 
@@ -187,6 +188,10 @@ class NmpcConfig:
     # that stop at the iteration cap far from a KKT point without it reach one. The damping
     # does not change the stopping test.
     marquardt_damping: bool = True
+    # The shipped profile (`mca_drake.cueing.profiles`: "ground" for cars) these settings
+    # are, set by asking for it by name ("nmpc-rti-ground"); it names the MCA in summaries
+    # and reports. "": the flight defaults above.
+    profile: str = ""
 
     @classmethod
     def paper(cls, mode: str = "rti") -> "NmpcConfig":
@@ -204,6 +209,7 @@ class NmpcConfig:
     def validate(self) -> None:
         """Raises ValueError for a setting that cannot run, naming it."""
         check_config_numbers(self)
+        check_profile(self.profile)
         if self.mode not in MODES:
             raise ValueError(f"unknown NMPC mode '{self.mode}'; valid: {', '.join(MODES)}")
         if self.objective not in OBJECTIVES:

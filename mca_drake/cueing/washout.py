@@ -26,6 +26,7 @@ from scipy import signal
 
 from mca_drake.conventions import GRAVITY
 from mca_drake.input_checks import check_config_numbers
+from mca_drake.resources import check_profile
 
 
 @dataclasses.dataclass
@@ -65,6 +66,10 @@ class WashoutConfig:
     home_position: list[float] = dataclasses.field(
         default_factory=lambda: [0.0, 0.0, 0.5, 0.0, -0.5, 0.0]
     )
+    # The shipped profile (`mca_drake.cueing.profiles`: "ground" for cars) these settings
+    # are, set by asking for it by name ("washout-ground"); it names the MCA in summaries
+    # and reports. "": the flight defaults above.
+    profile: str = ""
 
     @classmethod
     def classic(cls) -> "WashoutConfig":
@@ -89,7 +94,12 @@ class WashoutConfig:
     def validate(self) -> None:
         """Raises ValueError for a setting that cannot run, naming it."""
         check_config_numbers(self)
-        values = {k: v for k, v in dataclasses.asdict(self).items() if k != "home_position"}
+        check_profile(self.profile)
+        values = {
+            k: v
+            for k, v in dataclasses.asdict(self).items()
+            if k not in ("home_position", "profile")
+        }
         if len(self.home_position) != 6:
             raise ValueError("home_position must hold six joint positions")
         if any(not (v > 0) for v in values.values()):

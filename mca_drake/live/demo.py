@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 from mca_drake.live.fgnetfdm import jsbsim_output_directive
+from mca_drake.live.sender_process import start_sender_process
 from mca_drake.references.jsbsim import fly_with_log
 
 # Resolution of the packets' time stamps, s (decode with the same).
@@ -57,11 +58,7 @@ def stream_flight(
 
 def start_demo_sender(port: int, duration_s: float, **options) -> subprocess.Popen:
     """Starts `stream_flight` in its own process (python -m mca_drake.live.demo)."""
-    command = [sys.executable, "-m", "mca_drake.live.demo", "--port", str(port)]
-    command += ["--duration", repr(float(duration_s))]
-    for name, value in options.items():
-        command += [f"--{name}", str(value)]
-    return subprocess.Popen(command, stdout=subprocess.DEVNULL)
+    return start_sender_process("mca_drake.live.demo", port, duration_s, **options)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -4,16 +4,23 @@
 `FlightSpec`); `drive_recording` turns it into a `Recording`. `motion_recording` and
 `motion_reference` (the motion-cueing `Reference`) take either spec, so that scenarios and
 studies take drives as they take flights.
+
+Training and tuning name their references as (vehicle, seed) pairs; a vehicle that is a car
+(`references.driving.CARS`) drives instead of flying: `training_spec` turns a pair into a
+`FlightSpec` or a `DriveSpec`, the drive's manoeuvre dealt from the seed
+(`TRAINING_MANOEUVRES`).
 """
 
 import dataclasses
 from pathlib import Path
 
-from mca_drake.references.driving.car import check_car
+from mca_drake.conventions import FIRST_EVALUATION_SEED
+from mca_drake.references.driving.car import CARS, check_car
 from mca_drake.references.driving.courses import MANOEUVRES
 from mca_drake.references.driving.drive import DEFAULT_HEAD_OFFSET_M, drive
 from mca_drake.references.driving.road import ROAD_CLASSES
 from mca_drake.references.flights import FlightSpec, flight_recording
+from mca_drake.references.jsbsim import check_training_vehicle
 from mca_drake.references.recording import Recording, load_recording, save_recording
 from mca_drake.references.reference import Reference, ReferenceScaling, reference_from_recording
 
@@ -113,3 +120,47 @@ def motion_reference(
     with `scaling`, default s_w = s_f = 0.5), named by the spec."""
     recording = motion_recording(spec, duration_s, cache_dir=cache_dir, progress=progress)
     return reference_from_recording(recording, scaling, name=spec.name())
+
+
+# The manoeuvres of training and tuning drives: seed s drives TRAINING_MANOEUVRES[s % 2],
+# the courses whose bends, straights, lane changes and braking hold every cue a drive has
+# (a mixed set of an even number of vehicles deals each car seeds of one parity: list the
+# cars so that each gets both, or an odd number of vehicles).
+TRAINING_MANOEUVRES = ("lap", "proving-ground")
+
+
+def is_car(vehicle: str) -> bool:
+    """Whether `vehicle` names a car (`references.driving.CARS`) rather than an aircraft."""
+    return vehicle in CARS
+
+
+def check_training_motion_vehicle(vehicle: str) -> str:
+    """`vehicle` if training and tuning may use it (a car, or a training aircraft:
+    `references.jsbsim.check_training_vehicle`), else ValueError (naming the cars too)."""
+    if is_car(vehicle):
+        return vehicle
+    try:
+        return check_training_vehicle(vehicle)
+    except ValueError as error:
+        raise ValueError(f"{error}; cars: {', '.join(CARS)}") from None
+
+
+def training_spec(vehicle: str, seed: int, *, pilot: str = "scripted") -> FlightSpec | DriveSpec:
+    """The reference that training and tuning name (vehicle, seed): a drive of the car
+    `vehicle` through TRAINING_MANOEUVRES[seed % 2] on the default road, or a flight of the
+    aircraft flown by `pilot`.
+
+    Raises:
+        ValueError: an evaluation seed (from FIRST_EVALUATION_SEED on) or a vehicle that
+            training never uses.
+    """
+    check_training_motion_vehicle(vehicle)
+    if not 0 <= seed < FIRST_EVALUATION_SEED:
+        raise ValueError(
+            f"seed {seed}: training and tuning use seeds 0 to {FIRST_EVALUATION_SEED - 1}; "
+            "evaluation flights and drives are never trained or tuned on"
+        )
+    if is_car(vehicle):
+        manoeuvre = TRAINING_MANOEUVRES[seed % len(TRAINING_MANOEUVRES)]
+        return DriveSpec(manoeuvre=manoeuvre, seed=seed, car=vehicle)
+    return FlightSpec(vehicle=vehicle, seed=seed, pilot=pilot)

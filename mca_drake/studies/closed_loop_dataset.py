@@ -15,7 +15,9 @@ them), a pilot whose style is drawn per flight (`random_style_share`,
 `references.jsbsim.style`), or synthetic band-limited motion in the vehicle's envelope
 (`synthetic_share`, `references.synthetic`), so that the policy learns the task rather than
 one pilot's habits. A mixed-vehicle set lists `vehicles`: the seeds are dealt to them in turn
-(seed i flies vehicles[i % len(vehicles)]), so every flight keeps a seed of its own. The MCA
+(seed i flies vehicles[i % len(vehicles)]), so every flight keeps a seed of its own. A car
+(`references.driving.CARS`) among them drives instead: a lap or the proving ground, dealt
+from the seed (`references.drives.training_spec`), its source "drive". The MCA
 defaults to NMPC in rti mode (at the tuned weights), which tracks the converged solution to
 within a few 1e-4 of PI (benchmarks/bench_nmpc.py) at a fraction of the cost.
 """
@@ -36,8 +38,13 @@ from mca_drake.conventions import CONTROL_PERIOD_S, FIRST_EVALUATION_SEED
 from mca_drake.cueing import McaConfig, NmpcConfig, as_mca_config, mca_config_record
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
 from mca_drake.kinematics import head_motion, output_from_motion, pose_derivatives_from_motion
+from mca_drake.references.drives import (
+    check_training_motion_vehicle,
+    drive_recording,
+    is_car,
+    training_spec,
+)
 from mca_drake.references.flights import training_recording
-from mca_drake.references.jsbsim import check_training_vehicle
 from mca_drake.references.reference import ReferenceScaling, reference_from_recording
 from mca_drake.robot import NUM_JOINTS, load_kr500
 from mca_drake.segments import SOURCE_COLUMNS, SPLIT_NAMES, SegmentDataset, package_versions
@@ -56,10 +63,10 @@ DEFAULT_DATASET = f"{DEFAULT_DATASET_DIR}/dataset.npz"
 class ClosedLoopDatasetConfig:
     """What to simulate and where to write it; defaults are the paper's dataset."""
 
-    # Vehicle flown by JSBSim (`mca_drake.references.jsbsim.VEHICLES`), when `vehicles` is
-    # empty.
+    # Vehicle flown by JSBSim (`mca_drake.references.jsbsim.VEHICLES`), or a car that
+    # drives (`mca_drake.references.driving.CARS`), when `vehicles` is empty.
     vehicle: str = "light"
-    # Vehicles of a mixed set: flight_seeds[i] flies vehicles[i % len(vehicles)].
+    # Vehicles of a mixed set: flight_seeds[i] flies (or drives) vehicles[i % len(vehicles)].
     vehicles: tuple[str, ...] = ()
     # Seeds of the flights; evaluation uses seeds from 1000 on, never these.
     flight_seeds: tuple[int, ...] = (100, 101, 102, 103, 104)
@@ -92,7 +99,7 @@ class ClosedLoopDatasetConfig:
         flight length; before any flight is simulated."""
         check_config_numbers(self)
         for vehicle in self.vehicles or (self.vehicle,):
-            check_training_vehicle(vehicle)
+            check_training_motion_vehicle(vehicle)
         if not self.flight_seeds:
             raise ValueError("flight_seeds is empty")
         if len(set(self.flight_seeds)) != len(self.flight_seeds):
@@ -139,10 +146,13 @@ class ClosedLoopDatasetConfig:
         vehicles = self.vehicles or (self.vehicle,)
         return [(vehicles[i % len(vehicles)], s) for i, s in enumerate(self.flight_seeds)]
 
-    def flight_source(self, seed: int) -> str:
-        """Where the flight of `seed` gets its reference (`TRAINING_SOURCES`): drawn from
-        the seed's own stream with the configured shares, so a flight keeps its source
-        whatever the other seeds."""
+    def flight_source(self, seed: int, vehicle: str | None = None) -> str:
+        """Where the flight of `seed` by `vehicle` (default `vehicle`, the config's) gets
+        its reference: "drive" for a car, else one of `TRAINING_SOURCES`, drawn from the
+        seed's own stream with the configured shares, so a flight keeps its source whatever
+        the other seeds."""
+        if is_car(self.vehicle if vehicle is None else vehicle):
+            return "drive"
         u = np.random.default_rng([seed, SOURCE_STREAM]).uniform()
         if u < self.synthetic_share:
             return "synthetic"
@@ -173,9 +183,14 @@ def simulate_flight(
     vehicle = vehicle or config.vehicle
     robot = load_kr500()
     started = time.perf_counter()
-    origin = config.flight_source(seed)
-    recording = training_recording(origin, vehicle, seed, config.flight_duration_s)
-    name = f"{vehicle} flight seed {seed}" + ("" if origin == "scripted" else f", {origin}")
+    origin = config.flight_source(seed, vehicle)
+    if origin == "drive":
+        spec = training_spec(vehicle, seed)
+        recording = drive_recording(spec, config.flight_duration_s)
+        name = spec.name()
+    else:
+        recording = training_recording(origin, vehicle, seed, config.flight_duration_s)
+        name = f"{vehicle} flight seed {seed}" + ("" if origin == "scripted" else f", {origin}")
     reference = reference_from_recording(recording, config.scaling, name=name)
     result = run_closed_loop(mca=config.mca, reference=reference, robot=robot, progress=False)
     n_p = config.horizon

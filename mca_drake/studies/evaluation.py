@@ -46,6 +46,7 @@ from mca_drake.plotting import plot_pi_boxes, save_figure
 from mca_drake.references.drives import DriveSpec, motion_reference
 from mca_drake.references.flights import FlightSpec
 from mca_drake.references.jsbsim import UNSEEN_VEHICLES
+from mca_drake.resources import split_profile
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.simulation.optimal_bound import run_optimal_bound
 from mca_drake.studies.parallel import run_tasks
@@ -350,6 +351,8 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                 "pi_median": float(np.median(pis)),
                 "pi_iqr": [float(np.percentile(pis, 25)), float(np.percentile(pis, 75))],
                 "pi_zero_motion_median": float(np.median([r["pi_zero_motion"] for r in rs])),
+                # flights whose PI is below (better than) not moving's
+                "better_than_zero_motion": int(sum(r["pi"] < r["pi_zero_motion"] for r in rs)),
                 # the most-used joint's share of its range, median over flights
                 "joint_range_used_median": float(
                     np.median([max(r["joint_range_used"]) for r in rs])
@@ -371,22 +374,15 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
         if config.bound is not None:
             entry |= _bound_entry(config, out, case, runs)
         m = entry["mcas"]
-        # DPC against every other MCA (the paper: against converged NMPC).
-        for other in m:
-            if other == "dpc" or "dpc" not in m or min(m["dpc"]["runs"], m[other]["runs"]) < 2:
-                continue
-            test = wilcoxon_rank_sum(m["dpc"]["pi"], m[other]["pi"])
-            entry[f"dpc_vs_{other.replace('-', '_')}"] = {
-                "other": other,
-                "z": test.z,
-                "p": test.p,
-                "alpha": SIGNIFICANCE_LEVEL,
-                "significant": test.significant(SIGNIFICANCE_LEVEL),
-                "median_gap": m["dpc"]["pi_median"] - m[other]["pi_median"],
-                "step_time_ratio": m[other]["step_time_median_s"] / m["dpc"]["step_time_median_s"],
-                "paired": _paired_test(runs[(case.name, "dpc")], runs[(case.name, other)]),
-                "perceived": _perceived_tests(runs[(case.name, "dpc")], runs[(case.name, other)]),
-            }
+        # each DPC (the default's, a profile's) against every other MCA (the paper: against
+        # converged NMPC)
+        for dpc in [d for d in m if split_profile(d)[0] == "dpc"]:
+            for other in m:
+                if other == dpc or min(m[dpc]["runs"], m[other]["runs"]) < 2:
+                    continue
+                entry[dpc_test_key(dpc, other)] = _dpc_test(
+                    m[dpc], m[other], runs[(case.name, dpc)], runs[(case.name, other)]
+                ) | {"dpc": dpc, "other": other}
         report["cases"][case.name] = entry
     atomic_write_json(out / "evaluation.json", report)
     atomic_write_text(out / "evaluation.md", evaluation_markdown(report))
@@ -394,6 +390,33 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
         save_figure(plot_pi_boxes(report), out / "evaluation.png")
         save_figure(plot_pi_boxes(report, "perceived_pi"), out / "evaluation_perceived.png")
     return report
+
+
+def dpc_test_key(dpc: str, other: str) -> str:
+    """The report's key of the tests of DPC `dpc` against MCA `other`: "dpc_vs_washout",
+    "dpc_ground_vs_nmpc_rti_ground"."""
+    return f"{dpc}_vs_{other}".replace("-", "_")
+
+
+def is_dpc_test(key: str) -> bool:
+    """Whether a key of a case's report entry holds a DPC's tests (`dpc_test_key`)."""
+    return key.startswith("dpc_") and "_vs_" in key
+
+
+def _dpc_test(dpc: dict, other: dict, dpc_runs: dict, other_runs: dict) -> dict:
+    """Rank-sum test of a DPC's PIs against another MCA's, with the paired and the
+    perceived tests, from their report entries and runs (seed -> summary)."""
+    test = wilcoxon_rank_sum(dpc["pi"], other["pi"])
+    return {
+        "z": test.z,
+        "p": test.p,
+        "alpha": SIGNIFICANCE_LEVEL,
+        "significant": test.significant(SIGNIFICANCE_LEVEL),
+        "median_gap": dpc["pi_median"] - other["pi_median"],
+        "step_time_ratio": other["step_time_median_s"] / dpc["step_time_median_s"],
+        "paired": _paired_test(dpc_runs, other_runs),
+        "perceived": _perceived_tests(dpc_runs, other_runs),
+    }
 
 
 def _bound_entry(config: EvaluationConfig, out: Path, case: EvaluationCase, runs: dict) -> dict:
@@ -521,9 +544,10 @@ def format_p(p: float) -> str:
 def rank_sum_verdict(test: dict) -> str:
     """The words after a report's rank-sum test of DPC (first sample) against another MCA.
 
-    `test`: a ``dpc_vs_*`` entry of the report (``z``, ``alpha``, ``significant``, the last
-    from `RankSumResult.significant`). A negative z means DPC's PIs rank lower, and a lower
-    PI is better, so a significant result says which side it falls on.
+    `test`: a DPC's test entry (`dpc_test_key`) of the report (``z``, ``alpha``,
+    ``significant``, the last from `RankSumResult.significant`). A negative z means DPC's
+    PIs rank lower, and a lower PI is better, so a significant result says which side it
+    falls on.
     """
     if not test["significant"]:
         return f"no significant difference at {test['alpha']:g}"
@@ -614,10 +638,11 @@ def evaluation_markdown(report: dict) -> str:
             f"## Case {name}: {case['vehicle']} flights, seeds "
             f"{case['seeds'][0]}-{case['seeds'][-1]}",
             "",
-            "| MCA | runs | PI median | PI IQR | zero-motion PI median | perceived PI median | "
-            "perceived zero-motion | joint range used | false rotation | step median | "
-            "step max | violations | safety interventions | solver failures |",
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+            "| MCA | runs | PI median | PI IQR | zero-motion PI median | better than zero "
+            "motion | perceived PI median | perceived zero-motion | joint range used | "
+            "false rotation | step median | step max | violations | safety interventions | "
+            "solver failures |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         flights = len(case["seeds"])
         for mca, m in case["mcas"].items():
@@ -625,6 +650,7 @@ def evaluation_markdown(report: dict) -> str:
             lines.append(
                 f"| {mca} | {runs} | {m['pi_median']:.3f} | {m['pi_iqr'][0]:.3f} to "
                 f"{m['pi_iqr'][1]:.3f} | {m['pi_zero_motion_median']:.3f} | "
+                f"{m.get('better_than_zero_motion', '-')} of {m['runs']} | "
                 f"{m.get('perceived_pi_median', math.nan):.3f} | "
                 f"{m.get('perceived_pi_zero_motion_median', math.nan):.3f} | "
                 f"{m['joint_range_used_median']:.0%} | "
@@ -637,11 +663,12 @@ def evaluation_markdown(report: dict) -> str:
         lines += _perceived_table(case["mcas"])
         lines += _bound_lines(case)
         for key, test in case.items():
-            if not key.startswith("dpc_vs_"):
+            if not is_dpc_test(key):
                 continue
             lines += [
                 "",
-                f"DPC vs {test['other']}: Wilcoxon rank-sum z = {test['z']:.3f}, "
+                f"{test.get('dpc', 'dpc')} vs {test['other']}: Wilcoxon rank-sum "
+                f"z = {test['z']:.3f}, "
                 f"{format_p(test['p'])} ({rank_sum_verdict(test)}); median PI gap "
                 f"{test['median_gap']:+.3f}; step-time ratio {test['step_time_ratio']:.0f}x.",
             ]

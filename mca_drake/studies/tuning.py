@@ -10,8 +10,9 @@ rotation cues (`mca_drake.metrics.false_rotation`) exceed `max_false_rotation_de
 
 Flights are built-in JSBSim flights of the training range (seeds below 1000: evaluation
 uses 1000 on) and never a reserved aircraft (only `mca_drake.references.jsbsim.VEHICLES`
-fly). Every trial is a Ray task that builds its own diagrams; Ray Tune keeps the study's
-state in `out_dir/ray`, so a killed tune resumes with `resume=True`.
+fly); a car in their place drives (`mca_drake.references.drives.training_spec`), which is
+how ground profiles are tuned. Every trial is a Ray task that builds its own diagrams; Ray
+Tune keeps the study's state in `out_dir/ray`, so a killed tune resumes with `resume=True`.
 
 Outputs in `out_dir`: `best.yaml` (the best config as a scenario override,
 `mca: !NmpcConfig {...}`, with where it came from), `trials.csv` (every trial's parameters
@@ -38,12 +39,10 @@ from mca_drake.atomic_io import (
     atomic_write_text,
     check_writable,
 )
-from mca_drake.conventions import FIRST_EVALUATION_SEED
 from mca_drake.cueing import NmpcConfig, WashoutConfig, mca_config_record
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
 from mca_drake.plotting import save_figure
-from mca_drake.references.flights import FlightSpec, flight_reference
-from mca_drake.references.jsbsim import check_training_vehicle
+from mca_drake.references.drives import motion_reference, training_spec
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.parallel import ray_address, ray_session
 
@@ -70,7 +69,8 @@ class TuningConfig:
     trials: int = 40
     # Simulated seconds of each training flight.
     duration_s: float = 120.0
-    # Training flights as (vehicle, seed); seeds below 1000 (evaluation uses 1000 on).
+    # Training flights as (vehicle, seed); seeds below 1000 (evaluation uses 1000 on). A car
+    # (`references.driving.CARS`) drives instead (`references.drives.training_spec`).
     flights: tuple[tuple[str, int], ...] = (
         ("light", 100),
         ("light", 101),
@@ -115,12 +115,7 @@ class TuningConfig:
         if not self.flights:
             raise ValueError("flights is empty: nothing to tune on")
         for vehicle, seed in self.flights:
-            check_training_vehicle(vehicle)
-            if not 0 <= seed < FIRST_EVALUATION_SEED:
-                raise ValueError(
-                    f"flight seed {seed}: tuning uses seeds 0 to {FIRST_EVALUATION_SEED - 1}; "
-                    "evaluation flights are never tuned on"
-                )
+            training_spec(vehicle, seed)
         if self.step_time_budget_s < 0:
             raise ValueError("step_time_budget_s must be >= 0")
         if self.max_false_rotation_deg_s < 0:
@@ -218,8 +213,8 @@ def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
     "why"}; the objective is the median of `tuning.score`, plus the penalties."""
     pis, zero, perceived, false, p99, why = [], [], [], [], 0.0, ""
     for vehicle, seed in tuning.flights:
-        reference = flight_reference(
-            FlightSpec(vehicle=vehicle, seed=seed), tuning.duration_s, cache_dir=flights_dir
+        reference = motion_reference(
+            training_spec(vehicle, seed), tuning.duration_s, cache_dir=flights_dir
         )
         result = run_closed_loop(
             mca=config, reference=reference, duration_s=tuning.duration_s, progress=False
@@ -379,9 +374,7 @@ def run_tuning(
     if remaining > 0:
         # Fly every training flight once, before the trials share them.
         for vehicle, seed in tuning.flights:
-            flight_reference(
-                FlightSpec(vehicle=vehicle, seed=seed), tuning.duration_s, cache_dir=flights_dir
-            )
+            motion_reference(training_spec(vehicle, seed), tuning.duration_s, cache_dir=flights_dir)
         with ray_session(workers, ray_address(address)):
             space = OptunaSearch.convert_search_space(search_space(tuning.mca))
             searcher = OptunaSearch(

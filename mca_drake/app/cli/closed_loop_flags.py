@@ -7,13 +7,15 @@ import argparse
 from mca_drake.app.scenarios import ClosedLoopScenario
 from mca_drake.cueing import MCA_NAMES, DpcConfig, mca_config_from_name, mca_name
 from mca_drake.references.flights import FlightSpec
+from mca_drake.resources import PROFILES
 
 
 def add_mca_flags(parser: argparse.ArgumentParser, default_mca, *, policy: bool = True) -> None:
     """--mca NAME (a default config) and, with `policy`, --policy FILE (that of --mca dpc)."""
     parser.add_argument(
         "--mca",
-        help=f"{', '.join(MCA_NAMES)}, each at its default config (default "
+        help=f"{', '.join(MCA_NAMES)}, each at its default config, or with a profile's "
+        f"settings ({', '.join(f'-{p}' for p in PROFILES)}: washout-ground) (default "
         f"{mca_name(default_mca)})",
     )
     if policy:
@@ -26,7 +28,7 @@ def mca_from_flags(args: argparse.Namespace, default):
     if args.policy is not None:
         if not isinstance(mca, DpcConfig):
             raise ValueError("--policy is the policy file of --mca dpc")
-        mca = DpcConfig(policy=args.policy)
+        mca = DpcConfig(policy=args.policy, profile=mca.profile)
     return mca
 
 

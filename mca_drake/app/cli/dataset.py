@@ -14,6 +14,7 @@ from mca_drake.app.cli.flags import (
 from mca_drake.app.jobs import run_scenario
 from mca_drake.app.scenarios import DatasetScenario
 from mca_drake.cueing import mca_config_from_name, mca_name
+from mca_drake.references.driving import CARS
 from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
 from mca_drake.references.jsbsim import TRAINING_VEHICLES
 from mca_drake.studies.closed_loop_dataset import join_datasets
@@ -51,13 +52,15 @@ def add_parser(commands) -> None:
 
     defaults = DatasetScenario()
     closed = kinds.add_parser(
-        "closed-loop", help="MCA closed loops over JSBSim flights (defaults: paper size)"
+        "closed-loop",
+        help="MCA closed loops over JSBSim flights or drives (defaults: paper size)",
     )
     add_config_flags(closed, defaults, CLOSED_LOOP_FLAGS)
     closed.add_argument(
         "--vehicles",
         help="a mixed set: comma-separated vehicles, dealt to the seeds in turn (seed i flies "
-        f"vehicle i mod n); training aircraft: {', '.join(TRAINING_VEHICLES)}",
+        f"vehicle i mod n); training aircraft: {', '.join(TRAINING_VEHICLES)}; a car "
+        f"({', '.join(CARS)}) drives a lap (even seeds) or the proving ground (odd seeds)",
     )
     closed.add_argument(
         "--flights", type=int, help=f"flights (default {len(defaults.flight_seeds)})"

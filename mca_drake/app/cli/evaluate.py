@@ -25,10 +25,18 @@ from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.plotting import save_figure
 from mca_drake.references.recording import load_recording
 from mca_drake.simulation.plots import tracking_figure
-from mca_drake.studies.evaluation import default_cases
+from mca_drake.studies.evaluation import default_cases, write_report
 
 # EvaluationScenario fields with a flag (the suite's), by flag name where it differs.
 SUITE_FLAGS = {"workers": "", "output_dir": "--out-dir"}
+# The EvaluationScenario field of each suite case's seeds (`--cases`).
+SUITE_CASE_SEEDS = {
+    "A": "light_seeds",
+    "B": "jet_seeds",
+    "C": "unseen_seeds",
+    "D": "drive_seeds",
+    "E": "route_seeds",
+}
 
 
 def add_parser(commands) -> None:
@@ -41,7 +49,9 @@ def add_parser(commands) -> None:
     add_mca_flags(parser, ClosedLoopScenario().mca)
     parser.add_argument("--reference", help="recording CSV (one run)")
     parser.add_argument(
-        "--suite", action="store_true", help="the scenario set: cases A, B and C, report, box plot"
+        "--suite",
+        action="store_true",
+        help="the scenario set: cases A-E (flights and drives), report, box plot",
     )
     parser.add_argument(
         "--cases",
@@ -68,6 +78,12 @@ def add_parser(commands) -> None:
         type=float,
         help=f"simulated seconds (default: all; suite: {suite.duration_s:g})",
     )
+    parser.add_argument(
+        "--report-only",
+        action="store_true",
+        help="suite: run nothing; rewrite the report from the finished runs in --out-dir "
+        "(a case's MCA without runs is left out)",
+    )
     parser.add_argument("--json", help="write the result summary here")
     parser.add_argument("--plot", help="PNG of target versus achieved outputs")
     add_quiet(parser)
@@ -78,6 +94,8 @@ def run(args: argparse.Namespace) -> int:
     """One recording (--reference) or the suite (--suite)."""
     if args.suite:
         return run_suite(args)
+    if args.report_only:
+        raise ValueError("--report-only rewrites the suite's report: add --suite")
     if not args.reference:
         raise ValueError("give --reference flight.csv (one recording) or --suite (scenario set)")
     scenario = closed_loop_scenario_from_flags(args, plant="analytical")
@@ -100,24 +118,30 @@ def run_suite(args: argparse.Namespace) -> int:
     if args.mcas is not None:
         scenario.mcas = [mca_config_from_name(n) for n in args.mcas.split(",")]
     if args.policy is not None:
-        if not any(isinstance(m, DpcConfig) for m in scenario.mcas):
+        # the policy of the suite's default DPC; a profile's DPC keeps the profile's policy
+        plain = [isinstance(m, DpcConfig) and not m.profile for m in scenario.mcas]
+        if not any(plain):
             raise ValueError("--policy is the policy file of dpc, which --mcas leaves out")
         scenario.mcas = [
-            DpcConfig(policy=args.policy) if isinstance(m, DpcConfig) else m for m in scenario.mcas
+            DpcConfig(policy=args.policy) if is_plain else m
+            for m, is_plain in zip(scenario.mcas, plain, strict=True)
         ]
     if args.bound:
         scenario.bound = OptimalConfig()
     if args.flights is not None and args.flights < 1:
         raise ValueError(f"--flights must be at least 1; got {args.flights}")
-    cases = {c.name: c for c in default_cases()}  # A: light, B: jet, C: unseen seeds
+    cases = {c.name: c for c in default_cases()}  # A-C: flights, D: drives, E: route pilot
     wanted = args.cases.split(",") if args.cases is not None else list(cases)
     unknown = [c for c in wanted if c not in cases]
     if unknown:
         raise ValueError(f"--cases: unknown case {unknown}; valid: {', '.join(cases)}")
-    flights = args.flights
-    scenario.light_seeds = list(cases["A"].seeds[:flights]) if "A" in wanted else []
-    scenario.jet_seeds = list(cases["B"].seeds[:flights]) if "B" in wanted else []
-    scenario.unseen_seeds = list(cases["C"].seeds[:flights]) if "C" in wanted else []
-    run_scenario(scenario, progress=not args.quiet)
+    for case, field in SUITE_CASE_SEEDS.items():
+        seeds = list(cases[case].seeds[: args.flights]) if case in wanted else []
+        setattr(scenario, field, seeds)
+    if args.report_only:
+        scenario.validate()
+        write_report(scenario.to_config(), Path(scenario.output_dir).resolve())
+    else:
+        run_scenario(scenario, progress=not args.quiet)
     print((Path(scenario.output_dir) / "evaluation.md").read_text())
     return 0

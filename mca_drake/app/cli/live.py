@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import signal
+import tempfile
+from pathlib import Path
 
 from mca_drake.app.cli.closed_loop_flags import add_mca_flags
 from mca_drake.app.cli.flags import add_config_flags, given_fields
@@ -56,7 +58,8 @@ def add_parser(commands) -> None:
         "--demo",
         action="store_true",
         help="JSBSim flies the light aircraft and streams FlightGear packets to this loop, "
-        "cued on the KR500 station in Meshcat",
+        "cued on the KR500 station in Meshcat; with --protocol beamng a car drives a training "
+        "drive and streams BeamNG MotionSim packets instead",
     )
     parser.set_defaults(func=run)
 
@@ -78,11 +81,17 @@ def _scenario_from_flags(args: argparse.Namespace) -> LiveScenario:
         **given_fields(args, LIVE_FLAGS),
     )
     if args.demo:
-        # the demo sender is JSBSim streaming FGNetFDM at its own time resolution
-        from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S
+        if args.protocol not in (None, "fgnetfdm", "beamng"):
+            raise ValueError("--demo streams fgnetfdm (a flight) or beamng (a drive)")
+        if args.protocol == "beamng":
+            # the driving demo: a car's training drive as BeamNG MotionSim packets
+            scenario.protocol, scenario.port = "beamng", 0
+        else:
+            # the flight demo: JSBSim streaming FGNetFDM at its own time resolution
+            from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S
 
-        scenario.protocol, scenario.port = "fgnetfdm", 0
-        scenario.fgnetfdm_time_resolution_s = DEMO_TIME_RESOLUTION_S
+            scenario.protocol, scenario.port = "fgnetfdm", 0
+            scenario.fgnetfdm_time_resolution_s = DEMO_TIME_RESOLUTION_S
         args.plant = args.plant or ("analytical" if args.robot else "multibody")
         args.meshcat = args.meshcat or args.plant == "multibody"
         args.duration = args.duration or 60.0
@@ -130,6 +139,23 @@ def format_live_report(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def _demo_sender(protocol: str, duration_s: float, tmp: Path):
+    """The demo's sender as port -> process: JSBSim flying (fgnetfdm), or the car's drive,
+    driven now, before the loop listens, into `tmp` (beamng). The senders' models load only
+    for the demo."""
+    if protocol == "beamng":
+        from mca_drake.live.drive_demo import demo_drive, start_drive_sender  # demo only
+        from mca_drake.references.recording import save_recording  # demo only
+
+        print("driving the demo's drive ...", flush=True)
+        recording = tmp / "drive.csv"
+        save_recording(recording, demo_drive(duration_s))
+        return lambda port: start_drive_sender(port, duration_s, recording=recording)
+    from mca_drake.live.demo import start_demo_sender  # JSBSim: demo only
+
+    return lambda port: start_demo_sender(port, duration_s)
+
+
 def _stop_on_sigterm(*_) -> None:
     # SIGTERM ends the run as Ctrl-C does: through the loop's clean-up, which brakes a
     # driven robot to rest and stops its driver, instead of killing the process outright
@@ -142,22 +168,22 @@ def run(args: argparse.Namespace) -> int:
     scenario = _scenario_from_flags(args)
     meshcat = start_meshcat() if args.meshcat else None
     sender = []
+    # the stream runs a little longer than the loop, so that it does not stop before it
+    stream_s = (args.duration or 0.0) + 2.0
+    with tempfile.TemporaryDirectory() as tmp:
+        start_sender = _demo_sender(scenario.protocol, stream_s, Path(tmp)) if args.demo else None
 
-    def listening(address):
-        print(f"listening on udp://{address[0]}:{address[1]}", flush=True)
-        if args.demo:
-            # JSBSim is loaded only by the demo
-            from mca_drake.live.demo import start_demo_sender
+        def listening(address):
+            print(f"listening on udp://{address[0]}:{address[1]}", flush=True)
+            if start_sender is not None:
+                sender.append(start_sender(address[1]))
 
-            # a little longer than the loop, so that the stream does not stop before it
-            sender.append(start_demo_sender(address[1], args.duration + 2.0))
-
-    try:
-        summary = run_live_scenario(scenario, on_listening=listening, meshcat=meshcat)
-    finally:
-        for process in sender:
-            process.terminate()
-            process.wait(timeout=10)
+        try:
+            summary = run_live_scenario(scenario, on_listening=listening, meshcat=meshcat)
+        finally:
+            for process in sender:
+                process.terminate()
+                process.wait(timeout=10)
     print(format_live_report(summary))
     hold_meshcat(meshcat)
     return 0

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from mca_drake.app.cli.flags import ADDRESS_HELP, add_config_flags, add_quiet, given_fields
+from mca_drake.references.driving import CARS
 from mca_drake.studies.tuning import TUNABLE_MCAS, TuningConfig, run_tuning
 
 # TuningConfig fields with a flag, by flag name where it differs from the field's.
@@ -32,7 +33,10 @@ def add_parser(commands) -> None:
     )
     add_config_flags(parser, defaults, TUNING_FLAGS, help_suffix={"mca": ", ".join(TUNABLE_MCAS)})
     parser.add_argument(
-        "--flights", help="vehicle:seed list, e.g. light:100,jet:101 (seeds below 1000)"
+        "--flights",
+        help="vehicle:seed list, e.g. light:100,jet:101 (seeds below 1000); a car "
+        f"({', '.join(CARS)}) drives a lap (even seeds) or the proving ground (odd seeds) "
+        "instead",
     )
     parser.add_argument("--vehicles", help="with --seeds: every vehicle on every seed")
     parser.add_argument("--seeds", help="e.g. 100,101,102 (the training range: below 1000)")
