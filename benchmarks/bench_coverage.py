@@ -47,9 +47,12 @@ from mca_drake.studies.evaluation import default_cases
 
 
 def evaluation_references(duration_s: float, cache: str | None) -> dict[str, dict]:
-    """Per default evaluation case, its flights' references grouped per vehicle."""
+    """Per default evaluation case of flights, its references grouped per vehicle (case D's
+    drives are no flight source's to cover)."""
     out = {}
     for case in default_cases():
+        if case.manoeuvres:
+            continue
         flights = [(case.vehicle_of(seed), seed) for seed in case.seeds]
         out[case.name] = flight_references(flights, duration_s, pilot=case.pilot, cache_dir=cache)
     return out
