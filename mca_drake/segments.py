@@ -37,6 +37,10 @@ CORE_ARRAYS = ("U", "X", "Y", "F", "dF", "ddF")
 _SHAPES = {"U": (6,), "X": (12,), "Y": (6,), "F": (4, 4), "dF": (4, 4), "ddF": (4, 4)}
 FORMAT = "mca-drake segments v1"
 
+# Where `mca-drake dataset closed-loop` writes, and where training looks by default.
+DEFAULT_DATASET_DIR = "datasets/closed_loop"
+DEFAULT_DATASET = f"{DEFAULT_DATASET_DIR}/dataset.npz"
+
 
 @dataclasses.dataclass
 class SegmentDataset:

@@ -93,3 +93,37 @@ def test_a_scenario_selects_a_profile_by_name(tmp_path):
     path.write_text(path.read_text().replace("washout-ground", "washout-moon"))
     with pytest.raises(ValueError, match="mca: unknown MCA 'washout-moon'"):
         load_scenario(path)
+
+
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        ("nmpc: {input_weigth: 0.1}", "'input_weigth' is not a NmpcConfig field"),
+        ("nmpc: {input_weight: fast}", "nmpc.input_weight"),
+        ("washout: {tilt_limit: true}", "washout.tilt_limit"),
+        ("nmpc: {output_weights: 3.0}", "nmpc.output_weights"),
+        ("nmpc: {output_weights: [1, 2, 3]}", "six non-negative"),
+        ("aircraft: {}", "sections nmpc and washout"),
+        ("nmpc: [1, 2]", "mapping of NmpcConfig fields"),
+    ],
+)
+def test_a_profile_file_with_bad_settings_is_refused(tmp_path, monkeypatch, text, match):
+    from mca_drake.cueing import profiles  # the module whose file lookup is redirected
+
+    path = tmp_path / "ground.yaml"
+    path.write_text(text)
+    monkeypatch.setattr(profiles, "profile_path", lambda profile: path)
+    with pytest.raises(ValueError, match=match):
+        load_profile("ground")
+
+
+def test_a_profile_file_may_give_integers_for_real_numbers(tmp_path, monkeypatch):
+    from mca_drake.cueing import profiles  # the module whose file lookup is redirected
+
+    path = tmp_path / "ground.yaml"
+    path.write_text("nmpc: {output_weights: [1, 2, 3, 4, 5, 6], input_weight: 1}\n")
+    monkeypatch.setattr(profiles, "profile_path", lambda profile: path)
+    settings = load_profile("ground")
+    assert settings.nmpc.output_weights == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+    assert settings.nmpc.input_weight == 1.0 and isinstance(settings.nmpc.input_weight, float)
+    assert settings.washout == WashoutConfig(profile="ground")

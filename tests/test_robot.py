@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mca_drake import robot as robot_module
 from mca_drake.robot import JOINT_NAMES, load_kr500, model_path
 
 # Table I of the paper, as printed.
@@ -58,12 +59,50 @@ def test_description_is_read_only(robot):
         robot.q_max[0] = 10.0
 
 
+@pytest.fixture(params=["drake", "xml"])
+def urdf_reader(request, monkeypatch):
+    """Each URDF reader in turn: Drake's parser, and the XML reader of machines without
+    pydrake (`robot._urdf_joints`); the description cache is emptied around each."""
+    if request.param == "xml":
+        monkeypatch.setattr(robot_module, "_urdf_joints", robot_module._joints_with_xml)
+    robot_module._load_cached.cache_clear()
+    yield request.param
+    robot_module._load_cached.cache_clear()
+
+
+def test_xml_reader_reads_every_joint_as_drakes_parser_does():
+    """Oracle: Drake's parser. Every joint's pose, axis, limits and effort agree."""
+    path = str(model_path("kr500.urdf"))
+    drake, xml = robot_module._joints_with_drake(path), robot_module._joints_with_xml(path)
+    assert sorted(drake) == sorted(xml)
+    for name, expected in drake.items():
+        got = xml[name]
+        np.testing.assert_allclose(got.X_parent, expected.X_parent, atol=1e-15, err_msg=name)
+        np.testing.assert_array_equal(got.axis, expected.axis, err_msg=name)
+        assert got.at_child_origin == expected.at_child_origin
+        if name in JOINT_NAMES:
+            assert (got.lower, got.upper) == (expected.lower, expected.upper)
+            assert (got.velocity, got.acceleration) == (expected.velocity, expected.acceleration)
+            assert got.effort == expected.effort
+
+
+def test_both_readers_give_the_same_kr500(urdf_reader):
+    reference = robot_module.KR500  # the dataclass; compare field by field
+    robot = load_kr500()
+    assert isinstance(robot, reference)
+    for name in ("q_min", "q_max", "qd_max", "qdd_max"):
+        np.testing.assert_array_equal(getattr(robot, name), TABLE_I[name], err_msg=name)
+    np.testing.assert_array_equal(robot.effort_max, [40000, 50000, 25000, 12000, 12000, 8000])
+    for name in ("a", "d", "alpha", "offset"):
+        np.testing.assert_allclose(getattr(robot.dh, name), TABLE_I[name], atol=1e-3)
+
+
 def test_missing_file_is_reported(tmp_path):
     with pytest.raises(FileNotFoundError, match="not found"):
         load_kr500(tmp_path / "nope.urdf")
 
 
-def test_non_dh_urdf_is_rejected(tmp_path):
+def test_non_dh_urdf_is_rejected(tmp_path, urdf_reader):
     text = model_path("kr500.urdf").read_text()
     # Shift joint_3's origin sideways: no longer Tz(d) Tx(a) Rx(alpha) Rz(offset).
     start = text.index('<joint name="joint_3"')
@@ -76,10 +115,25 @@ def test_non_dh_urdf_is_rejected(tmp_path):
         load_kr500(path)
 
 
-def test_missing_acceleration_limit_is_rejected(tmp_path):
+def test_missing_acceleration_limit_is_rejected(tmp_path, urdf_reader):
     text = model_path("kr500.urdf").read_text()
     bad = text.replace('drake:acceleration="0.564"', "", 1)
     path = tmp_path / "bad.urdf"
     path.write_text(bad)
     with pytest.raises(ValueError, match="drake:acceleration"):
         load_kr500(path)
+
+
+def test_xml_reader_refuses_a_file_it_cannot_read(tmp_path, urdf_reader):
+    text = model_path("kr500.urdf").read_text()
+    broken = tmp_path / "broken.urdf"
+    broken.write_text(text[: len(text) // 2])
+    with pytest.raises(ValueError, match="cannot parse robot model"):
+        load_kr500(broken)
+    if urdf_reader == "xml":  # Drake's parser reports bad numbers its own way
+        bad = tmp_path / "bad_origin.urdf"
+        start = text.index('<joint name="joint_3"')
+        origin_at = text.index('<origin xyz="', start) + len('<origin xyz="')
+        bad.write_text(text[:origin_at] + "1.3 nan-ish" + text[text.index('"', origin_at) :])
+        with pytest.raises(ValueError, match="xyz"):
+            load_kr500(bad)

@@ -1,6 +1,7 @@
 """The motion cueing algorithms as plain numpy math, each with its typed config.
 
-- `nmpc`: NmpcConfig and the NMPC optimal control problem (Drake MathematicalProgram).
+- `nmpc_config`: NmpcConfig, the NMPC's settings (no Drake needed).
+- `nmpc`: the NMPC optimal control problem (Drake MathematicalProgram).
 - `washout`: WashoutConfig and the classical washout filters.
 - `dpc`: DpcConfig, the policy-file reader and numpy inference of the DPC policy.
 - `configs`: the union of the three configs (`McaConfig`) and their shorthand names.
@@ -19,7 +20,7 @@ from mca_drake.cueing.configs import (
     mca_name,
 )
 from mca_drake.cueing.dpc import DpcConfig
-from mca_drake.cueing.nmpc import NmpcConfig
+from mca_drake.cueing.nmpc_config import NmpcConfig
 from mca_drake.cueing.washout import WashoutConfig
 
 __all__ = [

@@ -14,7 +14,7 @@ import dataclasses
 from typing import Union
 
 from mca_drake.cueing.dpc import DpcConfig
-from mca_drake.cueing.nmpc import NmpcConfig
+from mca_drake.cueing.nmpc_config import NmpcConfig
 from mca_drake.cueing.profiles import PROFILES, profile_config, split_profile
 from mca_drake.cueing.washout import WashoutConfig
 

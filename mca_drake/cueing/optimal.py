@@ -35,7 +35,7 @@ import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, SolverOptions
 
 from mca_drake.conventions import CONTROL_PERIOD_S
-from mca_drake.cueing.nmpc import OBJECTIVES, NmpcConfig
+from mca_drake.cueing.nmpc_config import OBJECTIVES, NmpcConfig
 from mca_drake.cueing.output_curvature import finite_difference_hessians, residual_curvature
 from mca_drake.cueing.shooting import shooting_dynamics
 from mca_drake.input_checks import as_float_array, check_config_numbers

@@ -16,8 +16,10 @@ the tune that produced them); the DPC's policy is the shipped policy `<profile>_
 import dataclasses
 from pathlib import Path
 
+import yaml
+
 from mca_drake.cueing.dpc import DpcConfig
-from mca_drake.cueing.nmpc import NmpcConfig
+from mca_drake.cueing.nmpc_config import NmpcConfig
 from mca_drake.cueing.washout import WashoutConfig
 from mca_drake.resources import PROFILES, check_profile, data_dir, split_profile
 
@@ -42,15 +44,59 @@ def profile_path(profile: str) -> Path:
 
 
 def load_profile(profile: str) -> ProfileSettings:
-    """The NMPC and washout settings of a shipped profile, each labelled with it."""
-    from pydrake.common.yaml import yaml_load_typed  # the YAML loader the scenarios use
+    """The NMPC and washout settings of a shipped profile, each labelled with it.
 
-    settings = yaml_load_typed(schema=ProfileSettings, filename=str(profile_path(profile)))
+    Read with PyYAML's safe loader (no Drake needed: the torch training path uses a
+    profile's NMPC objective); every key must be a field of its config and every value of
+    that field's type, or ValueError names the file and the key.
+    """
+    path = profile_path(profile)
+    with open(path, encoding="utf-8") as f:
+        document = yaml.safe_load(f) or {}
+    if not isinstance(document, dict) or not set(document) <= {"nmpc", "washout"}:
+        raise ValueError(f"{path}: want a mapping with the sections nmpc and washout")
+    settings = ProfileSettings(
+        nmpc=_typed_config(NmpcConfig, document.get("nmpc"), f"{path}: nmpc"),
+        washout=_typed_config(WashoutConfig, document.get("washout"), f"{path}: washout"),
+    )
     settings.nmpc.profile = profile
     settings.washout.profile = profile
     settings.nmpc.validate()
     settings.washout.validate()
     return settings
+
+
+def _typed_config(kind: type, fields, where: str):
+    """`kind()` with `fields` (a mapping from the YAML file) set, each checked against the
+    default's type: numbers for floats (ints accepted, bools not), lists of numbers for
+    lists."""
+    if fields is None:
+        return kind()
+    if not isinstance(fields, dict):
+        raise ValueError(f"{where}: want a mapping of {kind.__name__} fields")
+    default = kind()
+    names = {f.name for f in dataclasses.fields(kind)}
+    values = {}
+    for key, value in fields.items():
+        if key not in names:
+            raise ValueError(f"{where}: {key!r} is not a {kind.__name__} field")
+        values[key] = _checked_value(getattr(default, key), value, f"{where}.{key}")
+    return dataclasses.replace(default, **values)
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _checked_value(default, value, where: str):
+    if isinstance(default, float) and _is_number(value):
+        return float(value)
+    if isinstance(default, list | tuple) and isinstance(value, list):
+        if all(_is_number(v) for v in value):
+            return type(default)(float(v) for v in value)
+    elif type(value) is type(default):
+        return value
+    raise ValueError(f"{where}: {value!r} is not a {type(default).__name__} like {default!r}")
 
 
 def profile_config(kind: type, profile: str):

@@ -10,7 +10,7 @@ import math
 from pathlib import Path
 
 from mca_drake.cueing import NmpcConfig
-from mca_drake.cueing.nmpc import OBJECTIVES
+from mca_drake.cueing.nmpc_config import OBJECTIVES
 from mca_drake.perception.models import PerceptionConfig
 
 # Typical magnitudes of the output channels [w_x, w_y, w_z, f_x, f_y, a_z]: rad/s, m/s^2.

@@ -475,6 +475,8 @@ def train_policy(
         check_mirror_symmetry(plant)
     if config.yaw_shift_fraction > 0:
         check_base_yaw_invariance(plant)
+    # The rollouts run where the trainer puts the policy and the data (CUDA or CPU).
+    plant = plant.to(config.train.resolved_device())
     train_targets = splits["train"].arrays[target_array(config)]
     channel_weights = tracking_channel_weights(config, train_targets)
     metadata = {

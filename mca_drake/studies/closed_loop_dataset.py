@@ -47,16 +47,18 @@ from mca_drake.references.drives import (
 from mca_drake.references.flights import training_recording
 from mca_drake.references.reference import ReferenceScaling, reference_from_recording
 from mca_drake.robot import NUM_JOINTS, load_kr500
-from mca_drake.segments import SOURCE_COLUMNS, SPLIT_NAMES, SegmentDataset, package_versions
+from mca_drake.segments import (
+    DEFAULT_DATASET_DIR,
+    SOURCE_COLUMNS,
+    SPLIT_NAMES,
+    SegmentDataset,
+    package_versions,
+)
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.parallel import run_tasks
 
 # The stream of a seed that chooses its flight's source, apart from the flight's own draws.
 SOURCE_STREAM = 2
-
-# Where `mca-drake dataset closed-loop` writes, and where training looks by default.
-DEFAULT_DATASET_DIR = "datasets/closed_loop"
-DEFAULT_DATASET = f"{DEFAULT_DATASET_DIR}/dataset.npz"
 
 
 @dataclasses.dataclass

@@ -47,8 +47,13 @@ from mca_drake.learning.plant_candidates import (
     state_objective,
 )
 from mca_drake.learning.trainer import CurriculumTrainer, StageResult, TrainConfig
-from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, package_versions, split_of
-from mca_drake.studies.closed_loop_dataset import DEFAULT_DATASET
+from mca_drake.segments import (
+    DEFAULT_DATASET,
+    SOURCE_COLUMNS,
+    SegmentDataset,
+    package_versions,
+    split_of,
+)
 from mca_drake.studies.parallel import ray_address, run_tasks
 
 # Table II of the paper: RMSE (validation, test) per n_p, iteration time (s) at n_p 1 and

@@ -15,42 +15,50 @@ library function; flags that set a typed config's field are derived from that co
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import sys
 
 import numpy as np
 
 from mca_drake import __version__
-from mca_drake.app.cli import (
-    dataset,
-    evaluate,
-    live,
-    optimal,
-    recordings,
-    run,
-    simulate,
-    training,
-    tune,
-)
+from mca_drake.app.cli import training
+
+# The torch commands need no Drake: on a machine without pydrake (a GPU box for training
+# searches) `mca-drake` offers them alone and says why the others are missing.
+HAS_DRAKE = importlib.util.find_spec("pydrake") is not None
+if HAS_DRAKE:
+    from mca_drake.app.cli import (
+        dataset,
+        evaluate,
+        live,
+        optimal,
+        recordings,
+        run,
+        simulate,
+        tune,
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``mca-drake`` argument parser: one sub-command per job (see ``--help``)."""
-    parser = argparse.ArgumentParser(
-        prog="mca-drake", description="Motion cueing for a KUKA KR500 motion simulator, on Drake."
-    )
+    description = "Motion cueing for a KUKA KR500 motion simulator, on Drake."
+    if not HAS_DRAKE:
+        description += " pydrake is not installed: only the torch commands are offered."
+    parser = argparse.ArgumentParser(prog="mca-drake", description=description)
     parser.add_argument("--version", action="version", version=f"mca-drake {__version__}")
     parser.add_argument(
         "--debug", action="store_true", help="show the traceback of an error (for reports)"
     )
     commands = parser.add_subparsers(dest="command", required=True)
-    simulate.add_parser(commands)
-    run.add_parser(commands)
-    recordings.add_parsers(commands)
-    dataset.add_parser(commands)
-    evaluate.add_parser(commands)
-    optimal.add_parser(commands)
-    tune.add_parser(commands)
-    live.add_parser(commands)
+    if HAS_DRAKE:
+        simulate.add_parser(commands)
+        run.add_parser(commands)
+        recordings.add_parsers(commands)
+        dataset.add_parser(commands)
+        evaluate.add_parser(commands)
+        optimal.add_parser(commands)
+        tune.add_parser(commands)
+        live.add_parser(commands)
     training.add_parsers(commands)
     return parser
 

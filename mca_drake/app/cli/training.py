@@ -1,7 +1,8 @@
 """`mca-drake train-policy`, `export-policy` and `table2`: the torch commands.
 
 torch is imported inside the commands only, so that the other commands start fast; the
-flags come from the torch-free configs (`mca_drake.learning.configs`).
+flags come from the torch-free configs (`mca_drake.learning.configs`). Nothing here needs
+Drake at import, so these commands run where pydrake is not installed.
 """
 
 from __future__ import annotations
@@ -18,13 +19,12 @@ from mca_drake.app.cli.flags import (
     check_outputs,
     given_fields,
 )
+from mca_drake.cueing.nmpc_config import NmpcConfig
+from mca_drake.cueing.profiles import profile_config
 from mca_drake.learning.configs import DpcTrainingConfig
 from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
-from mca_drake.studies.closed_loop_dataset import (
-    DEFAULT_DATASET,
-    ClosedLoopDatasetConfig,
-    generate_closed_loop_dataset,
-)
+from mca_drake.resources import PROFILES
+from mca_drake.segments import DEFAULT_DATASET
 
 # DpcTrainingConfig fields with a flag, by flag name where it differs from the field's.
 POLICY_FLAGS = {
@@ -82,10 +82,11 @@ def _add_train_policy(commands) -> None:
     )
     parser.add_argument(
         "--objective",
-        choices=("tuned", "paper"),
+        choices=("tuned", "paper", *PROFILES),
         default="tuned",
         help="loss weights: tuned (the shipped NMPC's weights, tracking the references; "
-        "default) or paper (equation 9, tracking the NMPC-achieved outputs)",
+        "default), paper (equation 9, tracking the NMPC-achieved outputs), or a profile's "
+        f"NMPC objective ({', '.join(PROFILES)}: that profile's weights, tracking the references)",
     )
     parser.add_argument("--dataset", default=DEFAULT_DATASET, help="closed-loop dataset.npz")
     parser.add_argument("--out-dir", default="results/policy", help="the run's folder")
@@ -114,6 +115,16 @@ def channel_weights(text: str) -> str | tuple[float, ...]:
         ) from None
 
 
+def objective_config(objective: str) -> DpcTrainingConfig:
+    """--objective: the training config whose loss is "tuned" (the defaults), "paper", or a
+    profile's NMPC objective (`mca_drake.cueing.profiles`)."""
+    if objective == "tuned":
+        return DpcTrainingConfig()
+    if objective == "paper":
+        return DpcTrainingConfig.paper()
+    return DpcTrainingConfig.matching(profile_config(NmpcConfig, objective))
+
+
 def _command_line() -> str:
     return "mca-drake " + " ".join(sys.argv[1:]) if sys.argv[0].endswith("mca-drake") else ""
 
@@ -123,7 +134,7 @@ def run_train_policy(args: argparse.Namespace) -> int:
     # torch: loaded by the training commands only, so the others start fast
     from mca_drake.learning.dpc_training import train_policy
 
-    base = DpcTrainingConfig.paper() if args.objective == "paper" else DpcTrainingConfig()
+    base = objective_config(args.objective)
     config = dataclasses.replace(base, **given_fields(args, POLICY_FLAGS))
     if args.no_compile:
         config.compile = False
@@ -175,6 +186,12 @@ def _add_table2(commands) -> None:
 
 
 def _quick_closed_loop_dataset(folder: Path, progress: bool) -> Path:
+    # Imported here: closed-loop datasets need Drake, training does not.
+    from mca_drake.studies.closed_loop_dataset import (
+        ClosedLoopDatasetConfig,
+        generate_closed_loop_dataset,
+    )
+
     config = ClosedLoopDatasetConfig(flight_seeds=(100,), flight_duration_s=60.0, horizon=32)
     return generate_closed_loop_dataset(config, folder / "closed_loop", progress=progress)
 
