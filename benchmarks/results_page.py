@@ -62,6 +62,7 @@ HEADLINE_MCAS = (
     "washout",
     "nmpc-rti-perceived",
     "dpc-ground",
+    "nmpc-converged-ground",
     "nmpc-rti-ground",
     "washout-ground",
 )

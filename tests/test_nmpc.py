@@ -173,7 +173,8 @@ def extreme_reference(duration_s=12.0):
 
 @pytest.mark.parametrize(
     ("mca", "duration"),
-    [("nmpc-rti", 8.0), pytest.param("nmpc-converged", 2.0, marks=pytest.mark.slow)],
+    # 6.5 s: past the last switch of the extreme reference (roll rate at 6 s)
+    [("nmpc-rti", 6.5), pytest.param("nmpc-converged", 2.0, marks=pytest.mark.slow)],
 )
 def test_no_violation_with_references_beyond_the_robot(mca, duration):
     result = run_closed_loop(

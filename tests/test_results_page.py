@@ -24,6 +24,7 @@ ROWS = {
     "Washout (tuned)": "washout",
     "NMPC, RTI, perceived objective": "nmpc-rti-perceived",
     "DPC, ground profile": "dpc-ground",
+    "NMPC, converged, ground profile": "nmpc-converged-ground",
     "NMPC, RTI, ground profile": "nmpc-rti-ground",
     "Washout (tuned), ground profile": "washout-ground",
 }

@@ -191,6 +191,7 @@ def test_a_killed_tune_resumes_and_its_best_config_runs(tmp_path):
     assert summary["mca_config"]["washout_weight"] == report["best_config"]["washout_weight"]
 
 
+@pytest.mark.slow  # 37 s on 2 cores; the killed-tune test above covers resuming by default
 def test_a_resumed_tune_draws_the_trials_of_an_uninterrupted_one(tmp_path):
     """Two trials, then a resume to three, against three in one go (one trial at a time):
     the same parameters, trial by trial; the sampler's state is replayed, not reseeded."""
