@@ -64,6 +64,7 @@ HEADLINE_MCAS = (
     "dpc-ground",
     "nmpc-converged-ground",
     "nmpc-rti-ground",
+    "nmpc-rti-perceived-ground",
     "washout-ground",
 )
 

@@ -26,6 +26,7 @@ ROWS = {
     "DPC, ground profile": "dpc-ground",
     "NMPC, converged, ground profile": "nmpc-converged-ground",
     "NMPC, RTI, ground profile": "nmpc-rti-ground",
+    "NMPC, RTI, perceived objective, ground profile": "nmpc-rti-perceived-ground",
     "Washout (tuned), ground profile": "washout-ground",
 }
 
