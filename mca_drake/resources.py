@@ -9,6 +9,7 @@ checkout (an editable install) the top-level folders themselves are used.
 from __future__ import annotations
 
 import importlib.resources
+import importlib.util
 from pathlib import Path
 
 # The folders a wheel carries, by their name in the source tree.
@@ -35,6 +36,13 @@ def check_profile(profile: str) -> str:
     if profile and profile not in PROFILES:
         raise ValueError(f"unknown MCA profile '{profile}'; valid: {', '.join(PROFILES)}")
     return profile
+
+
+def drake_installed() -> bool:
+    """Whether pydrake can be imported here. Where it cannot (a GPU machine that only
+    trains), `mca-drake` offers its torch commands alone and the robot's URDF is read
+    without Drake (`mca_drake.robot`)."""
+    return importlib.util.find_spec("pydrake") is not None
 
 
 def data_dir() -> Path:

@@ -17,13 +17,12 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import importlib.util
 import os
 from pathlib import Path
 
 import numpy as np
 
-from mca_drake.resources import packaged_folder
+from mca_drake.resources import drake_installed, packaged_folder
 
 NUM_JOINTS = 6
 JOINT_NAMES = tuple(f"joint_{i}" for i in range(1, NUM_JOINTS + 1))
@@ -247,7 +246,7 @@ def _joints_with_xml(path: str) -> dict[str, _UrdfJoint]:
 def _urdf_joints(path: str) -> dict[str, _UrdfJoint]:
     """Drake's parser where pydrake is installed (the station's own view of the file), the
     XML reader elsewhere (tests/test_robot.py checks that both read the same KR500)."""
-    if importlib.util.find_spec("pydrake") is not None:
+    if drake_installed():
         return _joints_with_drake(path)
     return _joints_with_xml(path)
 

@@ -15,17 +15,17 @@ library function; flags that set a typed config's field are derived from that co
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import sys
 
 import numpy as np
 
 from mca_drake import __version__
 from mca_drake.app.cli import training
+from mca_drake.resources import drake_installed
 
 # The torch commands need no Drake: on a machine without pydrake (a GPU box for training
 # searches) `mca-drake` offers them alone and says why the others are missing.
-HAS_DRAKE = importlib.util.find_spec("pydrake") is not None
+HAS_DRAKE = drake_installed()
 if HAS_DRAKE:
     from mca_drake.app.cli import (
         dataset,
