@@ -18,26 +18,27 @@ limits are the robot's own (Table I), at every sample, as the summaries count vi
 Method: sequential quadratic programming. Each QP linearises y at the current trajectory
 with the exact Jacobians of `mca_drake.kinematics`, its Hessian Gauss-Newton's (or, for
 the inertial objective, Newton's made convex stage by stage: `curvature`), and is solved in
-full by Drake's Clarabel (interior point) on the sparse multiple-shooting program (variables u_k and
-x_(k+1) per step: banded, linear in T). The dynamics are linear and the constraints are
-boxes, so every iterate is feasible and a backtracking line search on the true cost makes
-the method a descent method: started from a causal MCA's trajectory, the bound's cost is
-never above that MCA's. It stops at a KKT point: the stationarity residual of the last QP
-(|H d|_inf, which is the nonlinear program's |grad f + A' lambda|_inf with that QP's
-multipliers, Gauss-Newton's gradient being exact) relative to max(1, |grad f|_inf) below
-`kkt_tolerance`.
+full by the structured interior-point method of `mca_drake.cueing.stagewise_qp` on the
+multiple-shooting program (variables u_k and x_(k+1) per step, and the model's states
+with the perceived objective): each of its Newton steps costs O(T). The dynamics are
+linear and the constraints are boxes, so a backtracking line search on the true cost that
+keeps every iterate within the limits makes the method a descent method: started from a
+causal MCA's trajectory, the bound's cost is never above that MCA's. It stops at a KKT
+point: the stationarity residual of the last QP (|H d|_inf, which is the nonlinear
+program's |grad f + A' lambda|_inf with that QP's multipliers, Gauss-Newton's gradient
+being exact) relative to max(1, |grad f|_inf) below `kkt_tolerance`.
 """
 
 import dataclasses
 import time
 
 import numpy as np
-from pydrake.solvers import ClarabelSolver, MathematicalProgram, SolverOptions
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing.nmpc_config import OBJECTIVES, NmpcConfig
 from mca_drake.cueing.output_curvature import finite_difference_hessians, residual_curvature
-from mca_drake.cueing.shooting import shooting_dynamics
+from mca_drake.cueing.shooting import double_integrator_step
+from mca_drake.cueing.stagewise_qp import solve_stagewise_qp
 from mca_drake.input_checks import as_float_array, check_config_numbers
 from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
@@ -45,6 +46,8 @@ from mca_drake.perception.models import PerceptionConfig
 from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 
 NU, NX = NUM_JOINTS, 2 * NUM_JOINTS
+# The scaled residual up to which an unconverged QP's step is still tried.
+QP_RESIDUAL_USABLE = 1e-6
 # Stages whose output Hessians are formed at once (6 x 18 x 18 values per stage).
 CURVATURE_CHUNK = 2000
 
@@ -84,8 +87,12 @@ class OptimalConfig:
     max_iterations: int = 30
     # Stop once the KKT (stationarity) residual relative to max(1, |grad f|_inf) is below.
     kkt_tolerance: float = 1e-6
-    # Clarabel's gap and feasibility tolerances on each QP.
-    qp_tolerance: float = 1e-9
+    # The interior-point QP solver's tolerance on each QP's scaled residuals and gap:
+    # two decades below kkt_tolerance's smallest useful value, since the KKT residual is
+    # measured on the QP's step (a step 1e-9 off reads as a residual of that size).
+    qp_tolerance: float = 1e-11
+    # Interior-point iterations per QP at most.
+    qp_iterations: int = 100
 
     def validate(self) -> None:
         """Raises ValueError for settings that cannot run."""
@@ -97,8 +104,10 @@ class OptimalConfig:
             raise ValueError("output_weights must be six non-negative values")
         if min(self.input_weight, self.washout_weight) < 0 or not self.time_step > 0:
             raise ValueError("weights must be non-negative and time_step positive")
-        if self.max_iterations < 1 or not self.kkt_tolerance > 0 or not self.qp_tolerance > 0:
-            raise ValueError("max_iterations >= 1; kkt_tolerance and qp_tolerance > 0")
+        if min(self.max_iterations, self.qp_iterations) < 1:
+            raise ValueError("max_iterations and qp_iterations must be at least 1")
+        if not (self.kkt_tolerance > 0 and self.qp_tolerance > 0):
+            raise ValueError("kkt_tolerance and qp_tolerance must be positive")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -158,53 +167,16 @@ class OptimalCueing:
         self._build_program()
 
     def _build_program(self) -> None:
-        """Variables: the steps du_k and dx_(k+1); dynamics dx_(k+1) = Phi dx_k + Gamma du_k
-        (dx_0 = 0); a quadratic cost per stage on (dx_k, du_k); bounds set per iteration."""
-        T = self.T
-        prog = self.prog = MathematicalProgram()
-        self.dU = prog.NewContinuousVariables(T, NU, "du")
-        self.dX = prog.NewContinuousVariables(T, NX, "dx")  # dx_1..dx_T
-        A, _ = shooting_dynamics(np.full(T, self.config.time_step))
-        all_vars = np.concatenate([self.dU.reshape(-1), self.dX.reshape(-1)])
-        prog.AddLinearEqualityConstraint(A, np.zeros(NX * T), all_vars)
-        self._box_u = prog.AddBoundingBoxConstraint(
-            np.zeros(NU * T), np.zeros(NU * T), self.dU.reshape(-1)
-        ).evaluator()
-        self._box_x = prog.AddBoundingBoxConstraint(
-            np.zeros(NX * T), np.zeros(NX * T), self.dX.reshape(-1)
-        ).evaluator()
-        n = self.n
-        self.dE = prog.NewContinuousVariables(T, n, "de")  # de_1..de_T (perceived only)
-        # the model's dynamics, linearised: de_(k+1) - A de_k - B J_k (dx_k, du_k) = 0, one
-        # constraint per stage (its coefficients move with J_k)
-        self._perception = []
-        for k in range(T if n else 0):
-            stage = self._stage_variables(k)
-            A0 = np.zeros((n, n + stage.size))
-            self._perception.append(
-                prog.AddLinearEqualityConstraint(
-                    A0, np.zeros(n), np.concatenate([self.dE[k], stage])
-                ).evaluator()
-            )
-        self._costs = []
-        for k in range(T):
-            v = self._stage_variables(k)
-            self._costs.append(
-                prog.AddQuadraticCost(
-                    np.eye(v.size), np.zeros(v.size), v, is_convex=True
-                ).evaluator()
-            )
-        self._solver = ClarabelSolver()
-        self._options = SolverOptions()
-        for option in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
-            self._options.SetOption(self._solver.solver_id(), option, self.config.qp_tolerance)
-
-    def _stage_variables(self, k: int) -> np.ndarray:
-        """The QP's variables of stage k: (de_k, dx_k, du_k), without the start's de_0 and
-        dx_0 (fixed) at k = 0."""
-        if k == 0:
-            return self.dU[0]
-        return np.concatenate([self.dE[k - 1], self.dX[k - 1], self.dU[k]])
+        """The QP's fixed data: its stages are w_k = (de_k, dx_k, du_k) for k = 0..T (stage
+        T: the last states and an input that nothing weighs or bounds, so that every stage
+        has the same shape), its dynamics w_(k+1)[:n + 12] = F_k w_k from de_0 = dx_0 = 0;
+        the weights, Jacobians and bounds are set per iteration."""
+        n, h = self.n, self.config.time_step
+        Phi, Gamma = double_integrator_step(h)
+        self._F = np.zeros((n + NX, n + NX + NU))
+        self._F[:n, :n] = self._model[0]
+        self._F[n:, n : n + NX] = Phi
+        self._F[n:, n + NX :] = Gamma
 
     # ------------------------------------------------------------------ trajectories
     def states(self, x0: np.ndarray, U: np.ndarray) -> np.ndarray:
@@ -280,10 +252,14 @@ class OptimalCueing:
             while alpha >= 1e-8:
                 U_try = U + alpha * dU
                 x_try = self.states(x0, U_try)
-                jac_try = plant_output_jacobians(x_try[:-1, :NU], x_try[:-1, NU:], U_try, robot)
-                trial = self._cost_of(x_try, U_try, jac_try.y - reference)
-                if trial <= cost + 1e-12 * max(1.0, abs(cost)):
-                    break
+                # the QP meets the limits to its tolerance; the states integrated from the
+                # inputs must meet them to 1e-9, or the step is shortened (the limits are
+                # convex in U, and U is within them)
+                if self._feasible(x_try, U_try):
+                    jac_try = plant_output_jacobians(x_try[:-1, :NU], x_try[:-1, NU:], U_try, robot)
+                    trial = self._cost_of(x_try, U_try, jac_try.y - reference)
+                    if trial <= cost + 1e-12 * max(1.0, abs(cost)):
+                        break
                 alpha *= 0.5
             if alpha < 1e-8:
                 break
@@ -357,32 +333,41 @@ class OptimalCueing:
         return out
 
     def _solve_qp(self, x, U, Q, b, J):
-        """The QP step (dU (T, 6), dX (T, 12), dE (T, n)) or None where Clarabel fails."""
-        r = self.robot
-        lower_x = np.tile(np.r_[r.q_min, -r.qd_max], self.T) - x[1:].reshape(-1)
-        upper_x = np.tile(np.r_[r.q_max, r.qd_max], self.T) - x[1:].reshape(-1)
-        self._box_x.set_bounds(lower_x, upper_x)
-        u = U.reshape(-1)
-        u_max = np.tile(r.qdd_max, self.T)
-        self._box_u.set_bounds(-u_max - u, u_max - u)
-        first = slice(self.n + NX, None)  # stage 0: du_0 alone
-        self._costs[0].UpdateCoefficients(Q[0, first, first], b[0, first], 0.0, is_convex=True)
-        for k in range(1, self.T):
-            self._costs[k].UpdateCoefficients(Q[k], b[k], 0.0, is_convex=True)
-        if self.n:
-            A, B, _, _ = self._model
-            BJ = B @ J  # (T, n, 18)
-            for k, constraint in enumerate(self._perception):
-                # [I | -A | -B J_k] on (de_(k+1), de_k, dx_k, du_k); stage 0: [I | -B J_u]
-                row = [np.eye(self.n), -BJ[k, :, NX:]]
-                if k > 0:
-                    row = [np.eye(self.n), -A, -BJ[k]]
-                constraint.UpdateCoefficients(np.hstack(row), np.zeros(self.n))
-        result = self._solver.Solve(self.prog, None, self._options)
-        if not result.is_success():
+        """The QP step (dU (T, 6), dX (T, 12), dE (T, n)) of the stage-wise QP
+        (`stagewise_qp`), or None where it did not converge."""
+        r, n, T = self.robot, self.n, self.T
+        m = n + NX + NU
+        # the objective summed rather than averaged over the stages: its multipliers and
+        # residuals then have the scale of one stage's
+        H = np.zeros((T + 1, m, m))
+        g = np.zeros((T + 1, m))
+        H[:T], g[:T] = T * Q, T * b
+        H[T, n + NX :, n + NX :] = np.eye(NU)  # stage T's input: nothing weighs it
+        lower, upper = np.full((T + 1, m), -np.inf), np.full((T + 1, m), np.inf)
+        lower[1:, n : n + NX] = np.r_[r.q_min, -r.qd_max] - x[1:]
+        upper[1:, n : n + NX] = np.r_[r.q_max, r.qd_max] - x[1:]
+        lower[:T, n + NX :] = -r.qdd_max - U
+        upper[:T, n + NX :] = r.qdd_max - U
+        F = self._F
+        if n:  # the model's dynamics, linearised: de_(k+1) = A de_k + B J_k (dx_k, du_k)
+            F = np.broadcast_to(F, (T, *F.shape)).copy()
+            F[:, :n, n:] = self._model[1] @ J
+        solution = solve_stagewise_qp(
+            H,
+            g,
+            F,
+            lower,
+            upper,
+            np.zeros(n + NX),
+            tolerance=self.config.qp_tolerance,
+            max_iterations=self.config.qp_iterations,
+        )
+        # a QP stopped short of its tolerance still gives a step the line search can take
+        # or refuse; one far from converged gives none
+        if not solution.converged and not solution.residual <= QP_RESIDUAL_USABLE:
             return None
-        dE = result.GetSolution(self.dE) if self.n else np.zeros((self.T, 0))
-        return result.GetSolution(self.dU), result.GetSolution(self.dX), dE.reshape(self.T, -1)
+        w = solution.w
+        return w[:T, n + NX :], w[1:, n : n + NX], w[1:, :n]
 
     def _stationarity(self, Q, b, dU, dX, dE) -> float:
         """|H d|_inf / max(1, |g|_inf) of the last QP's step: the nonlinear program's
