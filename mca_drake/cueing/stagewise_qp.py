@@ -173,7 +173,8 @@ def solve_stagewise_qp(
         Q: the stage Hessians, symmetric positive semidefinite, shape (N, m, m).
         b: the stage gradients, shape (N, m).
         F: the dynamics, one (ns, m) for every stage or one per stage (N - 1, ns, m).
-        lower, upper: the boxes, shape (N, m); -inf / inf where a variable has none.
+        lower: the boxes' lower ends, shape (N, m); -inf where a variable has none.
+        upper: their upper ends, shape (N, m); inf where a variable has none.
         initial: the first stage's states s_0, shape (ns,).
         tolerance: on the scaled residuals (stationarity relative to 1 + |b|_inf; the
             dynamics and bounds relative to 1 + the data's size) and on the duality gap
