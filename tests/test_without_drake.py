@@ -5,14 +5,13 @@ profile's objective too, without importing Drake."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 from dataset_helpers import rest_segments
+from hidden_drake import PYDRAKE_LOADED, run_without_drake
 
 from mca_drake.cueing.nmpc_config import NmpcConfig
 from mca_drake.cueing.profiles import profile_config
@@ -21,36 +20,17 @@ from mca_drake.learning.dpc_training import train_policy
 
 REPO = Path(__file__).resolve().parents[1]
 
-# Run in a fresh interpreter in which pydrake cannot be found: `find_spec` answers None for
-# it and importing it fails, as where it is not installed.
-WITHOUT_DRAKE = """
-import importlib.util, json, sys
-_find_spec = importlib.util.find_spec
-def find_spec(name, *args, **kwargs):
-    if name == "pydrake" or name.startswith("pydrake."):
-        return None
-    return _find_spec(name, *args, **kwargs)
-importlib.util.find_spec = find_spec
-sys.modules["pydrake"] = None
+# The torch commands, run in a fresh interpreter without pydrake.
+WITHOUT_DRAKE = f"""
 from mca_drake.app.cli import build_parser, main
 commands = sorted(build_parser()._subparsers._group_actions[0].choices)
 status = main(json.loads(sys.argv[1]))
-loaded = sorted(m for m in sys.modules if m.startswith("pydrake.") and sys.modules[m])
-print(json.dumps({"commands": commands, "status": status, "pydrake_loaded": loaded}))
+print(json.dumps({{"commands": commands, "status": status, "pydrake_loaded": {PYDRAKE_LOADED}}}))
 """
 
 
 def _run_without_drake(argv: list[str], cwd: Path) -> dict:
-    done = subprocess.run(
-        [sys.executable, "-c", WITHOUT_DRAKE, json.dumps(argv)],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
-    )
-    assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    return run_without_drake(WITHOUT_DRAKE, [json.dumps(argv)], cwd)
 
 
 def _sine_dataset():

@@ -290,6 +290,11 @@ class OptimalCueing:
             solve_time_s=time.perf_counter() - start,
         )
 
+    def within_limits(self, x0: np.ndarray, U: np.ndarray, tol: float = 1e-9) -> bool:
+        """Whether inputs U (T, 6) from x0 (12) keep every joint within its position,
+        velocity and acceleration limits (to `tol`) at every step."""
+        return self._feasible(self.states(x0, U), U, tol)
+
     def _feasible(self, x, U, tol: float = 1e-9) -> bool:
         r = self.robot
         q, qd = x[1:, :NU], x[1:, NU:]

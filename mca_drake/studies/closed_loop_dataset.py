@@ -37,7 +37,6 @@ from mca_drake.atomic_io import check_writable
 from mca_drake.conventions import CONTROL_PERIOD_S, FIRST_EVALUATION_SEED
 from mca_drake.cueing import McaConfig, NmpcConfig, as_mca_config, mca_config_record
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
-from mca_drake.kinematics import head_motion, output_from_motion, pose_derivatives_from_motion
 from mca_drake.references.drives import (
     check_training_motion_vehicle,
     drive_recording,
@@ -46,12 +45,14 @@ from mca_drake.references.drives import (
 )
 from mca_drake.references.flights import training_recording
 from mca_drake.references.reference import ReferenceScaling, reference_from_recording
-from mca_drake.robot import NUM_JOINTS, load_kr500
+from mca_drake.robot import load_kr500
 from mca_drake.segments import (
     DEFAULT_DATASET_DIR,
     SOURCE_COLUMNS,
     SPLIT_NAMES,
     SegmentDataset,
+    cut_trajectory,
+    kept_file,
     package_versions,
 )
 from mca_drake.simulation.closed_loop import run_closed_loop
@@ -198,23 +199,14 @@ def simulate_flight(
     n_p = config.horizon
     n_segments = result.commands.shape[0] // n_p
     keep = slice(0, n_segments * n_p)
-    X, U = result.states[keep], result.commands[keep]
-    motion = head_motion(X[:, :NUM_JOINTS], X[:, NUM_JOINTS:], U, robot)
-    F, dF, ddF = pose_derivatives_from_motion(motion)
-    dtype = np.dtype(config.dtype)
-
-    def cut(a):
-        return a.reshape(n_segments, n_p, *a.shape[1:]).astype(dtype)
-
-    arrays = {
-        "U": cut(U),
-        "X": cut(X),
-        "Y": cut(output_from_motion(motion)),
-        "F": cut(F),
-        "dF": cut(dF),
-        "ddF": cut(ddF),
-        "R": cut(result.reference[keep]),
-    }
+    arrays = cut_trajectory(
+        result.states[keep],
+        result.commands[keep],
+        result.reference[keep],
+        robot,
+        n_p,
+        np.dtype(config.dtype),
+    )
     source = np.column_stack(
         [np.full(n_segments, seed), n_p * np.arange(n_segments), np.full(n_segments, -1)]
     ).astype(np.int64)
@@ -232,15 +224,6 @@ def simulate_flight(
         "versions": package_versions(),
     }
     return SegmentDataset(arrays, source, metadata)
-
-
-def _flight_is_done(path: Path, key: str) -> bool:
-    if not path.is_file():
-        return False
-    try:
-        return SegmentDataset.load(path).metadata.get("config_key") == key
-    except ValueError:
-        return False  # a damaged file: simulate again
 
 
 def _run_one(config: ClosedLoopDatasetConfig, vehicle: str, seed: int, out_dir: str) -> str:
@@ -268,7 +251,7 @@ def generate_closed_loop_dataset(
     todo = [
         (config, vehicle, s, str(out_dir))
         for vehicle, s in config.flights()
-        if not _flight_is_done(flight_path(out_dir, s), config.flight_key(vehicle))
+        if not kept_file(flight_path(out_dir, s), "config_key", config.flight_key(vehicle))
     ]
     run_tasks(
         _run_one,

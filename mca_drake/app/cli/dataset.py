@@ -1,4 +1,4 @@
-"""`mca-drake dataset open-loop | closed-loop | join`: training and test datasets."""
+"""`mca-drake dataset open-loop | closed-loop | join | bound`: training and test datasets."""
 
 from __future__ import annotations
 
@@ -14,9 +14,11 @@ from mca_drake.app.cli.flags import (
 from mca_drake.app.jobs import run_scenario
 from mca_drake.app.scenarios import DatasetScenario
 from mca_drake.cueing import mca_config_from_name, mca_name
+from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.references.driving import CARS
 from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
 from mca_drake.references.jsbsim import TRAINING_VEHICLES
+from mca_drake.studies.bound_dataset import generate_bound_dataset
 from mca_drake.studies.closed_loop_dataset import join_datasets
 
 # ExcitationConfig fields with a flag, and the flag's name where it is not the field's.
@@ -87,6 +89,26 @@ def add_parser(commands) -> None:
     join.add_argument("--out", required=True, help="the joined file (.npz)")
     join.set_defaults(func=run_join)
 
+    bound = kinds.add_parser(
+        "bound",
+        help="a closed-loop dataset re-cued by each flight's offline-optimal bound (training "
+        "targets: train-policy --targets achieved)",
+    )
+    bound.add_argument("dataset", help="a closed-loop dataset.npz (with references R)")
+    bound.add_argument(
+        "--out-dir", required=True, help="where the flights' bounds and dataset.npz go"
+    )
+    bound.add_argument(
+        "--max-iterations",
+        type=int,
+        default=OptimalConfig.max_iterations,
+        help="Gauss-Newton iterations per flight at most (default %(default)s)",
+    )
+    bound.add_argument("--workers", type=int, default=1, help="CPUs of a local Ray (default 1)")
+    bound.add_argument("--address", help=ADDRESS_HELP)
+    add_quiet(bound)
+    bound.set_defaults(func=run_bound)
+
 
 def run_open_loop(args: argparse.Namespace) -> int:
     """Generates the excitation dataset and writes it."""
@@ -125,4 +147,20 @@ def run_join(args: argparse.Namespace) -> int:
     """Joins datasets into one file."""
     path = join_datasets(args.datasets, args.out)
     print(f"joined dataset written to {path}")
+    return 0
+
+
+def run_bound(args: argparse.Namespace) -> int:
+    """Solves each flight's bound and writes the bound dataset."""
+    config = OptimalConfig(max_iterations=args.max_iterations)
+    config.validate()
+    path = generate_bound_dataset(
+        args.dataset,
+        args.out_dir,
+        config,
+        workers=args.workers,
+        address=args.address,
+        progress=not args.quiet,
+    )
+    print(f"bound dataset written to {path}")
     return 0
