@@ -22,8 +22,10 @@ sparse matrix. Here each Newton step costs O(N) in a few batched array operation
 Method: Mehrotra's predictor-corrector on the box constraints' slacks and multipliers,
 one step length for primal and dual, 0.99 of the way to the boundary. A small static
 regularisation delta I in K keeps every stage invertible where a direction carries no
-curvature (e.g. an unbounded state with no cost); two steps of iterative refinement
-against the unregularised system remove its effect on the step.
+curvature (e.g. an unbounded state with no cost), and a smaller one keeps M factorable
+where active bounds fix every variable a dynamics row touches; iterative refinement
+against the unregularised system, until the step is as accurate as the iterate needs,
+removes their effect on the step.
 """
 
 from __future__ import annotations
@@ -115,13 +117,8 @@ class _Dynamics:
         M_(k, k-1) (N - 1, ns, ns)."""
         ns = self.ns
         diagonal = Kinv[:, :ns, :ns].copy()
-        if self.constant:
-            # F K_k^-1 for every stage in one matrix product
-            FK = np.matmul(self.F, Kinv[:-1])
-            diagonal[1:] += np.matmul(FK, self.F.T)
-        else:
-            FK = np.matmul(self.F, Kinv[:-1])
-            diagonal[1:] += np.matmul(FK, np.swapaxes(self.F, 1, 2))
+        FK = np.matmul(self.F, Kinv[:-1])  # F_k K_k^-1 (a constant F broadcasts)
+        diagonal[1:] += np.matmul(FK, np.swapaxes(self.F, -1, -2))
         return diagonal, -FK[:, :, :ns]
 
 
@@ -252,7 +249,8 @@ class _InteriorPoint:
     def measure(self) -> float:
         """The residuals at the iterate (kept for the step) and the largest scaled one."""
         d, w = self.dynamics, self.w
-        self.r_d = _matvec(self.Q, w) + self.b + d.transpose(self.lam) - self.zl + self.zu
+        Qw = _matvec(self.Q, w)
+        self.r_d = Qw + self.b + d.transpose(self.lam) - self.zl + self.zu
         self.r_p = d.apply(w) - self.rhs_p
         self.r_l = np.where(self.has_lo, w - self.sl - self.lo, 0.0)
         self.r_u = np.where(self.has_hi, w + self.su - self.hi, 0.0)
@@ -266,7 +264,7 @@ class _InteriorPoint:
             float(max(np.abs(self.r_l).max(), np.abs(self.r_u).max())) / self.scale_p,
             # the duality gap relative to the objective: the objective is this close to
             # the optimum's
-            gap / (1.0 + abs(_objective(self.Q, self.b, w))),
+            gap / (1.0 + abs(float(np.sum(w * (0.5 * Qw + self.b))))),
         )
         return self.worst
 
@@ -336,11 +334,6 @@ class _InteriorPoint:
                 break  # accurate enough, or at round-off
             last = error
         return dw, dlam
-
-
-def _objective(Q: np.ndarray, b: np.ndarray, w: np.ndarray) -> float:
-    """sum_k 1/2 w_k' Q_k w_k + b_k' w_k."""
-    return float(np.sum(w * (0.5 * _matvec(Q, w) + b)))
 
 
 def _matvec(A: np.ndarray, v: np.ndarray) -> np.ndarray:
