@@ -12,7 +12,9 @@ seeds (the evaluation's are 1000 on), so that a recipe's cost there is seen befo
 suite; `--vehicles bmw-320i,ford-escort,vw-vanagon` drives validation drives of the cars
 (a lap on even seeds, the proving ground on odd ones; case D's are 4000 on);
 `--first-seed 600 --seeds 14 --vehicles light` is the light aircraft's trap check
-(fourteen more flights, where a policy that rides the joint limits shows). One JSON per run
+(fourteen more flights, where a policy that rides the joint limits shows); `--pilot
+random-style` flies the same aircraft and seeds with a pilot whose style is drawn from the
+seed (a check against pilots other than the scripted one). One JSON per run
 under out-dir/runs (atomic; a finished run is not flown again, so a killed study resumes).
 Prints per MCA the median PI per vehicle and over all flights, clamp interventions, and for
 each MCA after the first the paired difference to the first (median, better on how many
@@ -42,19 +44,23 @@ from mca_drake.simulation.closed_loop import run_closed_loop
 FIRST_VALIDATION_SEED = 700
 
 
-def run_flights(mcas, flights, out_dir: Path, duration_s: float, cache_dir: Path) -> dict:
+def run_flights(
+    mcas, flights, out_dir: Path, duration_s: float, cache_dir: Path, pilot: str = "scripted"
+) -> dict:
     """{label: {(vehicle, seed): summary}}, flying what is not in out_dir/runs yet."""
     results: dict[str, dict] = {label: {} for label, _ in mcas}
+    # A pilot other than the scripted one gets its own run names: its flights differ.
+    tag = "" if pilot == "scripted" else f"_{pilot}"
     for vehicle, seed in flights:
         reference = None
         for label, config in mcas:
-            path = out_dir / "runs" / f"{label}_{vehicle}_{seed}.json"
+            path = out_dir / "runs" / f"{label}_{vehicle}_{seed}{tag}.json"
             if not path.is_file():
                 if reference is None:
                     spec = (
                         training_spec(vehicle, seed)
                         if is_car(vehicle)
-                        else FlightSpec(vehicle=vehicle, seed=seed)
+                        else FlightSpec(vehicle=vehicle, seed=seed, pilot=pilot)
                     )
                     reference = motion_reference(spec, duration_s, cache_dir=cache_dir)
                 result = run_closed_loop(mca=config, reference=reference, progress=False)
@@ -118,6 +124,14 @@ def main() -> None:
         help=f"the first flight's seed (default {FIRST_VALIDATION_SEED}; below "
         f"{FIRST_EVALUATION_SEED}, where the evaluation's seeds begin)",
     )
+    parser.add_argument(
+        "--pilot",
+        default="scripted",
+        choices=("scripted", "random-style"),
+        help="who flies the aircraft (default scripted; random-style: a style drawn from each "
+        "seed, a check against pilots other than the scripted one; the route pilot flies "
+        "evaluation flights only)",
+    )
     parser.add_argument("--duration", type=float, default=300.0, help="s per flight")
     parser.add_argument("--out-dir", default="results/validation")
     parser.add_argument(
@@ -144,10 +158,16 @@ def main() -> None:
         raise SystemExit(f"{', '.join(UNSEEN_VEHICLES)} are kept for evaluation case C")
     flights = [(vehicle, seed) for vehicle in vehicles for seed in seeds]
     calibration = print_calibration()
-    results = run_flights(mcas, flights, out_dir, args.duration, out_dir / "flights")
+    results = run_flights(
+        mcas, flights, out_dir, args.duration, out_dir / "flights", pilot=args.pilot
+    )
     figures = report(results, flights)
     json_path = args.json
-    validation = vehicles == list(VALIDATION_VEHICLES) and seeds.start == FIRST_VALIDATION_SEED
+    validation = (
+        vehicles == list(VALIDATION_VEHICLES)
+        and seeds.start == FIRST_VALIDATION_SEED
+        and args.pilot == "scripted"
+    )
     if json_path is None and validation:
         json_path = default_result_path("validation.json")
     if json_path:
