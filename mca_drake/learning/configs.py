@@ -134,6 +134,11 @@ class DpcTrainingConfig:
     input_weight: float = _NMPC.input_weight
     # Washout weight of ||q_t||^2, rad^-2: the tuned NMPC's (paper: 1).
     washout_weight: float = _NMPC.washout_weight
+    # Extra washout weight of q_1^2, rad^-2, on the base joint alone (vertical axis: no cue
+    # depends on its angle, so pulling it home costs only yaw-rate error). 0: the base joint
+    # is washed out like the others; long turns then walk it to its limit, where the
+    # viability clamp takes over.
+    base_washout_weight: float = 0.0
     # Weight of the squared violation of the state limits by x_(t+1): large beside the other
     # terms (order 1), so that no tracking gain pays for leaving the limits.
     limit_weight: float = 100.0
@@ -279,6 +284,7 @@ class DpcTrainingConfig:
             "state_estimate_weight",
             "input_weight",
             "washout_weight",
+            "base_washout_weight",
             "limit_weight",
             "terminal_position_weight",
             "terminal_velocity_weight",

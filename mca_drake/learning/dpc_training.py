@@ -8,10 +8,11 @@ the policy and a frozen plant run in a cycle,
     x_(t+1) = step(x_t, u_t)
 
 and the loss per step is, summed over vector components and averaged over steps and
-segments (the NMPC's cost terms, `mca_drake.cueing.nmpc`):
+segments (the NMPC's cost terms, `mca_drake.cueing.nmpc`, and w_1 on the base joint alone,
+`base_washout_weight`, default 0):
 
     w_y ||y_(t+1) - Y_t||^2 + w_x ||x_hat_(t+1) - x_(t+1)||^2 + 0.1 ||u_t||^2 + ||q_t||^2
-      + w_b ||violation of the state limits by x_(t+1)||^2
+      + w_1 q_(1,t)^2 + w_b ||violation of the state limits by x_(t+1)||^2
 
 plus, beyond the paper, the NMPC's terminal cost ||q_n||^2 + ||qd_n||^2 on the last state
 (without it a policy trained on 2.56 s rollouts drifts to the limits within seconds of a
@@ -218,6 +219,7 @@ def dpc_loss_terms(
         "state_estimate": ((rollout.X_hat - X_next) ** 2).sum(-1).mean(),
         "input": (rollout.U**2).sum(-1).mean(),
         "washout": (rollout.X[:, :-1, :NUM_JOINTS] ** 2).sum(-1).mean(),
+        "base_washout": (rollout.X[:, :-1, 0] ** 2).mean(),
         "limits": (violation**2).sum(-1).mean(),
         "terminal_position": (rollout.X[:, -1, :NUM_JOINTS] ** 2).sum(-1).mean(),
         "terminal_velocity": (rollout.X[:, -1, NUM_JOINTS:] ** 2).sum(-1).mean(),
@@ -364,6 +366,7 @@ def dpc_objective(
         "state_estimate": config.state_estimate_weight,
         "input": config.input_weight,
         "washout": config.washout_weight,
+        "base_washout": config.base_washout_weight,
         "limits": config.limit_weight,
         "terminal_position": config.terminal_position_weight,
         "terminal_velocity": config.terminal_velocity_weight,

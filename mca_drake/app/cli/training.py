@@ -37,6 +37,7 @@ POLICY_FLAGS = {
     "window_segments": "",
     "initial_policy": "--init-policy",
     "washout_weight": "",
+    "base_washout_weight": "",
     "input_weight": "",
     "max_start_position_rad": "--max-start-position",
     "perturbed_fraction": "",
