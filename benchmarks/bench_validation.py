@@ -16,6 +16,7 @@ suite; `--vehicles bmw-320i,ford-escort,vw-vanagon` drives validation drives of 
 random-style` flies the same aircraft and seeds with a pilot whose style is drawn from the
 seed (a check against pilots other than the scripted one). One JSON per run
 under out-dir/runs (atomic; a finished run is not flown again, so a killed study resumes).
+A DPC run records its policy file's SHA-256: a label whose file has changed is flown again.
 Prints per MCA the median PI per vehicle and over all flights, clamp interventions, and for
 each MCA after the first the paired difference to the first (median, better on how many
 flights, signed-rank p). An MCA is `label=policy.npz` (DPC) or an MCA name. On the
@@ -35,11 +36,13 @@ from common import default_result_path, parse_mca, print_calibration, result_hea
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.conventions import FIRST_EVALUATION_SEED
+from mca_drake.cueing.configs import mca_config_from_name
 from mca_drake.metrics import wilcoxon_signed_rank
 from mca_drake.references.drives import is_car, motion_reference, training_spec
 from mca_drake.references.flights import FlightSpec
 from mca_drake.references.jsbsim import UNSEEN_VEHICLES, VALIDATION_VEHICLES, check_vehicle
 from mca_drake.simulation.closed_loop import run_closed_loop
+from mca_drake.studies.evaluation import policy_fingerprint
 
 FIRST_VALIDATION_SEED = 700
 
@@ -47,15 +50,22 @@ FIRST_VALIDATION_SEED = 700
 def run_flights(
     mcas, flights, out_dir: Path, duration_s: float, cache_dir: Path, pilot: str = "scripted"
 ) -> dict:
-    """{label: {(vehicle, seed): summary}}, flying what is not in out_dir/runs yet."""
+    """{label: {(vehicle, seed): summary}}, flying what is not in out_dir/runs yet (a DPC
+    run whose policy file has changed since is flown again)."""
     results: dict[str, dict] = {label: {} for label, _ in mcas}
     # A pilot other than the scripted one gets its own run names: its flights differ.
     tag = "" if pilot == "scripted" else f"_{pilot}"
+    fingerprints = {
+        label: policy_fingerprint(
+            mca_config_from_name(config) if isinstance(config, str) else config
+        )
+        for label, config in mcas
+    }
     for vehicle, seed in flights:
         reference = None
         for label, config in mcas:
             path = out_dir / "runs" / f"{label}_{vehicle}_{seed}{tag}.json"
-            if not path.is_file():
+            if not _finished(path, fingerprints[label]):
                 if reference is None:
                     spec = (
                         training_spec(vehicle, seed)
@@ -65,10 +75,23 @@ def run_flights(
                     reference = motion_reference(spec, duration_s, cache_dir=cache_dir)
                 result = run_closed_loop(mca=config, reference=reference, progress=False)
                 keep = ("pi", "rmse", "cc", "safety_interventions", "violations", "step_time_s")
-                atomic_write_json(path, {k: result.summary[k] for k in keep})
+                summary = {k: result.summary[k] for k in keep}
+                atomic_write_json(path, {**summary, "policy_sha256": fingerprints[label]})
                 print(f"{label} {vehicle} {seed}: PI {result.summary['pi']:.3f}", flush=True)
             results[label][vehicle, seed] = json.loads(path.read_text())
     return results
+
+
+def _finished(path: Path, fingerprint: str) -> bool:
+    """Whether `path` holds a run of the same policy file (by SHA-256; "" for an MCA that is
+    not a DPC): a label that now names another policy is flown again, not reused."""
+    if not path.is_file():
+        return False
+    try:
+        run = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return False  # unreadable: fly it again
+    return isinstance(run, dict) and run.get("policy_sha256", "") == fingerprint
 
 
 def report(results: dict, flights) -> dict:
