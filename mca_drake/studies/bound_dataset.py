@@ -20,14 +20,13 @@ and the package are installed (a GPU machine's CPUs, say).
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import time
 from pathlib import Path
 
 import numpy as np
 
-from mca_drake.atomic_io import check_writable
+from mca_drake.atomic_io import check_writable, file_sha256
 from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing
 from mca_drake.robot import NUM_JOINTS, load_kr500
 from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, cut_trajectory, kept_file
@@ -106,12 +105,8 @@ def bound_path(out_dir: Path, seed: int) -> Path:
 def _key(dataset_path: str, config: OptimalConfig) -> str:
     """What a kept flight must have been made from: the source dataset file's content hash
     and the bound's settings."""
-    digest = hashlib.sha256()
-    with open(dataset_path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
     record = json.dumps(dataclasses.asdict(config), sort_keys=True)
-    return f"{digest.hexdigest()}:{record}"
+    return f"{file_sha256(dataset_path)}:{record}"
 
 
 def _solve_one(dataset_path: str, seed: int, config: OptimalConfig, key: str, out: str) -> str:
