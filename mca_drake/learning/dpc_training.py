@@ -214,12 +214,13 @@ def dpc_loss_terms(
     squared_error = error**2
     if channel_weights is not None:
         squared_error = squared_error * channel_weights
+    squared_angles = rollout.X[:, :-1, :NUM_JOINTS] ** 2  # the states the steps act from
     terms = {
         "tracking": squared_error.sum(-1).mean(),
         "state_estimate": ((rollout.X_hat - X_next) ** 2).sum(-1).mean(),
         "input": (rollout.U**2).sum(-1).mean(),
-        "washout": (rollout.X[:, :-1, :NUM_JOINTS] ** 2).sum(-1).mean(),
-        "base_washout": (rollout.X[:, :-1, 0] ** 2).mean(),
+        "washout": squared_angles.sum(-1).mean(),
+        "base_washout": squared_angles[..., 0].mean(),
         "limits": (violation**2).sum(-1).mean(),
         "terminal_position": (rollout.X[:, -1, :NUM_JOINTS] ** 2).sum(-1).mean(),
         "terminal_velocity": (rollout.X[:, -1, NUM_JOINTS:] ** 2).sum(-1).mean(),
