@@ -434,6 +434,29 @@ def _dpc(results_dir: Path, data: dict) -> list[str]:
     return [*lines, ""]
 
 
+def _training_recipe(results_dir: Path, data: dict) -> list[str]:
+    rows = []
+    for step, figures in data["steps"].items():
+        for stage in figures["stages"]:
+            rows.append(
+                [
+                    step,
+                    f"{stage['horizon']}",
+                    f"{stage['epochs']} ({stage['best_epoch']})",
+                    f"{stage['wall_s']:.0f} s",
+                ]
+            )
+    total, target = data["training_wall_s_total"], data["target_wall_s"]
+    verdict = "within" if total <= target else "over"
+    lines = _table(["step", "rollout steps", "epochs (best)", "wall time"], rows)
+    lines += [
+        "",
+        f"Whole recipe: {total / 60:.1f} min, {verdict} its {target / 60:.0f}-minute target "
+        f"(dataset `{data['dataset']}`).",
+    ]
+    return [*lines, ""]
+
+
 def _nmpc(results_dir: Path, data: dict) -> list[str]:
     rows = []
     for label, f in data["flight"].items():
@@ -745,6 +768,13 @@ SECTIONS = (
         "the DPC policy's step time inside the Drake diagram and converged NMPC's on the same "
         "flight",
         _dpc,
+    ),
+    Section(
+        "Training recipe",
+        "training_recipe.json",
+        "the shipped flight policy's two training steps run from nothing: epochs and wall "
+        "time per curriculum step, and the whole recipe's wall time",
+        _training_recipe,
     ),
     Section(
         "NMPC step time and PI",

@@ -1,0 +1,150 @@
+"""The shipped flight policy's training recipe, run and timed: the two `train-policy` steps
+of the training guide ("Recipe: the flight policy") on this machine, each curriculum step's
+epochs, best epoch and wall time, and the whole recipe's wall time against its target (30
+minutes on 2 CPU cores).
+
+python benchmarks/bench_training_recipe.py [--dataset datasets/mixed_t37/dataset.npz]
+    [--out-dir results/recipe] [--json benchmarks/results/training_recipe.json]
+
+Each step trains in its own folder under --out-dir (`step1`, `step2`). A folder that holds
+the step's policy.npz is read, not trained again (its recorded times stand); one with only
+a checkpoint is resumed (`train-policy --resume`), so a killed run continues. The figures
+are the trainer's own wall times (dataset loading and the policy export excluded) and, for
+the steps run now, the whole process's. Time it with nothing else running.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from common import default_result_path, print_calibration, result_header
+
+from mca_drake.atomic_io import atomic_write_json
+from mca_drake.cueing.dpc import load_policy_arrays
+
+# The recipe's target on 2 CPU cores, s.
+TARGET_WALL_S = 30 * 60
+
+# The flags both steps share: windows near neutral, augmentations, the two-step curriculum.
+COMMON_FLAGS = (
+    "--max-start-position 0.6 --perturbed-fraction 0.0 --horizons 256,1024 --patience 100 "
+    "--terminal-weight-horizon 256 --mirror-fraction 0.5 --yaw-shift-fraction 0.5 "
+    "--time-stretch-fraction 0.5 --seed 1"
+).split()
+
+# Step 1 learns the tuned NMPC's objective from random weights; step 2 fine-tunes step 1's
+# policy with the PI's correlation term and the washouts (decision 0015).
+STEPS = (
+    ("step1", ("--max-epochs", "300")),
+    (
+        "step2",
+        (
+            "--init-policy",
+            "{step1}/policy.npz",
+            "--correlation-weight",
+            "1",
+            "--washout-weight",
+            "0.3",
+            "--base-washout-weight",
+            "1",
+            "--max-epochs",
+            "60",
+        ),
+    ),
+)
+
+
+def step_command(name: str, extra: tuple[str, ...], dataset: str, out_dir: Path) -> list[str]:
+    """The `mca-drake train-policy` argument list of recipe step `name` writing into
+    out_dir/name; "{step1}" in `extra` names step 1's folder."""
+    flags = [f.format(step1=out_dir / "step1") for f in extra]
+    return [
+        "train-policy",
+        "--dataset",
+        dataset,
+        "--out-dir",
+        str(out_dir / name),
+        *COMMON_FLAGS,
+        *flags,
+    ]
+
+
+def run_step(command: list[str], folder: Path) -> float | None:
+    """Trains one step unless its policy file exists (None: read, not run); the process's
+    wall time, s. Raises SystemExit if training fails."""
+    if (folder / "policy.npz").is_file():
+        return None
+    resume = ["--resume"] if (folder / "policy.pt").is_file() else []
+    # this interpreter's mca-drake, whether or not its environment is activated
+    cli = [sys.executable, "-m", "mca_drake.app.cli"]
+    start = time.perf_counter()
+    done = subprocess.run([*cli, *command, *resume, "--quiet"], check=False)
+    if done.returncode != 0:
+        raise SystemExit(f"train-policy failed ({done.returncode}): {' '.join(command)}")
+    return time.perf_counter() - start
+
+
+def step_figures(folder: Path, command: list[str], process_wall_s: float | None) -> dict:
+    """A finished step's command, curriculum steps (horizon, epochs, best epoch, wall s) and
+    trainer wall time, read from its policy file's metadata."""
+    _, metadata = load_policy_arrays(folder / "policy.npz")
+    return {
+        "stages": [
+            {k: s[k] for k in ("horizon", "epochs", "best_epoch", "wall_s")}
+            for s in metadata["stages"]
+        ],
+        "training_wall_s": metadata["training_wall_s"],
+        "process_wall_s": process_wall_s,
+        "command": "mca-drake " + shlex.join(command),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--dataset", default="datasets/mixed_t37/dataset.npz")
+    parser.add_argument("--out-dir", default="results/recipe", help="the steps' folders")
+    parser.add_argument("--json", default=default_result_path("training_recipe.json"))
+    args = parser.parse_args()
+    if not Path(args.dataset).is_file():
+        raise SystemExit(
+            f"dataset {args.dataset} not found: the training guide's recipe makes it "
+            "(mca-drake dataset closed-loop, then dataset join)"
+        )
+    calibration = print_calibration()
+    out_dir = Path(args.out_dir)
+    steps = {}
+    for name, extra in STEPS:
+        command = step_command(name, extra, args.dataset, out_dir)
+        print(f"{name}: mca-drake {' '.join(command)}", flush=True)
+        steps[name] = step_figures(out_dir / name, command, run_step(command, out_dir / name))
+        for stage in steps[name]["stages"]:
+            print(
+                f"  n_p {stage['horizon']}: {stage['epochs']} epochs (best {stage['best_epoch']}),"
+                f" {stage['wall_s']:.0f} s"
+            )
+        print(f"  trainer wall time {steps[name]['training_wall_s']:.0f} s", flush=True)
+    total = sum(s["training_wall_s"] for s in steps.values())
+    met = "met" if total <= TARGET_WALL_S else "not met"
+    print(
+        f"recipe: {total:.0f} s ({total / 60:.1f} min), target {TARGET_WALL_S / 60:.0f} min: {met}"
+    )
+    atomic_write_json(
+        args.json,
+        {
+            "provenance": result_header(calibration),
+            "dataset": args.dataset,
+            "steps": steps,
+            "training_wall_s_total": total,
+            "target_wall_s": TARGET_WALL_S,
+        },
+    )
+    print(f"written to {args.json}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,75 @@
+"""The training guide's recipe for the shipped policy and the benchmark that runs and times
+it (`benchmarks/bench_training_recipe.py`) give the same `train-policy` steps, and the
+shipped policy file records the losses of its last step."""
+
+from __future__ import annotations
+
+import importlib.util
+import shlex
+import sys
+from pathlib import Path
+
+import pytest
+
+from mca_drake.cueing.dpc import default_policy_path, load_policy_arrays
+
+REPO = Path(__file__).resolve().parents[1]
+GUIDE = REPO / "docs" / "guides" / "training.md"
+
+
+def _load_benchmark():
+    sys.path.insert(0, str(REPO / "benchmarks"))  # its `common` import
+    spec = importlib.util.spec_from_file_location(
+        "bench_training_recipe", REPO / "benchmarks" / "bench_training_recipe.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _guide_train_commands() -> list[list[str]]:
+    """The `mca-drake train-policy` commands of the guide's "Recipe: the shipped policy"
+    section, continuation lines joined, as argument lists after `mca-drake`."""
+    text = GUIDE.read_text()
+    section = text.split("## Recipe: the shipped policy", 1)[1].split("\n## ", 1)[0]
+    block = section.split("```bash", 1)[1].split("```", 1)[0].replace("\\\n", " ")
+    return [
+        shlex.split(line)[1:]
+        for line in block.splitlines()
+        if line.startswith("mca-drake train-policy")
+    ]
+
+
+def _flags(arguments: list[str]) -> dict[str, str]:
+    """--flag value pairs of an argument list; the folders (--out-dir, --init-policy) left
+    out, since the guide and the benchmark write to their own."""
+    pairs = dict(zip(arguments[1::2], arguments[2::2], strict=True))
+    assert arguments[0] == "train-policy" and all(k.startswith("--") for k in pairs), arguments
+    return {k: v for k, v in pairs.items() if k not in ("--out-dir", "--init-policy")}
+
+
+def test_guide_and_benchmark_train_the_same_steps():
+    bench = _load_benchmark()
+    guide = _guide_train_commands()
+    assert len(guide) == len(bench.STEPS) == 2
+    for (name, extra), command in zip(bench.STEPS, guide, strict=True):
+        ours = bench.step_command(name, extra, "datasets/mixed_t37/dataset.npz", Path("r"))
+        assert _flags(ours) == _flags(command), name
+    # Step 2 starts from step 1's result in both.
+    step1_out = guide[0][guide[0].index("--out-dir") + 1]
+    assert guide[1][guide[1].index("--init-policy") + 1] == f"{step1_out}/policy.npz"
+    ours = bench.step_command(*bench.STEPS[1], "d.npz", Path("r"))
+    assert ours[ours.index("--init-policy") + 1] == str(Path("r") / "step1" / "policy.npz")
+
+
+def test_shipped_policy_was_trained_with_the_recipes_last_step():
+    bench = _load_benchmark()
+    _, metadata = load_policy_arrays(default_policy_path())
+    flags = _flags(bench.step_command(*bench.STEPS[1], "d.npz", Path("r")))
+    config = metadata["dpc_config"]
+    assert config["correlation_weight"] == pytest.approx(float(flags["--correlation-weight"]))
+    assert config["washout_weight"] == pytest.approx(float(flags["--washout-weight"]))
+    assert config["base_washout_weight"] == pytest.approx(float(flags["--base-washout-weight"]))
+    assert config["train"]["max_epochs"] == int(flags["--max-epochs"])
+    assert config["seed"] == int(flags["--seed"])
+    assert config["initial_policy"], "the shipped policy is step 2: it starts from step 1"
