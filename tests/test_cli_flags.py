@@ -12,7 +12,7 @@ import pytest
 
 from mca_drake.app import cli
 from mca_drake.app.cli.flags import add_config_flags, field_comments, given_fields
-from mca_drake.app.cli.training import POLICY_FLAGS, POLICY_TRAIN_FLAGS
+from mca_drake.app.cli.training import POLICY_FLAGS, POLICY_TRAIN_FLAGS, command_line
 
 
 @dataclasses.dataclass
@@ -113,3 +113,15 @@ def test_the_command_line_starts_without_torch():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_the_recorded_training_command_names_mca_drake_however_it_was_started():
+    """The command a policy file records: the same from the installed script and from
+    `python -m mca_drake.app.cli` (the recipe benchmark's way), an argument with a space
+    quoted so that it pastes back; nothing when training was called from Python."""
+    args = ["train-policy", "--out-dir", "my runs/a", "--seed", "1"]
+    expected = "mca-drake train-policy --out-dir 'my runs/a' --seed 1"
+    assert command_line(["/venv/bin/mca-drake", *args]) == expected
+    assert command_line(["/src/mca_drake/app/cli/__main__.py", *args]) == expected
+    assert command_line(["/usr/lib/python3/site-packages/pytest/__main__.py", *args]) == ""
+    assert command_line(["-c"]) == ""

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import shlex
 import sys
 from pathlib import Path
 
@@ -126,8 +127,15 @@ def objective_config(objective: str) -> DpcTrainingConfig:
     return DpcTrainingConfig.matching(profile_config(NmpcConfig, objective))
 
 
-def _command_line() -> str:
-    return "mca-drake " + " ".join(sys.argv[1:]) if sys.argv[0].endswith("mca-drake") else ""
+def command_line(argv: list[str] | None = None) -> str:
+    """The training command as a user types it ("mca-drake train-policy ..."), for the policy
+    file's metadata: from the `mca-drake` script or `python -m mca_drake.app.cli` (how
+    `benchmarks/bench_training_recipe.py` runs it); "" when called from Python."""
+    argv = sys.argv if argv is None else argv
+    program = Path(argv[0])
+    if program.name == "mca-drake" or program.parts[-3:] == ("app", "cli", "__main__.py"):
+        return shlex.join(["mca-drake", *argv[1:]])
+    return ""
 
 
 def run_train_policy(args: argparse.Namespace) -> int:
@@ -148,7 +156,7 @@ def run_train_policy(args: argparse.Namespace) -> int:
         args.out_dir,
         resume=args.resume,
         progress=not args.quiet,
-        command=_command_line(),
+        command=command_line(),
     )
     print(f"policy written to {path}")
     return 0
