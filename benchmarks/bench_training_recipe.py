@@ -1,5 +1,5 @@
 """The shipped flight policy's training recipe, run and timed: the two `train-policy` steps
-of the training guide ("Recipe: the flight policy") on this machine, each curriculum step's
+of the training guide ("Recipe: the shipped policy") on this machine, each curriculum step's
 epochs, best epoch and wall time, and the whole recipe's wall time against its target (30
 minutes on 2 CPU cores).
 
@@ -85,7 +85,7 @@ def run_step(command: list[str], folder: Path) -> float | None:
     start = time.perf_counter()
     done = subprocess.run([*cli, *command, *resume, "--quiet"], check=False)
     if done.returncode != 0:
-        raise SystemExit(f"train-policy failed ({done.returncode}): {' '.join(command)}")
+        raise SystemExit(f"train-policy failed ({done.returncode}): {shlex.join(command)}")
     return time.perf_counter() - start
 
 
@@ -120,7 +120,7 @@ def main() -> None:
     steps = {}
     for name, extra in STEPS:
         command = step_command(name, extra, args.dataset, out_dir)
-        print(f"{name}: mca-drake {' '.join(command)}", flush=True)
+        print(f"{name}: mca-drake {shlex.join(command)}", flush=True)
         steps[name] = step_figures(out_dir / name, command, run_step(command, out_dir / name))
         for stage in steps[name]["stages"]:
             print(

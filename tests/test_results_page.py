@@ -4,7 +4,6 @@ one its result file holds (read here independently), and the README's table is a
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import re
 import statistics
@@ -12,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from benchmark_scripts import load_benchmark
 
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "benchmarks" / "results"
@@ -31,17 +31,7 @@ ROWS = {
 }
 
 
-def _load_results_page():
-    spec = importlib.util.spec_from_file_location(
-        "results_page", REPO / "benchmarks" / "results_page.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
-
-
-results_page = _load_results_page()
+results_page = load_benchmark("results_page")
 
 
 def _json(name: str) -> dict:
@@ -116,6 +106,18 @@ def test_headline_step_times_equal_the_benchmarks():
     converged = nmpc["flight"]["shipped/converged"]["median_ms"]
     assert rows["NMPC, converged"][-1] == f"{converged:.2f} ms"
     assert rows["NMPC, RTI"][-1] == f"{nmpc['flight']['shipped/rti']['median_ms']:.2f} ms"
+
+
+def test_training_recipe_section_sums_the_steps_trainer_times():
+    """The page's whole-recipe time is the sum of the steps' trainer wall times the result
+    file holds (each read from a policy file), in minutes."""
+    recipe = _json("training_recipe.json")
+    total = sum(step["training_wall_s"] for step in recipe["steps"].values())
+    page = results_page.render_results_page(RESULTS)
+    section = page.split("## Training recipe", 1)[1].split("\n## ", 1)[0]
+    assert f"Whole recipe: {total / 60:.1f} min" in section
+    stage_rows = sum(len(step["stages"]) for step in recipe["steps"].values())
+    assert section.count(" s |") == stage_rows
 
 
 def test_headline_table_names_its_dates_and_command():

@@ -1,30 +1,19 @@
 """The training guide's recipe for the shipped policy and the benchmark that runs and times
 it (`benchmarks/bench_training_recipe.py`) give the same `train-policy` steps, and the
-shipped policy file records the losses of its last step."""
+shipped policy file records the loss weights and epochs of its last step."""
 
 from __future__ import annotations
 
-import importlib.util
 import shlex
-import sys
 from pathlib import Path
 
 import pytest
+from benchmark_scripts import load_benchmark
 
 from mca_drake.cueing.dpc import default_policy_path, load_policy_arrays
 
 REPO = Path(__file__).resolve().parents[1]
 GUIDE = REPO / "docs" / "guides" / "training.md"
-
-
-def _load_benchmark():
-    sys.path.insert(0, str(REPO / "benchmarks"))  # its `common` import
-    spec = importlib.util.spec_from_file_location(
-        "bench_training_recipe", REPO / "benchmarks" / "bench_training_recipe.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _guide_train_commands() -> list[list[str]]:
@@ -49,7 +38,7 @@ def _flags(arguments: list[str]) -> dict[str, str]:
 
 
 def test_guide_and_benchmark_train_the_same_steps():
-    bench = _load_benchmark()
+    bench = load_benchmark("bench_training_recipe")
     guide = _guide_train_commands()
     assert len(guide) == len(bench.STEPS) == 2
     for (name, extra), command in zip(bench.STEPS, guide, strict=True):
@@ -63,7 +52,7 @@ def test_guide_and_benchmark_train_the_same_steps():
 
 
 def test_shipped_policy_was_trained_with_the_recipes_last_step():
-    bench = _load_benchmark()
+    bench = load_benchmark("bench_training_recipe")
     _, metadata = load_policy_arrays(default_policy_path())
     flags = _flags(bench.step_command(*bench.STEPS[1], "d.npz", Path("r")))
     config = metadata["dpc_config"]
