@@ -14,7 +14,15 @@ from hidden_drake import PYDRAKE_LOADED, run_without_drake
 from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing
 from mca_drake.kinematics import plant_output
 from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset
-from mca_drake.studies.bound_dataset import bound_path, flight_rows, generate_bound_dataset
+from mca_drake.studies.bound_dataset import (
+    bound_key,
+    bound_path,
+    flight_arrays,
+    flight_rows,
+    generate_bound_dataset,
+    keep_flight_bound,
+    solve_bound,
+)
 
 N_P, SEGMENTS = 16, 3
 REPO = Path(__file__).resolve().parents[1]
@@ -98,6 +106,47 @@ def test_a_killed_run_resumes_from_the_flights_it_finished(tmp_path, robot):
     generate_bound_dataset(path, out_dir, OptimalConfig(max_iterations=1), progress=False)
     assert kept.stat().st_mtime_ns != stamp
     assert SegmentDataset.load(again).arrays["U"].shape == (2 * SEGMENTS, N_P, 6)
+
+
+def test_a_flight_solved_from_its_arrays_elsewhere_is_kept_from_its_inputs(tmp_path, robot):
+    dataset = _closed_loop_dataset(robot)
+    path = dataset.save(tmp_path / "closed_loop.npz")
+    config = OptimalConfig(max_iterations=3)
+    out_dir = tmp_path / "bound"
+    # "elsewhere": only the flight's arrays, through a plain npz, and only U comes back
+    flight = flight_arrays(dataset, flight_rows(dataset)[5])
+    np.savez(tmp_path / "flight.npz", **flight)
+    with np.load(tmp_path / "flight.npz") as carried:
+        result, figures = solve_bound(carried["R"], carried["U"], carried["x0"], config)
+    key = bound_key(path, config)
+    keep_flight_bound(dataset, 5, result.U, figures, config, key, out_dir, 1.0)
+    kept = bound_path(out_dir, 5)
+    stamp = kept.stat().st_mtime_ns
+    merged = SegmentDataset.load(generate_bound_dataset(path, out_dir, config, progress=False))
+    assert kept.stat().st_mtime_ns == stamp  # used, not solved again
+    # the same as solving it here: a second folder solves both flights itself
+    direct = SegmentDataset.load(
+        generate_bound_dataset(path, tmp_path / "direct", config, progress=False)
+    )
+    for name in ("U", "X", "Y", "F", "R"):
+        np.testing.assert_array_equal(merged.arrays[name], direct.arrays[name])
+    assert merged.metadata["bounds"]["5"]["cost"] == pytest.approx(figures["cost"])
+    assert merged.metadata["bounds"]["5"]["cost"] == direct.metadata["bounds"]["5"]["cost"]
+
+
+def test_bound_inputs_that_do_not_fit_the_flight_are_refused(tmp_path, robot):
+    dataset = _closed_loop_dataset(robot)
+    config = OptimalConfig(max_iterations=1)
+    T = N_P * SEGMENTS
+    keep = (dataset, 5)
+    for U, match in (
+        (np.zeros((T - 1, 6)), "shape"),
+        (np.full((T, 6), np.nan), "finite"),
+        (np.tile(2 * robot.qdd_max, (T, 1)), "leave a joint limit"),
+    ):
+        with pytest.raises(ValueError, match=match):
+            keep_flight_bound(*keep, U, {}, config, "key", tmp_path / "bound", 0.0)
+    assert not bound_path(tmp_path / "bound", 5).exists()
 
 
 def test_datasets_that_are_not_closed_loop_ones_are_refused(tmp_path, robot):

@@ -14,7 +14,9 @@ the reference.
 The flights are solved one per task (`studies.parallel`: in this process or on Ray), each
 kept in `out_dir/bound_XXXXX.npz` as it finishes, so a killed run resumes; then merged into
 `out_dir/dataset.npz`. Nothing here needs pydrake: the bound runs where only numpy, scipy
-and the package are installed (a GPU machine's CPUs, say).
+and the package are installed (a GPU machine's CPUs, say). A machine without the dataset
+can solve flights from their arrays alone (`flight_arrays` here, `solve_bound` there); only
+each bound's inputs U come back, and `keep_flight_bound` keeps them as a resumed run would.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from mca_drake.atomic_io import check_writable, file_sha256
-from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing
+from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing, OptimalResult
 from mca_drake.robot import NUM_JOINTS, load_kr500
 from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, cut_trajectory, kept_file
 from mca_drake.studies.parallel import run_tasks
@@ -61,21 +63,31 @@ def flight_rows(dataset: SegmentDataset) -> dict[int, np.ndarray]:
     return flights
 
 
-def bound_flight(
-    dataset: SegmentDataset, rows: np.ndarray, config: OptimalConfig
-) -> tuple[dict[str, np.ndarray], dict]:
-    """The bound of the flight made of `rows`: its arrays cut as the rows are (U, X, Y, F,
-    dF, ddF, R; float32) and the solver's figures.
+def solve_bound(
+    reference: np.ndarray, causal: np.ndarray, x0: np.ndarray, config: OptimalConfig
+) -> tuple[OptimalResult, dict]:
+    """The offline-optimal bound of one whole flight, from its arrays alone.
 
-    The bound starts from the flight's first state and from the better (by the bound's
-    cost) of the MCA's inputs and not moving.
+    The bound starts from `x0` and from the better (by the bound's cost) of the causal
+    MCA's inputs and not moving. Needs only numpy, scipy and the package, so a flight can
+    be solved on a machine that has no copy of the dataset.
+
+    Args:
+        reference: the flight's reference, shape (T, 6) (specific force m/s^2, angular
+            velocity rad/s).
+        causal: the causal MCA's joint accelerations, shape (T, 6), rad/s^2.
+        x0: the first state [q, qd], shape (12,).
+        config: the bound's settings.
+
+    Returns:
+        The solver's result (U (T, 6), states (T + 1, 12), ...) and its figures (start,
+        start costs, cost, KKT residual, convergence, iterations, solve time) for the
+        dataset's metadata.
     """
-    robot = load_kr500()
-    reference = dataset.arrays["R"][rows].reshape(-1, 6).astype(float)
-    causal = dataset.arrays["U"][rows].reshape(-1, NUM_JOINTS).astype(float)
-    x0 = dataset.arrays["X"][rows[0], 0].astype(float)
-    T = reference.shape[0]
-    ocp = OptimalCueing(T, config, robot)
+    reference = np.asarray(reference, dtype=float)
+    causal = np.asarray(causal, dtype=float)
+    x0 = np.asarray(x0, dtype=float)
+    ocp = OptimalCueing(reference.shape[0], config, load_kr500())
     starts = {"mca": causal, "no motion": np.zeros_like(causal)}
     costs = {}
     for name, U in starts.items():
@@ -84,7 +96,6 @@ def bound_flight(
         costs[name] = ocp.cost(x0, U, reference) if ocp.within_limits(x0, U) else np.inf
     start = min(costs, key=costs.get)
     result = ocp.solve(reference, U_start=starts[start], x0=x0)
-    arrays = cut_trajectory(result.states[:-1], result.U, reference, robot, dataset.horizon)
     figures = {
         "start": start,
         "start_costs": {k: (None if not np.isfinite(v) else float(v)) for k, v in costs.items()},
@@ -94,7 +105,17 @@ def bound_flight(
         "iterations": result.iterations,
         "solve_time_s": result.solve_time_s,
     }
-    return arrays, figures
+    return result, figures
+
+
+def flight_arrays(dataset: SegmentDataset, rows: np.ndarray) -> dict[str, np.ndarray]:
+    """The flight made of `rows`, put back together: its reference R and causal inputs U,
+    shape (T, 6) each (float32, as stored), and its first state x0, shape (12,)."""
+    return {
+        "R": dataset.arrays["R"][rows].reshape(-1, 6),
+        "U": dataset.arrays["U"][rows].reshape(-1, NUM_JOINTS),
+        "x0": dataset.arrays["X"][rows[0], 0],
+    }
 
 
 def bound_path(out_dir: Path, seed: int) -> Path:
@@ -102,7 +123,66 @@ def bound_path(out_dir: Path, seed: int) -> Path:
     return Path(out_dir) / f"bound_{seed:05d}.npz"
 
 
-def _key(dataset_path: str, config: OptimalConfig) -> str:
+def keep_flight_bound(
+    dataset: SegmentDataset,
+    seed: int,
+    U: np.ndarray,
+    figures: dict,
+    config: OptimalConfig,
+    key: str,
+    out_dir: str | Path,
+    wall_time_s: float,
+) -> Path:
+    """Keeps flight `seed`'s bound in `out_dir` (`bound_path`), marked with `key`
+    (`bound_key`) so that `generate_bound_dataset` uses it instead of solving it again.
+
+    Only the bound's inputs cross from the solver: the states are the exact steps of `U`
+    from the flight's first state, and the segments are cut as the flight's rows are (U,
+    X, Y, F, dF, ddF, R; float32). So a flight solved elsewhere (`solve_bound` on a machine
+    with the flight's arrays alone) is kept from its U and figures.
+
+    Args:
+        dataset: the closed-loop dataset the flight comes from.
+        seed: the flight's seed.
+        U: the bound's joint accelerations, rad/s^2, shape (T, 6) (T: the flight's steps).
+        figures: `solve_bound`'s figures.
+        config: the bound's settings it was solved with (its time step and limits).
+        key: `bound_key` of the dataset file and the bound's settings.
+        out_dir: the bound dataset's folder.
+        wall_time_s: the solve's wall time, kept in the metadata.
+
+    Raises:
+        ValueError: U of the wrong shape, not finite, or leaving a joint limit.
+    """
+    rows = flight_rows(dataset)[seed]
+    flight = flight_arrays(dataset, rows)
+    U = np.asarray(U, dtype=float)
+    if U.shape != flight["U"].shape or not np.all(np.isfinite(U)):
+        raise ValueError(
+            f"flight {seed}'s bound inputs must be finite, shape {flight['U'].shape}; "
+            f"got shape {U.shape}"
+        )
+    robot = load_kr500()
+    ocp = OptimalCueing(U.shape[0], config, robot)
+    x0 = flight["x0"].astype(float)
+    # the solver's own tolerance on the limits, with float32 round-off of x0
+    if not ocp.within_limits(x0, U, tol=1e-6):
+        raise ValueError(f"flight {seed}'s bound inputs leave a joint limit")
+    states = ocp.states(x0, U)
+    arrays = cut_trajectory(states[:-1], U, flight["R"].astype(float), robot, dataset.horizon)
+    metadata = {
+        "kind": f"{KIND}, one flight",
+        "bound_key": key,
+        "flight_seed": seed,
+        "solver": figures,
+        "wall_time_s": wall_time_s,
+        "source_columns": list(SOURCE_COLUMNS),
+    }
+    part = SegmentDataset(arrays, dataset.source[rows].copy(), metadata)
+    return part.save(bound_path(Path(out_dir), seed))
+
+
+def bound_key(dataset_path: str | Path, config: OptimalConfig) -> str:
     """What a kept flight must have been made from: the source dataset file's content hash
     and the bound's settings."""
     record = json.dumps(dataclasses.asdict(config), sort_keys=True)
@@ -111,19 +191,11 @@ def _key(dataset_path: str, config: OptimalConfig) -> str:
 
 def _solve_one(dataset_path: str, seed: int, config: OptimalConfig, key: str, out: str) -> str:
     dataset = SegmentDataset.load(dataset_path)
-    rows = flight_rows(dataset)[seed]
+    flight = flight_arrays(dataset, flight_rows(dataset)[seed])
     started = time.perf_counter()
-    arrays, figures = bound_flight(dataset, rows, config)
-    metadata = {
-        "kind": f"{KIND}, one flight",
-        "bound_key": key,
-        "flight_seed": seed,
-        "solver": figures,
-        "wall_time_s": time.perf_counter() - started,
-        "source_columns": list(SOURCE_COLUMNS),
-    }
-    part = SegmentDataset(arrays, dataset.source[rows].copy(), metadata)
-    return str(part.save(bound_path(Path(out), seed)))
+    result, figures = solve_bound(flight["R"], flight["U"], flight["x0"], config)
+    wall = time.perf_counter() - started
+    return str(keep_flight_bound(dataset, seed, result.U, figures, config, key, out, wall))
 
 
 def generate_bound_dataset(
@@ -163,7 +235,7 @@ def generate_bound_dataset(
             f"the dataset's time step {step} s is not the bound's {config.time_step} s"
         )
     out_dir = check_writable(Path(out_dir).resolve(), folder=True)
-    key = _key(dataset_path, config)
+    key = bound_key(dataset_path, config)
     todo = [
         (dataset_path, seed, config, key, str(out_dir))
         for seed in flights
