@@ -1,16 +1,16 @@
-"""The shipped flight policy's training recipe, run and timed: the two `train-policy` steps
-of the training guide ("Recipe: the shipped policy") on this machine, each curriculum step's
-epochs, best epoch and wall time, and the whole recipe's wall time against its target (30
-minutes on 2 CPU cores).
+"""The shipped flight policies' training recipe, run and timed: the `train-policy` steps of
+the training guide ("Recipe: the shipped policy") on this machine (step 1, then from it the
+default and the light aircraft's policies), each curriculum step's epochs, best epoch and
+wall time, and the whole recipe's wall time against its target (30 minutes on 2 CPU cores).
 
 python benchmarks/bench_training_recipe.py [--dataset datasets/mixed_t37/dataset.npz]
     [--out-dir results/recipe] [--json benchmarks/results/training_recipe.json]
 
-Each step trains in its own folder under --out-dir (`step1`, `step2`). A folder that holds
-the step's policy.npz is read, not trained again (its recorded times stand); one with only
-a checkpoint is resumed (`train-policy --resume`), so a killed run continues. The figures
-are the trainer's own wall times (dataset loading and the policy export excluded) and, for
-the steps run now, the whole process's. Time it with nothing else running.
+Each step trains in its own folder under --out-dir (`step1`, `step2`, `light`). A folder
+that holds the step's policy.npz is read, not trained again (its recorded times stand); one
+with only a checkpoint is resumed (`train-policy --resume`), so a killed run continues. The
+figures are the trainer's own wall times (dataset loading and the policy export excluded)
+and, for the steps run now, the whole process's. Time it with nothing else running.
 """
 
 from __future__ import annotations
@@ -38,25 +38,28 @@ COMMON_FLAGS = (
 ).split()
 
 # Step 1 learns the tuned NMPC's objective from random weights; step 2 fine-tunes step 1's
-# policy with the PI's correlation term and the washouts (decision 0015).
+# policy with the PI's correlation term and the washouts (decision 0015): the default
+# policy. The light aircraft's policy is step 2 on their training flights alone (decision
+# 0016).
+STEP2_FLAGS = (
+    "--init-policy",
+    "{step1}/policy.npz",
+    "--correlation-weight",
+    "1",
+    "--washout-weight",
+    "0.3",
+    "--base-washout-weight",
+    "1",
+    "--max-epochs",
+    "60",
+)
 STEPS = (
     ("step1", ("--max-epochs", "300")),
-    (
-        "step2",
-        (
-            "--init-policy",
-            "{step1}/policy.npz",
-            "--correlation-weight",
-            "1",
-            "--washout-weight",
-            "0.3",
-            "--base-washout-weight",
-            "1",
-            "--max-epochs",
-            "60",
-        ),
-    ),
+    ("step2", STEP2_FLAGS),
+    ("light", (*STEP2_FLAGS, "--vehicles", "light,DHC6")),
 )
+# The shipped policy file each step after the first gives (`mca_drake.resources`).
+SHIPPED = {"step2": "default_policy", "light": "light_policy"}
 
 
 def step_command(name: str, extra: tuple[str, ...], dataset: str, out_dir: Path) -> list[str]:

@@ -37,6 +37,7 @@ from common import default_result_path, parse_mca, print_calibration, result_hea
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.conventions import FIRST_EVALUATION_SEED
 from mca_drake.cueing.configs import mca_config_from_name
+from mca_drake.cueing.dpc import for_vehicle
 from mca_drake.metrics import wilcoxon_signed_rank
 from mca_drake.references.drives import is_car, motion_reference, training_spec
 from mca_drake.references.flights import FlightSpec
@@ -55,17 +56,17 @@ def run_flights(
     results: dict[str, dict] = {label: {} for label, _ in mcas}
     # A pilot other than the scripted one gets its own run names: its flights differ.
     tag = "" if pilot == "scripted" else f"_{pilot}"
-    fingerprints = {
-        label: policy_fingerprint(
-            mca_config_from_name(config) if isinstance(config, str) else config
-        )
+    configs = {
+        label: mca_config_from_name(config) if isinstance(config, str) else config
         for label, config in mcas
     }
     for vehicle, seed in flights:
         reference = None
         for label, config in mcas:
             path = out_dir / "runs" / f"{label}_{vehicle}_{seed}{tag}.json"
-            if not _finished(path, fingerprints[label]):
+            # the DPC's policy is the vehicle's where its config names none
+            fingerprint = policy_fingerprint(for_vehicle(configs[label], vehicle))
+            if not _finished(path, fingerprint):
                 if reference is None:
                     spec = (
                         training_spec(vehicle, seed)
@@ -76,7 +77,7 @@ def run_flights(
                 result = run_closed_loop(mca=config, reference=reference, progress=False)
                 keep = ("pi", "rmse", "cc", "safety_interventions", "violations", "step_time_s")
                 summary = {k: result.summary[k] for k in keep}
-                atomic_write_json(path, {**summary, "policy_sha256": fingerprints[label]})
+                atomic_write_json(path, {**summary, "policy_sha256": fingerprint})
                 print(f"{label} {vehicle} {seed}: PI {result.summary['pi']:.3f}", flush=True)
             results[label][vehicle, seed] = json.loads(path.read_text())
     return results

@@ -772,7 +772,7 @@ SECTIONS = (
     Section(
         "Training recipe",
         "training_recipe.json",
-        "the shipped flight policy's two training steps run from nothing: epochs and wall "
+        "the shipped flight policies' training steps run from nothing: epochs and wall "
         "time per curriculum step, and the whole recipe's wall time",
         _training_recipe,
     ),

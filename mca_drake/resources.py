@@ -15,7 +15,12 @@ from pathlib import Path
 # The folders a wheel carries, by their name in the source tree.
 PACKAGED_FOLDERS = ("models", "diagrams")
 # Policy files shipped with the package (mca_drake/data/<name>.npz).
-SHIPPED_POLICIES = ("default_policy", "policy_v6", "ground_policy")
+SHIPPED_POLICIES = (
+    "default_policy",
+    "policy_v6",
+    "ground_policy",
+    "light_policy",
+)
 # MCA profiles shipped for vehicle motion other than flight (`mca_drake.cueing.profiles`): the
 # NMPC's and washout's settings in data/profiles/<name>.yaml, the DPC's policy
 # <name>_policy; "" stands for the flight defaults.

@@ -56,6 +56,7 @@ def test_bad_names_are_refused():
         "default_policy.npz",
         "policy_v6.npz",
         "ground_policy.npz",
+        "light_policy.npz",
     ]
 
 

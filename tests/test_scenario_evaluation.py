@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from mca_drake.cueing import DpcConfig, NmpcConfig, mca_config_from_name, mca_config_record
+from mca_drake.cueing.dpc import for_vehicle
+from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.studies.evaluation import (
     EvaluationCase,
     EvaluationConfig,
@@ -72,25 +74,21 @@ def test_small_suite_report_and_resume(tmp_path):
     assert changed["cases"]["A"]["mcas"]["nmpc-rti"]["pi"] != case["mcas"]["nmpc-rti"]["pi"]
 
 
-def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
-    from mca_drake.studies.evaluation import write_report
-
-    runs = tmp_path / "runs"
-    runs.mkdir()
+def _write_runs(runs, pis: dict, perceived_pis: dict, seeds=(1000, 1001, 1002)) -> None:
+    """Run files of case A's light flights `seeds`: per MCA name its PIs and perceived PIs
+    (the DPC's steps 1000 times shorter than the others')."""
+    runs.mkdir(exist_ok=True)
     base = {
         "duration_s": 300.0,
         "pi_zero_motion": 1.5,
         "joint_range_used": [0.1, 0.2, 0.05, 0.0, 0.3, 0.0],
-        "step_time_s": {"median": 1e-3, "max": 2e-3},
         "violations": {"q": 0, "qd": 0, "qdd": 0},
         "safety_interventions": 0,
         "solver_failures": 0,
     }
-    pis = {"dpc": [-1.0, -1.1, -0.9], "nmpc-converged": [-1.2, -1.0, -1.1]}
-    perceived_pis = {"dpc": [-2.0, -2.3, -2.1], "nmpc-converged": [-1.9, -2.0, -1.5]}
     for mca, values in pis.items():
-        config = mca_config_from_name(mca)
-        for seed, pi, felt in zip((1000, 1001, 1002), values, perceived_pis[mca], strict=True):
+        config = for_vehicle(mca_config_from_name(mca), "light")  # as the suite runs it
+        for seed, pi, felt in zip(seeds, values, perceived_pis[mca], strict=True):
             step = {"median": 5e-5 if mca == "dpc" else 5e-2, "max": 1e-1}
             run = {**base, "pi": pi, "step_time_s": step, "mca_config": mca_config_record(config)}
             run["perceived"] = {
@@ -105,6 +103,14 @@ def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
             if mca == "dpc":
                 run["policy_sha256"] = policy_fingerprint(config)
             (runs / f"A_{mca}_{seed}.json").write_text(json.dumps(run))
+
+
+def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
+    from mca_drake.studies.evaluation import write_report
+
+    pis = {"dpc": [-1.0, -1.1, -0.9], "nmpc-converged": [-1.2, -1.0, -1.1]}
+    perceived_pis = {"dpc": [-2.0, -2.3, -2.1], "nmpc-converged": [-1.9, -2.0, -1.5]}
+    _write_runs(tmp_path / "runs", pis, perceived_pis)
     config = EvaluationConfig(
         mcas=("dpc", "nmpc-converged"), cases=(EvaluationCase("A", "light", (1000, 1001, 1002)),)
     )
@@ -168,7 +174,13 @@ def test_dpc_runs_of_another_policy_are_run_again(tmp_path):
     shipped = EvaluationConfig(mcas=("dpc",), cases=(case,), duration_s=2.0)
     first = run_evaluation(shipped, out, progress=False)
     run_file = out / "runs" / "A_dpc_1000.json"
-    assert json.loads(run_file.read_text())["policy_sha256"] == policy_fingerprint(DpcConfig())
+    # the light aircraft's flight ran the policy of its envelope
+    light = policy_fingerprint(DpcConfig(vehicle="light"))
+    assert (
+        json.loads(run_file.read_text())["policy_sha256"]
+        == light
+        != policy_fingerprint(DpcConfig())
+    )
     assert first["policy_sha256"] == policy_fingerprint(DpcConfig())
     # the other policy's evaluation re-runs the flight and records the other file's hash
     second = run_evaluation(
@@ -183,6 +195,65 @@ def test_dpc_runs_of_another_policy_are_run_again(tmp_path):
     from mca_drake.studies.evaluation import write_report
 
     assert "dpc" not in write_report(shipped, out)["cases"]["A"]["mcas"]
+
+
+def test_a_kept_report_stands_in_for_the_runs_not_on_disk(tmp_path):
+    """With the previous report, an NMPC without runs keeps its entry (same duration and
+    config) and the DPC's tests against it are those of its per-flight figures (scipy);
+    its bound is kept and the re-run DPC's share is computed against it."""
+    from scipy.stats import ranksums, wilcoxon
+
+    from mca_drake.studies.evaluation import load_report, write_report
+
+    pis = {"dpc": [-1.0, -1.1, -0.9], "nmpc-converged": [-1.2, -1.0, -1.1]}
+    perceived_pis = {"dpc": [-2.0, -2.3, -2.1], "nmpc-converged": [-1.9, -2.0, -1.5]}
+    _write_runs(tmp_path / "runs", pis, perceived_pis)
+    case = EvaluationCase("A", "light", (1000, 1001, 1002))
+    bound = OptimalConfig()  # its runs are not on disk either
+    config = EvaluationConfig(mcas=("dpc", "nmpc-converged"), cases=(case,), bound=bound)
+    previous = write_report(config, tmp_path)
+    previous["cases"]["A"]["bound"] = {
+        "runs": 3,
+        "seeds": [1000, 1001, 1002],
+        "pi": [-2.5, -3.0, -2.0],
+        "pi_median": -2.5,
+        "kkt_residual_max": 1e-4,
+        "solve_time_median_s": 400.0,
+    }
+    previous["cases"]["A"]["shares"] = {"nmpc-converged": {"share": [0.7], "share_median": 0.7}}
+    (tmp_path / "evaluation.json").write_text(json.dumps(previous))
+    # the DPC is run again with a better policy; the NMPC's runs are gone
+    for seed in (1000, 1001, 1002):
+        (tmp_path / "runs" / f"A_nmpc-converged_{seed}.json").unlink()
+    new_dpc = {"dpc": [-1.3, -1.4, -1.2]}
+    _write_runs(tmp_path / "runs", new_dpc, {"dpc": [-2.2, -2.4, -2.3]})
+    report = write_report(config, tmp_path, load_report(tmp_path / "evaluation.json"))
+    a = report["cases"]["A"]
+    kept = a["mcas"]["nmpc-converged"]
+    assert json.dumps(kept) == json.dumps(previous["cases"]["A"]["mcas"]["nmpc-converged"])
+    assert a["mcas"]["dpc"]["pi"] == new_dpc["dpc"]
+    test = a["dpc_vs_nmpc_converged"]
+    z, p = ranksums(new_dpc["dpc"], pis["nmpc-converged"])
+    assert test["z"] == pytest.approx(z) and test["p"] == pytest.approx(p)
+    paired = wilcoxon(new_dpc["dpc"], pis["nmpc-converged"]).pvalue
+    assert test["paired"]["p"] == pytest.approx(paired) and test["paired"]["dpc_better"] == 3
+    felt = wilcoxon([-2.2, -2.4, -2.3], perceived_pis["nmpc-converged"]).pvalue
+    assert test["perceived"]["paired"]["p"] == pytest.approx(felt)
+    assert a["bound"] == previous["cases"]["A"]["bound"]
+    assert a["shares"]["nmpc-converged"]["share"] == [0.7]
+    bound = [-2.5, -3.0, -2.0]
+    expected = [(1.5 - pi) / (1.5 - b) for pi, b in zip(new_dpc["dpc"], bound, strict=True)]
+    assert a["shares"]["dpc"]["share"] == pytest.approx(expected)
+    # an MCA of another config is not stood in for; nor is any report of another duration
+    other = dataclasses.replace(
+        config, mcas=("dpc", NmpcConfig(mode="converged", washout_weight=0.2))
+    )
+    assert "nmpc-converged" not in write_report(other, tmp_path, previous)["cases"]["A"]["mcas"]
+    with pytest.raises(ValueError, match="not one of 60 s flights"):
+        write_report(dataclasses.replace(config, duration_s=60.0), tmp_path, previous)
+    (tmp_path / "broken.json").write_text("[1, 2]")
+    with pytest.raises(ValueError, match="not a suite report"):
+        load_report(tmp_path / "broken.json")
 
 
 def test_training_seeds_are_refused():
@@ -235,7 +306,10 @@ def test_a_run_file_that_is_not_an_object_is_run_again(tmp_path, text):
     path = _run_path(tmp_path, "A", "washout", 1000)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
-    assert _finished_run(tmp_path, "A", WashoutConfig(), 1000, 5.0) is None
+    assert (
+        _finished_run(tmp_path, EvaluationCase("A", "light", (1000,)), WashoutConfig(), 1000, 5.0)
+        is None
+    )
 
 
 def test_a_run_older_than_a_config_field_matches_that_fields_default():

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from benchmark_scripts import load_benchmark
 
-from mca_drake.cueing.dpc import default_policy_path, load_policy_arrays
+from mca_drake.cueing.dpc import load_policy_arrays, shipped_policy_path
 
 REPO = Path(__file__).resolve().parents[1]
 GUIDE = REPO / "docs" / "guides" / "training.md"
@@ -40,25 +40,30 @@ def _flags(arguments: list[str]) -> dict[str, str]:
 def test_guide_and_benchmark_train_the_same_steps():
     bench = load_benchmark("bench_training_recipe")
     guide = _guide_train_commands()
-    assert len(guide) == len(bench.STEPS) == 2
+    assert len(guide) == len(bench.STEPS) == 3
     for (name, extra), command in zip(bench.STEPS, guide, strict=True):
         ours = bench.step_command(name, extra, "datasets/mixed_t37/dataset.npz", Path("r"))
         assert _flags(ours) == _flags(command), name
-    # Step 2 starts from step 1's result in both.
+    # Every later step starts from step 1's result in both.
     step1_out = guide[0][guide[0].index("--out-dir") + 1]
-    assert guide[1][guide[1].index("--init-policy") + 1] == f"{step1_out}/policy.npz"
-    ours = bench.step_command(*bench.STEPS[1], "d.npz", Path("r"))
-    assert ours[ours.index("--init-policy") + 1] == str(Path("r") / "step1" / "policy.npz")
+    for later, step in zip(guide[1:], bench.STEPS[1:], strict=True):
+        assert later[later.index("--init-policy") + 1] == f"{step1_out}/policy.npz"
+        ours = bench.step_command(*step, "d.npz", Path("r"))
+        assert ours[ours.index("--init-policy") + 1] == str(Path("r") / "step1" / "policy.npz")
 
 
-def test_shipped_policy_was_trained_with_the_recipes_last_step():
+@pytest.mark.parametrize("step", ["step2", "light"])
+def test_each_shipped_flight_policy_was_trained_with_its_recipe_step(step):
     bench = load_benchmark("bench_training_recipe")
-    _, metadata = load_policy_arrays(default_policy_path())
-    flags = _flags(bench.step_command(*bench.STEPS[1], "d.npz", Path("r")))
+    _, metadata = load_policy_arrays(shipped_policy_path(bench.SHIPPED[step]))
+    flags = _flags(bench.step_command(step, dict(bench.STEPS)[step], "d.npz", Path("r")))
     config = metadata["dpc_config"]
     assert config["correlation_weight"] == pytest.approx(float(flags["--correlation-weight"]))
     assert config["washout_weight"] == pytest.approx(float(flags["--washout-weight"]))
     assert config["base_washout_weight"] == pytest.approx(float(flags["--base-washout-weight"]))
     assert config["train"]["max_epochs"] == int(flags["--max-epochs"])
     assert config["seed"] == int(flags["--seed"])
-    assert config["initial_policy"], "the shipped policy is step 2: it starts from step 1"
+    assert config["initial_policy"], "every shipped flight policy starts from step 1"
+    # the default policy's file is older than the field: it trained on every flight
+    wanted = flags["--vehicles"].split(",") if "--vehicles" in flags else []
+    assert config.get("vehicles", []) == wanted

@@ -17,6 +17,7 @@ import numpy as np
 from scipy.special import erf
 
 from mca_drake.atomic_io import load_npz_with_metadata
+from mca_drake.references.synthetic import VEHICLE_ENVELOPES
 from mca_drake.resources import SHIPPED_POLICIES, check_profile, data_dir
 from mca_drake.robot import NUM_JOINTS
 
@@ -68,6 +69,11 @@ class DpcConfig:
     # The shipped profile (`mca_drake.cueing.profiles`: "ground" for cars) whose policy runs
     # when `policy` is empty, and which names the MCA ("dpc-ground"); "": the flight default.
     profile: str = ""
+    # The vehicle cued, as `FlightSpec.vehicle` names it. With `policy` and `profile` empty
+    # the shipped policy of its flight envelope runs (`vehicle_policy_name`); "", a car or a
+    # vehicle outside the fleet: the default policy. `run_closed_loop` fills it from the
+    # reference's `vehicle` when it is empty.
+    vehicle: str = ""
 
     def validate(self) -> None:
         """Raises ValueError for an unknown profile, FileNotFoundError when the policy file
@@ -79,12 +85,39 @@ class DpcConfig:
             self.policy_path()  # the profile's shipped policy: ValueError or FileNotFoundError
 
     def policy_path(self) -> Path:
-        """The policy file this config runs: `policy`, or the shipped one of `profile`."""
+        """The policy file this config runs: `policy`, or the shipped one of `profile`, or
+        the shipped one for `vehicle`'s envelope."""
         if self.policy:
             return Path(self.policy)
         if self.profile:
             return shipped_policy_path(f"{check_profile(self.profile)}_policy")
-        return default_policy_path()
+        name = vehicle_policy_name(self.vehicle)
+        return default_policy_path() if name == "default_policy" else shipped_policy_path(name)
+
+
+def vehicle_policy_name(vehicle: str) -> str:
+    """The shipped flight policy for `vehicle` (a fleet vehicle's name): that of its flight
+    envelope in `ENVELOPE_POLICIES`, else "default_policy" (also for "", cars and names
+    outside the fleet)."""
+    return ENVELOPE_POLICIES.get(VEHICLE_ENVELOPES.get(vehicle, ""), "default_policy")
+
+
+def for_vehicle(config, vehicle: str):
+    """`config` for cueing `vehicle`: a DpcConfig without a vehicle gets it (and with it the
+    policy of its envelope, when neither `policy` nor `profile` is set); any other config,
+    or one that names its vehicle already, is returned as it is."""
+    if isinstance(config, DpcConfig) and not config.vehicle and vehicle:
+        return dataclasses.replace(config, vehicle=vehicle)
+    return config
+
+
+# The shipped policy for the aircraft of a flight envelope (`VEHICLE_ENVELOPES`): one
+# policy trained on every training flight balances the fighters' and trainers' large,
+# fast manoeuvres against the light aircraft's small forces, which a policy trained on the
+# light aircraft's flights alone renders better
+# (docs/decisions/0016-flight-policies-by-envelope.md). The other envelopes fly the
+# default policy: a transports' own policy lost to it on the wide-body validation flights.
+ENVELOPE_POLICIES = {"light": "light_policy"}
 
 
 def default_policy_path() -> Path:
@@ -101,8 +134,9 @@ def default_policy_path() -> Path:
 
 def shipped_policy_path(name: str) -> Path:
     """A policy file shipped with the package: "default_policy" (the default DPC policy),
-    "policy_v6" (the paper reproduction: five c172p flights, the paper's loss) or
-    "ground_policy" (the ground profile's, trained on drives).
+    "policy_v6" (the paper reproduction: five c172p flights, the paper's loss),
+    "ground_policy" (the ground profile's, trained on drives) or "light_policy" (the light
+    aircraft's, `ENVELOPE_POLICIES`).
 
     Raises:
         ValueError: `name` is not a shipped policy (the message lists them).

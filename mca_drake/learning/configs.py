@@ -198,6 +198,11 @@ class DpcTrainingConfig:
     # out, in states the policy never visits itself, would dominate the clipped gradient;
     # 0.6 keeps about half the windows (docs/decisions/0009-training-windows-near-neutral.md).
     max_start_position_rad: float = 0.6
+    # Train and validate only on the flights of these vehicles (the dataset's
+    # `flight_vehicles`); empty: every flight. The light and transport aircraft's policy is
+    # the default policy fine-tuned on theirs alone
+    # (docs/decisions/0016-flight-policies-by-envelope.md).
+    vehicles: tuple[str, ...] = ()
     # Train on windows of this many consecutive dataset segments (n_c up to 4 x 256 = 10.24 s;
     # `mca_drake.segments.long_windows`); 1 uses the segments and their split.
     window_segments: int = 4

@@ -61,7 +61,13 @@ from mca_drake.learning.trainer import CurriculumTrainer
 from mca_drake.metrics import STILL_TOLERANCE
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.robot import KR500, MIRROR_JOINT_SIGNS, NUM_JOINTS, load_kr500
-from mca_drake.segments import SegmentDataset, long_windows, package_versions, split_of
+from mca_drake.segments import (
+    SOURCE_COLUMNS,
+    SegmentDataset,
+    long_windows,
+    package_versions,
+    split_of,
+)
 
 
 class RolloutPlant(nn.Module):
@@ -414,6 +420,28 @@ def dpc_objective(
     return objective
 
 
+def flights_of_vehicles(data: SegmentDataset, vehicles, name="the dataset") -> SegmentDataset:
+    """The segments of `data` from flights of `vehicles`, by its metadata's
+    `flight_vehicles` ({flight seed: vehicle}, as `mca-drake dataset closed-loop` and
+    `dataset join` write it).
+
+    Raises:
+        ValueError: the dataset does not say which vehicle flew each flight, or has no
+            flight of `vehicles` (the message lists the vehicles it has).
+    """
+    flown = data.metadata.get("flight_vehicles")
+    if not isinstance(flown, dict):
+        raise ValueError(f"{name} does not record its flights' vehicles (flight_vehicles)")
+    seeds = data.source[:, SOURCE_COLUMNS.index("flight_seed")]
+    keep = np.array([flown.get(str(seed)) in vehicles for seed in seeds], dtype=bool)
+    if not keep.any():
+        raise ValueError(
+            f"{name} has no flight of {', '.join(vehicles)}; its vehicles: "
+            f"{', '.join(sorted(set(flown.values())))}"
+        )
+    return data.subset(keep)
+
+
 def near_neutral_windows(windows: SegmentDataset, max_position_rad: float) -> SegmentDataset:
     """The windows whose first joint positions X[:, 0, :6] are all within `max_position_rad`
     of neutral (rad)."""
@@ -444,6 +472,8 @@ def train_policy(
     data = SegmentDataset.load(dataset)
     if "R" not in data.arrays and config.targets == "reference":
         raise ValueError(f"{dataset} has no references R; use targets='achieved'")
+    if config.vehicles:
+        data = flights_of_vehicles(data, config.vehicles, dataset)
     if config.window_segments > 1:
         splits = long_windows(data, config.window_segments)
     else:

@@ -117,9 +117,10 @@ def motion_reference(
     progress: bool = False,
 ) -> Reference:
     """The motion-cueing reference of a flight or a drive spec (`reference_from_recording`
-    with `scaling`, default s_w = s_f = 0.5), named by the spec."""
+    with `scaling`, default s_w = s_f = 0.5), named by the spec, with its vehicle or car."""
     recording = motion_recording(spec, duration_s, cache_dir=cache_dir, progress=progress)
-    return reference_from_recording(recording, scaling, name=spec.name())
+    vehicle = spec.car if isinstance(spec, DriveSpec) else spec.vehicle
+    return reference_from_recording(recording, scaling, name=spec.name(), vehicle=vehicle)
 
 
 # The manoeuvres of training and tuning drives: seed s drives TRAINING_MANOEUVRES[s % 2],

@@ -170,6 +170,6 @@ def flight_reference(
 ) -> Reference:
     """The motion-cueing reference of `flight` (`flight_recording`, then
     `reference_from_recording` with `scaling`, default s_w = s_f = 0.5), named by
-    `FlightSpec.name`."""
+    `FlightSpec.name`, with the flight's vehicle."""
     recording = flight_recording(flight, duration_s, cache_dir=cache_dir, progress=progress)
-    return reference_from_recording(recording, scaling, name=flight.name())
+    return reference_from_recording(recording, scaling, name=flight.name(), vehicle=flight.vehicle)

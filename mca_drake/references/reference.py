@@ -52,11 +52,15 @@ class Reference:
         y: target outputs, shape (T, 6), channels `mca_drake.metrics.CHANNELS`.
         time_step: sample period, s.
         name: where it came from (a file name, a vehicle and seed).
+        vehicle: the vehicle flown or driven, as `FlightSpec.vehicle` or `DriveSpec.car`
+            name it; "" where it is not known (a recording file, live telemetry). The DPC
+            picks its policy by it (`mca_drake.cueing.dpc.vehicle_policy_name`).
     """
 
     y: np.ndarray
     time_step: float = 1.0 / DEFAULT_RATE_HZ
     name: str = ""
+    vehicle: str = ""
 
     def __post_init__(self) -> None:
         self.y = np.asarray(self.y, dtype=float)
@@ -80,7 +84,7 @@ class Reference:
     def truncated(self, duration_s: float) -> Reference:
         """The first `duration_s` seconds (all of it if shorter)."""
         n = min(round(duration_s / self.time_step) + 1, self.y.shape[0])
-        return Reference(self.y[:n], self.time_step, self.name)
+        return Reference(self.y[:n], self.time_step, self.name, self.vehicle)
 
 
 def scaled_reference(omega: np.ndarray, f: np.ndarray, scaling: ReferenceScaling) -> np.ndarray:
@@ -121,9 +125,13 @@ def scaled_reference_sample(omega, f, scaling: ReferenceScaling) -> list[float]:
 
 
 def reference_from_recording(
-    recording: Recording, scaling: ReferenceScaling | None = None, name: str = ""
+    recording: Recording,
+    scaling: ReferenceScaling | None = None,
+    name: str = "",
+    vehicle: str = "",
 ) -> Reference:
-    """Scales and gravity-compensates a recording into a reference (see module docstring).
+    """Scales and gravity-compensates a recording into a reference (see module docstring),
+    named `name` (default: from the recording's metadata) and flown or driven by `vehicle`.
 
     The recording must be uniformly sampled (`Recording.resampled`; `load_recording` does it).
     """
@@ -139,4 +147,4 @@ def reference_from_recording(
     # The mean step, to the nanosecond: single steps of epoch time stamps carry their
     # 2.4e-7 s resolution, and no control period needs finer than 1 ns.
     time_step = round(float((recording.t[-1] - recording.t[0]) / (recording.t.size - 1)), 9)
-    return Reference(y, time_step, label)
+    return Reference(y, time_step, label, vehicle)

@@ -27,6 +27,7 @@ from tqdm.auto import tqdm
 
 from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
+from mca_drake.cueing.dpc import for_vehicle
 from mca_drake.kinematics import head_pose, plant_output
 from mca_drake.metrics import false_rotation, joint_range_used, joint_usage, tracking_score
 from mca_drake.perception.models import PerceptionConfig
@@ -191,7 +192,9 @@ def run_closed_loop(
 
     Args:
         mca: an MCA config (`mca_drake.cueing`: DpcConfig, NmpcConfig, WashoutConfig) or the
-            name of a default one (`mca_drake.cueing.MCA_NAMES`).
+            name of a default one (`mca_drake.cueing.MCA_NAMES`). A DpcConfig without a
+            vehicle takes the reference's (`cueing.dpc.for_vehicle`), and with it the
+            policy of that vehicle's envelope.
         reference: the target outputs; its time step is the control period.
         plant: "analytical" (the paper's joint-space plant) or "multibody" (the KR500
             station).
@@ -222,7 +225,8 @@ def run_closed_loop(
         check_writable(json_path)
     if plot_dir:
         check_writable(plot_dir, folder=True)
-    config = as_mca_config(mca)
+    # The DPC runs the policy of the reference's vehicle where the config names none.
+    config = for_vehicle(as_mca_config(mca), reference.vehicle)
     robot = robot if robot is not None else load_kr500()
     duration = checked_duration(reference, duration_s)
     if plant == "analytical":

@@ -39,6 +39,7 @@ from mca_drake.cueing import (
     mca_config_record,
     mca_name,
 )
+from mca_drake.cueing.dpc import ENVELOPE_POLICIES, for_vehicle, shipped_policy_path
 from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.input_checks import MAX_DURATION_S, check_range
 from mca_drake.metrics import wilcoxon_rank_sum, wilcoxon_signed_rank
@@ -193,14 +194,15 @@ def policy_fingerprint(config) -> str:
 
 
 def _finished_run(
-    out: Path, case: str, config: McaConfig, seed: int, duration_s: float
+    out: Path, case: EvaluationCase, config: McaConfig, seed: int, duration_s: float
 ) -> dict | None:
     """The summary of a finished run of (case, MCA, seed) on disk, or None: not there,
     unreadable, not a JSON object, or made with another MCA config, duration or DPC policy
     (then it is run again and overwritten)."""
-    path = _run_path(out, case, mca_name(config), seed)
+    path = _run_path(out, case.name, mca_name(config), seed)
     if not path.is_file():
         return None
+    config = for_vehicle(config, case.vehicle_of(seed))  # as `run_closed_loop` records it
     try:
         summary = json.loads(path.read_text())
     except (OSError, ValueError):
@@ -253,7 +255,7 @@ def _run_one(
             mca=config, reference=reference, duration_s=duration_s, progress=False
         )
     summary = {**result.summary, "case": case.name, "seed": seed, "vehicle": vehicle}
-    fingerprint = policy_fingerprint(config)
+    fingerprint = policy_fingerprint(for_vehicle(config, vehicle))
     if fingerprint:
         summary["policy_sha256"] = fingerprint
     atomic_write_json(_run_path(out_dir, case.name, summary["mca"], seed), summary)
@@ -281,29 +283,44 @@ def run_evaluation(
     workers: int = 1,
     address: str | None = None,
     progress: bool = True,
+    previous: dict | None = None,
 ) -> dict:
     """Runs every (case, MCA, flight) not yet on disk, then writes the report.
 
     Args:
         workers: CPUs of a local Ray (1: in this process).
         address: a Ray cluster to run on (`mca_drake.studies.parallel.run_tasks`).
+        previous: an earlier report whose entries stand in for runs not on disk
+            (`write_report`): a case's MCA it keeps, or its bound, is not run.
     """
     config.validate()
     out = Path(out_dir).resolve()  # a cluster's workers write here from folders of their own
     check_writable(out / "runs", folder=True)
+    kept: dict = {}
+    if previous is not None:
+        on_disk = {
+            (c.name, mca_name(m)): [
+                s for s in c.seeds if _finished_run(out, c, m, s, config.duration_s) is not None
+            ]
+            for c in config.cases
+            for m in config.mcas
+        }
+        kept = kept_entries(config, on_disk, previous)
     tasks = [
         (mca, case, seed, config.duration_s, str(out))
         for case in config.cases
         for seed in case.seeds
         for mca in config.mcas
-        if _finished_run(out, case.name, mca, seed, config.duration_s) is None
+        if (case.name, mca_name(mca)) not in kept
+        and _finished_run(out, case, mca, seed, config.duration_s) is None
     ]
     if config.bound is not None:
         tasks += [
             (config.bound, case, seed, config.duration_s, str(out))
             for case in config.cases
             for seed in case.seeds
-            if _finished_bound(out, case.name, config.bound, seed, config.duration_s) is None
+            if "bound" not in (previous or {}).get("cases", {}).get(case.name, {})
+            and _finished_bound(out, case.name, config.bound, seed, config.duration_s) is None
         ]
     per_flight = len(config.mcas) + (config.bound is not None)
     total = sum(len(c.seeds) for c in config.cases) * per_flight
@@ -317,21 +334,31 @@ def run_evaluation(
         unit="run",
         progress=progress,
     )
-    return write_report(config, out)
+    return write_report(config, out, previous)
 
 
-def write_report(config: EvaluationConfig, out: Path) -> dict:
+def write_report(config: EvaluationConfig, out: Path, previous: dict | None = None) -> dict:
     """Aggregates the run files of `config` into evaluation.json, evaluation.md and
     evaluation.png in `out`; returns the JSON dictionary. DPC runs of another policy
-    than each DpcConfig's policy, and runs of another MCA config or duration, are left out."""
+    than each DpcConfig's policy, and runs of another MCA config or duration, are left out.
+
+    With `previous` (an earlier report of the same duration), a case's NMPC or washout
+    with no run on disk keeps its entry from it where that report ran the same config, and
+    a case without bound runs keeps its bound (`kept_entries`): the runs folder is not kept
+    with the results, so a new DPC policy is measured by running the DPCs alone."""
     runs = {}  # (case, mca name) -> {seed: run summary}, finished runs only
     for c in config.cases:
         for m in config.mcas:
-            found = {s: _finished_run(out, c.name, m, s, config.duration_s) for s in c.seeds}
+            found = {s: _finished_run(out, c, m, s, config.duration_s) for s in c.seeds}
             runs[(c.name, mca_name(m))] = {s: r for s, r in found.items() if r is not None}
+    kept = kept_entries(config, runs, previous) if previous is not None else {}
     report = {
         "duration_s": config.duration_s,
         "policy_sha256": next(filter(None, map(policy_fingerprint, config.mcas)), ""),
+        "envelope_policies_sha256": {
+            envelope: file_sha256(shipped_policy_path(name))
+            for envelope, name in ENVELOPE_POLICIES.items()
+        },
         "mcas": config.names(),
         "mca_configs": {mca_name(m): mca_config_record(m) for m in config.mcas},
         "cases": {},
@@ -340,6 +367,10 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
         entry = {"vehicle": case.label(), "seeds": list(case.seeds), "mcas": {}}
         for mca in config.names():
             rs = list(runs[(case.name, mca)].values())
+            if (case.name, mca) in kept:
+                entry["mcas"][mca] = kept[(case.name, mca)]
+                runs[(case.name, mca)] = _stand_in_runs(kept[(case.name, mca)])
+                continue
             if not rs:
                 continue
             pis = np.array([r["pi"] for r in rs])
@@ -372,7 +403,9 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
                 "solver_failures": int(sum(r["solver_failures"] for r in rs)),
             }
         if config.bound is not None:
-            entry |= _bound_entry(config, out, case, runs)
+            entry |= _bound_entry(config, out, case, runs) or _kept_bound(
+                previous, case, entry["mcas"], runs
+            )
         m = entry["mcas"]
         # each DPC (the default's, a profile's) against every other MCA (the paper: against
         # converged NMPC)
@@ -390,6 +423,85 @@ def write_report(config: EvaluationConfig, out: Path) -> dict:
         save_figure(plot_pi_boxes(report), out / "evaluation.png")
         save_figure(plot_pi_boxes(report, "perceived_pi"), out / "evaluation_perceived.png")
     return report
+
+
+def load_report(path: str | Path) -> dict:
+    """A suite report (evaluation.json) as a dictionary.
+
+    Raises:
+        FileNotFoundError: there is none at `path`.
+        ValueError: the file is not a JSON object with the report's cases.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no suite report at {path} to keep entries from")
+    try:
+        report = json.loads(path.read_text())
+    except (OSError, ValueError) as error:
+        raise ValueError(f"{path} is not a readable JSON report: {error}") from None
+    if not isinstance(report, dict) or not isinstance(report.get("cases"), dict):
+        raise ValueError(f"{path} is not a suite report (no cases)")
+    return report
+
+
+def kept_entries(config: EvaluationConfig, runs: dict, previous: dict) -> dict:
+    """{(case, MCA name): report entry} of `previous` (a report dictionary) for every case's
+    non-DPC MCA of `config` with no finished run in `runs`, where `previous` has the same
+    duration and recorded the same config for that MCA. DPC entries are never kept: their
+    runs are quick and their policies change.
+
+    Raises:
+        ValueError: `previous` is not a report of this duration.
+    """
+    if not isinstance(previous, dict) or previous.get("duration_s") != config.duration_s:
+        raise ValueError(
+            f"the previous report is not one of {config.duration_s:g} s flights; "
+            "its entries cannot stand in for runs"
+        )
+    recorded = previous.get("mca_configs", {})
+    kept = {}
+    for case in config.cases:
+        old = previous.get("cases", {}).get(case.name, {}).get("mcas", {})
+        for m in config.mcas:
+            name = mca_name(m)
+            if isinstance(m, DpcConfig) or runs[(case.name, name)] or name not in old:
+                continue
+            if recorded.get(name) == mca_config_record(m):
+                kept[(case.name, name)] = old[name]
+    return kept
+
+
+def _stand_in_runs(entry: dict) -> dict:
+    """{seed: the figures the tests read} of a kept report entry: its per-flight PI and
+    perceived PI."""
+    return {
+        seed: {"pi": pi, "perceived": {"pi": perceived}}
+        for seed, pi, perceived in zip(
+            entry["seeds"], entry["pi"], entry["perceived_pi"], strict=True
+        )
+    }
+
+
+def _kept_bound(previous: dict | None, case: EvaluationCase, mcas: dict, runs: dict) -> dict:
+    """The case's bound from `previous` ({} without one) with every MCA's share of the
+    achievable improvement: recomputed from the runs on disk, kept for kept entries."""
+    old = (previous or {}).get("cases", {}).get(case.name, {})
+    if "bound" not in old:
+        return {}
+    bound = dict(zip(old["bound"]["seeds"], old["bound"]["pi"], strict=True))
+    shares = {}
+    for mca in mcas:
+        mine = runs[(case.name, mca)]
+        if all("pi_zero_motion" in r for r in mine.values()):
+            values = [
+                improvement_share(mine[s]["pi_zero_motion"], mine[s]["pi"], bound[s])
+                for s in sorted(mine.keys() & bound.keys())
+            ]
+            if values:
+                shares[mca] = {"share": values, "share_median": float(np.median(values))}
+        elif mca in old.get("shares", {}):
+            shares[mca] = old["shares"][mca]
+    return {"bound": old["bound"], "shares": shares}
 
 
 def dpc_test_key(dpc: str, other: str) -> str:

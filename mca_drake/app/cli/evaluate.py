@@ -25,7 +25,12 @@ from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.plotting import save_figure
 from mca_drake.references.recording import load_recording
 from mca_drake.simulation.plots import tracking_figure
-from mca_drake.studies.evaluation import default_cases, write_report
+from mca_drake.studies.evaluation import (
+    default_cases,
+    load_report,
+    run_evaluation,
+    write_report,
+)
 
 # EvaluationScenario fields with a flag (the suite's), by flag name where it differs.
 SUITE_FLAGS = {"workers": "", "output_dir": "--out-dir"}
@@ -84,6 +89,13 @@ def add_parser(commands) -> None:
         help="suite: run nothing; rewrite the report from the finished runs in --out-dir "
         "(a case's MCA without runs is left out)",
     )
+    parser.add_argument(
+        "--keep-report",
+        action="store_true",
+        help="suite: a case's NMPC or washout without runs in --out-dir keeps its entry from "
+        "the evaluation.json there (same duration and config) and is not run, nor is a "
+        "bound the report has: a new DPC policy is measured by running the DPCs alone",
+    )
     parser.add_argument("--json", help="write the result summary here")
     parser.add_argument("--plot", help="PNG of target versus achieved outputs")
     add_quiet(parser)
@@ -94,8 +106,8 @@ def run(args: argparse.Namespace) -> int:
     """One recording (--reference) or the suite (--suite)."""
     if args.suite:
         return run_suite(args)
-    if args.report_only:
-        raise ValueError("--report-only rewrites the suite's report: add --suite")
+    if args.report_only or args.keep_report:
+        raise ValueError("--report-only and --keep-report are for the suite's report: add --suite")
     if not args.reference:
         raise ValueError("give --reference flight.csv (one recording) or --suite (scenario set)")
     scenario = closed_loop_scenario_from_flags(args, plant="analytical")
@@ -138,9 +150,23 @@ def run_suite(args: argparse.Namespace) -> int:
     for case, field in SUITE_CASE_SEEDS.items():
         seeds = list(cases[case].seeds[: args.flights]) if case in wanted else []
         setattr(scenario, field, seeds)
+    out = Path(scenario.output_dir).resolve()
+    previous = None
+    if args.keep_report:
+        # read before any run: a run rewrites the report from the runs on disk alone
+        previous = load_report(out / "evaluation.json")
+    scenario.validate()
     if args.report_only:
-        scenario.validate()
-        write_report(scenario.to_config(), Path(scenario.output_dir).resolve())
+        write_report(scenario.to_config(), out, previous)
+    elif previous is not None:
+        run_evaluation(
+            scenario.to_config(),
+            out,
+            workers=scenario.workers,
+            address=scenario.address or None,
+            progress=not args.quiet,
+            previous=previous,
+        )
     else:
         run_scenario(scenario, progress=not args.quiet)
     print((Path(scenario.output_dir) / "evaluation.md").read_text())

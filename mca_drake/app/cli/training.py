@@ -36,6 +36,7 @@ POLICY_FLAGS = {
     "plant": "",
     "learned_output_weights": "",
     "window_segments": "",
+    "vehicles": "",
     "initial_policy": "--init-policy",
     "washout_weight": "",
     "base_washout_weight": "",

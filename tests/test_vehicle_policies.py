@@ -1,0 +1,125 @@
+"""Flight policies by envelope: the DPC runs the shipped policy of the cued vehicle's flight
+envelope (`mca_drake.cueing.dpc.ENVELOPE_POLICIES`) unless its config names a policy or a
+profile; references carry their vehicle to it, and training can keep one class's flights."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mca_drake.cueing import DpcConfig, NmpcConfig
+from mca_drake.cueing.dpc import (
+    ENVELOPE_POLICIES,
+    default_policy_path,
+    for_vehicle,
+    shipped_policy_path,
+    vehicle_policy_name,
+)
+from mca_drake.learning.dpc_training import flights_of_vehicles
+from mca_drake.references.jsbsim import VEHICLES
+from mca_drake.references.recording import Recording
+from mca_drake.references.reference import Reference, reference_from_recording
+from mca_drake.references.synthetic import ENVELOPES, VEHICLE_ENVELOPES
+from mca_drake.resources import SHIPPED_POLICIES
+from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset
+from mca_drake.simulation.closed_loop import run_closed_loop
+
+LIGHT = ("light", "DHC6")
+TRANSPORT = ("jet", "A320", "787-8", "MD11", "B747")
+AEROBATIC_FIGHTER = ("t6texan2", "T37", "T38", "f16", "f15", "A4", "F4N")
+
+
+def test_light_and_transport_aircraft_get_their_policy_and_the_rest_the_default():
+    """Against the fleet's documented envelopes: the light single and the Twin Otter (the
+    light envelope) fly the light policy; the CS/FAR 25 transports, the trainers and
+    fighters, cars, unnamed and unknown vehicles the default policy."""
+    assert set(LIGHT) | set(TRANSPORT) | set(AEROBATIC_FIGHTER) == set(VEHICLES)
+    assert set(ENVELOPE_POLICIES) <= set(ENVELOPES)
+    assert set(ENVELOPE_POLICIES.values()) <= set(SHIPPED_POLICIES)
+    for vehicle in LIGHT:
+        assert VEHICLE_ENVELOPES[vehicle] == "light"
+        assert vehicle_policy_name(vehicle) == "light_policy", vehicle
+        assert DpcConfig(vehicle=vehicle).policy_path() == shipped_policy_path("light_policy")
+    for vehicle in (*TRANSPORT, *AEROBATIC_FIGHTER, "", "bmw-320i", "no-such-aircraft"):
+        assert vehicle_policy_name(vehicle) == "default_policy", vehicle
+        assert DpcConfig(vehicle=vehicle).policy_path() == default_policy_path()
+    light = shipped_policy_path("light_policy").read_bytes()
+    assert light != default_policy_path().read_bytes()
+
+
+def test_a_named_policy_or_profile_wins_over_the_vehicle():
+    v6 = shipped_policy_path("policy_v6")
+    assert DpcConfig(policy=str(v6), vehicle="light").policy_path() == v6
+    ground = DpcConfig(profile="ground", vehicle="light").policy_path()
+    assert ground == shipped_policy_path("ground_policy")
+
+
+def test_for_vehicle_fills_only_a_dpc_without_a_vehicle():
+    assert for_vehicle(DpcConfig(), "MD11") == DpcConfig(vehicle="MD11")
+    assert for_vehicle(DpcConfig(), "light").policy_path() == shipped_policy_path("light_policy")
+    assert for_vehicle(DpcConfig(vehicle="f16"), "MD11") == DpcConfig(vehicle="f16")
+    assert for_vehicle(DpcConfig(), "") == DpcConfig()
+    nmpc = NmpcConfig(mode="rti")
+    assert for_vehicle(nmpc, "MD11") is nmpc
+
+
+def test_a_reference_keeps_its_vehicle_when_made_and_cut():
+    t = np.arange(0.0, 2.0, 0.01)
+    recording = Recording(
+        t=t, omega=np.zeros((t.size, 3)), f=np.tile([0.0, 0.0, 9.81], (t.size, 1))
+    )
+    reference = reference_from_recording(recording, vehicle="B747")
+    assert reference.vehicle == "B747"
+    assert reference.truncated(1.0).vehicle == "B747"
+    assert reference_from_recording(recording).vehicle == ""
+
+
+def _reference(vehicle: str) -> Reference:
+    """1.5 s of a gentle surge and roll-rate pulse, 100 Hz."""
+    t = np.arange(0.0, 1.5, 0.01)
+    y = np.zeros((t.size, 6))
+    y[:, 0] = 0.05 * np.sin(2 * np.pi * t)
+    y[:, 3] = 0.5 * np.sin(np.pi * t)
+    return Reference(y, 0.01, "test", vehicle)
+
+
+@pytest.mark.parametrize(
+    ("vehicle", "policy"),
+    [
+        ("DHC6", "light_policy"),
+        ("A320", "default_policy"),
+        ("f16", "default_policy"),
+        ("", "default_policy"),
+    ],
+)
+def test_the_closed_loop_runs_the_reference_vehicles_policy(vehicle, policy):
+    """The run of DpcConfig() on a reference of `vehicle` is, array for array, the run of
+    the envelope's policy file named outright; its summary records the vehicle."""
+    picked = run_closed_loop(mca=DpcConfig(), reference=_reference(vehicle), progress=False)
+    named = DpcConfig(policy=str(shipped_policy_path(policy)))
+    outright = run_closed_loop(mca=named, reference=_reference(vehicle), progress=False)
+    np.testing.assert_array_equal(picked.outputs, outright.outputs)
+    assert picked.summary["mca"] == "dpc"
+    assert picked.summary["mca_config"]["vehicle"] == vehicle
+
+
+def _dataset(vehicles: dict[str, str]) -> SegmentDataset:
+    """Two 4-step segments per flight seed, zeros, with `flight_vehicles` metadata."""
+    shapes = {"U": (6,), "X": (12,), "Y": (6,), "F": (4, 4), "dF": (4, 4), "ddF": (4, 4)}
+    seeds = [int(s) for s in vehicles for _ in range(2)]
+    arrays = {k: np.zeros((len(seeds), 4, *shape)) for k, shape in shapes.items()}
+    source = np.zeros((len(seeds), len(SOURCE_COLUMNS)), dtype=int)
+    source[:, SOURCE_COLUMNS.index("flight_seed")] = seeds
+    return SegmentDataset(arrays, source, {"flight_vehicles": vehicles})
+
+
+def test_training_keeps_the_flights_of_the_vehicles_asked_for():
+    data = _dataset({"100": "light", "101": "f16", "102": "A320", "103": "light"})
+    kept = flights_of_vehicles(data, ("light", "A320"))
+    assert sorted(set(kept.source[:, 0].tolist())) == [100, 102, 103]
+    assert len(kept) == 6
+    with pytest.raises(ValueError, match=r"no flight of MD11.*A320, f16, light"):
+        flights_of_vehicles(data, ("MD11",))
+    unlabelled = SegmentDataset(data.arrays, data.source, {})
+    with pytest.raises(ValueError, match="flight_vehicles"):
+        flights_of_vehicles(unlabelled, ("light",))
