@@ -123,3 +123,19 @@ def test_training_keeps_the_flights_of_the_vehicles_asked_for():
     unlabelled = SegmentDataset(data.arrays, data.source, {})
     with pytest.raises(ValueError, match="flight_vehicles"):
         flights_of_vehicles(unlabelled, ("light",))
+
+
+def test_a_recording_names_no_vehicle_and_a_built_in_flight_its_own(tmp_path):
+    """A built-in flight's reference carries its vehicle; a recording's does not (its
+    spec's `vehicle` is only the field's default), so the DPC runs the default policy
+    unless its config names the vehicle."""
+    from mca_drake.references.drives import motion_reference
+    from mca_drake.references.flights import FlightSpec
+
+    csv = tmp_path / "flight.csv"
+    rows = [f"{0.01 * k:.2f},0,0,0,0,0,9.81" for k in range(51)]  # 0.5 s, level and still
+    csv.write_text("t,omega_x,omega_y,omega_z,f_x,f_y,f_z\n" + "\n".join(rows) + "\n")
+    recorded = motion_reference(FlightSpec(recording=str(csv)), 0.5)
+    assert recorded.vehicle == "" and FlightSpec(vehicle="DHC6").flown_by() == "DHC6"
+    picked = for_vehicle(DpcConfig(), recorded.vehicle)
+    assert picked.policy_path() == default_policy_path()

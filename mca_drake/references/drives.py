@@ -119,7 +119,7 @@ def motion_reference(
     """The motion-cueing reference of a flight or a drive spec (`reference_from_recording`
     with `scaling`, default s_w = s_f = 0.5), named by the spec, with its vehicle or car."""
     recording = motion_recording(spec, duration_s, cache_dir=cache_dir, progress=progress)
-    vehicle = spec.car if isinstance(spec, DriveSpec) else spec.vehicle
+    vehicle = spec.car if isinstance(spec, DriveSpec) else spec.flown_by()
     return reference_from_recording(recording, scaling, name=spec.name(), vehicle=vehicle)
 
 

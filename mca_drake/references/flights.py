@@ -66,6 +66,11 @@ class FlightSpec:
         if self.recording and not Path(self.recording).is_file():
             raise ValueError(f"flight.recording {self.recording!r} not found")
 
+    def flown_by(self) -> str:
+        """The vehicle of a built-in flight; "" for a recording, whose aircraft the spec
+        does not know (`vehicle` then only holds its default)."""
+        return "" if self.recording else self.vehicle
+
     def name(self) -> str:
         """How summaries name the flight: the recording's path, or the built-in flight."""
         if self.recording:
@@ -170,6 +175,8 @@ def flight_reference(
 ) -> Reference:
     """The motion-cueing reference of `flight` (`flight_recording`, then
     `reference_from_recording` with `scaling`, default s_w = s_f = 0.5), named by
-    `FlightSpec.name`, with the flight's vehicle."""
+    `FlightSpec.name`, with the vehicle of a built-in flight (`FlightSpec.flown_by`)."""
     recording = flight_recording(flight, duration_s, cache_dir=cache_dir, progress=progress)
-    return reference_from_recording(recording, scaling, name=flight.name(), vehicle=flight.vehicle)
+    return reference_from_recording(
+        recording, scaling, name=flight.name(), vehicle=flight.flown_by()
+    )
