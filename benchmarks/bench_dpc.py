@@ -8,9 +8,10 @@ On a light-aircraft flight (analytical plant, closed loop), DPC for `--seconds` 
 converged NMPC for `--converged-seconds`, `--repeats` times one after the other: per run the
 step time (median, p10, p90, p99, max), the PI and the real-time factor; over the runs the
 median step time's median, min and max, and the ratio converged NMPC / DPC. Without --policy
-the shipped default is used, or, if there is none, an untrained network (the step time does
-not depend on the weights; the PI printed then means nothing). Writes the figures with their
-provenance (date, command, calibration, machine) to `--json`, by default
+the DPC runs the shipped policy for the light aircraft (`DpcConfig(vehicle="light")`: the
+light policy, decision 0016), or, if the install has none, an untrained network (the step
+time does not depend on the weights; the PI printed then means nothing). Writes the
+figures with their provenance (date, command, calibration, machine) to `--json`, by default
 `benchmarks/results/dpc.json`.
 """
 
@@ -34,10 +35,8 @@ from mca_drake.simulation.closed_loop import run_closed_loop
 def _policy_path(arg: str | None, folder: str) -> tuple[str, str]:
     if arg:
         return arg, "given"
-    from mca_drake.cueing.dpc import default_policy_path
-
     try:
-        return str(default_policy_path()), "shipped default"
+        return str(DpcConfig(vehicle="light").policy_path()), "shipped, light aircraft"
     except FileNotFoundError:
         import torch
 
