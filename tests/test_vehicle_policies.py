@@ -101,6 +101,7 @@ def test_the_closed_loop_runs_the_reference_vehicles_policy(vehicle, policy):
     np.testing.assert_array_equal(picked.outputs, outright.outputs)
     assert picked.summary["mca"] == "dpc"
     assert picked.summary["mca_config"]["vehicle"] == vehicle
+    assert picked.summary["policy_file"] == f"{policy}.npz"
 
 
 def _dataset(vehicles: dict[str, str]) -> SegmentDataset:

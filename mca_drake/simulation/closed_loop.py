@@ -27,7 +27,7 @@ from tqdm.auto import tqdm
 
 from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
-from mca_drake.cueing.dpc import for_vehicle
+from mca_drake.cueing.dpc import DpcConfig, for_vehicle
 from mca_drake.kinematics import head_pose, plant_output
 from mca_drake.metrics import false_rotation, joint_range_used, joint_usage, tracking_score
 from mca_drake.perception.models import PerceptionConfig
@@ -259,6 +259,8 @@ def run_closed_loop(
     )
     if random_seed is not None:
         result.summary["random_seed"] = int(random_seed)
+    if isinstance(config, DpcConfig):
+        result.summary["policy_file"] = config.policy_path().name  # the one the vehicle picked
     if json_path:
         atomic_write_json(json_path, result.summary)
     if plot_dir:
