@@ -30,17 +30,18 @@ from mca_drake.cueing.dpc import load_policy_arrays
 # The recipe's target on 2 CPU cores, s.
 TARGET_WALL_S = 30 * 60
 
-# The flags both steps share: windows near neutral, augmentations, the two-step curriculum.
+# The flags every step shares: augmentations, the two-step curriculum.
 COMMON_FLAGS = (
-    "--max-start-position 0.6 --perturbed-fraction 0.0 --horizons 256,1024 --patience 100 "
+    "--perturbed-fraction 0.0 --horizons 256,1024 --patience 100 "
     "--terminal-weight-horizon 256 --mirror-fraction 0.5 --yaw-shift-fraction 0.5 "
     "--time-stretch-fraction 0.5 --seed 1"
 ).split()
 
-# Step 1 learns the tuned NMPC's objective from random weights; step 2 fine-tunes step 1's
-# policy with the PI's correlation term and the washouts (decision 0015): the default
-# policy. The light aircraft's policy is step 2 on their training flights alone (decision
-# 0016).
+# Step 1 learns the tuned NMPC's objective from random weights on windows starting near
+# neutral; step 2 fine-tunes step 1's policy with the PI's correlation term and the
+# washouts (decision 0015), on windows starting up to 1 rad from it: the default policy
+# (decision 0017). The light aircraft's policy is step 2 on their training flights alone,
+# from near neutral (decision 0016).
 STEP2_FLAGS = (
     "--init-policy",
     "{step1}/policy.npz",
@@ -54,9 +55,9 @@ STEP2_FLAGS = (
     "60",
 )
 STEPS = (
-    ("step1", ("--max-epochs", "300")),
-    ("step2", STEP2_FLAGS),
-    ("light", (*STEP2_FLAGS, "--vehicles", "light,DHC6")),
+    ("step1", ("--max-start-position", "0.6", "--max-epochs", "300")),
+    ("step2", ("--max-start-position", "1.0", *STEP2_FLAGS)),
+    ("light", ("--max-start-position", "0.6", *STEP2_FLAGS, "--vehicles", "light,DHC6")),
 )
 # The shipped policy file each step after the first gives (`mca_drake.resources`).
 SHIPPED = {"step2": "default_policy", "light": "light_policy"}
