@@ -359,6 +359,16 @@ def test_the_suite_reports_the_bound_and_each_mcas_share(tmp_path):
     stamp = path.stat().st_mtime_ns
     run_evaluation(config, tmp_path, progress=False)  # resumed: nothing solved again
     assert path.stat().st_mtime_ns == stamp
+    # the washout's runs gone, the report kept: it is not run again, its entry and share
+    # stand, and the bound solved on disk serves the others' shares
+    for seed in (1000, 1001):
+        (tmp_path / "runs" / f"A_washout_{seed}.json").unlink()
+    again = run_evaluation(config, tmp_path, progress=False, previous=report)
+    assert not list((tmp_path / "runs").glob("A_washout_*.json"))
+    assert path.stat().st_mtime_ns == stamp
+    kept = again["cases"]["A"]
+    assert json.dumps(kept["mcas"]["washout"]) == json.dumps(case["mcas"]["washout"])
+    assert kept["shares"] == case["shares"] and kept["bound"] == bound
 
 
 def test_case_d_drives_cars_through_its_manoeuvres(tmp_path):

@@ -296,12 +296,17 @@ def run_evaluation(
     config.validate()
     out = Path(out_dir).resolve()  # a cluster's workers write here from folders of their own
     check_writable(out / "runs", folder=True)
+    unfinished = {
+        (c.name, mca_name(m)): [
+            s for s in c.seeds if _finished_run(out, c, m, s, config.duration_s) is None
+        ]
+        for c in config.cases
+        for m in config.mcas
+    }
     kept: dict = {}
     if previous is not None:
         on_disk = {
-            (c.name, mca_name(m)): [
-                s for s in c.seeds if _finished_run(out, c, m, s, config.duration_s) is not None
-            ]
+            (c.name, mca_name(m)): set(c.seeds) - set(unfinished[(c.name, mca_name(m))])
             for c in config.cases
             for m in config.mcas
         }
@@ -311,8 +316,7 @@ def run_evaluation(
         for case in config.cases
         for seed in case.seeds
         for mca in config.mcas
-        if (case.name, mca_name(mca)) not in kept
-        and _finished_run(out, case, mca, seed, config.duration_s) is None
+        if (case.name, mca_name(mca)) not in kept and seed in unfinished[(case.name, mca_name(mca))]
     ]
     if config.bound is not None:
         tasks += [
@@ -403,9 +407,8 @@ def write_report(config: EvaluationConfig, out: Path, previous: dict | None = No
                 "solver_failures": int(sum(r["solver_failures"] for r in rs)),
             }
         if config.bound is not None:
-            entry |= _bound_entry(config, out, case, runs) or _kept_bound(
-                previous, case, entry["mcas"], runs
-            )
+            kept_here = {mca for name, mca in kept if name == case.name}
+            entry |= _bound_entry(config, out, case, runs, kept_here, previous)
         m = entry["mcas"]
         # each DPC (the default's, a profile's) against every other MCA (the paper: against
         # converged NMPC)
@@ -482,28 +485,6 @@ def _stand_in_runs(entry: dict) -> dict:
     }
 
 
-def _kept_bound(previous: dict | None, case: EvaluationCase, mcas: dict, runs: dict) -> dict:
-    """The case's bound from `previous` ({} without one) with every MCA's share of the
-    achievable improvement: recomputed from the runs on disk, kept for kept entries."""
-    old = (previous or {}).get("cases", {}).get(case.name, {})
-    if "bound" not in old:
-        return {}
-    bound = dict(zip(old["bound"]["seeds"], old["bound"]["pi"], strict=True))
-    shares = {}
-    for mca in mcas:
-        mine = runs[(case.name, mca)]
-        if all("pi_zero_motion" in r for r in mine.values()):
-            values = [
-                improvement_share(mine[s]["pi_zero_motion"], mine[s]["pi"], bound[s])
-                for s in sorted(mine.keys() & bound.keys())
-            ]
-            if values:
-                shares[mca] = {"share": values, "share_median": float(np.median(values))}
-        elif mca in old.get("shares", {}):
-            shares[mca] = old["shares"][mca]
-    return {"bound": old["bound"], "shares": shares}
-
-
 def dpc_test_key(dpc: str, other: str) -> str:
     """The report's key of the tests of DPC `dpc` against MCA `other`: "dpc_vs_washout",
     "dpc_ground_vs_nmpc_rti_ground"."""
@@ -531,20 +512,28 @@ def _dpc_test(dpc: dict, other: dict, dpc_runs: dict, other_runs: dict) -> dict:
     }
 
 
-def _bound_entry(config: EvaluationConfig, out: Path, case: EvaluationCase, runs: dict) -> dict:
+def _bound_entry(
+    config: EvaluationConfig,
+    out: Path,
+    case: EvaluationCase,
+    runs: dict,
+    kept: set[str],
+    previous: dict | None,
+) -> dict:
     """The case's bound (per flight: its PI, KKT residual and solve time) and, per MCA,
     its share of the achievable improvement on the flights both have:
-    (PI_zero - PI_mca) / (PI_zero - PI_bound); {} without a finished bound."""
+    (PI_zero - PI_mca) / (PI_zero - PI_bound); {} without a finished bound. Without bound
+    runs on disk, `previous`'s bound for the case stands in; the MCAs in `kept` (whose
+    entries come from `previous`) keep their shares from it."""
+    old = (previous or {}).get("cases", {}).get(case.name, {})
     bounds = {}
     for seed in case.seeds:
         bound = _finished_bound(out, case.name, config.bound, seed, config.duration_s)
         if bound is not None:
             bounds[seed] = bound
-    if not bounds:
-        return {}
-    pis = [b["pi"] for b in bounds.values()]
-    entry = {
-        "bound": {
+    if bounds:
+        pis = [b["pi"] for b in bounds.values()]
+        summary = {
             "runs": len(bounds),
             "seeds": list(bounds),
             "pi": pis,
@@ -553,14 +542,22 @@ def _bound_entry(config: EvaluationConfig, out: Path, case: EvaluationCase, runs
             "solve_time_median_s": float(
                 np.median([b["solver"]["solve_time_s"] for b in bounds.values()])
             ),
-        },
-        "shares": {},
-    }
+        }
+    elif "bound" in old:
+        summary = old["bound"]
+    else:
+        return {}
+    bound_pi = dict(zip(summary["seeds"], summary["pi"], strict=True))
+    entry = {"bound": summary, "shares": {}}
     for mca in config.names():
+        if mca in kept:
+            if mca in old.get("shares", {}):
+                entry["shares"][mca] = old["shares"][mca]
+            continue
         mine = runs[(case.name, mca)]
         shares = [
-            improvement_share(mine[s]["pi_zero_motion"], mine[s]["pi"], bounds[s]["pi"])
-            for s in sorted(mine.keys() & bounds.keys())
+            improvement_share(mine[s]["pi_zero_motion"], mine[s]["pi"], bound_pi[s])
+            for s in sorted(mine.keys() & bound_pi.keys())
         ]
         if shares:
             entry["shares"][mca] = {"share": shares, "share_median": float(np.median(shares))}
