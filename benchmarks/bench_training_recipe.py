@@ -39,9 +39,10 @@ COMMON_FLAGS = (
 
 # Step 1 learns the tuned NMPC's objective from random weights on windows starting near
 # neutral; step 2 fine-tunes step 1's policy with the PI's correlation term and the
-# washouts (decision 0015), on windows starting up to 1 rad from it: the default policy
-# (decision 0017). The light aircraft's policy is step 2 on their training flights alone,
-# from near neutral (decision 0016).
+# washouts (decision 0015), on windows starting up to 1 rad from it (decision 0017) and on
+# every training window again from step 1's own closed-loop state (decision 0018): the
+# default policy. The light aircraft's policy is the same fine-tuning on their training
+# flights alone, from near neutral (decision 0016).
 STEP2_FLAGS = (
     "--init-policy",
     "{step1}/policy.npz",
@@ -51,13 +52,24 @@ STEP2_FLAGS = (
     "0.3",
     "--base-washout-weight",
     "1",
-    "--max-epochs",
-    "60",
+    "--own-start-fraction",
+    "1.0",
 )
 STEPS = (
     ("step1", ("--max-start-position", "0.6", "--max-epochs", "300")),
-    ("step2", ("--max-start-position", "1.0", *STEP2_FLAGS)),
-    ("light", ("--max-start-position", "0.6", *STEP2_FLAGS, "--vehicles", "light,DHC6")),
+    ("step2", ("--max-start-position", "1.0", *STEP2_FLAGS, "--max-epochs", "40")),
+    (
+        "light",
+        (
+            "--max-start-position",
+            "0.6",
+            *STEP2_FLAGS,
+            "--max-epochs",
+            "60",
+            "--vehicles",
+            "light,DHC6",
+        ),
+    ),
 )
 # The shipped policy file each step after the first gives (`mca_drake.resources`).
 SHIPPED = {"step2": "default_policy", "light": "light_policy"}

@@ -12,7 +12,9 @@ seeds (the evaluation's are 1000 on), so that a recipe's cost there is seen befo
 suite; `--vehicles bmw-320i,ford-escort,vw-vanagon` drives validation drives of the cars
 (a lap on even seeds, the proving ground on odd ones; case D's are 4000 on);
 `--first-seed 600 --seeds 14 --vehicles light` is the light aircraft's trap check
-(fourteen more flights, where a policy that rides the joint limits shows); `--pilot
+(fourteen more flights, where a policy that rides the joint limits shows) and `--first-seed
+600 --seeds 14 --vehicles T37` the aerobatic one (the training set's jet trainer, whose
+sustained pulls trap a policy at the limits as case C's aerobatic types may); `--pilot
 random-style` flies the same aircraft and seeds with a pilot whose style is drawn from the
 seed (a check against pilots other than the scripted one). One JSON per run
 under out-dir/runs (atomic; a finished run is not flown again, so a killed study resumes).

@@ -97,7 +97,14 @@ def test_policy_fine_tuned_on_mixed_vehicles_runs_and_beats_zero_motion(fine_tun
 
 # Policy files of other recipes and format versions kept as fixtures (tests/data), beside
 # the shipped ones: a policy file that users may hold must still load and save unchanged.
-OLDER_POLICY_FILES = ("policy_v12", "policy_v11", "policy_v10", "policy_v9", "policy_v8")
+OLDER_POLICY_FILES = (
+    "policy_v13",
+    "policy_v12",
+    "policy_v11",
+    "policy_v10",
+    "policy_v9",
+    "policy_v8",
+)
 
 
 @pytest.mark.parametrize("name", [*SHIPPED_POLICIES, *OLDER_POLICY_FILES])

@@ -198,6 +198,13 @@ class DpcTrainingConfig:
     # out, in states the policy never visits itself, would dominate the clipped gradient;
     # 0.6 keeps about half the windows (docs/decisions/0009-training-windows-near-neutral.md).
     max_start_position_rad: float = 0.6
+    # Share of the training windows added a second time, starting from the initial
+    # policy's own closed-loop state at the window's start instead of the NMPC's: the
+    # policy flies each training flight from its first state (`own_closed_loop_states`),
+    # and the copies track the same targets from where it went. A policy trained only from
+    # the NMPC's states never learns to come back from poses the NMPC never takes, and a
+    # sustained cue can trap it at the joint limits for the rest of a flight. 0: none.
+    own_start_fraction: float = 0.0
     # Train and validate only on the flights of these vehicles (the dataset's
     # `flight_vehicles`); empty: every flight. The light and transport aircraft's policy is
     # the default policy fine-tuned on theirs alone
@@ -315,6 +322,7 @@ class DpcTrainingConfig:
             raise ValueError(f"time_stretch_max must be >= 1; got {self.time_stretch_max}")
         for name in (
             "perturbed_fraction",
+            "own_start_fraction",
             "mirror_fraction",
             "yaw_shift_fraction",
             "time_stretch_fraction",

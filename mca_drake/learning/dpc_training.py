@@ -22,7 +22,9 @@ and the rollout runs behind the viability clamp the deployed policy runs behind
 training batch flies its window's mirror image (`mirror_fraction`), half starts with the base
 joint turned (`yaw_shift_fraction`) and half tracks its window slowed down
 (`time_stretch_fraction`), each drawn independently. Optionally the loss adds the PI's
-correlation part, sum_k (1 - CC_k) over the batch's rollouts (`correlation_weight`).
+correlation part, sum_k (1 - CC_k) over the batch's rollouts (`correlation_weight`), and the
+training windows are joined by copies that start where the initial policy's own closed loop
+was at their start instead of where the NMPC was (`own_start_fraction`).
 
 The weights default to the shipped NMPC's (`NmpcConfig`'s tuned defaults, carried over by
 `DpcTrainingConfig.matching`): the policy learns the objective the tuned NMPC minimises,
@@ -37,6 +39,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -442,6 +445,94 @@ def flights_of_vehicles(data: SegmentDataset, vehicles, name="the dataset") -> S
     return data.subset(keep)
 
 
+def own_closed_loop_states(
+    policy: PolicyNetwork, plant: RolloutPlant, data: SegmentDataset, key: str = "R", cell=None
+) -> dict[str, np.ndarray]:
+    """Where `policy` takes the robot on the flights of `data`: {"X": (N, n_p, 12),
+    "Y": (N, n_p, 6)}, aligned with the segments of `data` as its own X and Y are.
+
+    Each run of consecutive segments of a flight (`SOURCE_COLUMNS`) is flown in one closed
+    loop over its targets `key`, from the first segment's state and output, behind the
+    plant's clamp; a gap in a flight starts a new run from the state after it. All runs fly
+    in one batch (shorter ones hold their last target beyond their end; those steps are
+    dropped). `cell` may be a compiled `rollout_cell(policy, plant)`.
+    """
+    seed_col = SOURCE_COLUMNS.index("flight_seed")
+    step_col = SOURCE_COLUMNS.index("start_step")
+    n_p = data.horizon
+    runs: list[list[int]] = []
+    for flight in np.unique(data.source[:, seed_col]):
+        rows = np.flatnonzero(data.source[:, seed_col] == flight)
+        rows = rows[np.argsort(data.source[rows, step_col], kind="stable")]
+        steps = data.source[rows, step_col]
+        for k, row in enumerate(rows):
+            if k == 0 or steps[k] != steps[k - 1] + n_p:
+                runs.append([])
+            runs[-1].append(int(row))
+    longest = max(len(run) for run in runs) * n_p
+    targets = np.empty((len(runs), longest, 6), dtype=np.float32)
+    for i, run in enumerate(runs):
+        joined = data.arrays[key][run].reshape(-1, 6)
+        targets[i, : len(joined)] = joined
+        targets[i, len(joined) :] = joined[-1]
+    first = np.array([run[0] for run in runs])
+    as_tensor = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
+    was_training = policy.training
+    policy.eval()
+    with torch.no_grad():
+        rollout = closed_loop_rollout(
+            policy,
+            plant,
+            as_tensor(data.arrays["X"][first, 0]),
+            as_tensor(data.arrays["Y"][first, 0]),
+            as_tensor(targets),
+            cell,
+        )
+    policy.train(was_training)
+    states, outputs = rollout.X[:, :-1].numpy(), rollout.Y.numpy()
+    X = np.empty_like(data.arrays["X"])
+    Y = np.empty_like(data.arrays["Y"])
+    for i, run in enumerate(runs):
+        X[run] = states[i, : len(run) * n_p].reshape(len(run), n_p, -1)
+        Y[run] = outputs[i, : len(run) * n_p].reshape(len(run), n_p, -1)
+    return {"X": X, "Y": Y}
+
+
+def with_own_starts(
+    windows: SegmentDataset, own_windows: SegmentDataset, fraction: float, seed: int
+) -> SegmentDataset:
+    """`windows` plus a random `fraction` of `own_windows` (the same flights' windows with
+    the policy's own states and outputs, `own_closed_loop_states`), drawn with `seed`."""
+    count = round(fraction * len(own_windows))
+    if count == 0:
+        return windows
+    chosen = np.sort(np.random.default_rng(seed).choice(len(own_windows), count, replace=False))
+    return SegmentDataset.concatenate([windows, own_windows.subset(chosen)], windows.metadata)
+
+
+def add_own_start_windows(
+    config: DpcTrainingConfig,
+    policy: PolicyNetwork,
+    plant: RolloutPlant,
+    data: SegmentDataset,
+    train: SegmentDataset,
+) -> SegmentDataset:
+    """The training windows `train` plus `config.own_start_fraction` of all the training
+    windows of `data`'s flights started from `policy`'s own closed loop
+    (`own_closed_loop_states`), whether or not the NMPC started them near neutral: the
+    policy's own state there is what it must come back from."""
+    cell = rollout_cell(policy, plant)
+    cell = torch.compile(cell) if config.compile else cell
+    own = own_closed_loop_states(policy, plant, data, target_array(config), cell)
+    own_data = SegmentDataset({**data.arrays, **own}, data.source, data.metadata)
+    own_splits = (
+        long_windows(own_data, config.window_segments)
+        if config.window_segments > 1
+        else split_of(own_data)
+    )
+    return with_own_starts(train, own_splits["train"], config.own_start_fraction, config.seed)
+
+
 def near_neutral_windows(windows: SegmentDataset, max_position_rad: float) -> SegmentDataset:
     """The windows whose first joint positions X[:, 0, :6] are all within `max_position_rad`
     of neutral (rad)."""
@@ -509,6 +600,11 @@ def train_policy(
         check_mirror_symmetry(plant)
     if config.yaw_shift_fraction > 0:
         check_base_yaw_invariance(plant)
+    own_states_wall_s = 0.0
+    if config.own_start_fraction > 0:
+        start = time.perf_counter()
+        splits["train"] = add_own_start_windows(config, policy, plant, data, splits["train"])
+        own_states_wall_s = time.perf_counter() - start
     # The rollouts run where the trainer puts the policy and the data (CUDA or CPU).
     plant = plant.to(config.train.resolved_device())
     train_targets = splits["train"].arrays[target_array(config)]
@@ -539,9 +635,13 @@ def train_policy(
             **metadata,
             "command": command,
             "stages": [dataclasses.asdict(s) for s in result.stages],
-            "training_wall_s": result.wall_s,
+            # the trainer's and, with own starts, the own closed loops' (`own_states_wall_s`)
+            "training_wall_s": result.wall_s + own_states_wall_s,
+            "own_states_wall_s": own_states_wall_s,
             # this run plus every run the starting weights came from
-            "training_wall_s_total": result.wall_s + provenance.get("training_wall_s_total", 0.0),
+            "training_wall_s_total": result.wall_s
+            + own_states_wall_s
+            + provenance.get("training_wall_s_total", 0.0),
             "initial_policy_provenance": provenance,
             "versions": package_versions(),
         },

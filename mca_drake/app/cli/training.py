@@ -43,6 +43,7 @@ POLICY_FLAGS = {
     "input_weight": "",
     "max_start_position_rad": "--max-start-position",
     "perturbed_fraction": "",
+    "own_start_fraction": "",
     "initial_state_noise": "",
     "mirror_fraction": "",
     "yaw_shift_fraction": "",
