@@ -184,6 +184,20 @@ def split_of(dataset: SegmentDataset) -> dict[str, SegmentDataset]:
     return {name: dataset.subset(column == i) for i, name in enumerate(SPLIT_NAMES)}
 
 
+def consecutive_runs(dataset: SegmentDataset) -> list[np.ndarray]:
+    """The rows of `dataset` in runs of consecutive segments of one flight, in time order:
+    per flight (by seed, ascending), a new run starts at every gap in its start steps."""
+    seed_col = SOURCE_COLUMNS.index("flight_seed")
+    step_col = SOURCE_COLUMNS.index("start_step")
+    runs: list[np.ndarray] = []
+    for flight in np.unique(dataset.source[:, seed_col]):
+        rows = np.flatnonzero(dataset.source[:, seed_col] == flight)
+        rows = rows[np.argsort(dataset.source[rows, step_col])]
+        gaps = np.flatnonzero(np.diff(dataset.source[rows, step_col]) != dataset.horizon) + 1
+        runs.extend(np.split(rows, gaps))
+    return runs
+
+
 def long_windows(
     dataset: SegmentDataset, segments: int, fractions=(0.7, 0.2, 0.1), seed: int = 0
 ) -> dict[str, SegmentDataset]:
@@ -196,22 +210,12 @@ def long_windows(
     """
     if segments < 1:
         raise ValueError(f"segments must be at least 1; got {segments}")
-    seed_col = SOURCE_COLUMNS.index("flight_seed")
-    step_col = SOURCE_COLUMNS.index("start_step")
     n_p = dataset.horizon
-    windows: list[np.ndarray] = []
-    for flight in np.unique(dataset.source[:, seed_col]):
-        rows = np.flatnonzero(dataset.source[:, seed_col] == flight)
-        rows = rows[np.argsort(dataset.source[rows, step_col])]
-        steps = dataset.source[rows, step_col]
-        run: list[int] = []
-        for row, step in zip(rows, steps, strict=True):
-            if run and step != dataset.source[run[-1], step_col] + n_p:
-                run = []  # a gap: start a new run
-            run.append(int(row))
-            if len(run) == segments:
-                windows.append(np.array(run))
-                run = []
+    windows = [
+        run[k : k + segments]
+        for run in consecutive_runs(dataset)
+        for k in range(0, len(run) - segments + 1, segments)
+    ]
     if not windows:
         raise ValueError(f"no run of {segments} consecutive segments in the dataset")
     index = np.stack(windows)  # (W, segments)

@@ -60,7 +60,7 @@ def test_bad_config():
 
 
 def test_long_windows_join_consecutive_segments_of_one_flight():
-    from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, long_windows
+    from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, consecutive_runs, long_windows
 
     n_p, rows = 4, []
     # flight 7: steps 0, 4, 8, 12, 16 (one run of 5); flight 9: 0, 4, then a gap, 12, 16
@@ -83,6 +83,14 @@ def test_long_windows_join_consecutive_segments_of_one_flight():
         np.testing.assert_array_equal(np.diff(windows.U[w, :, 0]), 1.0)  # contiguous in time
     with pytest.raises(ValueError, match="no run of 9"):
         long_windows(data, 9)
+    # the runs behind them, rows shuffled: flight 7 whole, flight 9 cut at its gap
+    order = np.random.default_rng(0).permutation(J)
+    shuffled = data.subset(order)
+    runs = consecutive_runs(shuffled)
+    starts = [shuffled.source[run, 1].tolist() for run in runs]
+    flights = [set(shuffled.source[run, 0].tolist()) for run in runs]
+    assert starts == [[0, 4, 8, 12, 16], [0, 4], [12, 16]]
+    assert flights == [{7}, {9}, {9}]
 
 
 def test_mixed_vehicle_sets_deal_seeds_and_keep_evaluation_seeds_out():

@@ -198,7 +198,8 @@ class DpcTrainingConfig:
     # out, in states the policy never visits itself, would dominate the clipped gradient;
     # 0.6 keeps about half the windows (docs/decisions/0009-training-windows-near-neutral.md).
     max_start_position_rad: float = 0.6
-    # Share of the training windows added a second time, starting from the initial
+    # Share of the training windows (of every training flight's windows, also those
+    # `max_start_position_rad` leaves out) added a second time, starting from the initial
     # policy's own closed-loop state at the window's start instead of the NMPC's: the
     # policy flies each training flight from its first state (`own_closed_loop_states`),
     # and the copies track the same targets from where it went. A policy trained only from

@@ -67,6 +67,7 @@ from mca_drake.robot import KR500, MIRROR_JOINT_SIGNS, NUM_JOINTS, load_kr500
 from mca_drake.segments import (
     SOURCE_COLUMNS,
     SegmentDataset,
+    consecutive_runs,
     long_windows,
     package_versions,
     split_of,
@@ -451,24 +452,14 @@ def own_closed_loop_states(
     """Where `policy` takes the robot on the flights of `data`: {"X": (N, n_p, 12),
     "Y": (N, n_p, 6)}, aligned with the segments of `data` as its own X and Y are.
 
-    Each run of consecutive segments of a flight (`SOURCE_COLUMNS`) is flown in one closed
+    Each run of consecutive segments of a flight (`consecutive_runs`) is flown in one closed
     loop over its targets `key`, from the first segment's state and output, behind the
     plant's clamp; a gap in a flight starts a new run from the state after it. All runs fly
     in one batch (shorter ones hold their last target beyond their end; those steps are
     dropped). `cell` may be a compiled `rollout_cell(policy, plant)`.
     """
-    seed_col = SOURCE_COLUMNS.index("flight_seed")
-    step_col = SOURCE_COLUMNS.index("start_step")
     n_p = data.horizon
-    runs: list[list[int]] = []
-    for flight in np.unique(data.source[:, seed_col]):
-        rows = np.flatnonzero(data.source[:, seed_col] == flight)
-        rows = rows[np.argsort(data.source[rows, step_col], kind="stable")]
-        steps = data.source[rows, step_col]
-        for k, row in enumerate(rows):
-            if k == 0 or steps[k] != steps[k - 1] + n_p:
-                runs.append([])
-            runs[-1].append(int(row))
+    runs = consecutive_runs(data)
     longest = max(len(run) for run in runs) * n_p
     targets = np.empty((len(runs), longest, 6), dtype=np.float32)
     for i, run in enumerate(runs):
