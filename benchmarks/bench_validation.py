@@ -21,10 +21,12 @@ under out-dir/runs (atomic; a finished run is not flown again, so a killed study
 A DPC run records its policy file's SHA-256: a label whose file has changed is flown again.
 Prints per MCA the median PI per vehicle and over all flights, clamp interventions, and for
 each MCA after the first the paired difference to the first (median, better on how many
-flights, signed-rank p). An MCA is `label=policy.npz` (DPC) or an MCA name. On the
-validation aircraft the figures go with their provenance (date, command, calibration,
-machine) to `--json`, by default `benchmarks/results/validation.json` (from seed 700); other
-flights are written only where `--json` names a file.
+flights, signed-rank p), the flight where it does worst against the first and, per channel,
+the median of its RMSE - CC less the first's (where a gap comes from). An MCA is
+`label=policy.npz` (DPC) or an MCA name. On the validation aircraft the figures go with
+their provenance (date, command, calibration, machine) to `--json`, by default
+`benchmarks/results/validation.json` (from seed 700); other flights are written only where
+`--json` names a file.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ import numpy as np
 from common import default_result_path, parse_mca, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
-from mca_drake.conventions import FIRST_EVALUATION_SEED
+from mca_drake.conventions import CHANNELS, FIRST_EVALUATION_SEED
 from mca_drake.cueing.configs import mca_config_from_name
 from mca_drake.cueing.dpc import for_vehicle
 from mca_drake.metrics import wilcoxon_signed_rank
@@ -119,17 +121,40 @@ def report(results: dict, flights) -> dict:
         a = np.array([results[label][key]["pi"] for key in flights])
         b = np.array([results[first][key]["pi"] for key in flights])
         test = wilcoxon_signed_rank(a, b)
+        worst = int(np.argmax(a - b))
+        split = channel_differences(
+            [results[label][key] for key in flights], [results[first][key] for key in flights]
+        )
         figures[label]["paired_vs_" + first] = {
             "median_difference": float(test.median_difference),
             "better_on": int(test.a_better),
             "flights": int(test.n),
             "signed_rank_p": float(test.p),
+            "worst_flight": " ".join(map(str, flights[worst])),
+            "worst_difference": float(a[worst] - b[worst]),
+            "channel_differences": split,
         }
         print(
             f"{label} - {first}: median {test.median_difference:+.3f}, better on "
-            f"{test.a_better} of {test.n}, signed-rank p {test.p:.3f}"
+            f"{test.a_better} of {test.n}, signed-rank p {test.p:.3f}; worst flight "
+            f"{' '.join(map(str, flights[worst]))} {a[worst] - b[worst]:+.3f}"
         )
+        print("  by channel: " + "  ".join(f"{k} {v:+.3f}" for k, v in split.items()))
     return figures
+
+
+def channel_differences(runs: list[dict], others: list[dict]) -> dict[str, float]:
+    """Where a PI difference comes from: per channel of `CHANNELS`, the median over the
+    flights of that channel's RMSE - CC in `runs` less the same in `others` (runs of two
+    MCAs on the same flights, in the same order, as run summaries with "rmse" and "cc").
+    Positive where the first MCA does worse; the medians need not add up to the median
+    PI difference."""
+    terms = [
+        np.subtract(run["rmse"], run["cc"]) - np.subtract(other["rmse"], other["cc"])
+        for run, other in zip(runs, others, strict=True)
+    ]
+    medians = np.median(np.array(terms).reshape(len(terms), len(CHANNELS)), axis=0)
+    return {channel: float(v) for channel, v in zip(CHANNELS, medians, strict=True)}
 
 
 def main() -> None:

@@ -236,6 +236,10 @@ def _evaluation(results_dir: Path, data: dict) -> list[str]:
                     f"; paired, DPC better on {paired['dpc_better']} of {len(paired['seeds'])} "
                     f"flights (signed-rank p {paired['p']:.3g})"
                 )
+                if "worst_seed" in paired:
+                    text += (
+                        f", worst flight {paired['worst_seed']} {paired['worst_difference']:+.3f}"
+                    )
             felt = test.get("perceived")
             if felt:
                 text += f"; perceived PI gap {felt['median_gap']:+.3f}, rank-sum p {felt['p']:.3g}"

@@ -130,12 +130,18 @@ def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
     assert paired["seeds"] == [1000, 1001, 1002] and paired["dpc_better"] == 1
     assert paired["median_difference"] == pytest.approx(0.2)
     assert paired["p"] == pytest.approx(wilcoxon(pis["dpc"], pis["nmpc-converged"]).pvalue)
+    # DPC's worst flight: +0.2 on two flights (1000 and 1002, equal but for rounding)
+    assert paired["worst_difference"] == pytest.approx(0.2)
+    assert paired["worst_seed"] in (1000, 1002)
     # the same tests on the perceived PI
     felt = test["perceived"]
     z, p = ranksums(perceived_pis["dpc"], perceived_pis["nmpc-converged"])
     assert felt["z"] == pytest.approx(z) and felt["p"] == pytest.approx(p)
     assert felt["median_gap"] == pytest.approx(-2.1 - (-1.9))
     assert felt["paired"]["dpc_better"] == 3
+    # perceived differences -0.1, -0.3, -0.6: DPC better everywhere, least on 1000
+    assert felt["paired"]["worst_seed"] == 1000
+    assert felt["paired"]["worst_difference"] == pytest.approx(-0.1)
     expected = wilcoxon(perceived_pis["dpc"], perceived_pis["nmpc-converged"]).pvalue
     assert felt["paired"]["p"] == pytest.approx(expected)
     dpc = report["cases"]["A"]["mcas"]["dpc"]
@@ -144,6 +150,7 @@ def test_rank_sum_is_reported_between_dpc_and_converged(tmp_path):
     markdown = (tmp_path / "evaluation.md").read_text()
     assert "Paired on the 3 flights both ran: DPC better on 1" in markdown
     assert "Paired on the 3 flights both ran: DPC better on 3" in markdown
+    assert "DPC's worst flight against it: 1000, -0.100." in markdown
     assert "Perceived PI: rank-sum" in markdown
     assert "Incomplete" not in markdown
     # a fourth flight that neither has run: the report says so and how to resume

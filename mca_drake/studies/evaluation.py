@@ -627,17 +627,24 @@ def _perceived_tests(dpc: dict, other: dict) -> dict | None:
 
 def _paired_test(dpc: dict, other: dict, score=lambda run: run["pi"]) -> dict | None:
     """Signed-rank test of DPC against another MCA on the flights both have finished (the
-    same flights, so the flight-to-flight spread cancels); None below two shared flights.
+    same flights, so the flight-to-flight spread cancels), with the flight where DPC does
+    worst against it (`worst_seed`, `worst_difference` = DPC's score minus the other's:
+    positive where DPC is worse); None below two shared flights.
     `dpc`, `other`: {seed: run summary}; `score`: the figure compared (default the PI)."""
     shared = sorted(dpc.keys() & other.keys())
     if len(shared) < 2:
         return None
-    test = wilcoxon_signed_rank([score(dpc[s]) for s in shared], [score(other[s]) for s in shared])
+    a, b = [score(dpc[s]) for s in shared], [score(other[s]) for s in shared]
+    test = wilcoxon_signed_rank(a, b)
+    differences = np.subtract(a, b)
+    worst = int(np.argmax(differences))
     return {
         "seeds": shared,
         "p": test.p,
         "median_difference": test.median_difference,
         "dpc_better": test.a_better,
+        "worst_seed": shared[worst],
+        "worst_difference": float(differences[worst]),
     }
 
 
@@ -688,10 +695,16 @@ def _paired_line(paired: dict | None) -> list[str]:
     """The report's line on a signed-rank test (`_paired_test`); none without one."""
     if not paired:
         return []
+    worst = ""
+    if "worst_seed" in paired:  # a report written before the paired test named it has none
+        worst = (
+            f" DPC's worst flight against it: {paired['worst_seed']}, "
+            f"{paired['worst_difference']:+.3f}."
+        )
     return [
         f"Paired on the {len(paired['seeds'])} flights both ran: DPC better on "
         f"{paired['dpc_better']}, median difference {paired['median_difference']:+.3f}, "
-        f"Wilcoxon signed-rank {format_p(paired['p'])}."
+        f"Wilcoxon signed-rank {format_p(paired['p'])}.{worst}"
     ]
 
 
