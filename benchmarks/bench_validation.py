@@ -153,7 +153,7 @@ def channel_differences(runs: list[dict], others: list[dict]) -> dict[str, float
         np.subtract(run["rmse"], run["cc"]) - np.subtract(other["rmse"], other["cc"])
         for run, other in zip(runs, others, strict=True)
     ]
-    medians = np.median(np.array(terms).reshape(len(terms), len(CHANNELS)), axis=0)
+    medians = np.median(terms, axis=0)
     return {channel: float(v) for channel, v in zip(CHANNELS, medians, strict=True)}
 
 

@@ -234,12 +234,9 @@ def _evaluation(results_dir: Path, data: dict) -> list[str]:
             if paired:
                 text += (
                     f"; paired, DPC better on {paired['dpc_better']} of {len(paired['seeds'])} "
-                    f"flights (signed-rank p {paired['p']:.3g})"
+                    f"flights (signed-rank p {paired['p']:.3g}), worst flight "
+                    f"{paired['worst_seed']} {paired['worst_difference']:+.3f}"
                 )
-                if "worst_seed" in paired:
-                    text += (
-                        f", worst flight {paired['worst_seed']} {paired['worst_difference']:+.3f}"
-                    )
             felt = test.get("perceived")
             if felt:
                 text += f"; perceived PI gap {felt['median_gap']:+.3f}, rank-sum p {felt['p']:.3g}"

@@ -695,16 +695,11 @@ def _paired_line(paired: dict | None) -> list[str]:
     """The report's line on a signed-rank test (`_paired_test`); none without one."""
     if not paired:
         return []
-    worst = ""
-    if "worst_seed" in paired:  # a report written before the paired test named it has none
-        worst = (
-            f" DPC's worst flight against it: {paired['worst_seed']}, "
-            f"{paired['worst_difference']:+.3f}."
-        )
     return [
         f"Paired on the {len(paired['seeds'])} flights both ran: DPC better on "
         f"{paired['dpc_better']}, median difference {paired['median_difference']:+.3f}, "
-        f"Wilcoxon signed-rank {format_p(paired['p'])}.{worst}"
+        f"Wilcoxon signed-rank {format_p(paired['p'])}. DPC's worst flight against it: "
+        f"{paired['worst_seed']}, {paired['worst_difference']:+.3f}."
     ]
 
 
