@@ -40,8 +40,9 @@ COMMON_FLAGS = (
 # Step 1 learns the tuned NMPC's objective from random weights on windows starting near
 # neutral; step 2 fine-tunes step 1's policy with the PI's correlation term and the
 # washouts (decision 0015), on windows starting up to 1 rad from it (decision 0017) and on
-# every training window again from step 1's own closed-loop state (decision 0018): the
-# default policy. The light aircraft's policy is the same fine-tuning on their training
+# every training window again from step 1's own closed-loop state (decision 0018), each
+# window's tracking weighted by what the NMPC achieved on it (decision 0019): the default
+# policy. The light aircraft's policy is the same fine-tuning on their training
 # flights alone, from near neutral (decision 0016).
 STEP2_FLAGS = (
     "--init-policy",
@@ -57,7 +58,18 @@ STEP2_FLAGS = (
 )
 STEPS = (
     ("step1", ("--max-start-position", "0.6", "--max-epochs", "300")),
-    ("step2", ("--max-start-position", "1.0", *STEP2_FLAGS, "--max-epochs", "40")),
+    (
+        "step2",
+        (
+            "--max-start-position",
+            "1.0",
+            *STEP2_FLAGS,
+            "--achievable-cost-floor",
+            "0.003",
+            "--max-epochs",
+            "40",
+        ),
+    ),
     (
         "light",
         (

@@ -65,6 +65,9 @@ def test_each_shipped_flight_policy_was_trained_with_its_recipe_step(step):
     assert config["seed"] == int(flags["--seed"])
     assert config["max_start_position_rad"] == pytest.approx(float(flags["--max-start-position"]))
     assert config["own_start_fraction"] == pytest.approx(float(flags["--own-start-fraction"]))
+    # the light policy's file is older than the field: it trained without the weighting
+    floor = float(flags.get("--achievable-cost-floor", 0.0))
+    assert config.get("achievable_cost_floor", 0.0) == pytest.approx(floor)
     assert config["initial_policy"], "every shipped flight policy starts from step 1"
     # the default policy's file is older than the field: it trained on every flight
     wanted = flags["--vehicles"].split(",") if "--vehicles" in flags else []

@@ -193,6 +193,13 @@ class DpcTrainingConfig:
     # gains the PI on the jet and unseen aircraft but drives the light aircraft's flights
     # into the joint limits (docs/decisions/0006-correlation-term-off-by-default.md).
     correlation_weight: float = 0.0
+    # Weigh each window's tracking term by 1 / (L + floor), normalised to mean 1 over the
+    # training windows, L the recorded MCA's (the dataset's NMPC's) weighted tracking cost of
+    # the window without a_z (mean over steps of sum_k c_k (Y_k - target_k)^2); 0: every
+    # window alike. Unweighted, a fighter's windows, whose errors no MCA avoids, outweigh a
+    # transport's by a hundred times, though the PI's CC prices a transport's small cues as
+    # much (docs/decisions/0019-windows-weighted-by-their-achievable-cost.md).
+    achievable_cost_floor: float = 0.0
     # Train and validate only on windows whose first joint positions are all within this
     # many rad of neutral (inf: all windows). The tuned NMPC's windows that start tilted far
     # out, in states the policy never visits itself, would dominate the clipped gradient;
@@ -303,6 +310,7 @@ class DpcTrainingConfig:
             "terminal_velocity_weight",
             "initial_state_noise",
             "correlation_weight",
+            "achievable_cost_floor",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):

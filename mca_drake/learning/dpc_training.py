@@ -211,7 +211,8 @@ def dpc_loss_terms(
     perception: TorchVestibularFilter | None = None,
 ) -> dict[str, torch.Tensor]:
     """The loss terms (unweighted), each averaged over segments and steps; the tracking
-    term's channels weighted by `channel_weights` (6) if given; with `perception`, the
+    term's channels weighted by `channel_weights` if given (6, or per window (B, 1, 6) or
+    (B, 1, 1)); with `perception`, the
     tracking term compares what the occupant perceives (the vestibular model of y - Y over
     the rollout, from rest); with `correlation`, also sum_k (1 - CC_k) of
     `pooled_correlation` (0 to 12)."""
@@ -366,12 +367,66 @@ def tracking_channel_weights(config: DpcTrainingConfig, targets) -> torch.Tensor
     return torch.tensor(weights, dtype=torch.float32)
 
 
+def achievable_cost_weights(
+    data: SegmentDataset, parts: dict[str, SegmentDataset], key: str, channel_weights, floor: float
+) -> None:
+    """Adds "S" (J, n, 1) to each split of `parts`, the windows of `data`'s flights: each
+    window's tracking weight 1 / (L + floor), normalised to mean 1 over parts["train"].
+
+    L is what the dataset's own MCA (its recorded outputs Y) paid for tracking over the
+    window's segments of `data`: the mean over steps of sum_k c_k (Y_k - target_k)^2 over
+    w_x..f_y (a_z left out: its sustained part no MCA renders), c the tracking channel
+    weights (None: 1). A window the recorded MCA renders almost exactly then counts as much
+    as one whose errors nobody avoids. Windows started from the policy's own states
+    (`add_own_start_windows`) count by the recorded run of the same segments.
+
+    Raises:
+        ValueError: if a window's segments are not in `data` or floor is not > 0.
+    """
+    if not (math.isfinite(floor) and floor > 0):
+        raise ValueError(f"the achievable cost floor must be a finite number > 0; got {floor}")
+    c = np.ones(6) if channel_weights is None else np.asarray(channel_weights, dtype=np.float64)
+    error = np.asarray(data.arrays["Y"][..., :5], np.float64) - data.arrays[key][..., :5]
+    segment_cost = (c[:5] * error**2).sum(-1).mean(1)
+    columns = data.metadata["source_columns"]
+    flight, start = columns.index("flight_seed"), columns.index("start_step")
+    cost_of = {
+        (int(r[flight]), int(r[start])): v for r, v in zip(data.source, segment_cost, strict=True)
+    }
+
+    def window_costs(part: SegmentDataset) -> np.ndarray:
+        segments = max(part.horizon // data.horizon, 1)
+        try:
+            return np.array(
+                [
+                    np.mean(
+                        [
+                            cost_of[int(r[flight]), int(r[start]) + k * data.horizon]
+                            for k in range(segments)
+                        ]
+                    )
+                    for r in part.source
+                ]
+            )
+        except KeyError as missing:
+            raise ValueError(
+                f"window segment (flight, start) {missing} is not in the data"
+            ) from None
+
+    inverse = {name: 1.0 / (window_costs(part) + floor) for name, part in parts.items()}
+    mean = inverse["train"].mean()
+    for name, part in parts.items():
+        weight = (inverse[name] / mean).astype(np.float32)
+        part.arrays["S"] = np.repeat(weight[:, None, None], part.horizon, axis=1)
+
+
 def dpc_objective(
     config: DpcTrainingConfig, plant: RolloutPlant, channel_weights: torch.Tensor | None = None
 ):
     """objective(policy, batch) for `CurriculumTrainer`: the weighted DPC loss of the
     closed-loop rollout from each segment's first state over its targets, with the
-    tracking term's channels weighted by `channel_weights` (6; None: uniform)."""
+    tracking term's channels weighted by `channel_weights` (6; None: uniform) and, where the
+    batch holds "S" (`achievable_cost_weights`), each window by its weight."""
     weights = {
         "tracking": config.tracking_weight,
         "state_estimate": config.state_estimate_weight,
@@ -407,6 +462,9 @@ def dpc_objective(
             x0 = perturb_initial_states(x0, policy, config)
         rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)])
         weights_here = None if channel_weights is None else channel_weights.to(targets)
+        if "S" in batch:  # the windows' achievable-cost weights, (B, 1, 1)
+            window = batch["S"][:, :1]
+            weights_here = window if weights_here is None else weights_here * window
         terms = dpc_loss_terms(
             rollout,
             targets,
@@ -608,6 +666,10 @@ def train_policy(
         "tracking_channel_weights": None if channel_weights is None else channel_weights.tolist(),
     }
     names = ("X", "Y", "U") + (("R",) if config.targets == "reference" else ())
+    if config.achievable_cost_floor > 0:
+        floor = config.achievable_cost_floor
+        achievable_cost_weights(data, splits, target_array(config), channel_weights, floor)
+        names += ("S",)
     trainer = CurriculumTrainer(
         policy,
         dpc_objective(config, plant, channel_weights),

@@ -50,6 +50,7 @@ POLICY_FLAGS = {
     "time_stretch_fraction": "",
     "time_stretch_max": "",
     "correlation_weight": "",
+    "achievable_cost_floor": "",
     "terminal_weight_horizon": "",
     "hidden": "",
     "seed": "",
