@@ -1,11 +1,29 @@
 """Small training sets for the DPC tests: segments at rest at the neutral pose with given
-targets, 70 % training and 30 % validation."""
+targets, 70 % training and 30 % validation, and segments of given arrays and sources."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from mca_drake.segments import SegmentDataset
+from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset
+
+SEGMENT_METADATA = {
+    "source_columns": list(SOURCE_COLUMNS),
+    "split_names": ["train", "validation", "test"],
+}
+
+
+def segments_of(arrays: dict, source) -> SegmentDataset:
+    """A segment dataset of `arrays` (float32; at least R, shape (n, T, 6)) from `source`
+    rows (flight_seed, start_step, split), the other core arrays zero."""
+    source = np.asarray(source, dtype=np.int64)
+    n, horizon = source.shape[0], arrays["R"].shape[1]
+    zeros = {name: np.zeros((n, horizon, 4, 4)) for name in ("F", "dF", "ddF")}
+    zeros |= {"U": np.zeros((n, horizon, 6)), "Y": np.zeros((n, horizon, 6))}
+    zeros["X"] = np.zeros((n, horizon, 12))
+    merged = zeros | arrays
+    arrays32 = {k: v.astype(np.float32) for k, v in merged.items()}
+    return SegmentDataset(arrays32, source, SEGMENT_METADATA)
 
 
 def rest_segments(targets: np.ndarray) -> SegmentDataset:

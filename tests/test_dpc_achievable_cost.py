@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from dataset_helpers import segments_of
 
 from mca_drake.learning.dpc_training import (
     DpcTrainingConfig,
@@ -17,21 +18,9 @@ from mca_drake.learning.dpc_training import (
 )
 from mca_drake.learning.policy_network import PolicyNetwork
 from mca_drake.learning.trainer import TrainConfig
-from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset
+from mca_drake.segments import SegmentDataset
 
 N_P = 4
-META = {"source_columns": list(SOURCE_COLUMNS), "split_names": ["train", "validation", "test"]}
-
-
-def _dataset(arrays: dict, source) -> SegmentDataset:
-    """A segment dataset of `arrays` (float32), the other core arrays zero."""
-    source = np.asarray(source, dtype=np.int64)
-    n, horizon = source.shape[0], arrays["R"].shape[1]
-    zeros = {name: np.zeros((n, horizon, 4, 4)) for name in ("F", "dF", "ddF")}
-    zeros |= {"U": np.zeros((n, horizon, 6)), "Y": np.zeros((n, horizon, 6))}
-    zeros["X"] = np.zeros((n, horizon, 12))
-    merged = zeros | arrays
-    return SegmentDataset({k: v.astype(np.float32) for k, v in merged.items()}, source, META)
 
 
 def _recorded() -> SegmentDataset:
@@ -44,7 +33,7 @@ def _recorded() -> SegmentDataset:
     Y[2, :, 5] = 5.0
     Y[3, :2, 3] = 1.0
     source = [(3, 0, 0), (3, N_P, 0), (5, 0, 1), (5, N_P, 0)]
-    return _dataset({"R": np.zeros((4, N_P, 6)), "Y": Y}, source)
+    return segments_of({"R": np.zeros((4, N_P, 6)), "Y": Y}, source)
 
 
 def test_each_window_weighs_by_the_inverse_of_its_recorded_cost():
@@ -71,10 +60,10 @@ def test_a_long_window_averages_its_segments_and_own_starts_keep_the_recorded_co
     floor = 0.1
     # flight 3 as one window of two segments; its outputs replaced by another closed loop's
     # (an own-start window): the weight stays the recorded run's
-    long = _dataset(
+    long = segments_of(
         {"R": np.zeros((1, 2 * N_P, 6)), "Y": np.full((1, 2 * N_P, 6), 9.0)}, [(3, 0, 0)]
     )
-    other = _dataset({"R": np.zeros((1, 2 * N_P, 6))}, [(5, 0, 0)])
+    other = segments_of({"R": np.zeros((1, 2 * N_P, 6))}, [(5, 0, 0)])
     parts = {"train": long, "validation": other}
     achievable_cost_weights(data, parts, "R", None, floor)
     flight3, flight5 = (0.0 + 1.0) / 2, (4.0 + 0.5) / 2  # uniform channel weights
@@ -85,7 +74,7 @@ def test_a_long_window_averages_its_segments_and_own_starts_keep_the_recorded_co
 
 def test_windows_outside_the_data_and_a_bad_floor_are_refused():
     data = _recorded()
-    stray = _dataset({"R": np.zeros((1, N_P, 6))}, [(8, 0, 0)])
+    stray = segments_of({"R": np.zeros((1, N_P, 6))}, [(8, 0, 0)])
     with pytest.raises(ValueError, match="not in the data"):
         achievable_cost_weights(data, {"train": stray}, "R", None, 0.1)
     for floor in (0.0, -1.0, float("nan")):
@@ -135,7 +124,7 @@ def test_training_with_achievable_cost_weights_runs_and_records_its_floor(tmp_pa
     split = (np.arange(n) >= 9).astype(np.int64)
     source = np.stack([np.arange(n) // 3, 16 * (np.arange(n) % 3), split], 1)
     R = 0.3 * rng.normal(size=(n, 16, 6))
-    data = _dataset({"R": R, "Y": R + 0.1 * rng.normal(size=R.shape)}, source)
+    data = segments_of({"R": R, "Y": R + 0.1 * rng.normal(size=R.shape)}, source)
     path = data.save(tmp_path / "data.npz")
     config = DpcTrainingConfig(
         compile=False,

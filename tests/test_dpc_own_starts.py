@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from dataset_helpers import segments_of
 
 from mca_drake.learning.dpc_training import (
     DpcTrainingConfig,
@@ -18,20 +19,9 @@ from mca_drake.learning.dpc_training import (
 )
 from mca_drake.learning.policy_network import PolicyNetwork
 from mca_drake.learning.trainer import TrainConfig
-from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset
+from mca_drake.segments import SegmentDataset
 
 N_P = 8
-META = {"source_columns": list(SOURCE_COLUMNS), "split_names": ["train", "validation", "test"]}
-
-
-def _dataset(arrays: dict, source: np.ndarray) -> SegmentDataset:
-    """A segment dataset of `arrays` (float32), the other core arrays zero."""
-    n, horizon = source.shape[0], arrays["R"].shape[1]
-    zeros = {name: np.zeros((n, horizon, 4, 4)) for name in ("F", "dF", "ddF")}
-    zeros |= {"U": np.zeros((n, horizon, 6)), "Y": np.zeros((n, horizon, 6))}
-    zeros["X"] = np.zeros((n, horizon, 12))
-    merged = zeros | arrays
-    return SegmentDataset({k: v.astype(np.float32) for k, v in merged.items()}, source, META)
 
 
 def _flights() -> SegmentDataset:
@@ -50,7 +40,7 @@ def _flights() -> SegmentDataset:
         ),
         "Y": rng.normal(0.0, 1.0, (n, N_P, 6)),
     }
-    return _dataset(arrays, source)
+    return segments_of(arrays, source)
 
 
 def _row(data: SegmentDataset, flight: int, step: int) -> int:
@@ -129,7 +119,7 @@ def test_own_windows_are_added_in_their_share_and_none_for_zero():
     def windows(value: float, n: int) -> SegmentDataset:
         arrays = {"X": np.full((n, 4, 12), value), "R": rng.normal(size=(n, 4, 6))}
         source = np.stack([np.arange(n), np.zeros(n), np.zeros(n)], 1).astype(np.int64)
-        return _dataset(arrays, source)
+        return segments_of(arrays, source)
 
     base, own_windows = windows(0.0, 10), windows(1.0, 20)
     joined = with_own_starts(base, own_windows, 0.25, seed=3)
@@ -146,7 +136,7 @@ def test_training_with_own_starts_runs_and_records_its_share(tmp_path):
     n = 20
     split = (np.arange(n) >= 14).astype(np.int64)
     source = np.stack([np.zeros(n), 16 * np.arange(n), split], 1).astype(np.int64)
-    data = _dataset({"R": 0.3 * rng.normal(size=(n, 16, 6))}, source)
+    data = segments_of({"R": 0.3 * rng.normal(size=(n, 16, 6))}, source)
     path = data.save(tmp_path / "data.npz")
     config = DpcTrainingConfig(
         compile=False,
