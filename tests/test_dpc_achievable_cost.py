@@ -10,10 +10,12 @@ import torch
 from dataset_helpers import segments_of
 
 from mca_drake.learning.dpc_training import (
+    RECORDED_ERRORS,
     DpcTrainingConfig,
     RolloutPlant,
     achievable_cost_weights,
     dpc_objective,
+    recorded_squared_errors,
     train_policy,
 )
 from mca_drake.learning.policy_network import PolicyNetwork
@@ -36,15 +38,20 @@ def _recorded() -> SegmentDataset:
     return segments_of({"R": np.zeros((4, N_P, 6)), "Y": Y}, source)
 
 
+def _with_errors(data: SegmentDataset) -> SegmentDataset:
+    data.arrays[RECORDED_ERRORS] = recorded_squared_errors(data, "R")
+    return data
+
+
 def test_each_window_weighs_by_the_inverse_of_its_recorded_cost():
-    data = _recorded()
+    data = _with_errors(_recorded())
     c = np.array([2.0, 1.0, 1.0, 3.0, 0.5, 7.0])
     floor = 0.25
     costs = np.array([0.0, 2.0, 4 * 0.5, 3.0 / 2])  # by the docstring of _recorded
     train = data.subset(np.array([0, 1, 3]))
     validation = data.subset(np.array([2]))
     parts = {"train": train, "validation": validation}
-    achievable_cost_weights(data, parts, "R", c, floor)
+    achievable_cost_weights(parts, c, floor)
     inverse = 1.0 / (costs + floor)
     mean = inverse[[0, 1, 3]].mean()
     np.testing.assert_allclose(train.arrays["S"][:, 0, 0], inverse[[0, 1, 3]] / mean, rtol=1e-6)
@@ -55,31 +62,37 @@ def test_each_window_weighs_by_the_inverse_of_its_recorded_cost():
     assert train.arrays["S"].mean() == pytest.approx(1.0)
 
 
-def test_a_long_window_averages_its_segments_and_own_starts_keep_the_recorded_cost():
-    data = _recorded()
+def test_long_windows_average_their_segments_and_own_starts_keep_the_recorded_errors():
+    data = _with_errors(_recorded())
     floor = 0.1
-    # flight 3 as one window of two segments; its outputs replaced by another closed loop's
-    # (an own-start window): the weight stays the recorded run's
-    long = segments_of(
-        {"R": np.zeros((1, 2 * N_P, 6)), "Y": np.full((1, 2 * N_P, 6), 9.0)}, [(3, 0, 0)]
-    )
-    other = segments_of({"R": np.zeros((1, 2 * N_P, 6))}, [(5, 0, 0)])
-    parts = {"train": long, "validation": other}
-    achievable_cost_weights(data, parts, "R", None, floor)
+    # each flight as one window of its two segments, as `long_windows` joins them
+    parts = {
+        name: segments_of(
+            {
+                "R": np.zeros((1, 2 * N_P, 6)),
+                RECORDED_ERRORS: data.arrays[RECORDED_ERRORS][rows].reshape(1, 2 * N_P, 5),
+            },
+            [(flight, 0, 0)],
+        )
+        for name, flight, rows in (("train", 3, [0, 1]), ("validation", 5, [2, 3]))
+    }
+    # the train window's outputs replaced by another closed loop's (an own-start window)
+    parts["train"].arrays["Y"][:] = 9.0
+    achievable_cost_weights(parts, None, floor)
     flight3, flight5 = (0.0 + 1.0) / 2, (4.0 + 0.5) / 2  # uniform channel weights
     expected = (1 / (flight5 + floor)) / (1 / (flight3 + floor))
-    assert long.arrays["S"][0, 0, 0] == pytest.approx(1.0)
-    assert other.arrays["S"][0, 0, 0] == pytest.approx(expected, rel=1e-6)
+    assert parts["train"].arrays["S"][0, 0, 0] == pytest.approx(1.0)
+    assert parts["validation"].arrays["S"][0, 0, 0] == pytest.approx(expected, rel=1e-6)
 
 
-def test_windows_outside_the_data_and_a_bad_floor_are_refused():
+def test_windows_without_recorded_errors_and_a_bad_floor_are_refused():
     data = _recorded()
-    stray = segments_of({"R": np.zeros((1, N_P, 6))}, [(8, 0, 0)])
-    with pytest.raises(ValueError, match="not in the data"):
-        achievable_cost_weights(data, {"train": stray}, "R", None, 0.1)
+    with pytest.raises(ValueError, match="recorded errors"):
+        achievable_cost_weights({"train": data}, None, 0.1)
+    _with_errors(data)
     for floor in (0.0, -1.0, float("nan")):
         with pytest.raises(ValueError, match="floor"):
-            achievable_cost_weights(data, {"train": data}, "R", None, floor)
+            achievable_cost_weights({"train": data}, None, floor)
     with pytest.raises(ValueError, match="achievable_cost_floor"):
         DpcTrainingConfig(achievable_cost_floor=-0.1).validate()
 
@@ -118,7 +131,7 @@ def test_the_weights_scale_each_windows_tracking_term():
     assert first.item() == pytest.approx(1.5 * alone.item(), rel=1e-5)
 
 
-def test_training_with_achievable_cost_weights_runs_and_records_its_floor(tmp_path):
+def test_training_with_achievable_cost_weights_and_own_starts_records_its_floor(tmp_path):
     rng = np.random.default_rng(4)
     n = 12
     split = (np.arange(n) >= 9).astype(np.int64)
@@ -130,6 +143,7 @@ def test_training_with_achievable_cost_weights_runs_and_records_its_floor(tmp_pa
         compile=False,
         window_segments=1,
         achievable_cost_floor=0.01,
+        own_start_fraction=0.5,  # own-start windows carry the recorded errors too
         train=TrainConfig(batch_size=4, max_epochs=1, horizons=(16,), device="cpu"),
     )
     _, policy_path = train_policy(config, path, tmp_path / "run", progress=False)

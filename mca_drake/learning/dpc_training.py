@@ -367,53 +367,41 @@ def tracking_channel_weights(config: DpcTrainingConfig, targets) -> torch.Tensor
     return torch.tensor(weights, dtype=torch.float32)
 
 
-def achievable_cost_weights(
-    data: SegmentDataset, parts: dict[str, SegmentDataset], key: str, channel_weights, floor: float
-) -> None:
-    """Adds "S" (J, n, 1) to each split of `parts`, the windows of `data`'s flights: each
-    window's tracking weight 1 / (L + floor), normalised to mean 1 over parts["train"].
+# The dataset array of the recorded MCA's squared tracking errors (`recorded_squared_errors`),
+# carried into every window as the other arrays are.
+RECORDED_ERRORS = "E"
 
-    L is what the dataset's own MCA (its recorded outputs Y) paid for tracking over the
-    window's segments of `data`: the mean over steps of sum_k c_k (Y_k - target_k)^2 over
-    w_x..f_y (a_z left out: its sustained part no MCA renders), c the tracking channel
-    weights (None: 1). A window the recorded MCA renders almost exactly then counts as much
-    as one whose errors nobody avoids. Windows started from the policy's own states
-    (`add_own_start_windows`) count by the recorded run of the same segments.
+
+def recorded_squared_errors(data: SegmentDataset, key: str) -> np.ndarray:
+    """(J, n_p, 5) float64: the squared errors of the dataset's own MCA (its recorded outputs
+    Y against the targets `key`) on w_x..f_y, step by step (a_z left out: its sustained
+    part no MCA renders)."""
+    return (np.asarray(data.arrays["Y"][..., :5], np.float64) - data.arrays[key][..., :5]) ** 2
+
+
+def achievable_cost_weights(parts: dict[str, SegmentDataset], channel_weights, floor: float):
+    """Adds "S" (J, n, 1) to each split of `parts`: each window's tracking weight
+    1 / (L + floor), normalised to mean 1 over parts["train"].
+
+    L is what the dataset's own MCA paid for tracking over the window: the mean over its
+    steps of sum_k c_k e_k^2, e the recorded errors each window carries (`RECORDED_ERRORS`,
+    from `recorded_squared_errors`), c the tracking channel weights (None: 1). A window the
+    recorded MCA renders almost exactly then counts as much as one whose errors nobody
+    avoids. Windows started from the policy's own states (`add_own_start_windows`) carry
+    the recorded errors of the same segments.
 
     Raises:
-        ValueError: if a window's segments are not in `data` or floor is not > 0.
+        ValueError: if floor is not > 0 or a split lacks the recorded errors.
     """
     if not (math.isfinite(floor) and floor > 0):
         raise ValueError(f"the achievable cost floor must be a finite number > 0; got {floor}")
+    if any(RECORDED_ERRORS not in part.arrays for part in parts.values()):
+        raise ValueError("the windows lack the recorded errors (recorded_squared_errors)")
     c = np.ones(6) if channel_weights is None else np.asarray(channel_weights, dtype=np.float64)
-    error = np.asarray(data.arrays["Y"][..., :5], np.float64) - data.arrays[key][..., :5]
-    segment_cost = (c[:5] * error**2).sum(-1).mean(1)
-    columns = data.metadata["source_columns"]
-    flight, start = columns.index("flight_seed"), columns.index("start_step")
-    cost_of = {
-        (int(r[flight]), int(r[start])): v for r, v in zip(data.source, segment_cost, strict=True)
+    inverse = {
+        name: 1.0 / ((part.arrays[RECORDED_ERRORS].mean(1) * c[:5]).sum(-1) + floor)
+        for name, part in parts.items()
     }
-
-    def window_costs(part: SegmentDataset) -> np.ndarray:
-        segments = max(part.horizon // data.horizon, 1)
-        try:
-            return np.array(
-                [
-                    np.mean(
-                        [
-                            cost_of[int(r[flight]), int(r[start]) + k * data.horizon]
-                            for k in range(segments)
-                        ]
-                    )
-                    for r in part.source
-                ]
-            )
-        except KeyError as missing:
-            raise ValueError(
-                f"window segment (flight, start) {missing} is not in the data"
-            ) from None
-
-    inverse = {name: 1.0 / (window_costs(part) + floor) for name, part in parts.items()}
     mean = inverse["train"].mean()
     for name, part in parts.items():
         weight = (inverse[name] / mean).astype(np.float32)
@@ -614,6 +602,8 @@ def train_policy(
         raise ValueError(f"{dataset} has no references R; use targets='achieved'")
     if config.vehicles:
         data = flights_of_vehicles(data, config.vehicles, dataset)
+    if config.achievable_cost_floor > 0:
+        data.arrays[RECORDED_ERRORS] = recorded_squared_errors(data, target_array(config))
     if config.window_segments > 1:
         splits = long_windows(data, config.window_segments)
     else:
@@ -668,7 +658,7 @@ def train_policy(
     names = ("X", "Y", "U") + (("R",) if config.targets == "reference" else ())
     if config.achievable_cost_floor > 0:
         floor = config.achievable_cost_floor
-        achievable_cost_weights(data, splits, target_array(config), channel_weights, floor)
+        achievable_cost_weights(splits, channel_weights, floor)
         names += ("S",)
     trainer = CurriculumTrainer(
         policy,
