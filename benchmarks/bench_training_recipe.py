@@ -1,12 +1,14 @@
 """The shipped flight policies' training recipe, run and timed: the `train-policy` steps of
 the training guide ("Recipe: the shipped policy") on this machine (step 1, then from it the
-default and the light aircraft's policies), each curriculum step's epochs, best epoch and
+default and the light aircraft's policies, then from the default the transports' policy),
+each curriculum step's epochs, best epoch and
 wall time, and the whole recipe's wall time against its target (30 minutes on 2 CPU cores).
 
 python benchmarks/bench_training_recipe.py [--dataset datasets/mixed_t37/dataset.npz]
     [--out-dir results/recipe] [--json benchmarks/results/training_recipe.json]
 
-Each step trains in its own folder under --out-dir (`step1`, `step2`, `light`). A folder
+Each step trains in its own folder under --out-dir (`step1`, `step2`, `light`,
+`transport`). A folder
 that holds the step's policy.npz is read, not trained again (its recorded times stand); one
 with only a checkpoint is resumed (`train-policy --resume`), so a killed run continues. The
 figures are the trainer's own wall times (dataset loading and the policy export excluded)
@@ -43,10 +45,9 @@ COMMON_FLAGS = (
 # every training window again from step 1's own closed-loop state (decision 0018), each
 # window's tracking weighted by what the NMPC achieved on it (decision 0019): the default
 # policy. The light aircraft's policy is the same fine-tuning on their training
-# flights alone, from near neutral (decision 0016).
-STEP2_FLAGS = (
-    "--init-policy",
-    "{step1}/policy.npz",
+# flights alone, from near neutral (decision 0016). The transports' policy fine-tunes the
+# default policy on the wide-body's flights alone (decision 0020).
+FINE_TUNING_FLAGS = (
     "--correlation-weight",
     "1",
     "--washout-weight",
@@ -56,6 +57,7 @@ STEP2_FLAGS = (
     "--own-start-fraction",
     "1.0",
 )
+STEP2_FLAGS = ("--init-policy", "{step1}/policy.npz", *FINE_TUNING_FLAGS)
 STEPS = (
     ("step1", ("--max-start-position", "0.6", "--max-epochs", "300")),
     (
@@ -82,15 +84,33 @@ STEPS = (
             "light,DHC6",
         ),
     ),
+    (
+        "transport",
+        (
+            "--max-start-position",
+            "1.0",
+            "--init-policy",
+            "{step2}/policy.npz",
+            *FINE_TUNING_FLAGS,
+            "--achievable-cost-floor",
+            "0.003",
+            "--max-epochs",
+            "40",
+            "--learning-rate",
+            "0.01",
+            "--vehicles",
+            "787-8",
+        ),
+    ),
 )
 # The shipped policy file each step after the first gives (`mca_drake.resources`).
-SHIPPED = {"step2": "default_policy", "light": "light_policy"}
+SHIPPED = {"step2": "default_policy", "light": "light_policy", "transport": "transport_policy"}
 
 
 def step_command(name: str, extra: tuple[str, ...], dataset: str, out_dir: Path) -> list[str]:
     """The `mca-drake train-policy` argument list of recipe step `name` writing into
-    out_dir/name; "{step1}" in `extra` names step 1's folder."""
-    flags = [f.format(step1=out_dir / "step1") for f in extra]
+    out_dir/name; "{step1}" and "{step2}" in `extra` name those steps' folders."""
+    flags = [f.format(step1=out_dir / "step1", step2=out_dir / "step2") for f in extra]
     return [
         "train-policy",
         "--dataset",

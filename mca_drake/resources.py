@@ -20,6 +20,7 @@ SHIPPED_POLICIES = (
     "policy_v6",
     "ground_policy",
     "light_policy",
+    "transport_policy",
 )
 # MCA profiles shipped for vehicle motion other than flight (`mca_drake.cueing.profiles`): the
 # NMPC's and washout's settings in data/profiles/<name>.yaml, the DPC's policy

@@ -57,6 +57,7 @@ def test_bad_names_are_refused():
         "policy_v6.npz",
         "ground_policy.npz",
         "light_policy.npz",
+        "transport_policy.npz",
     ]
 
 

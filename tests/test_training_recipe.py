@@ -40,19 +40,21 @@ def _flags(arguments: list[str]) -> dict[str, str]:
 def test_guide_and_benchmark_train_the_same_steps():
     bench = load_benchmark("bench_training_recipe")
     guide = _guide_train_commands()
-    assert len(guide) == len(bench.STEPS) == 3
+    assert len(guide) == len(bench.STEPS) == 4
     for (name, extra), command in zip(bench.STEPS, guide, strict=True):
         ours = bench.step_command(name, extra, "datasets/mixed_t37/dataset.npz", Path("r"))
         assert _flags(ours) == _flags(command), name
-    # Every later step starts from step 1's result in both.
-    step1_out = guide[0][guide[0].index("--out-dir") + 1]
-    for later, step in zip(guide[1:], bench.STEPS[1:], strict=True):
-        assert later[later.index("--init-policy") + 1] == f"{step1_out}/policy.npz"
+    # Steps 2 and the light step start from step 1's result in both; the transports' step
+    # from step 2's.
+    outs = [command[command.index("--out-dir") + 1] for command in guide]
+    for later, step, origin in zip(guide[1:], bench.STEPS[1:], (0, 0, 1), strict=True):
+        assert later[later.index("--init-policy") + 1] == f"{outs[origin]}/policy.npz"
         ours = bench.step_command(*step, "d.npz", Path("r"))
-        assert ours[ours.index("--init-policy") + 1] == str(Path("r") / "step1" / "policy.npz")
+        origin_name = bench.STEPS[origin][0]
+        assert ours[ours.index("--init-policy") + 1] == str(Path("r") / origin_name / "policy.npz")
 
 
-@pytest.mark.parametrize("step", ["step2", "light"])
+@pytest.mark.parametrize("step", ["step2", "light", "transport"])
 def test_each_shipped_flight_policy_was_trained_with_its_recipe_step(step):
     bench = load_benchmark("bench_training_recipe")
     _, metadata = load_policy_arrays(shipped_policy_path(bench.SHIPPED[step]))
@@ -62,13 +64,15 @@ def test_each_shipped_flight_policy_was_trained_with_its_recipe_step(step):
     assert config["washout_weight"] == pytest.approx(float(flags["--washout-weight"]))
     assert config["base_washout_weight"] == pytest.approx(float(flags["--base-washout-weight"]))
     assert config["train"]["max_epochs"] == int(flags["--max-epochs"])
+    rate = float(flags.get("--learning-rate", 0.001))  # train-policy's default
+    assert config["train"]["learning_rate"] == pytest.approx(rate)
     assert config["seed"] == int(flags["--seed"])
     assert config["max_start_position_rad"] == pytest.approx(float(flags["--max-start-position"]))
     assert config["own_start_fraction"] == pytest.approx(float(flags["--own-start-fraction"]))
     # the light policy's file is older than the field: it trained without the weighting
     floor = float(flags.get("--achievable-cost-floor", 0.0))
     assert config.get("achievable_cost_floor", 0.0) == pytest.approx(floor)
-    assert config["initial_policy"], "every shipped flight policy starts from step 1"
+    assert config["initial_policy"], "every shipped flight policy is fine-tuned"
     # the default policy's file is older than the field: it trained on every flight
     wanted = flags["--vehicles"].split(",") if "--vehicles" in flags else []
     assert config.get("vehicles", []) == wanted

@@ -31,20 +31,24 @@ AEROBATIC_FIGHTER = ("t6texan2", "T37", "T38", "f16", "f15", "A4", "F4N")
 
 def test_light_and_transport_aircraft_get_their_policy_and_the_rest_the_default():
     """Against the fleet's documented envelopes: the light single and the Twin Otter (the
-    light envelope) fly the light policy; the CS/FAR 25 transports, the trainers and
-    fighters, cars, unnamed and unknown vehicles the default policy."""
+    light envelope) fly the light policy; the CS/FAR 25 transports the transport policy;
+    the trainers and fighters, cars, unnamed and unknown vehicles the default policy."""
     assert set(LIGHT) | set(TRANSPORT) | set(AEROBATIC_FIGHTER) == set(VEHICLES)
     assert set(ENVELOPE_POLICIES) <= set(ENVELOPES)
     assert set(ENVELOPE_POLICIES.values()) <= set(SHIPPED_POLICIES)
-    for vehicle in LIGHT:
-        assert VEHICLE_ENVELOPES[vehicle] == "light"
-        assert vehicle_policy_name(vehicle) == "light_policy", vehicle
-        assert DpcConfig(vehicle=vehicle).policy_path() == shipped_policy_path("light_policy")
-    for vehicle in (*TRANSPORT, *AEROBATIC_FIGHTER, "", "bmw-320i", "no-such-aircraft"):
+    for vehicles, envelope, policy in (
+        (LIGHT, "light", "light_policy"),
+        (TRANSPORT, "transport", "transport_policy"),
+    ):
+        for vehicle in vehicles:
+            assert VEHICLE_ENVELOPES[vehicle] == envelope
+            assert vehicle_policy_name(vehicle) == policy, vehicle
+            assert DpcConfig(vehicle=vehicle).policy_path() == shipped_policy_path(policy)
+    for vehicle in (*AEROBATIC_FIGHTER, "", "bmw-320i", "no-such-aircraft"):
         assert vehicle_policy_name(vehicle) == "default_policy", vehicle
         assert DpcConfig(vehicle=vehicle).policy_path() == default_policy_path()
-    light = shipped_policy_path("light_policy").read_bytes()
-    assert light != default_policy_path().read_bytes()
+    files = {shipped_policy_path(p).read_bytes() for p in ("light_policy", "transport_policy")}
+    assert len(files | {default_policy_path().read_bytes()}) == 3
 
 
 def test_a_named_policy_or_profile_wins_over_the_vehicle():
@@ -87,7 +91,8 @@ def _reference(vehicle: str) -> Reference:
     ("vehicle", "policy"),
     [
         ("DHC6", "light_policy"),
-        ("A320", "default_policy"),
+        ("A320", "transport_policy"),
+        ("MD11", "transport_policy"),
         ("f16", "default_policy"),
         ("", "default_policy"),
     ],
