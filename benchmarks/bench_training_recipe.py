@@ -1,18 +1,18 @@
 """The shipped flight policies' training recipe, run and timed: the `train-policy` steps of
 the training guide ("Recipe: the shipped policy") on this machine (step 1, then from it the
 default and the light aircraft's policies, then from the default the transports' policy),
-each curriculum step's epochs, best epoch and
-wall time, and the whole recipe's wall time against its target (30 minutes on 2 CPU cores).
+each curriculum step's epochs, best epoch and wall time, and the whole recipe's wall time
+against its target (30 minutes on 2 CPU cores).
 
 python benchmarks/bench_training_recipe.py [--dataset datasets/mixed_t37/dataset.npz]
     [--out-dir results/recipe] [--json benchmarks/results/training_recipe.json]
 
 Each step trains in its own folder under --out-dir (`step1`, `step2`, `light`,
-`transport`). A folder
-that holds the step's policy.npz is read, not trained again (its recorded times stand); one
-with only a checkpoint is resumed (`train-policy --resume`), so a killed run continues. The
-figures are the trainer's own wall times (dataset loading and the policy export excluded)
-and, for the steps run now, the whole process's. Time it with nothing else running.
+`transport`). A folder that holds the step's policy.npz is read, not trained again (its
+recorded times stand); one with only a checkpoint is resumed (`train-policy --resume`), so
+a killed run continues. The figures are the trainer's own wall times (dataset loading and
+the policy export excluded) and, for the steps run now, the whole process's. Time it with
+nothing else running.
 """
 
 from __future__ import annotations

@@ -11,6 +11,7 @@ import pytest
 from benchmark_scripts import load_benchmark
 
 from mca_drake.cueing.dpc import load_policy_arrays, shipped_policy_path
+from mca_drake.learning.configs import DpcTrainingConfig
 
 REPO = Path(__file__).resolve().parents[1]
 GUIDE = REPO / "docs" / "guides" / "training.md"
@@ -64,7 +65,7 @@ def test_each_shipped_flight_policy_was_trained_with_its_recipe_step(step):
     assert config["washout_weight"] == pytest.approx(float(flags["--washout-weight"]))
     assert config["base_washout_weight"] == pytest.approx(float(flags["--base-washout-weight"]))
     assert config["train"]["max_epochs"] == int(flags["--max-epochs"])
-    rate = float(flags.get("--learning-rate", 0.001))  # train-policy's default
+    rate = float(flags.get("--learning-rate", DpcTrainingConfig().train.learning_rate))
     assert config["train"]["learning_rate"] == pytest.approx(rate)
     assert config["seed"] == int(flags["--seed"])
     assert config["max_start_position_rad"] == pytest.approx(float(flags["--max-start-position"]))
