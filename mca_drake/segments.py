@@ -36,7 +36,8 @@ SOURCE_COLUMNS = ("flight_seed", "start_step", "split")
 SPLIT_NAMES = ("train", "validation", "test")
 
 CORE_ARRAYS = ("U", "X", "Y", "F", "dF", "ddF")
-_SHAPES = {"U": (6,), "X": (12,), "Y": (6,), "F": (4, 4), "dF": (4, 4), "ddF": (4, 4)}
+# Each core array's shape per step: a dataset's array `name` is (J, n_p, *CORE_SHAPES[name]).
+CORE_SHAPES = {"U": (6,), "X": (12,), "Y": (6,), "F": (4, 4), "dF": (4, 4), "ddF": (4, 4)}
 FORMAT = "mca-drake segments v1"
 
 # Where `mca-drake dataset closed-loop` writes, and where training looks by default.
@@ -95,7 +96,7 @@ class SegmentDataset:
             raise ValueError(f"segment dataset lacks arrays {missing}")
         J, n_p = self.arrays["U"].shape[:2]
         for name, array in self.arrays.items():
-            expected = (J, n_p, *_SHAPES[name]) if name in _SHAPES else None
+            expected = (J, n_p, *CORE_SHAPES[name]) if name in CORE_SHAPES else None
             if array.shape[:2] != (J, n_p) or (expected and array.shape != expected):
                 raise ValueError(
                     f"array {name} has shape {array.shape}; expected {expected or (J, n_p, '...')}"

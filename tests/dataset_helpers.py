@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset
+from mca_drake.segments import CORE_SHAPES, SOURCE_COLUMNS, SegmentDataset
 
 SEGMENT_METADATA = {
     "source_columns": list(SOURCE_COLUMNS),
@@ -18,9 +18,7 @@ def segments_of(arrays: dict, source) -> SegmentDataset:
     rows (flight_seed, start_step, split), the other core arrays zero."""
     source = np.asarray(source, dtype=np.int64)
     n, horizon = source.shape[0], arrays["R"].shape[1]
-    zeros = {name: np.zeros((n, horizon, 4, 4)) for name in ("F", "dF", "ddF")}
-    zeros |= {"U": np.zeros((n, horizon, 6)), "Y": np.zeros((n, horizon, 6))}
-    zeros["X"] = np.zeros((n, horizon, 12))
+    zeros = {name: np.zeros((n, horizon, *shape)) for name, shape in CORE_SHAPES.items()}
     merged = zeros | arrays
     arrays32 = {k: v.astype(np.float32) for k, v in merged.items()}
     return SegmentDataset(arrays32, source, SEGMENT_METADATA)

@@ -9,6 +9,7 @@ import torch
 from dataset_helpers import rest_segments
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from loss_helpers import loss_weights_only
 from pydrake.systems.analysis import Simulator
 
 from mca_drake.cueing.dpc import DpcConfig, PolicyInference
@@ -576,16 +577,7 @@ def test_terminal_weights_are_scaled_to_their_horizon():
 
     torch.manual_seed(2)
     T = 12
-    only_terminal = dict(
-        tracking_weight=0.0,
-        state_estimate_weight=0.0,
-        input_weight=0.0,
-        washout_weight=0.0,
-        limit_weight=0.0,
-        terminal_position_weight=1.0,
-        terminal_velocity_weight=0.0,
-        compile=False,
-    )
+    only_terminal = loss_weights_only(terminal_position_weight=1.0) | {"compile": False}
     batch = {"X": torch.randn(4, T, 12) * 0.3, "Y": torch.zeros(4, T, 6), "R": torch.randn(4, T, 6)}
     policy = PolicyNetwork().eval()
     cost = {}

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 from dataset_helpers import segments_of
+from loss_helpers import loss_weights_only
 
 from mca_drake.learning.dpc_training import (
     RECORDED_ERRORS,
@@ -103,12 +104,7 @@ def test_the_weights_scale_each_windows_tracking_term():
     torch.manual_seed(0)
     config = DpcTrainingConfig(
         compile=False,
-        state_estimate_weight=0.0,
-        input_weight=0.0,
-        washout_weight=0.0,
-        limit_weight=0.0,
-        terminal_position_weight=0.0,
-        terminal_velocity_weight=0.0,
+        **loss_weights_only(tracking_weight=1.0),
         mirror_fraction=0.0,
         yaw_shift_fraction=0.0,
         time_stretch_fraction=0.0,

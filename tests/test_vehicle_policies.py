@@ -21,7 +21,7 @@ from mca_drake.references.recording import Recording
 from mca_drake.references.reference import Reference, reference_from_recording
 from mca_drake.references.synthetic import ENVELOPES, VEHICLE_ENVELOPES
 from mca_drake.resources import SHIPPED_POLICIES
-from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset
+from mca_drake.segments import CORE_SHAPES, SOURCE_COLUMNS, SegmentDataset
 from mca_drake.simulation.closed_loop import run_closed_loop
 
 LIGHT = ("light", "DHC6")
@@ -111,9 +111,8 @@ def test_the_closed_loop_runs_the_reference_vehicles_policy(vehicle, policy):
 
 def _dataset(vehicles: dict[str, str]) -> SegmentDataset:
     """Two 4-step segments per flight seed, zeros, with `flight_vehicles` metadata."""
-    shapes = {"U": (6,), "X": (12,), "Y": (6,), "F": (4, 4), "dF": (4, 4), "ddF": (4, 4)}
     seeds = [int(s) for s in vehicles for _ in range(2)]
-    arrays = {k: np.zeros((len(seeds), 4, *shape)) for k, shape in shapes.items()}
+    arrays = {k: np.zeros((len(seeds), 4, *shape)) for k, shape in CORE_SHAPES.items()}
     source = np.zeros((len(seeds), len(SOURCE_COLUMNS)), dtype=int)
     source[:, SOURCE_COLUMNS.index("flight_seed")] = seeds
     return SegmentDataset(arrays, source, {"flight_vehicles": vehicles})

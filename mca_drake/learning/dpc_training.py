@@ -212,10 +212,9 @@ def dpc_loss_terms(
 ) -> dict[str, torch.Tensor]:
     """The loss terms (unweighted), each averaged over segments and steps; the tracking
     term's channels weighted by `channel_weights` if given (6, or per window (B, 1, 6) or
-    (B, 1, 1)); with `perception`, the
-    tracking term compares what the occupant perceives (the vestibular model of y - Y over
-    the rollout, from rest); with `correlation`, also sum_k (1 - CC_k) of
-    `pooled_correlation` (0 to 12)."""
+    (B, 1, 1)); with `perception`, the tracking term compares what the occupant perceives
+    (the vestibular model of y - Y over the rollout, from rest); with `correlation`, also
+    sum_k (1 - CC_k) of `pooled_correlation` (0 to 12)."""
     X_next = rollout.X[:, 1:]
     lower, upper = policy.lower[NUM_JOINTS:], policy.upper[NUM_JOINTS:]
     violation = torch.relu(X_next - upper) + torch.relu(lower - X_next)
@@ -657,8 +656,7 @@ def train_policy(
     }
     names = ("X", "Y", "U") + (("R",) if config.targets == "reference" else ())
     if config.achievable_cost_floor > 0:
-        floor = config.achievable_cost_floor
-        achievable_cost_weights(splits, channel_weights, floor)
+        achievable_cost_weights(splits, channel_weights, config.achievable_cost_floor)
         names += ("S",)
     trainer = CurriculumTrainer(
         policy,
