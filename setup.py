@@ -1,6 +1,7 @@
 """Build hook: the wheel carries copies of the top-level `models/` and `diagrams/` folders.
 
-They are the sources the design names (the KR500 URDF and the scenario files); at build time
+They are the sources the design names (the platforms' URDFs and platform files, and the
+scenario files); at build time
 they are copied into the package as `mca_drake/data/models` and `mca_drake/data/diagrams`,
 where `mca_drake.resources` finds them in an installed package. Everything else about the
 build is in pyproject.toml.
@@ -12,8 +13,8 @@ from setuptools import setup
 from setuptools.command.build_py import build_py
 
 ROOT = Path(__file__).resolve().parent
-# top-level folder -> the file pattern the wheel carries from it
-PACKAGED_FOLDERS = {"models": "*.urdf", "diagrams": "*.yaml"}
+# top-level folder -> the file patterns the wheel carries from it
+PACKAGED_FOLDERS = {"models": ("*.urdf", "*.yaml"), "diagrams": ("*.yaml",)}
 
 
 class BuildPyWithPackagedFolders(build_py):
@@ -21,10 +22,10 @@ class BuildPyWithPackagedFolders(build_py):
 
     def run(self):
         super().run()
-        for folder, pattern in PACKAGED_FOLDERS.items():
-            sources = sorted((ROOT / folder).glob(pattern))
+        for folder, patterns in PACKAGED_FOLDERS.items():
+            sources = sorted(p for pattern in patterns for p in (ROOT / folder).glob(pattern))
             if not sources:
-                raise RuntimeError(f"{ROOT / folder} holds no {pattern}: the wheel needs them")
+                raise RuntimeError(f"{ROOT / folder} holds no {patterns}: the wheel needs them")
             target = Path(self.build_lib) / "mca_drake" / "data" / folder
             self.mkpath(str(target))
             for source in sources:

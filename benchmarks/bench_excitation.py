@@ -10,7 +10,7 @@ import time
 
 from common import describe, print_calibration
 
-from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
+from mca_drake.platforms.excitation import ExcitationConfig, generate_excitation_dataset
 
 
 def main() -> None:

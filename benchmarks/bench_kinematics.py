@@ -10,8 +10,8 @@ import argparse
 import numpy as np
 from common import describe, print_calibration, time_calls
 
-from mca_drake.kinematics import plant_output, plant_output_jacobians
-from mca_drake.robot import load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
 
 
 def main() -> None:
@@ -20,7 +20,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=300)
     args = parser.parse_args()
     print_calibration()
-    robot = load_kr500()
+    robot = load_platform(DEFAULT_PLATFORM)
     rng = np.random.default_rng(0)
     n = args.nodes
     q = rng.uniform(robot.q_min, robot.q_max, size=(n, 6))

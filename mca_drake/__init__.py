@@ -1,4 +1,4 @@
-"""mca-drake: learning-based motion cueing for a KUKA KR500 motion simulator, on Drake.
+"""mca-drake: learning-based motion cueing for motion simulators, on Drake.
 
 Layers (imports point down only; tests/test_architecture.py checks it):
     app          typed scenarios (diagrams/*.yaml), jobs and the `mca-drake` command
@@ -10,9 +10,12 @@ Layers (imports point down only; tests/test_architecture.py checks it):
                  DPC training
     cueing       the MCAs as numpy math with their typed configs (DpcConfig, NmpcConfig,
                  WashoutConfig)
+    platforms    what moves the occupant: platform files, serial chains from a URDF, their
+                 kinematics and joint usage
+    perception   vestibular models, thresholds, sickness
     references   vehicle motion: recordings, JSBSim flights, scaling to references
-    core         conventions, robot, kinematics, safety, metrics, segments, resources,
-                 plotting, atomic_io, input_checks, demo_motion, deprecation
+    core         conventions, safety, metrics, segments, resources, plotting, atomic_io,
+                 input_checks, deprecation
 """
 
 from mca_drake.deprecation import install_module_aliases

@@ -14,7 +14,7 @@ CHANNELS = ("w_x", "w_y", "w_z", "f_x", "f_y", "a_z")
 
 # The channels' signs in the vehicle's mirror image about its x-z plane (left and right
 # swapped): roll and yaw rates and the lateral force change sign, the rest keep it. The KR500
-# has the same symmetry (`mca_drake.robot.MIRROR_JOINT_SIGNS`).
+# has the same symmetry (its platform file's `mirror_joint_signs`).
 MIRROR_CHANNEL_SIGNS = (-1.0, 1.0, -1.0, 1.0, -1.0, 1.0)
 
 # Standard gravity, m/s^2, and the gravity vector in W.

@@ -14,7 +14,6 @@ import scipy.stats
 
 from mca_drake.conventions import CHANNELS
 from mca_drake.input_checks import as_float_array, same_shapes
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 
 # A channel whose peak-to-peak spread is below this (relative to max(1, its largest value),
 # in its SI units: rad/s, m/s^2) counts as still for the correlation, and a still target is
@@ -205,79 +204,3 @@ def wilcoxon_signed_rank(pi_a, pi_b) -> SignedRankResult:
         return SignedRankResult(int(a.size), 1.0, 0.0, 0)
     p = scipy.stats.wilcoxon(a, b, alternative="two-sided").pvalue
     return SignedRankResult(int(a.size), float(p), float(np.median(d)), int(np.sum(d < 0)))
-
-
-def normalized_joint_usage(values, lower, upper) -> np.ndarray:
-    """Joint values mapped to [-1, 1] by their limits, keeping 0 at 0 (the neutral pose).
-
-    Positive values are divided by `upper`, negative ones by |lower|, so asymmetric limits
-    (Table I joints 2 and 3) still map each limit to +-1 and a magnitude above 1 is a
-    violation (the paper's Fig. 5). Requires lower < 0 < upper.
-
-    Args:
-        values: shape (..., 6).
-        lower: lower bounds, shape (6,).
-        upper: upper bounds, shape (6,).
-    """
-    values = as_float_array("values", values, last_dim=NUM_JOINTS)
-    lower = as_float_array("lower", lower, last_dim=NUM_JOINTS)
-    upper = as_float_array("upper", upper, last_dim=NUM_JOINTS)
-    if not (np.all(lower < 0) and np.all(upper > 0)):
-        raise ValueError(f"limits must straddle zero; got lower {lower}, upper {upper}")
-    return np.where(values >= 0, values / upper, values / -lower)
-
-
-@dataclasses.dataclass(frozen=True)
-class JointUsage:
-    """Normalised joint usage (each (T, 6), see `normalized_joint_usage`) and violations."""
-
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
-
-    def violations(self, tolerance: float = 1e-9) -> dict[str, int]:
-        """Number of samples (time steps) with any joint beyond its limit, per limit type."""
-        return {
-            name: int(np.sum(np.any(np.abs(usage) > 1.0 + tolerance, axis=-1)))
-            for name, usage in (("q", self.q), ("qd", self.qd), ("qdd", self.qdd))
-        }
-
-    def peak(self) -> dict[str, np.ndarray]:
-        """Largest |usage| per joint, per limit type (shape (6,) each)."""
-        return {
-            name: np.max(np.abs(usage), axis=0)
-            for name, usage in (("q", self.q), ("qd", self.qd), ("qdd", self.qdd))
-        }
-
-
-def joint_usage(q, qd, qdd, robot: KR500 | None = None) -> JointUsage:
-    """Joint positions, velocities and accelerations normalised by the Table I limits.
-
-    Args:
-        q: joint positions, rad, shape (T, 6).
-        qd: joint velocities, rad/s, shape (T, 6).
-        qdd: joint accelerations, rad/s^2, shape (T, 6).
-    """
-    robot = robot if robot is not None else load_kr500()
-    q = as_float_array("q", q, last_dim=NUM_JOINTS)
-    qd = as_float_array("qd", qd, last_dim=NUM_JOINTS)
-    qdd = as_float_array("qdd", qdd, last_dim=NUM_JOINTS)
-    same_shapes(q=q, qd=qd, qdd=qdd)
-    return JointUsage(
-        q=normalized_joint_usage(q, robot.q_min, robot.q_max),
-        qd=normalized_joint_usage(qd, -robot.qd_max, robot.qd_max),
-        qdd=normalized_joint_usage(qdd, -robot.qdd_max, robot.qdd_max),
-    )
-
-
-def limit_violations(q, qd, qdd, robot: KR500 | None = None, tolerance: float = 1e-9) -> dict:
-    """Samples outside the Table I limits, per limit type: {"q": n, "qd": n, "qdd": n}."""
-    return joint_usage(q, qd, qdd, robot).violations(tolerance)
-
-
-def joint_range_used(q, robot: KR500 | None = None) -> np.ndarray:
-    """Per joint, the fraction of its range a run swept: (max q - min q) / (q_max - q_min),
-    shape (6,), for q of shape (T, 6), rad. How much of the robot an MCA uses."""
-    q = as_float_array("q", q, last_dim=NUM_JOINTS)
-    robot = robot if robot is not None else load_kr500()
-    return (q.max(axis=0) - q.min(axis=0)) / (robot.q_max - robot.q_min)

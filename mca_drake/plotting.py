@@ -174,7 +174,7 @@ def plot_joint_usage(usage, title: str = "", max_points: int = 2000, seed: int =
     limits (dashed).
 
     Args:
-        usage: a `mca_drake.metrics.JointUsage` (each field shape (T, 6)).
+        usage: a `mca_drake.platforms.usage.JointUsage` (each field shape (T, n)).
         max_points: samples drawn per joint (evenly subsampled) to keep the figure light.
     """
     rng = np.random.default_rng(seed)

@@ -47,7 +47,7 @@ def check_profile(profile: str) -> str:
 def drake_installed() -> bool:
     """Whether pydrake can be imported here. Where it cannot (a GPU machine that only
     trains), `mca-drake` offers its torch commands alone and the robot's URDF is read
-    without Drake (`mca_drake.robot`)."""
+    without Drake (`mca_drake.platforms.urdf_chain`)."""
     return importlib.util.find_spec("pydrake") is not None
 
 

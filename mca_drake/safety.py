@@ -175,7 +175,7 @@ class ViabilityClamp:
 
     @classmethod
     def for_robot(cls, robot, h: float, position_coefficient: float = 0.5) -> ViabilityClamp:
-        """The clamp of a `mca_drake.robot.KR500` description."""
+        """The clamp of a `mca_drake.platforms.serial.SerialChain` description."""
         return cls(
             robot.q_min,
             robot.q_max,

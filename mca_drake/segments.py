@@ -27,8 +27,6 @@ from pathlib import Path
 import numpy as np
 
 from mca_drake.atomic_io import atomic_write_npz, load_npz_with_metadata
-from mca_drake.kinematics import head_motion, output_from_motion, pose_derivatives_from_motion
-from mca_drake.robot import KR500, NUM_JOINTS
 
 # Columns of `SegmentDataset.source` in the closed-loop datasets, and the split labels of
 # the "split" column (`mca_drake.studies.closed_loop_dataset.merge`).
@@ -55,24 +53,6 @@ def kept_file(path: str | os.PathLike, field: str, value) -> bool:
         return SegmentDataset.load(path).metadata.get(field) == value
     except ValueError:
         return False
-
-
-def cut_trajectory(
-    X: np.ndarray, U: np.ndarray, R: np.ndarray, robot: KR500, n_p: int, dtype="float32"
-) -> dict[str, np.ndarray]:
-    """A trajectory's segment arrays: states X (T, 12), inputs U (T, 6) and references R
-    (T, 6), T a multiple of n_p, with the outputs and head pose they give, each cut into
-    T / n_p segments of n_p steps (U, X, Y, F, dF, ddF, R) of `dtype`."""
-    n_segments = U.shape[0] // n_p
-    if n_segments * n_p != U.shape[0] or X.shape[0] != U.shape[0] or R.shape[0] != U.shape[0]:
-        raise ValueError(f"X, U and R need the same length, a multiple of {n_p}")
-    motion = head_motion(X[:, :NUM_JOINTS], X[:, NUM_JOINTS:], U, robot)
-    F, dF, ddF = pose_derivatives_from_motion(motion)
-    signals = {"U": U, "X": X, "Y": output_from_motion(motion), "F": F, "dF": dF, "ddF": ddF}
-    return {
-        name: a.reshape(n_segments, n_p, *a.shape[1:]).astype(dtype)
-        for name, a in {**signals, "R": R}.items()
-    }
 
 
 @dataclasses.dataclass

@@ -8,13 +8,13 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 
 from mca_drake.live.rsi.motion import CommandSegment
-from mca_drake.robot import load_kr500, model_path
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform, model_path
 from mca_drake.safety import ViabilityClamp
 
 
 @pytest.fixture(scope="session")
 def robot():
-    return load_kr500()
+    return load_platform(DEFAULT_PLATFORM)
 
 
 @pytest.fixture(scope="session")

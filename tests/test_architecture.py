@@ -1,4 +1,4 @@
-"""The package's layering (ARCHITECTURE.md, docs/concepts/diagrams.md): imports point down,
+"""The package's layering (docs/concepts/diagrams.md): imports point down,
 never in a circle; the Drake-side layers, the training configs and the command line's
 modules load no torch; torch is imported by the learning layer only.
 
@@ -21,6 +21,7 @@ LAYERS = (
     "core",
     "references",
     "perception",
+    "platforms",
     "cueing",
     "learning",
     "systems",

@@ -12,7 +12,7 @@ import pytest
 from hidden_drake import PYDRAKE_LOADED, run_without_drake
 
 from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing
-from mca_drake.kinematics import plant_output
+from mca_drake.platforms.kinematics import plant_output
 from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset
 from mca_drake.studies.bound_dataset import (
     bound_key,

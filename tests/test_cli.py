@@ -14,8 +14,8 @@ from mca_drake.app import cli
 from mca_drake.app.jobs import run_plant_demo
 from mca_drake.app.scenarios import PlantDemoScenario, load_scenario
 from mca_drake.cueing import NmpcConfig
-from mca_drake.demo_motion import demo_joint_motion
-from mca_drake.kinematics import plant_output
+from mca_drake.platforms.demo_motion import demo_joint_motion
+from mca_drake.platforms.kinematics import plant_output
 
 REPO = Path(__file__).resolve().parent.parent
 

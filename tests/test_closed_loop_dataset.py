@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mca_drake import kinematics
+from mca_drake.platforms import kinematics
 from mca_drake.segments import SegmentDataset, split_of
 from mca_drake.studies.closed_loop_dataset import (
     ClosedLoopDatasetConfig,

@@ -9,8 +9,8 @@ from pydrake.systems.analysis import Simulator
 
 from mca_drake.conventions import GRAVITY
 from mca_drake.cueing import NmpcConfig, WashoutConfig
-from mca_drake.kinematics import head_pose
 from mca_drake.perception import perceive, subjective_vertical_conflict
+from mca_drake.platforms.kinematics import head_pose
 from mca_drake.references.recording import Recording
 from mca_drake.references.reference import Reference, reference_from_recording
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop
@@ -31,7 +31,7 @@ def reference() -> Reference:
     return reference_from_recording(Recording(t, omega, f), name="pulse")
 
 
-def test_summary_records_zero_motion_pi_and_the_config(reference):
+def test_summary_records_zero_motion_pi_and_the_config(reference, robot):
     config = NmpcConfig(mode="rti", washout_weight=0.3)
     result = run_closed_loop(mca=config, reference=reference, duration_s=2.0, progress=False)
     s = result.summary
@@ -54,7 +54,7 @@ def test_summary_records_zero_motion_pi_and_the_config(reference):
     zero = np.sqrt(np.mean(target**2, 0)).sum()
     assert perceived["pi_zero_motion"] == pytest.approx(zero, abs=1e-12)
     assert perceived["pi"] < perceived["pi_zero_motion"]
-    tilt = head_pose(result.states[:, :6])[:, 2, 2]
+    tilt = head_pose(result.states[:, :6], robot)[:, 2, 2]
     sickness = subjective_vertical_conflict(
         np.column_stack([result.outputs[:, 3:5], result.outputs[:, 5] + GRAVITY * tilt]),
         result.outputs[:, :3],

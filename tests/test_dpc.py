@@ -264,11 +264,12 @@ OMEGA = 2 * np.pi * 0.4  # rad/s
 def _sine_motion(t):
     """A smooth joint motion about the neutral pose and its plant output (all channels vary):
     an achievable target. Returns x (T, 12), y (T, 6)."""
-    from mca_drake.kinematics import plant_output
+    from mca_drake.platforms.files import load_platform
+    from mca_drake.platforms.kinematics import plant_output
 
     s, c = np.sin(OMEGA * t)[:, None], np.cos(OMEGA * t)[:, None]
     q, qd, qdd = AMPLITUDE * s, AMPLITUDE * OMEGA * c, -AMPLITUDE * OMEGA**2 * s
-    return np.concatenate([q, qd], 1), plant_output(q, qd, qdd)
+    return np.concatenate([q, qd], 1), plant_output(q, qd, qdd, load_platform("kr500"))
 
 
 def _sine_target_dataset(n_segments=48, horizon=32, seed=0) -> SegmentDataset:
@@ -324,7 +325,7 @@ def test_trained_policy_tracks_better_than_doing_nothing(trained, robot):
 
 def test_rollout_on_exact_plant_is_the_plant(robot):
     """The rollout's states and outputs are the exact plant's for the commands it issued."""
-    from mca_drake.kinematics import plant_output
+    from mca_drake.platforms.kinematics import plant_output
 
     torch.manual_seed(5)
     policy = PolicyNetwork()

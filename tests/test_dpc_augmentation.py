@@ -22,7 +22,6 @@ from mca_drake.learning.dpc_training import (
     stretch_some_targets,
 )
 from mca_drake.learning.policy_network import PolicyNetwork
-from mca_drake.robot import MIRROR_JOINT_SIGNS
 
 
 def test_mirrored_joint_motion_is_the_mirrored_cue_in_drake(robot, drake_plant, rng):
@@ -30,7 +29,7 @@ def test_mirrored_joint_motion_is_the_mirrored_cue_in_drake(robot, drake_plant, 
     the head outputs with roll rate, yaw rate and lateral force reversed; the limits of the
     mirrored joints are symmetric, so a mirrored state is as reachable as the original."""
     context = drake_plant.CreateDefaultContext()
-    joints = np.array(MIRROR_JOINT_SIGNS)
+    joints = np.array(robot.mirror_joint_signs)
     for _ in range(50):
         q = rng.uniform(robot.q_min, robot.q_max) * 0.9
         qd, qdd = rng.uniform(-1, 1, 6), rng.uniform(-1, 1, 6)
@@ -41,14 +40,15 @@ def test_mirrored_joint_motion_is_the_mirrored_cue_in_drake(robot, drake_plant, 
     np.testing.assert_array_equal(robot.q_min[flipped], -robot.q_max[flipped])
 
 
-def test_mirrored_windows_are_a_random_share_flipped_whole():
+def test_mirrored_windows_are_a_random_share_flipped_whole(robot):
     torch.manual_seed(0)
     x0, y0 = torch.rand(4000, 12) + 0.5, torch.rand(4000, 6) + 0.5  # all positive
     targets = torch.rand(4000, 7, 6) + 0.5
-    x, y, r = mirror_some_windows(x0, y0, targets, 0.3)
+    x, y, r = mirror_some_windows(x0, y0, targets, 0.3, robot)
     flipped = x[:, 0] < 0
     assert 0.27 < flipped.float().mean() < 0.33
-    joints, channels = torch.tensor(MIRROR_JOINT_SIGNS), torch.tensor(MIRROR_CHANNEL_SIGNS)
+    joints = torch.tensor(robot.mirror_joint_signs, dtype=torch.float32)
+    channels = torch.tensor(MIRROR_CHANNEL_SIGNS)
     torch.testing.assert_close(x[flipped], x0[flipped] * torch.cat((joints, joints)))
     torch.testing.assert_close(y[flipped], y0[flipped] * channels)
     torch.testing.assert_close(r[flipped], targets[flipped] * channels)
@@ -63,6 +63,8 @@ def test_the_symmetry_check_passes_the_kr500_and_refuses_a_lopsided_plant():
     class Lopsided(torch.nn.Module):
         """The KR500 with a constant lateral force added (a cabin mounted off-centre)."""
 
+        robot = plant.robot
+
         def output(self, x, u):
             return plant.output(x, u) + torch.tensor([0.0, 0, 0, 0, 0.3, 0])
 
@@ -75,14 +77,14 @@ def test_the_symmetry_check_passes_the_kr500_and_refuses_a_lopsided_plant():
         DpcTrainingConfig(mirror_fraction=1.5).validate()
 
 
-def test_the_training_objective_flies_the_mirrored_window():
+def test_the_training_objective_flies_the_mirrored_window(robot):
     """With every window mirrored, the training loss is the loss of the same batch mirrored
     by hand (x0, y0 and targets alike) and flown without mirroring: the objective mirrors
     the whole window, not part of it. The policy is not symmetric, so the two batches differ."""
     torch.manual_seed(3)
     T = 16
     batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
-    _, x_signs, y_signs = mirror_signs()
+    _, x_signs, y_signs = mirror_signs(robot)
     by_hand = {"X": batch["X"] * x_signs, "Y": batch["Y"] * y_signs, "R": batch["R"] * y_signs}
     policy = PolicyNetwork().train()
     loss = {}

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mca_drake import kinematics
-from mca_drake.references.excitation import (
+from mca_drake.platforms import kinematics
+from mca_drake.platforms.excitation import (
     SIGNALS,
     ExcitationConfig,
     excitation_profiles,

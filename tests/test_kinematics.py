@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import random_joint_states
-from pydrake.multibody.tree import JacobianWrtVariable
+from drake_oracle import drake_head_pose, drake_plant_output
 
-from mca_drake import kinematics
+from mca_drake.platforms import kinematics
 
 G = 9.81
 
@@ -36,30 +36,6 @@ def textbook_dh_head_pose(q: np.ndarray) -> np.ndarray:
     X_6H[:3, :3] = [[0, 0, 1], [0, -1, 0], [1, 0, 0]]
     X_6H[:3, 3] = [0.9, 0.0, 0.5]
     return X @ X_6H
-
-
-def drake_head_pose(plant, context, q):
-    plant.SetPositions(context, q)
-    return plant.GetFrameByName("head").CalcPoseInWorld(context).GetAsMatrix4()
-
-
-def drake_plant_output(plant, context, q, qd, qdd):
-    """y from Drake: head spatial velocity, J qdd + bias acceleration, pose."""
-    plant.SetPositions(context, q)
-    plant.SetVelocities(context, qd)
-    head, world = plant.GetFrameByName("head"), plant.world_frame()
-    R_WH = head.CalcPoseInWorld(context).rotation().matrix()
-    omega_W = head.CalcSpatialVelocityInWorld(context).rotational()
-    J = plant.CalcJacobianSpatialVelocity(
-        context, JacobianWrtVariable.kV, head, np.zeros(3), world, world
-    )
-    bias = plant.CalcBiasSpatialAcceleration(
-        context, JacobianWrtVariable.kV, head, np.zeros(3), world, world
-    )
-    A = J @ qdd + bias.get_coeffs()  # [alpha_W; a_W]
-    a_H = R_WH.T @ A[3:]
-    f_H = R_WH.T @ (A[3:] - np.array([0.0, 0.0, -G]))
-    return np.concatenate([R_WH.T @ omega_W, f_H[:2], a_H[2:]])
 
 
 def test_urdf_matches_dh_at_1000_configurations(robot, drake_plant, rng):

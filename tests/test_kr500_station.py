@@ -8,8 +8,9 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource, ZeroOrderHold
 from pydrake.trajectories import PiecewisePolynomial
 
-from mca_drake.kinematics import plant_output
-from mca_drake.robot import NUM_JOINTS, load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import plant_output
+from mca_drake.platforms.serial import NUM_JOINTS
 from mca_drake.systems.kr500_station import AddKR500Station, StationConfig
 
 H = 0.01  # control period of the command, s
@@ -18,7 +19,7 @@ HOME = np.array([0.0, 0.0, 0.5, 0.0, -0.5, 0.0])
 
 @pytest.fixture(scope="module")
 def robot():
-    return load_kr500()
+    return load_platform(DEFAULT_PLATFORM)
 
 
 def smooth_command(times: np.ndarray) -> np.ndarray:

@@ -8,11 +8,11 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mca_drake.kinematics import head_pose_derivatives, plant_output
 from mca_drake.learning import make_output_model, make_state_model
 from mca_drake.learning.ode_adjoint import odeint_step, rk4_step
 from mca_drake.learning.output_models import OUTPUT_MODELS, output_from_pose_derivatives
 from mca_drake.learning.state_models import STATE_MODELS
+from mca_drake.platforms.kinematics import head_pose_derivatives, plant_output
 from tests.conftest import random_joint_states
 
 DT = 0.01

@@ -10,7 +10,7 @@ from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
 from mca_drake.live.receiver import TELEMETRY_FIELDS
 from mca_drake.live.supervisor import Supervisor, SupervisorConfig
-from mca_drake.metrics import joint_usage
+from mca_drake.platforms.usage import joint_usage
 from mca_drake.systems.motion_cueing_plant import MotionCueingPlant
 
 

@@ -10,7 +10,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from mca_drake.cueing import mca_config_from_name
-from mca_drake.robot import load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.simulation.builders import AddMca
 from mca_drake.systems.mca_update import MCA_UPDATE_EVENTS, DeclareMcaUpdate
 
@@ -97,7 +97,7 @@ def test_an_unknown_event_is_refused():
 
 @pytest.mark.parametrize("name", ["dpc", "washout", "nmpc-rti"])
 def test_every_mca_computes_the_same_command_in_either_phase(name):
-    robot = load_kr500()
+    robot = load_platform(DEFAULT_PLATFORM)
     x = np.r_[0.1, -0.2, 0.3, 0.0, 0.2, -0.1, 0.05, 0.0, -0.1, 0.2, 0.0, 0.1]
     reference = np.array([0.1, -0.05, 0.02, 0.5, -0.3, 0.2])
     commands = {}

@@ -7,6 +7,7 @@ import pytest
 import scipy.stats
 
 from mca_drake import metrics
+from mca_drake.platforms import usage
 
 T = np.linspace(0.0, 10.0, 1001)
 
@@ -91,8 +92,8 @@ def test_wilcoxon_rank_sum_matches_scipy_and_detects_shift(rng):
 
 def test_normalized_usage_keeps_neutral_and_maps_limits(robot):
     q = np.array([robot.q_max, robot.q_min, np.zeros(6), robot.q_max / 2])
-    usage = metrics.normalized_joint_usage(q, robot.q_min, robot.q_max)
-    np.testing.assert_allclose(usage, [np.ones(6), -np.ones(6), np.zeros(6), np.full(6, 0.5)])
+    normalised = usage.normalized_joint_usage(q, robot.q_min, robot.q_max)
+    np.testing.assert_allclose(normalised, [np.ones(6), -np.ones(6), np.zeros(6), np.full(6, 0.5)])
 
 
 def test_violation_counts_per_limit_type(robot):
@@ -102,8 +103,8 @@ def test_violation_counts_per_limit_type(robot):
     q[4, 2] = robot.q_min[2] - 0.01  # one under on joint 3
     qd[7, :] = robot.qd_max * 1.5  # one sample, all joints: still one sample
     qdd[2, 5] = robot.qdd_max[5]  # exactly at the limit: not a violation
-    assert metrics.limit_violations(q, qd, qdd, robot) == {"q": 2, "qd": 1, "qdd": 0}
-    peak = metrics.joint_usage(q, qd, qdd, robot).peak()
+    assert usage.limit_violations(q, qd, qdd, robot) == {"q": 2, "qd": 1, "qdd": 0}
+    peak = usage.joint_usage(q, qd, qdd, robot).peak()
     np.testing.assert_allclose(peak["qd"], 1.5)
 
 
@@ -147,7 +148,7 @@ def test_joint_range_used_is_the_swept_share_of_each_range(robot):
     q = np.zeros((3, 6))
     q[0, 0], q[2, 0] = robot.q_min[0] / 2, robot.q_max[0] / 2  # half of joint 1's range
     q[1, 4] = robot.q_max[4]  # from 0 to the upper limit of joint 5
-    used = metrics.joint_range_used(q, robot)
+    used = usage.joint_range_used(q, robot)
     np.testing.assert_allclose(used[0], 0.5, atol=1e-12)
     expected = robot.q_max[4] / (robot.q_max[4] - robot.q_min[4])
     np.testing.assert_allclose(used[4], expected, atol=1e-12)

@@ -11,8 +11,8 @@ import scipy.optimize
 from pydrake.systems.analysis import Simulator
 
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
-from mca_drake.kinematics import plant_output
 from mca_drake.perception import PerceptionConfig, vestibular_filter
+from mca_drake.platforms.kinematics import plant_output
 from mca_drake.references.reference import Reference
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop
 from mca_drake.simulation.closed_loop import run_closed_loop

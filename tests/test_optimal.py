@@ -58,7 +58,7 @@ def test_shooting_dynamics_rows_are_the_exact_steps():
 def _rest_output(robot, T: int) -> np.ndarray:
     """The plant's output (T, 6) with the robot at rest at home (gravity in the specific
     force)."""
-    from mca_drake.kinematics import plant_output
+    from mca_drake.platforms.kinematics import plant_output
 
     zeros = np.zeros((T, 6))
     return plant_output(zeros, zeros, zeros, robot)
@@ -175,7 +175,7 @@ def test_the_perceived_bound_weighs_what_the_occupant_perceives(robot):
     ocp = OptimalCueing(T, config, robot)
     U = np.random.default_rng(2).uniform(-0.3, 0.3, (T, 6)) * robot.qdd_max
     x = ocp.states(np.zeros(12), U)
-    from mca_drake.kinematics import plant_output
+    from mca_drake.platforms.kinematics import plant_output
 
     y = plant_output(x[:-1, :6], x[:-1, 6:], U, robot)
     model = PerceptionConfig(model=config.perception_model)

@@ -21,13 +21,13 @@ from mca_drake.cueing.output_curvature import (
     node_jacobians,
     psb_update,
 )
-from mca_drake.kinematics import plant_output, plant_output_jacobians
-from mca_drake.robot import load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
 
 
 @pytest.fixture(scope="module")
 def robot():
-    return load_kr500()
+    return load_platform(DEFAULT_PLATFORM)
 
 
 def random_nodes(n: int, seed: int):

@@ -11,7 +11,6 @@ import torch
 from pydrake.systems.framework import DiagramBuilder
 
 from mca_drake.conventions import GRAVITY
-from mca_drake.kinematics import plant_output
 from mca_drake.learning.perception import TorchVestibularFilter
 from mca_drake.perception import (
     VESTIBULAR_MODELS,
@@ -23,6 +22,7 @@ from mca_drake.perception import (
     vestibular_filter,
 )
 from mca_drake.perception.sickness import SicknessParameters
+from mca_drake.platforms.kinematics import plant_output
 from mca_drake.systems.vestibular import VestibularModel
 
 H = 0.01
@@ -60,11 +60,11 @@ def test_canal_response_to_a_constant_rotation_fades_with_the_long_time_constant
 
 
 @pytest.mark.parametrize("model", MODELS)
-def test_otolith_cannot_tell_a_tilt_from_a_sustained_acceleration(model):
+def test_otolith_cannot_tell_a_tilt_from_a_sustained_acceleration(model, robot):
     # A static pitched pose: gravity along the head's x axis, the plant's own output ...
     q = np.zeros(6)
     q[4] = np.radians(10.0)
-    tilt = plant_output(q[None], np.zeros((1, 6)), np.zeros((1, 6)))[0]
+    tilt = plant_output(q[None], np.zeros((1, 6)), np.zeros((1, 6)), robot)[0]
     assert abs(tilt[3]) > 1.0  # about g sin(10 deg)
     # ... and a level head accelerating along x at the same specific force
     acceleration = np.zeros(6)

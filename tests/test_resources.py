@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from mca_drake.cueing.dpc import shipped_policy_path
+from mca_drake.platforms.files import model_path
 from mca_drake.resources import (
     PROFILES,
     SHIPPED_POLICIES,
@@ -19,7 +20,6 @@ from mca_drake.resources import (
     packaged_scenarios,
     scenario_path,
 )
-from mca_drake.robot import model_path
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -61,8 +61,9 @@ def test_bad_names_are_refused():
     ]
 
 
-def test_the_wheel_carries_the_model_the_scenarios_the_policies_and_profiles(tmp_path):
-    """The wheel, built from this checkout, holds copies of models/ and diagrams/ where
+def test_the_wheel_carries_the_models_the_scenarios_the_policies_and_profiles(tmp_path):
+    """The wheel, built from this checkout, holds copies of models/ (the platforms' URDFs and
+    platform files) and diagrams/ where
     `resources` looks in an installed package, the shipped policies and the profiles'
     settings, and no other data."""
     source = tmp_path / "source"  # a copy: the build writes build/ into its source
@@ -76,7 +77,14 @@ def test_the_wheel_carries_the_model_the_scenarios_the_policies_and_profiles(tmp
     (wheel,) = tmp_path.glob("mca_drake-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
     data = {n for n in names if n.startswith("mca_drake/data/")}
-    expected = {"mca_drake/data/models/kr500.urdf"}
+    expected = {
+        f"mca_drake/data/models/{p.name}"
+        for p in (REPO / "models").iterdir()
+        if p.suffix in (".urdf", ".yaml")
+    }
+    assert {"kr500.urdf", "kr500.yaml", "kr500_rail.urdf", "kr500-rail.yaml"} <= {
+        n.rsplit("/", 1)[1] for n in expected
+    }
     expected |= {f"mca_drake/data/diagrams/{p.name}" for p in (REPO / "diagrams").glob("*.yaml")}
     expected |= {f"mca_drake/data/{n}.npz" for n in SHIPPED_POLICIES}
     expected |= {f"mca_drake/data/profiles/{n}.yaml" for n in PROFILES}

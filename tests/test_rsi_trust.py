@@ -31,7 +31,7 @@ from mca_drake.live.rsi.emulator import AxisLimits, RsiEmulator, RsiEmulatorConf
 from mca_drake.live.rsi.link import segment_socket_pair, start_rsi_driver
 from mca_drake.live.rsi.motion import RsiMotionConfig
 from mca_drake.live.rsi.xml import format_state
-from mca_drake.robot import load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 
 
 class RosIndustrialSimulator(RsiEmulator):
@@ -200,7 +200,7 @@ def test_the_scenario_sets_the_robots_home_in_axis_angles():
         def start_robot(_address):
             # this robot's axes read -90 and 90 where the model's joints read 0: its position
             # limits sit elsewhere, its rates are the KR500's
-            kr500 = AxisLimits.of_robot(load_kr500())
+            kr500 = AxisLimits.of_robot(load_platform(DEFAULT_PLATFORM))
             limits = AxisLimits([-360.0] * 6, [360.0] * 6, *astuple(kr500)[2:])
             emulator = RsiEmulator(
                 ("127.0.0.1", port), RsiEmulatorConfig(cycle_s=CYCLE, start_deg=home), limits

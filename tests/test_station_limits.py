@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from mca_drake.cueing import NmpcConfig
-from mca_drake.metrics import joint_usage
+from mca_drake.platforms.usage import joint_usage
 from mca_drake.references.adversarial import ADVERSARIAL_KINDS, adversarial_reference
 from mca_drake.safety import ViabilityClamp, substep_position_coefficient
 from mca_drake.simulation.closed_loop import run_closed_loop

@@ -8,7 +8,7 @@ import json
 import pytest
 
 from mca_drake.learning.trainer import TrainConfig
-from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
+from mca_drake.platforms.excitation import ExcitationConfig, generate_excitation_dataset
 from mca_drake.studies.table2 import Table2Config, run_table2
 
 

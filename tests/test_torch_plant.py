@@ -9,8 +9,8 @@ from conftest import random_joint_states
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mca_drake import kinematics
 from mca_drake.learning.torch_plant import TorchPlant
+from mca_drake.platforms import kinematics
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ from mca_drake.learning.plant_candidates import (
     state_objective,
 )
 from mca_drake.learning.trainer import TrainingDivergedError
-from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
+from mca_drake.platforms.excitation import ExcitationConfig, generate_excitation_dataset
 
 
 @pytest.fixture(scope="module")

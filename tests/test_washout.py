@@ -9,7 +9,7 @@ from scipy import signal
 
 from mca_drake.conventions import GRAVITY
 from mca_drake.cueing.washout import WashoutConfig, WashoutFilters
-from mca_drake.kinematics import head_pose
+from mca_drake.platforms.kinematics import head_pose
 from mca_drake.references.reference import Reference
 from mca_drake.simulation.closed_loop import run_closed_loop
 
@@ -82,14 +82,14 @@ def test_sustained_surge_is_rendered_by_pitch_within_the_rate_limit(surge_run, r
     assert result.summary["solver_failures"] == 0
 
 
-def test_robot_returns_to_neutral(surge_run):
+def test_robot_returns_to_neutral(surge_run, robot):
     """Back at rest at its home pose (where it started), with the head level."""
     result, _ = surge_run
     home = np.array(WashoutConfig().home_position)
     np.testing.assert_allclose(result.states[0, :6], home, atol=1e-12)
     final = result.states[-1]
     assert np.abs(final[:6] - home).max() < 2e-3 and np.abs(final[6:]).max() < 1e-3
-    R = head_pose(final[:6])[:3, :3]
+    R = head_pose(final[:6], robot)[:3, :3]
     np.testing.assert_allclose(R, np.eye(3), atol=2e-3)
 
 

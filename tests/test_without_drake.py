@@ -13,10 +13,12 @@ import torch
 from dataset_helpers import rest_segments
 from hidden_drake import PYDRAKE_LOADED, run_without_drake
 
+from mca_drake.app.cli.platforms import platform_records
 from mca_drake.cueing.nmpc_config import NmpcConfig
 from mca_drake.cueing.profiles import profile_config
 from mca_drake.learning.configs import DpcTrainingConfig, TrainConfig
 from mca_drake.learning.dpc_training import train_policy
+from mca_drake.platforms.files import packaged_platforms
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -59,7 +61,7 @@ def test_train_policy_runs_without_drake_on_a_profiles_objective(tmp_path):
 
     assert result["status"] == 0
     assert result["pydrake_loaded"] == []
-    assert result["commands"] == ["export-policy", "table2", "train-policy"]
+    assert result["commands"] == ["export-policy", "platforms", "table2", "train-policy"]
     policy = np.load(tmp_path / "policy" / "policy.npz")
     metadata = json.loads(str(policy["metadata_json"]))
     # The loss is the ground profile's NMPC objective, read without Drake's YAML loader.
@@ -80,3 +82,19 @@ def test_train_policy_trains_on_cuda(tmp_path):
     )
     _, path = train_policy(config, dataset, tmp_path / "policy", progress=False)
     assert np.all(np.isfinite(np.load(path)["W1"]))
+
+
+PLATFORMS_WITHOUT_DRAKE = f"""
+from mca_drake.app.cli.platforms import platform_records
+from mca_drake.platforms.files import packaged_platforms
+records = platform_records(list(packaged_platforms()))
+print(json.dumps({{"records": records, "pydrake_loaded": {PYDRAKE_LOADED}}}))
+"""
+
+
+def test_the_platforms_read_without_drake_as_with_it():
+    """The packaged platforms as `mca-drake platforms --json` gives them, read by the XML
+    reader in an interpreter without pydrake, equal those read through Drake's parser."""
+    result = run_without_drake(PLATFORMS_WITHOUT_DRAKE, [], REPO)
+    assert result["pydrake_loaded"] == []
+    assert result["records"] == platform_records(list(packaged_platforms()))

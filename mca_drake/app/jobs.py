@@ -23,10 +23,10 @@ from mca_drake.app.scenarios import (
 from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.conventions import CHANNELS
 from mca_drake.cueing import mca_config_record, mca_name
-from mca_drake.metrics import joint_usage
+from mca_drake.platforms.files import load_platform
+from mca_drake.platforms.usage import joint_usage
 from mca_drake.plotting import plot_outputs, save_figure
 from mca_drake.references.drives import motion_reference
-from mca_drake.robot import NUM_JOINTS, load_kr500
 from mca_drake.segments import SegmentDataset
 from mca_drake.simulation.builders import MakePlantDemoDiagram
 from mca_drake.simulation.closed_loop import (
@@ -58,10 +58,9 @@ def run_plant_demo(
 ) -> PlantDemoResult:
     """Simulates the analytical plant on the demo motion; optionally writes JSON and a plot."""
     scenario.validate()
+    robot = load_platform(scenario.platform)
     diagram, handles = MakePlantDemoDiagram(
-        duration_s=scenario.duration_s,
-        time_step=scenario.time_step,
-        robot=load_kr500(scenario.robot_urdf or None),
+        duration_s=scenario.duration_s, time_step=scenario.time_step, robot=robot
     )
     simulator = Simulator(diagram)
     simulator.Initialize()
@@ -71,7 +70,8 @@ def run_plant_demo(
     states = handles["state_log"].FindLog(context).data().T
     accelerations = handles["input_log"].FindLog(context).data().T
     outputs = out.data().T
-    usage = joint_usage(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], accelerations)
+    n = robot.num_joints
+    usage = joint_usage(states[:, :n], states[:, n:], accelerations, robot)
     summary = {
         "mca": "none",
         "plant": "analytical",

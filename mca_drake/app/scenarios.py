@@ -47,6 +47,7 @@ from mca_drake.live.outsim import OutSimConfig
 from mca_drake.live.receiver import allowed_senders
 from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.perception.models import PerceptionConfig
+from mca_drake.platforms.files import DEFAULT_PLATFORM
 from mca_drake.references.drives import DriveSpec
 from mca_drake.references.flights import FlightSpec
 from mca_drake.resources import scenario_path
@@ -69,8 +70,8 @@ class PlantDemoScenario:
     duration_s: float = 20.0
     # Control period of the plant and of the logged signals, s.
     time_step: float = CONTROL_PERIOD_S
-    # URDF of the robot; empty means the packaged models/kr500.urdf.
-    robot_urdf: str = ""
+    # The motion platform: a packaged name (`mca-drake platforms`) or a platform file.
+    platform: str = DEFAULT_PLATFORM
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""

@@ -17,9 +17,9 @@ import numpy as np
 from scipy.special import erf
 
 from mca_drake.atomic_io import load_npz_with_metadata
+from mca_drake.platforms.serial import NUM_JOINTS
 from mca_drake.references.synthetic import VEHICLE_ENVELOPES
 from mca_drake.resources import SHIPPED_POLICIES, check_profile, data_dir
-from mca_drake.robot import NUM_JOINTS
 
 _SQRT_HALF = np.sqrt(0.5)
 

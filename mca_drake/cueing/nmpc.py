@@ -25,8 +25,8 @@ dynamics are linear, so the states are condensed out: the decision variables are
 U = (u_0, ..., u_(N-1)) only and every constraint is linear in U with a matrix fixed at
 build time; only the bounds move with x_0.
 The cost is nonlinear through y; each Gauss-Newton QP linearises y with the exact Jacobians
-of `mca_drake.kinematics`. Because the constraints are exact and linear, every QP iterate is
-feasible, and a backtracking line search on the true cost makes the `converged` mode a
+of `mca_drake.platforms.kinematics`. Because the constraints are exact and linear, every QP
+iterate is feasible, and a backtracking line search on the true cost makes the `converged` mode a
 descent method that stops at a KKT point of the nonlinear program.
 
 Solving. Each QP is first solved on a guessed active set (the previous step's or
@@ -79,10 +79,11 @@ from mca_drake.cueing.output_curvature import (
     residual_curvature,
 )
 from mca_drake.cueing.shooting import shooting_dynamics
-from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 from mca_drake.safety import viable_acceleration_bounds
 
 NU = NUM_JOINTS
@@ -163,7 +164,7 @@ class PlanningLimits:
     qdd_max: np.ndarray
 
 
-def _planning_limits(robot: KR500, margin: float) -> PlanningLimits:
+def _planning_limits(robot: SerialChain, margin: float) -> PlanningLimits:
     if not 0 <= margin < 0.1:
         raise ValueError(f"limit_margin must be in [0, 0.1); got {margin}")
     reserve = margin * (robot.q_max - robot.q_min)
@@ -200,10 +201,10 @@ class MotionCueingOcp:
         robot: the KR500 description (default models/kr500.urdf).
     """
 
-    def __init__(self, config: NmpcConfig | None = None, robot: KR500 | None = None):
+    def __init__(self, config: NmpcConfig | None = None, robot: SerialChain | None = None):
         self.config = config or NmpcConfig()
         self.config.validate()
-        self.robot = robot if robot is not None else load_kr500()
+        self.robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
         cfg, r = self.config, self.robot
         self.limits = r = _planning_limits(r, cfg.limit_margin)
         self.interval_steps = make_grid(cfg.horizon_steps, cfg.nodes)

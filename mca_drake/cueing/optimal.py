@@ -16,7 +16,7 @@ model's states become variables of the program, tied to the errors by its dynami
 limits are the robot's own (Table I), at every sample, as the summaries count violations.
 
 Method: sequential quadratic programming. Each QP linearises y at the current trajectory
-with the exact Jacobians of `mca_drake.kinematics`, its Hessian Gauss-Newton's (or, for
+with the exact Jacobians of `mca_drake.platforms.kinematics`, its Hessian Gauss-Newton's (or, for
 the inertial objective, Newton's made convex stage by stage: `curvature`), and is solved in
 full by the structured interior-point method of `mca_drake.cueing.stagewise_qp` on the
 multiple-shooting program (variables u_k and x_(k+1) per step, and the model's states
@@ -40,10 +40,11 @@ from mca_drake.cueing.output_curvature import finite_difference_hessians, residu
 from mca_drake.cueing.shooting import double_integrator_step
 from mca_drake.cueing.stagewise_qp import solve_stagewise_qp
 from mca_drake.input_checks import as_float_array, check_config_numbers
-from mca_drake.kinematics import plant_output, plant_output_jacobians
 from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 
 NU, NX = NUM_JOINTS, 2 * NUM_JOINTS
 # Each QP's tolerance as a share of the last KKT residual (inexact SQP).
@@ -149,12 +150,14 @@ class OptimalCueing:
         robot: the KR500 description.
     """
 
-    def __init__(self, steps: int, config: OptimalConfig | None = None, robot: KR500 | None = None):
+    def __init__(
+        self, steps: int, config: OptimalConfig | None = None, robot: SerialChain | None = None
+    ):
         self.config = config or OptimalConfig()
         self.config.validate()
         if steps < 1:
             raise ValueError(f"steps must be at least 1; got {steps}")
-        self.robot = robot if robot is not None else load_kr500()
+        self.robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
         self.T = int(steps)
         h = self.config.time_step
         # the tracking term's model of the errors: none (inertial: P = e) or the vestibular

@@ -32,8 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mca_drake.kinematics import output_velocity_hessians, plant_output_jacobians
-from mca_drake.robot import KR500, NUM_JOINTS
+from mca_drake.platforms.kinematics import output_velocity_hessians, plant_output_jacobians
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 
 NODE_DIM = 3 * NUM_JOINTS  # v = (q, qd, u)
 NUM_OUTPUTS = 6
@@ -65,7 +65,7 @@ def node_jacobians(jac) -> np.ndarray:
 
 
 def finite_difference_hessians(
-    q: np.ndarray, qd: np.ndarray, u: np.ndarray, robot: KR500, jacobian: np.ndarray
+    q: np.ndarray, qd: np.ndarray, u: np.ndarray, robot: SerialChain, jacobian: np.ndarray
 ) -> np.ndarray:
     """d^2 y_a / dv^2 at N nodes (q, qd, u each (N, 6)), shape (N, 6, 18, 18).
 

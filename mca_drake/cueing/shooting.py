@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from mca_drake.robot import NUM_JOINTS
+from mca_drake.platforms.serial import NUM_JOINTS
 
 NU, NX = NUM_JOINTS, 2 * NUM_JOINTS
 

@@ -170,7 +170,7 @@ class DpcTrainingConfig:
     # Noise of the perturbed starts (`perturbed_fraction`), in joint half-ranges.
     initial_state_noise: float = 0.1
     # Fraction of each training batch whose rollouts fly their window's mirror image (left
-    # and right swapped: `conventions.MIRROR_CHANNEL_SIGNS`, `robot.MIRROR_JOINT_SIGNS`).
+    # and right swapped: `conventions.MIRROR_CHANNEL_SIGNS`, the platform's `mirror_joint_signs`).
     # Robot and loss are symmetric, so it teaches turns and slips the other way round
     # (docs/decisions/0003-mirrored-windows-and-scaled-terminal-weights.md).
     mirror_fraction: float = 0.5

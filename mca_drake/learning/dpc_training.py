@@ -63,7 +63,8 @@ from mca_drake.learning.torch_plant import TorchPlant, viable_acceleration_bound
 from mca_drake.learning.trainer import CurriculumTrainer
 from mca_drake.metrics import STILL_TOLERANCE
 from mca_drake.perception.models import PerceptionConfig
-from mca_drake.robot import KR500, MIRROR_JOINT_SIGNS, NUM_JOINTS, load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 from mca_drake.segments import (
     SOURCE_COLUMNS,
     SegmentDataset,
@@ -78,9 +79,10 @@ class RolloutPlant(nn.Module):
     """The frozen plant of the DPC rollouts: step(x, u) -> x_next, output(x, u) -> y, and
     the safety filter `clamp(x, u)` of the deployed robot (identity if switched off)."""
 
-    def __init__(self, config: DpcTrainingConfig, robot: KR500 | None = None):
+    def __init__(self, config: DpcTrainingConfig, robot: SerialChain | None = None):
         super().__init__()
-        robot = robot if robot is not None else load_kr500()
+        robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
+        self.robot = robot
         self.kind = config.plant
         self.safety_filter = config.safety_filter
         self.bound_gradients = config.bound_gradients
@@ -253,22 +255,31 @@ def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcT
 
 
 def mirror_signs(
-    dtype: torch.dtype = torch.float32, device: torch.device | str = "cpu"
+    robot: SerialChain, dtype: torch.dtype = torch.float32, device: torch.device | str = "cpu"
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """The mirror image's signs of a command u (6), a state x = [q, qd] (12) and an output y
-    (6): `robot.MIRROR_JOINT_SIGNS` on joints, `conventions.MIRROR_CHANNEL_SIGNS` on outputs."""
-    joints = torch.tensor(MIRROR_JOINT_SIGNS, dtype=dtype, device=device)
+    """The mirror image's signs of a command u (n), a state x = [q, qd] (2n) and an output y
+    (6): the platform's `mirror_joint_signs` on joints, `conventions.MIRROR_CHANNEL_SIGNS` on
+    outputs.
+
+    Raises:
+        ValueError: the platform has no mirror symmetry."""
+    if robot.mirror_joint_signs.size == 0:
+        raise ValueError(
+            f"platform '{robot.name}' gives no mirror_joint_signs: train with "
+            "mirror_fraction 0 (--mirror-fraction 0)"
+        )
+    joints = torch.tensor(robot.mirror_joint_signs, dtype=dtype, device=device)
     channels = torch.tensor(MIRROR_CHANNEL_SIGNS, dtype=dtype, device=device)
     return joints, torch.cat((joints, joints)), channels
 
 
 def mirror_some_windows(
-    x0: torch.Tensor, y0: torch.Tensor, targets: torch.Tensor, fraction: float
+    x0: torch.Tensor, y0: torch.Tensor, targets: torch.Tensor, fraction: float, robot: SerialChain
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """(x0 (B, 12), y0 (B, 6), targets (B, T, 6)) with a random `fraction` of the windows
     replaced by their mirror images (torch's global generator; see `mirror_fraction`)."""
     chosen = torch.rand(x0.shape[0], 1, device=x0.device) < fraction
-    _, state_signs, channel_signs = mirror_signs(x0.dtype, x0.device)
+    _, state_signs, channel_signs = mirror_signs(robot, x0.dtype, x0.device)
     x_signs = torch.where(chosen, state_signs, torch.ones_like(state_signs))
     y_signs = torch.where(chosen, channel_signs, torch.ones_like(channel_signs))
     return x0 * x_signs, y0 * y_signs, targets * y_signs[:, None]
@@ -290,7 +301,7 @@ def check_mirror_symmetry(plant: RolloutPlant) -> None:
     """Raises ValueError unless the rollout plant is left-right symmetric, as mirrored
     training windows assume: outputs and steps of mirrored random states and commands are the
     mirrored outputs and steps (a robot description with a lateral offset is not)."""
-    u_signs, x_signs, y_signs = mirror_signs()
+    u_signs, x_signs, y_signs = mirror_signs(plant.robot)
     worst = _symmetry_error(
         plant, lambda x: x * x_signs, lambda u: u * u_signs, lambda y: y * y_signs
     )
@@ -438,7 +449,9 @@ def dpc_objective(
             cells[id(policy)] = torch.compile(cell) if config.compile else cell
         targets, x0, y0 = batch[key], batch["X"][:, 0], batch["Y"][:, 0]
         if policy.training and config.mirror_fraction > 0:
-            x0, y0, targets = mirror_some_windows(x0, y0, targets, config.mirror_fraction)
+            x0, y0, targets = mirror_some_windows(
+                x0, y0, targets, config.mirror_fraction, plant.robot
+            )
         if policy.training and config.yaw_shift_fraction > 0:
             x0 = shift_base_yaw(x0, config.yaw_shift_fraction, plant.q_min, plant.q_max)
         if policy.training and config.time_stretch_fraction > 0:

@@ -27,7 +27,7 @@ from torch import nn
 from mca_drake.conventions import CONTROL_PERIOD_S, GRAVITY
 from mca_drake.learning.blocks import Mlp, pose_top, sin_cos_features
 from mca_drake.learning.torch_plant import TorchPlant
-from mca_drake.robot import NUM_JOINTS
+from mca_drake.platforms.serial import NUM_JOINTS
 
 STATE_SIZE, INPUT_SIZE, OUTPUT_SIZE = 2 * NUM_JOINTS, NUM_JOINTS, 6
 POSE_SIZE = 12  # top 3x4 block of a pose matrix or its derivative
@@ -133,7 +133,7 @@ class MixedAnalyticalOutput(OutputModel):
     def pose_derivatives(self, X, U) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """F exact, dF and ddF learned; each (B, T, 4, 4) (bottom rows: F's [0 0 0 1], 0)."""
         q, qd = X[..., :NUM_JOINTS], X[..., NUM_JOINTS:]
-        F = self.kinematics.head_pose(q.to(self.kinematics.dh_a.dtype)).to(X.dtype)
+        F = self.kinematics.head_pose(q.to(self.kinematics.R_prev.dtype)).to(X.dtype)
         g_qd = sin_cos_features(qd)
         F_top = pose_top(F)
         dF_top = self.f3(torch.cat([g_qd, F_top], dim=-1))
@@ -170,7 +170,7 @@ class ExactOutput(OutputModel):
 
     def forward(self, X, U, y_prev=None):
         _check(X, U, y_prev)
-        dtype = self.plant.dh_a.dtype
+        dtype = self.plant.R_prev.dtype
         return self.plant.output(X.to(dtype), U.to(dtype)).to(X.dtype)
 
 

@@ -35,7 +35,8 @@ from mca_drake.cueing.dpc import (
 )
 from mca_drake.learning.blocks import Mlp
 from mca_drake.learning.configs import OUTPUT_SCALE
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 
 
 def relu_clamp(z: torch.Tensor, lower: torch.Tensor, upper: torch.Tensor) -> torch.Tensor:
@@ -58,13 +59,13 @@ class PolicyNetwork(nn.Module):
 
     def __init__(
         self,
-        robot: KR500 | None = None,
+        robot: SerialChain | None = None,
         hidden: int = 128,
         output_scale: tuple[float, ...] | np.ndarray = OUTPUT_SCALE,
         preview_steps: int = 0,
     ):
         super().__init__()
-        robot = robot if robot is not None else load_kr500()
+        robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
         self.hidden = int(hidden)
         self.preview_steps = int(preview_steps)
         if self.preview_steps < 0:
@@ -127,7 +128,7 @@ def save_policy(path, policy: PolicyNetwork, metadata: dict) -> None:
     atomic_write_npz(path, {"metadata_json": np.array(json.dumps(meta)), **policy.export()})
 
 
-def load_policy_network(path, robot: KR500 | None = None) -> PolicyNetwork:
+def load_policy_network(path, robot: SerialChain | None = None) -> PolicyNetwork:
     """A PolicyNetwork holding the weights and input scales of a policy file (for further
     training or torch inference). Raises ValueError if the file's bounds or joint scales are
     not this robot's limits."""

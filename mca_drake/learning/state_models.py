@@ -27,7 +27,7 @@ from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.learning.blocks import Mlp
 from mca_drake.learning.ode_adjoint import odeint_step
 from mca_drake.learning.torch_plant import integrate_double_integrator
-from mca_drake.robot import NUM_JOINTS
+from mca_drake.platforms.serial import NUM_JOINTS
 
 STATE_SIZE, INPUT_SIZE = 2 * NUM_JOINTS, NUM_JOINTS
 

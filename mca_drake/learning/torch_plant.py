@@ -1,7 +1,7 @@
 """The exact motion-cueing plant in torch: batched, differentiable, float32 or float64.
 
 This is the plant the DPC policy is trained against, so it is written for speed:
-joints and time steps are tensor dimensions, never Python loops, except the six-link
+joints and time steps are tensor dimensions, never Python loops, except the n-link
 chain product of forward kinematics, which is inherently sequential.
 
 State transition (equation 1a), the exact zero-order-hold discretisation of one double
@@ -14,7 +14,7 @@ Time indexing: for inputs U[:, t] (t = 0..T-1) a rollout returns states X[:, t]
 (t = 0..T, X[:, 0] = x0) and outputs Y[:, t] = y(X[:, t], U[:, t]), the output felt while
 U[:, t] is applied (so Y[:, t] is the paper's y_(t+1), predicted from x_t and u_t).
 
-Shapes: x (..., 12) = [q, qd]; u (..., 6) = qdd; y (..., 6) = [w_x, w_y, w_z, f_x, f_y, a_z].
+Shapes: x (..., 2n) = [q, qd]; u (..., n) = qdd; y (..., 6) = [w_x, w_y, w_z, f_x, f_y, a_z].
 """
 
 from __future__ import annotations
@@ -24,7 +24,8 @@ import torch
 from torch import nn
 
 from mca_drake.conventions import CONTROL_PERIOD_S, GRAVITY
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.safety import VIABILITY_TOLERANCE
 
 
@@ -63,17 +64,15 @@ def _rigid_acceleration(w: Vec3, w_dot: Vec3, p: tuple[float, float, float]) -> 
     )
 
 
-def _rotate_dh(v: Vec3, c, s, ca: float, sa: float) -> Vec3:
-    """Rx(alpha)^T Rz(theta)^T v: a vector of frame i-1 expressed in DH frame i."""
-    x = c * v[0] + s * v[1]
-    y = c * v[1] - s * v[0]
-    return (x, ca * y + sa * v[2], ca * v[2] - sa * y)
+def _constant(values: np.ndarray) -> list:
+    """A constant array as (nested) Python floats, with |v| < 1e-12 made exactly 0."""
+    return np.where(np.abs(values) < 1e-12, 0.0, values).tolist()
 
 
-def _apply(R_T: list[list[float]], v: Vec3) -> Vec3:
+def _apply(R: list[list[float]], v: Vec3) -> Vec3:
     """R^T v for a constant rotation R given as rows (so (R^T v)_k = sum_j R[j][k] v_j)."""
     return tuple(  # type: ignore[return-value]
-        sum(R_T[j][k] * v[j] for j in range(3) if R_T[j][k] != 0.0) for k in range(3)
+        sum(R[j][k] * v[j] for j in range(3) if R[j][k] != 0.0) for k in range(3)
     )
 
 
@@ -86,7 +85,8 @@ def integrate_double_integrator(
     q_t = q_0 + dt sum_(k<t) qd_k, plus dt^2/2 sum_(k<t) u_k when `exact` (the zero-order-hold
     discretisation; without it, forward Euler).
     """
-    q0, qd0 = x0[..., None, :NUM_JOINTS], x0[..., None, NUM_JOINTS:]
+    n = U.shape[-1]
+    q0, qd0 = x0[..., None, :n], x0[..., None, n:]
     zero = torch.zeros_like(U[..., :1, :])
     sum_u = torch.cat([zero, torch.cumsum(U, dim=-2)], dim=-2)  # (..., T+1, 6)
     qd = qd0 + dt * sum_u
@@ -100,13 +100,13 @@ def integrate_double_integrator(
 
 
 class TorchPlant(nn.Module):
-    """Exact analytical KR500 motion-cueing plant (equation 1) as a torch module.
+    """Exact analytical motion-cueing plant (equation 1) of a serial platform, in torch.
 
-    No learnable parameters; the DH table and X_6H are buffers, so `.to(dtype)` and
-    `.to(device)` move them. Inputs must match the module's dtype and device.
+    No learnable parameters; the platform's constant transforms are buffers, so `.to(dtype)`
+    and `.to(device)` move them. Inputs must match the module's dtype and device.
 
     Args:
-        robot: the KR500 description (default: models/kr500.urdf).
+        robot: the platform (`mca_drake.platforms.serial.SerialChain`, n joints).
         dt: control period, s.
         dtype: torch.float32 or torch.float64.
         check_inputs: validate shapes and finiteness on every call (a small cost; switch
@@ -115,7 +115,7 @@ class TorchPlant(nn.Module):
 
     def __init__(
         self,
-        robot: KR500 | None = None,
+        robot: SerialChain | None = None,
         dt: float = CONTROL_PERIOD_S,
         dtype: torch.dtype = torch.float32,
         check_inputs: bool = True,
@@ -123,133 +123,151 @@ class TorchPlant(nn.Module):
         super().__init__()
         if not dt > 0:
             raise ValueError(f"dt must be positive; got {dt}")
-        robot = robot if robot is not None else load_kr500()
+        robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
+        self.robot = robot
+        self.n = robot.num_joints
         self.dt = float(dt)
         self.check_inputs = check_inputs
-        dh = robot.dh
 
         def buffer(name: str, value: np.ndarray) -> None:
             self.register_buffer(name, torch.tensor(np.array(value), dtype=dtype), persistent=False)
 
-        buffer("dh_a", dh.a)
-        buffer("dh_d", dh.d)
-        buffer("dh_offset", dh.offset)
-        buffer("cos_alpha", np.cos(dh.alpha))
-        buffer("sin_alpha", np.sin(dh.alpha))
-        buffer("R_6H", robot.R_6H)
-        buffer("p_6H", robot.p_6H)
-        # Constants of the recursive output computation, as Python floats (dtype-free).
-        self._cos_alpha = [float(v) for v in np.cos(dh.alpha)]
-        self._sin_alpha = [float(v) for v in np.sin(dh.alpha)]
-        self._p_link = [
-            (float(a), float(d * np.sin(al)), float(d * np.cos(al)))
-            for a, d, al in zip(dh.a, dh.d, dh.alpha, strict=True)
-        ]
-        self._p_6H = tuple(float(v) for v in robot.p_6H)
-        self._R_6H = [[float(v) for v in row] for row in robot.R_6H]
+        buffer("R_prev", robot.X_prev[:, :3, :3])
+        buffer("p_prev", robot.X_prev[:, :3, 3])
+        buffer("R_last_H", robot.X_last_H[:3, :3])
+        buffer("p_last_H", robot.X_last_H[:3, 3])
+        # Constants of the recursive output computation, as Python floats (dtype-free), with
+        # round-off zeros of the URDF's rpy (cos(pi/2) = 6e-17) made exact so that the
+        # products they would scale are skipped.
+        self._prismatic = [bool(v) for v in robot.prismatic]
+        self._R_prev = [_constant(X[:3, :3]) for X in robot.X_prev]
+        self._p_prev = [tuple(_constant(X[:3, 3])) for X in robot.X_prev]
+        self._R_last_H = _constant(robot.X_last_H[:3, :3])
+        self._p_last_H = tuple(_constant(robot.X_last_H[:3, 3]))
 
     # ----------------------------------------------------------------- state transition
     def step(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        """One exact step: x (..., 12), u (..., 6) -> x_next (..., 12)."""
+        """One exact step: x (..., 2n), u (..., n) -> x_next (..., 2n)."""
+        n = self.n
         if self.check_inputs:
-            _check("x", x, 2 * NUM_JOINTS)
-            _check("u", u, NUM_JOINTS)
-        q, qd = x[..., :NUM_JOINTS], x[..., NUM_JOINTS:]
+            _check("x", x, 2 * n)
+            _check("u", u, n)
+        q, qd = x[..., :n], x[..., n:]
         dt = self.dt
         return torch.cat([q + dt * qd + (0.5 * dt * dt) * u, qd + dt * u], dim=-1)
 
     def rollout_states(self, x0: torch.Tensor, U: torch.Tensor) -> torch.Tensor:
-        """States for inputs U (B, T, 6) from x0 (B, 12): X (B, T+1, 12), X[:, 0] = x0.
+        """States for inputs U (B, T, n) from x0 (B, 2n): X (B, T+1, 2n), X[:, 0] = x0.
 
         Closed form with cumulative sums (no loop over time):
         qd_t = qd_0 + dt sum_(k<t) u_k and q_t = q_0 + dt sum_(k<t) qd_k + dt^2/2 sum_(k<t) u_k.
         """
+        n = self.n
         if self.check_inputs:
-            _check("x0", x0, 2 * NUM_JOINTS)
-            _check("U", U, NUM_JOINTS)
+            _check("x0", x0, 2 * n)
+            _check("U", U, n)
             if U.ndim != x0.ndim + 1 or U.shape[:-2] != x0.shape[:-1]:
                 raise ValueError(
-                    f"U must have shape (*batch, T, 6) for x0 of shape (*batch, 12); got "
-                    f"x0 {tuple(x0.shape)}, U {tuple(U.shape)}"
+                    f"U must have shape (*batch, T, {n}) for x0 of shape (*batch, {2 * n}); "
+                    f"got x0 {tuple(x0.shape)}, U {tuple(U.shape)}"
                 )
         return integrate_double_integrator(x0, U, self.dt, exact=True)
 
     # ----------------------------------------------------------------- kinematics
-    def dh_frames(self, q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """World rotations and origins of DH frames 0..5 and of H.
+    def joint_frames(self, q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """World rotations and origins of the joints' moving frames and of H.
 
         Returns:
-            (R, p): R (..., 7, 3, 3) and p (..., 7, 3); entries 0..5 are DH frames 0..5
-            (the frames whose z axes are joints 1..6), entry 6 is the head frame H.
+            (R, p): R (..., n+1, 3, 3) and p (..., n+1, 3); entries 0..n-1 are the moving
+            frames M_1..M_n (`mca_drake.platforms.kinematics.joint_frames`), entry n is H.
         """
-        theta = q + self.dh_offset
-        c, s = torch.cos(theta), torch.sin(theta)
-        ca, sa = self.cos_alpha.expand_as(c), self.sin_alpha.expand_as(c)
-        zero = torch.zeros_like(c)
-        # rotations (..., 6, 3, 3) and translations (..., 6, 3) of all DH link transforms
-        A_R = torch.stack([c, -s * ca, s * sa, s, c * ca, -c * sa, zero, sa, ca], dim=-1).unflatten(
-            -1, (3, 3)
-        )
-        A_p = torch.stack([self.dh_a * c, self.dh_a * s, self.dh_d.expand_as(c)], dim=-1)
-        R = [torch.eye(3, dtype=q.dtype, device=q.device).expand(*q.shape[:-1], 3, 3)]
-        p = [torch.zeros_like(A_p[..., 0, :])]
-        for i in range(NUM_JOINTS):
-            p.append(p[-1] + (R[-1] @ A_p[..., i, :, None])[..., 0])
-            R.append(R[-1] @ A_R[..., i, :, :])
-        R_WH = R[-1] @ self.R_6H
-        p_WH = p[-1] + (R[-1] @ self.p_6H[:, None])[..., 0]
-        return torch.stack([*R[:-1], R_WH], dim=-3), torch.stack([*p[:-1], p_WH], dim=-2)
+        c, s = torch.cos(q), torch.sin(q)
+        zero, one = torch.zeros_like(c), torch.ones_like(c)
+        # Rz(q_i) of every joint, (..., n, 3, 3); the identity for a prismatic joint
+        revolute = torch.tensor([not p for p in self._prismatic], device=q.device)
+        c, s = torch.where(revolute, c, one), torch.where(revolute, s, zero)
+        Rz = torch.stack([c, -s, zero, s, c, zero, zero, zero, one], dim=-1).unflatten(-1, (3, 3))
+        R = torch.eye(3, dtype=q.dtype, device=q.device).expand(*q.shape[:-1], 3, 3)
+        p = torch.zeros(*q.shape[:-1], 3, dtype=q.dtype, device=q.device)
+        rotations, origins = [], []
+        for i in range(self.n):  # a chain product: inherently sequential
+            p = p + (R @ self.p_prev[i, :, None])[..., 0]
+            R = R @ self.R_prev[i]
+            if self._prismatic[i]:
+                p = p + R[..., :, 2] * q[..., i, None]
+            R = R @ Rz[..., i, :, :]
+            rotations.append(R)
+            origins.append(p)
+        p_WH = p + (R @ self.p_last_H[:, None])[..., 0]
+        R_WH = R @ self.R_last_H
+        return torch.stack([*rotations, R_WH], dim=-3), torch.stack([*origins, p_WH], dim=-2)
 
     def head_pose(self, q: torch.Tensor) -> torch.Tensor:
         """F(q) = X_WH, shape (..., 4, 4)."""
         if self.check_inputs:
-            _check("q", q, NUM_JOINTS)
-        R, p = self.dh_frames(q)
+            _check("q", q, self.n)
+        R, p = self.joint_frames(q)
         top = torch.cat([R[..., -1, :, :], p[..., -1, :, None]], dim=-1)
         bottom = torch.zeros_like(top[..., :1, :])
         bottom[..., 0, 3] = 1.0
         return torch.cat([top, bottom], dim=-2)
 
     def output(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        """Plant output y(x, u) of equation (1), shape (..., 6), for x (..., 12), u (..., 6)."""
+        """Plant output y(x, u) of equation (1), shape (..., 6), for x (..., 2n), u (..., n)."""
         if self.check_inputs:
-            _check("x", x, 2 * NUM_JOINTS)
-            _check("u", u, NUM_JOINTS)
+            _check("x", x, 2 * self.n)
+            _check("u", u, self.n)
             if x.shape[:-1] != u.shape[:-1]:
                 raise ValueError(f"x {tuple(x.shape)} and u {tuple(u.shape)} batch shapes differ")
         return self._output(x, u)
 
     def _output(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        # Recursive Newton-Euler forward pass in the moving DH frames: angular velocity,
-        # angular acceleration and origin acceleration of frame i, expressed in frame i.
+        # Recursive Newton-Euler forward pass in the moving frames: angular velocity,
+        # angular acceleration and origin acceleration of frame M_i, expressed in M_i.
         # Vectors are (x, y, z) tuples of (...)-shaped tensors: elementwise kernels, no
         # batched 3x3 matmuls (which are slow in torch for tiny matrices). Starting the base
         # at acceleration -g_W gives the specific force f directly (the gravity trick);
         # the vector -g_W = (0, 0, g) carried along gives a_z = f_z - (R_WH^T (0, 0, g))_z.
-        qd, qdd = x[..., NUM_JOINTS:].unbind(-1), u.unbind(-1)
-        theta = x[..., :NUM_JOINTS] + self.dh_offset
-        cos, sin = torch.cos(theta).unbind(-1), torch.sin(theta).unbind(-1)
+        n = self.n
+        q, qd, qdd = x[..., :n].unbind(-1), x[..., n:].unbind(-1), u.unbind(-1)
+        cos, sin = torch.cos(x[..., :n]).unbind(-1), torch.sin(x[..., :n]).unbind(-1)
         zero = torch.zeros_like(qd[0])
         g = torch.full_like(qd[0], GRAVITY)
         w, w_dot, acc, up = (zero, zero, zero), (zero, zero, zero), (zero, zero, g), (zero, zero, g)
-        for i in range(NUM_JOINTS):
-            # Joint i turns about z of frame i-1: w += qd z; w_dot += qdd z + qd (w x z).
+        for i in range(n):
+            # to the joint's frame F_i: its origin's acceleration, then its axes
+            acc = _add(acc, _rigid_acceleration(w, w_dot, self._p_prev[i]))
+            w, w_dot, acc, up = (_apply(self._R_prev[i], v) for v in (w, w_dot, acc, up))
+            if self._prismatic[i]:
+                # M_i slides along z by q: acc += w_dot x d + w x (w x d) + 2 w x d_dot + d_ddot
+                d, d_dot = q[i], qd[i]
+                slide = (w_dot[1] * d + 2 * w[1] * d_dot, -w_dot[0] * d - 2 * w[0] * d_dot, zero)
+                wd = (w[1] * d, -w[0] * d, zero)  # w x d
+                acc = _add(
+                    acc,
+                    (
+                        slide[0] + w[1] * wd[2] - w[2] * wd[1],
+                        slide[1] + w[2] * wd[0] - w[0] * wd[2],
+                        w[0] * wd[1] - w[1] * wd[0] + qdd[i],
+                    ),
+                )
+                continue
+            # M_i turns about z: w += qd z; w_dot += qdd z + qd (w x z); then Rz(q)^T
             w_dot = (w_dot[0] + qd[i] * w[1], w_dot[1] - qd[i] * w[0], w_dot[2] + qdd[i])
             w = (w[0], w[1], w[2] + qd[i])
-            # Express in frame i: v_i = Rx(alpha_i)^T Rz(theta_i)^T v_(i-1).
-            c, s, ca, sa = cos[i], sin[i], self._cos_alpha[i], self._sin_alpha[i]
-            w, w_dot, acc, up = (_rotate_dh(v, c, s, ca, sa) for v in (w, w_dot, acc, up))
-            # Origin of frame i sits at p = (a, d sin(alpha), d cos(alpha)) in frame i.
-            acc = _add(acc, _rigid_acceleration(w, w_dot, self._p_link[i]))
-        acc = _add(acc, _rigid_acceleration(w, w_dot, self._p_6H))
-        R = self._R_6H  # rows of R_6H^T are the columns of R_6H
+            c, s = cos[i], sin[i]
+            w, w_dot, acc, up = (
+                (c * v[0] + s * v[1], c * v[1] - s * v[0], v[2]) for v in (w, w_dot, acc, up)
+            )
+        acc = _add(acc, _rigid_acceleration(w, w_dot, self._p_last_H))
+        R = self._R_last_H  # rows of R^T are the columns of R
         omega_H = _apply(R, w)
         f_H = _apply(R, acc)
         up_H_z = sum(R[k][2] * up[k] for k in range(3) if R[k][2] != 0.0)
         return torch.stack([*omega_H, f_H[0], f_H[1], f_H[2] - up_H_z], dim=-1)
 
     def forward(self, x0: torch.Tensor, U: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Open-loop rollout: x0 (B, 12), U (B, T, 6) -> (X (B, T+1, 12), Y (B, T, 6))."""
+        """Open-loop rollout: x0 (B, 2n), U (B, T, n) -> (X (B, T+1, 2n), Y (B, T, 6))."""
         X = self.rollout_states(x0, U)  # checks x0 and U
         return X, self._output(X[..., :-1, :], U)
 

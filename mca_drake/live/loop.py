@@ -3,7 +3,7 @@
 `MakeLiveClosedLoop` wires the diagram on the analytical plant or the KR500 station;
 `run_live` runs it at a
 real-time rate (1 by default) for a bounded time and returns the result summary with its
-`live` block (../shared/ARCHITECTURE.md, "Result summary"): packets, bad, dropped and stale
+`live` block (docs/guides/live.md): packets, bad, dropped and stale
 counts, the latency from a sample's arrival to the first command computed from it, and the
 time in each health state; the PI is scored against the reference that was received.
 """
@@ -32,7 +32,6 @@ from pydrake.systems.framework import (
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
-from mca_drake.kinematics import plant_output
 from mca_drake.live.beamng import BeamNGConfig, BeamNGDecoder
 from mca_drake.live.csv_udp import CsvDecoder
 from mca_drake.live.f1 import F1Config, F1Decoder
@@ -54,8 +53,10 @@ from mca_drake.live.rsi.link import (
 from mca_drake.live.supervisor import Supervisor, SupervisorConfig
 from mca_drake.live.telemetry import Decoder
 from mca_drake.live.xplane import XPlaneDecoder
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import plant_output
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import ReferenceScaling
-from mca_drake.robot import KR500, load_kr500
 from mca_drake.simulation.builders import AddMca, AddMeshcatDrawing, default_visualization
 from mca_drake.simulation.closed_loop import (
     PLANTS,
@@ -175,7 +176,7 @@ class _LiveRobotPorts:
 def _AddLiveRobot(
     builder: DiagramBuilder,
     plant: str,
-    robot: KR500,
+    robot: SerialChain,
     h: float,
     initial_state: np.ndarray,
     station: StationConfig | None,
@@ -264,7 +265,7 @@ def MakeLiveClosedLoop(
     receiver: ReceiverConfig | None = None,
     supervisor: SupervisorConfig | None = None,
     scaling: ReferenceScaling | None = None,
-    robot: KR500 | None = None,
+    robot: SerialChain | None = None,
     station: StationConfig | None = None,
     meshcat=None,
     rsi_commands: socket.socket | None = None,
@@ -293,7 +294,7 @@ def MakeLiveClosedLoop(
         raise ValueError(
             "a robot over RSI follows the analytical plant's trajectory: use plant 'analytical'"
         )
-    robot = robot if robot is not None else load_kr500()
+    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     receiver_config = receiver or ReceiverConfig()
     h = receiver_config.time_step
     builder = DiagramBuilder()
@@ -358,7 +359,7 @@ def run_live(
     scaling: ReferenceScaling | None = None,
     realtime_rate: float = 1.0,
     on_listening: Callable[[tuple[str, int]], None] | None = None,
-    robot: KR500 | None = None,
+    robot: SerialChain | None = None,
     plant: str = "analytical",
     station: StationConfig | None = None,
     meshcat=None,
@@ -384,7 +385,7 @@ def run_live(
     """
     if not 0 < duration_s <= 24 * 3600:
         raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
-    robot = robot if robot is not None else load_kr500()
+    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     config = as_mca_config(mca)
     lock = phase_lock or PhaseLockConfig()
     lock.validate()
@@ -454,7 +455,7 @@ def _run_paced(
     plant: str,
     on_listening,
     rsi: RsiDriverConfig | None,
-    robot: KR500,
+    robot: SerialChain,
     sockets: tuple,
 ) -> _PacedRun:
     """Starts the robot's driver (with `rsi`), runs the diagram paced to the wall clock and
@@ -516,7 +517,7 @@ def _scored_summary(
     config: McaConfig,
     plant: str,
     decoder: Decoder,
-    robot: KR500,
+    robot: SerialChain,
     h: float,
     wall_s: float,
 ) -> dict:

@@ -2,7 +2,7 @@
 
 `AddMca` adds any MCA from its typed config (`mca_drake.cueing.McaConfig`);
 `MakeAnalyticalClosedLoop` wires ReferenceSource -> MCA -> MotionCueingPlant and
-`MakeMultibodyClosedLoop` ReferenceSource -> MCA -> KR500 station, each with 100 Hz logs.
+`MakeMultibodyClosedLoop` ReferenceSource -> MCA -> SerialChain station, each with 100 Hz logs.
 `mca_drake.simulation.closed_loop.run_closed_loop` simulates either and summarises it.
 """
 
@@ -15,9 +15,10 @@ from pydrake.visualization import VisualizationConfig
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import DpcConfig, McaConfig, NmpcConfig, WashoutConfig, as_mca_config
-from mca_drake.demo_motion import demo_joint_motion
+from mca_drake.platforms.demo_motion import demo_joint_motion
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import Reference
-from mca_drake.robot import KR500, load_kr500
 from mca_drake.systems import MotionCueingPlant, ReferenceSource
 from mca_drake.systems.dpc import DpcPolicy
 from mca_drake.systems.kr500_station import AddKR500Station, StationConfig
@@ -30,7 +31,7 @@ def MakePlantDemoDiagram(
     *,
     duration_s: float,
     time_step: float = CONTROL_PERIOD_S,
-    robot: KR500 | None = None,
+    robot: SerialChain | None = None,
 ) -> tuple[Diagram, dict]:
     """Demo joint accelerations -> MotionCueingPlant, with 100 Hz logs.
 
@@ -43,7 +44,7 @@ def MakePlantDemoDiagram(
             f"duration_s must be positive and time_step in (0, 0.1] s; got {duration_s}, "
             f"{time_step}"
         )
-    robot = robot if robot is not None else load_kr500()
+    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     h = time_step
     times = np.arange(0.0, duration_s + 2 * h, h)
     _, _, qdd = demo_joint_motion(times, robot)
@@ -68,7 +69,7 @@ def MakePlantDemoDiagram(
 def AddMca(
     builder: DiagramBuilder,
     mca: McaConfig | str,
-    robot: KR500,
+    robot: SerialChain,
     time_step: float = CONTROL_PERIOD_S,
     update_event: str = "unrestricted",
 ) -> LeafSystem:
@@ -155,7 +156,7 @@ def _add_logs(builder: DiagramBuilder, ports: dict, controller, time_step: float
 def MakeAnalyticalClosedLoop(
     reference: Reference,
     mca: McaConfig | str,
-    robot: KR500 | None = None,
+    robot: SerialChain | None = None,
 ) -> tuple[Diagram, dict]:
     """ReferenceSource -> MCA -> MotionCueingPlant, the MCA fed the plant state, with logs.
 
@@ -172,7 +173,7 @@ def MakeAnalyticalClosedLoop(
     Returns:
         (diagram, handles) with the systems `source`, `mca`, `plant` and the logs.
     """
-    robot = robot if robot is not None else load_kr500()
+    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     time_step = reference.time_step
     builder = DiagramBuilder()
     source, controller, initial_state = _add_source_and_mca(builder, reference, mca, robot)
@@ -201,12 +202,12 @@ def MakeAnalyticalClosedLoop(
 def MakeMultibodyClosedLoop(
     reference: Reference,
     mca: McaConfig | str,
-    robot: KR500 | None = None,
+    robot: SerialChain | None = None,
     station: StationConfig | None = None,
     meshcat=None,
     visualization: VisualizationConfig | None = None,
 ) -> tuple[Diagram, dict]:
-    """ReferenceSource -> MCA -> KR500 station (MultibodyPlant, inverse dynamics, head IMU),
+    """ReferenceSource -> MCA -> SerialChain station (MultibodyPlant, inverse dynamics, head IMU),
     the MCA fed the station's measured state (and measured y where it reads one).
 
     Logs (at the control period, the reference's time step): `reference_log`,
@@ -230,7 +231,7 @@ def MakeMultibodyClosedLoop(
         logs; call `handles["station"].SetInitialState(root_context)` before simulating
         (the robot starts at rest at the MCA's home pose).
     """
-    robot = robot if robot is not None else load_kr500()
+    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     time_step = reference.time_step
     builder = DiagramBuilder()
     source, controller, initial_state = _add_source_and_mca(builder, reference, mca, robot)

@@ -28,12 +28,14 @@ from tqdm.auto import tqdm
 from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
 from mca_drake.cueing.dpc import DpcConfig, for_vehicle
-from mca_drake.kinematics import head_pose, plant_output
-from mca_drake.metrics import false_rotation, joint_range_used, joint_usage, tracking_score
+from mca_drake.metrics import false_rotation, tracking_score
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.perception.scores import perceived_run
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import head_pose, plant_output
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.usage import joint_range_used, joint_usage
 from mca_drake.references.reference import Reference
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop, MakeMultibodyClosedLoop
 from mca_drake.systems.kr500_station import StationConfig
 
@@ -112,7 +114,7 @@ def closed_loop_summary(
     accelerations: np.ndarray,
     statistics: np.ndarray | None,
     wall_s: float,
-    robot: KR500,
+    robot: SerialChain,
     time_step: float,
     perception: PerceptionConfig | None = None,
 ) -> tuple[dict, np.ndarray]:
@@ -177,7 +179,7 @@ def run_closed_loop(
     reference: Reference,
     plant: str = "analytical",
     duration_s: float | None = None,
-    robot: KR500 | None = None,
+    robot: SerialChain | None = None,
     station: StationConfig | None = None,
     meshcat=None,
     visualization=None,
@@ -227,7 +229,7 @@ def run_closed_loop(
         check_writable(plot_dir, folder=True)
     # The DPC runs the policy of the reference's vehicle where the config names none.
     config = for_vehicle(as_mca_config(mca), reference.vehicle)
-    robot = robot if robot is not None else load_kr500()
+    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     duration = checked_duration(reference, duration_s)
     if plant == "analytical":
         if meshcat is not None or station is not None or visualization is not None:
@@ -278,7 +280,7 @@ def _collect_result(
     reference: Reference,
     duration: float,
     wall_s: float,
-    robot: KR500,
+    robot: SerialChain,
     station: StationConfig | None,
     perception: PerceptionConfig | None = None,
 ) -> ClosedLoopResult:

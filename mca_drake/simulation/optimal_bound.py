@@ -18,10 +18,11 @@ import numpy as np
 from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import as_mca_config, mca_name
 from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing
-from mca_drake.kinematics import plant_output
 from mca_drake.perception.models import PerceptionConfig
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import plant_output
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 from mca_drake.references.reference import Reference
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
 from mca_drake.simulation.closed_loop import (
     ClosedLoopResult,
     checked_duration,
@@ -40,7 +41,7 @@ def run_optimal_bound(
     config: OptimalConfig | None = None,
     starts=DEFAULT_STARTS,
     duration_s: float | None = None,
-    robot: KR500 | None = None,
+    robot: SerialChain | None = None,
     progress: bool = True,
     json_path: str | Path | None = None,
     plot_dir: str | Path | None = None,
@@ -70,7 +71,7 @@ def run_optimal_bound(
             f"OptimalConfig.time_step {config.time_step} s differs from the reference's "
             f"{reference.time_step} s"
         )
-    robot = robot if robot is not None else load_kr500()
+    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     duration = checked_duration(reference, duration_s)
     n = min(round(duration / reference.time_step) + 1, reference.y.shape[0])
     target = np.asarray(reference.y[:n], dtype=float)

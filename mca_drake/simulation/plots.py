@@ -5,11 +5,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mca_drake.metrics import joint_usage
 from mca_drake.perception.filters import perceive
 from mca_drake.perception.models import PerceptionConfig
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.usage import joint_usage
 from mca_drake.plotting import plot_joint_usage, plot_tracking, save_figure
-from mca_drake.robot import KR500, NUM_JOINTS
 
 _PLANT_NAMES = {"multibody": "KR500 MultibodyPlant", "analytical": "analytical plant"}
 
@@ -45,7 +45,7 @@ def perceived_figure(result):
     )
 
 
-def joint_usage_figure(result, robot: KR500 | None = None):
+def joint_usage_figure(result, robot: SerialChain | None = None):
     """Normalised joint positions, velocities and accelerations as strip charts (Fig. 5)."""
     usage = joint_usage(
         result.states[:, :NUM_JOINTS], result.states[:, NUM_JOINTS:], result.accelerations, robot
@@ -54,7 +54,7 @@ def joint_usage_figure(result, robot: KR500 | None = None):
 
 
 def write_closed_loop_plots(
-    result, folder: str | Path, robot: KR500 | None = None
+    result, folder: str | Path, robot: SerialChain | None = None
 ) -> tuple[Path, Path, Path]:
     """Writes `tracking.png` (Fig. 4), `perceived.png` (the same, perceived) and
     `joint_usage.png` (Fig. 5) of a ClosedLoopResult into `folder` (created if missing);

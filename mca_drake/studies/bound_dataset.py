@@ -30,8 +30,10 @@ import numpy as np
 
 from mca_drake.atomic_io import check_writable, file_sha256
 from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing, OptimalResult
-from mca_drake.robot import NUM_JOINTS, load_kr500
-from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, cut_trajectory, kept_file
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import cut_trajectory
+from mca_drake.platforms.serial import NUM_JOINTS
+from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, kept_file
 from mca_drake.studies.parallel import run_tasks
 
 KIND = "offline-optimal bound dataset"
@@ -87,7 +89,7 @@ def solve_bound(
     reference = np.asarray(reference, dtype=float)
     causal = np.asarray(causal, dtype=float)
     x0 = np.asarray(x0, dtype=float)
-    ocp = OptimalCueing(reference.shape[0], config, load_kr500())
+    ocp = OptimalCueing(reference.shape[0], config, load_platform(DEFAULT_PLATFORM))
     starts = {"mca": causal, "no motion": np.zeros_like(causal)}
     costs = {}
     for name, U in starts.items():
@@ -162,7 +164,7 @@ def keep_flight_bound(
             f"flight {seed}'s bound inputs must be finite, shape {flight['U'].shape}; "
             f"got shape {U.shape}"
         )
-    robot = load_kr500()
+    robot = load_platform(DEFAULT_PLATFORM)
     ocp = OptimalCueing(U.shape[0], config, robot)
     x0 = flight["x0"].astype(float)
     # the solver's own tolerance on the limits, with float32 round-off of x0

@@ -37,6 +37,8 @@ from mca_drake.atomic_io import check_writable
 from mca_drake.conventions import CONTROL_PERIOD_S, FIRST_EVALUATION_SEED
 from mca_drake.cueing import McaConfig, NmpcConfig, as_mca_config, mca_config_record
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import cut_trajectory
 from mca_drake.references.drives import (
     check_training_motion_vehicle,
     drive_recording,
@@ -45,13 +47,11 @@ from mca_drake.references.drives import (
 )
 from mca_drake.references.flights import training_recording
 from mca_drake.references.reference import ReferenceScaling, reference_from_recording
-from mca_drake.robot import load_kr500
 from mca_drake.segments import (
     DEFAULT_DATASET_DIR,
     SOURCE_COLUMNS,
     SPLIT_NAMES,
     SegmentDataset,
-    cut_trajectory,
     kept_file,
     package_versions,
 )
@@ -184,7 +184,7 @@ def simulate_flight(
     """One flight of `vehicle` (default `config.vehicle`) through the closed loop, cut into
     segments (no file written)."""
     vehicle = vehicle or config.vehicle
-    robot = load_kr500()
+    robot = load_platform(DEFAULT_PLATFORM)
     started = time.perf_counter()
     origin = config.flight_source(seed, vehicle)
     if origin == "drive":

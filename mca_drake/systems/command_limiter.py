@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from mca_drake.robot import KR500, NUM_JOINTS
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 from mca_drake.safety import ViabilityClamp, substep_position_coefficient
 
 
@@ -44,7 +44,7 @@ class CommandLimiter(LeafSystem):
             control period must be a whole number of these.
     """
 
-    def __init__(self, robot: KR500, control_period: float, plant_time_step: float):
+    def __init__(self, robot: SerialChain, control_period: float, plant_time_step: float):
         super().__init__()
         substeps = round(control_period / plant_time_step)
         if substeps < 1 or abs(substeps * plant_time_step - control_period) > 1e-9:

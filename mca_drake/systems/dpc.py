@@ -16,7 +16,8 @@ from mca_drake.cueing.dpc import (
     policy_preview_steps,
     preview_offsets,
 )
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
 
@@ -58,7 +59,7 @@ class DpcPolicy(LeafSystem):
     def __init__(
         self,
         policy: str | Path | dict,
-        robot: KR500 | None = None,
+        robot: SerialChain | None = None,
         time_step: float = CONTROL_PERIOD_S,
         update_event: str = "unrestricted",
         preview_steps: int = 0,
@@ -69,7 +70,7 @@ class DpcPolicy(LeafSystem):
             preview_steps = policy_preview_steps(metadata)
         else:
             arrays, preview_steps = policy, int(preview_steps)
-        self._robot = robot if robot is not None else load_kr500()
+        self._robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
         self._inference = PolicyInference(arrays)
         # a policy with a preview reads the reference at its offsets ahead, from a preview
         # of offsets[-1] + 1 samples (the current one first)

@@ -49,8 +49,9 @@ from pydrake.systems.sensors import Accelerometer, Gyroscope
 
 from mca_drake.conventions import CONTROL_PERIOD_S, GRAVITY
 from mca_drake.input_checks import check_config_numbers, check_range
-from mca_drake.kinematics import plant_output
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import plant_output
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 from mca_drake.systems.command_limiter import CommandLimiter
 
 
@@ -209,7 +210,7 @@ def _double_integrator(h: float) -> LinearSystem:
 
 
 def _AddRobotPlant(
-    builder: DiagramBuilder, robot: KR500, h: float, with_geometry: bool
+    builder: DiagramBuilder, robot: SerialChain, h: float, with_geometry: bool
 ) -> tuple[MultibodyPlant, SceneGraph | None]:
     """The discrete MultibodyPlant of the robot (and its SceneGraph, with geometry)."""
     # TAMSI: with no contact it is plain semi-implicit Euler, 2.5x faster per step than the
@@ -242,7 +243,7 @@ def _AddRobotPlant(
 def _AddTrackingController(
     builder: DiagramBuilder,
     plant: MultibodyPlant,
-    robot: KR500,
+    robot: SerialChain,
     config: StationConfig,
     control_period: float,
 ) -> tuple[InverseDynamicsController, LinearSystem, CommandLimiter]:
@@ -327,7 +328,7 @@ def _AddHeadImu(
 
 def AddKR500Station(
     builder: DiagramBuilder,
-    robot: KR500 | None = None,
+    robot: SerialChain | None = None,
     config: StationConfig | None = None,
     initial_state: np.ndarray | None = None,
     with_geometry: bool = False,
@@ -351,7 +352,7 @@ def AddKR500Station(
         `handles.joint_acceleration`, and its inputs from `measured_state` and
         `measured_output`.
     """
-    robot = robot if robot is not None else load_kr500()
+    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     config = config if config is not None else StationConfig()
     config.validate()
     h = config.plant_time_step

@@ -9,8 +9,9 @@ from pydrake.systems.framework import BasicVector, Context, DiscreteValues, Leaf
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import as_float_array
-from mca_drake.kinematics import head_pose, plant_output
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import head_pose, plant_output
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 
 
 class MotionCueingPlant(LeafSystem):
@@ -45,7 +46,7 @@ class MotionCueingPlant(LeafSystem):
 
     def __init__(
         self,
-        robot: KR500 | None = None,
+        robot: SerialChain | None = None,
         time_step: float = CONTROL_PERIOD_S,
         initial_state: np.ndarray | None = None,
         update_offset_s: float = 0.0,
@@ -55,7 +56,7 @@ class MotionCueingPlant(LeafSystem):
             raise ValueError(f"time_step must be positive; got {time_step}")
         if not 0 <= update_offset_s < time_step:
             raise ValueError(f"update_offset_s must be in [0, time_step); got {update_offset_s}")
-        self._robot = robot if robot is not None else load_kr500()
+        self._robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
         self._time_step = float(time_step)
         x0 = np.zeros(2 * NUM_JOINTS) if initial_state is None else initial_state
         x0 = as_float_array("initial_state", x0, last_dim=2 * NUM_JOINTS)
@@ -86,7 +87,7 @@ class MotionCueingPlant(LeafSystem):
         )
 
     @property
-    def robot(self) -> KR500:
+    def robot(self) -> SerialChain:
         """The robot description this plant was built with."""
         return self._robot
 

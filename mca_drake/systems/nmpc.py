@@ -9,8 +9,8 @@ from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from mca_drake.conventions import MCA_STATISTICS
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
-from mca_drake.kinematics import plant_output
-from mca_drake.robot import KR500, NUM_JOINTS
+from mca_drake.platforms.kinematics import plant_output
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
 
@@ -61,7 +61,7 @@ class NmpcController(LeafSystem):
     def __init__(
         self,
         config: NmpcConfig | None = None,
-        robot: KR500 | None = None,
+        robot: SerialChain | None = None,
         preview_samples: int | None = None,
         update_event: str = "unrestricted",
     ):

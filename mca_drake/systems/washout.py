@@ -18,7 +18,8 @@ from pydrake.systems.framework import Context, DiscreteValues, LeafSystem, Value
 
 from mca_drake.conventions import CONTROL_PERIOD_S, MCA_STATISTICS
 from mca_drake.cueing.washout import WashoutConfig, WashoutFilters
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
 
@@ -59,13 +60,13 @@ class ClassicalWashout(LeafSystem):
     def __init__(
         self,
         config: WashoutConfig | None = None,
-        robot: KR500 | None = None,
+        robot: SerialChain | None = None,
         time_step: float = CONTROL_PERIOD_S,
         update_event: str = "unrestricted",
     ):
         super().__init__()
         self._config = config or WashoutConfig()
-        self._robot = robot if robot is not None else load_kr500()
+        self._robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
         self._h = float(time_step)
         self._filters = WashoutFilters(self._config, self._h)
         self._clamp = ViabilityClamp.for_robot(self._robot, self._h)

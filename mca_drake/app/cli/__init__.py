@@ -9,6 +9,7 @@ library function; flags that set a typed config's field are derived from that co
     evaluate       evaluate.py      one recording, or the evaluation suite
     tune           tune.py          Ray Tune + Optuna over an MCA's config
     live           live.py          real-time cueing of UDP telemetry (and a robot over RSI)
+    platforms      platforms.py     the packaged motion platforms, or one platform file
     train-policy, export-policy, table2   training.py (torch)
 """
 
@@ -20,7 +21,7 @@ import sys
 import numpy as np
 
 from mca_drake import __version__
-from mca_drake.app.cli import training
+from mca_drake.app.cli import platforms, training
 from mca_drake.resources import drake_installed
 
 # The torch commands need no Drake: on a machine without pydrake (a GPU box for training
@@ -41,7 +42,7 @@ if HAS_DRAKE:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``mca-drake`` argument parser: one sub-command per job (see ``--help``)."""
-    description = "Motion cueing for a KUKA KR500 motion simulator, on Drake."
+    description = "Motion cueing for motion simulators (serial robots, rails), on Drake."
     if not HAS_DRAKE:
         description += " pydrake is not installed: only the torch commands are offered."
     parser = argparse.ArgumentParser(prog="mca-drake", description=description)
@@ -59,6 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
         optimal.add_parser(commands)
         tune.add_parser(commands)
         live.add_parser(commands)
+    platforms.add_parser(commands)
     training.add_parsers(commands)
     return parser
 

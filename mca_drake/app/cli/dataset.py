@@ -15,8 +15,8 @@ from mca_drake.app.jobs import run_scenario
 from mca_drake.app.scenarios import DatasetScenario
 from mca_drake.cueing import mca_config_from_name, mca_name
 from mca_drake.cueing.optimal import OptimalConfig
+from mca_drake.platforms.excitation import ExcitationConfig, generate_excitation_dataset
 from mca_drake.references.driving import CARS
-from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
 from mca_drake.references.jsbsim import TRAINING_VEHICLES
 from mca_drake.studies.bound_dataset import generate_bound_dataset
 from mca_drake.studies.closed_loop_dataset import join_datasets

@@ -23,7 +23,7 @@ from mca_drake.app.cli.flags import (
 from mca_drake.cueing.nmpc_config import NmpcConfig
 from mca_drake.cueing.profiles import profile_config
 from mca_drake.learning.configs import DpcTrainingConfig
-from mca_drake.references.excitation import ExcitationConfig, generate_excitation_dataset
+from mca_drake.platforms.excitation import ExcitationConfig, generate_excitation_dataset
 from mca_drake.resources import PROFILES
 from mca_drake.segments import DEFAULT_DATASET
 

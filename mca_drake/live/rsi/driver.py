@@ -58,7 +58,7 @@ from mca_drake.live.rsi.motion import (
 )
 from mca_drake.live.rsi.xml import MAX_RSI_BYTES, BadRsiPacket, RsiTags, format_reply, parse_state
 from mca_drake.live.socket_stamps import arrival_time, enable_kernel_timestamps
-from mca_drake.robot import NUM_JOINTS
+from mca_drake.platforms.serial import NUM_JOINTS
 from mca_drake.simulation.closed_loop import step_time_summary
 
 # Counters the driver reports, in this order.

@@ -15,7 +15,7 @@ then is a missed cycle (the axes hold). Like a controller, it stops (and sends n
 more) when `max_missed` cycles in a row go without an on-time reply, and when a correction
 would take an axis beyond its limits: position, velocity (per-cycle difference) or
 acceleration (second difference), each with the real robot's values
-(`mca_drake.robot.KR500`, in degrees). After a missed cycle the differences
+(`mca_drake.platforms.serial.SerialChain`, in degrees). After a missed cycle the differences
 are taken over the time since the last correction applied, as an interpolating controller
 moves its set point from one correction to the next.
 
@@ -56,7 +56,8 @@ from mca_drake.live.socket_stamps import (
     enable_kernel_timestamps,
     enable_send_timestamps,
 )
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 from mca_drake.simulation.closed_loop import step_time_summary
 
 # Counters the emulator reports, in this order.
@@ -118,7 +119,7 @@ class AxisLimits:
     acceleration_deg_s2: list[float]
 
     @classmethod
-    def of_robot(cls, robot: KR500, signs=(1.0,) * NUM_JOINTS) -> AxisLimits:
+    def of_robot(cls, robot: SerialChain, signs=(1.0,) * NUM_JOINTS) -> AxisLimits:
         """The KR500's joint limits as the controller's axes see them (a sign of -1 swaps an
         axis's position limits)."""
         low, high = [], []
@@ -146,7 +147,7 @@ class RsiEmulator:
     ):
         self.config = config or RsiEmulatorConfig()
         self.config.validate()
-        self.limits = limits or AxisLimits.of_robot(load_kr500())
+        self.limits = limits or AxisLimits.of_robot(load_platform(DEFAULT_PLATFORM))
         self.tags = tags or RsiTags()
         self._driver = driver
         self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

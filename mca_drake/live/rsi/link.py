@@ -29,7 +29,7 @@ from pydrake.systems.framework import Context, EventStatus, LeafSystem
 from mca_drake.live.recorder import AFTER_COMMAND_S
 from mca_drake.live.rsi.driver import ROBOT_READY, RsiDriverConfig, read_lead_report
 from mca_drake.live.rsi.motion import CommandSegment
-from mca_drake.robot import KR500, NUM_JOINTS
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 
 
 def parse_robot_url(url: str) -> tuple[str, int]:
@@ -225,7 +225,7 @@ def segment_socket_pair() -> tuple[socket.socket, socket.socket]:
 
 
 def start_rsi_driver(
-    config: RsiDriverConfig, robot: KR500, home, driver_end: socket.socket
+    config: RsiDriverConfig, robot: SerialChain, home, driver_end: socket.socket
 ) -> RsiLink:
     """Starts `python -m mca_drake.live.rsi.driver` listening on config's address, with
     `driver_end` of a `segment_socket_pair` (closed here once the driver has it), and waits

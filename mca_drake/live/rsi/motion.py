@@ -32,7 +32,7 @@ import struct
 from collections.abc import Sequence
 
 from mca_drake.input_checks import check_config_numbers
-from mca_drake.robot import NUM_JOINTS
+from mca_drake.platforms.serial import NUM_JOINTS
 from mca_drake.safety import ViabilityClamp
 
 # A segment on the wire (Unix datagram from the live loop to the driver, one machine):
@@ -186,7 +186,7 @@ class MotionFollower:
 
     Args:
         limits: the robot's limits: q_min, q_max (rad), qd_max (rad/s), qdd_max (rad/s^2),
-            each 6 values (`mca_drake.robot.KR500` has them).
+            each 6 values (`mca_drake.platforms.serial.SerialChain` has them).
         home: the pose the robot starts at and the loop's first segment starts from, rad (6).
         config: cycle, delay and tolerance.
 

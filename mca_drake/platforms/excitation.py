@@ -24,8 +24,13 @@ from tqdm.auto import tqdm
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
-from mca_drake.kinematics import head_motion, output_from_motion, pose_derivatives_from_motion
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.kinematics import (
+    head_motion,
+    output_from_motion,
+    pose_derivatives_from_motion,
+)
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 from mca_drake.segments import SegmentDataset, package_versions
 
 SIGNALS = ("step", "walk", "periodic", "sine", "splines")
@@ -152,7 +157,7 @@ def excitation_profiles(
     steps: int,
     time_step: float,
     rng: np.random.Generator,
-    robot: KR500,
+    robot: SerialChain,
 ) -> np.ndarray:
     """Joint-acceleration profiles (rad/s^2), shape (repetitions, steps, 6): joints
     first_joint..last_joint (0-based, inclusive) driven by `signal`, the others zero."""
@@ -175,7 +180,7 @@ def rollout_states(x0: np.ndarray, U: np.ndarray, h: float) -> np.ndarray:
     return np.concatenate([q, qd0 + h * sum_u], axis=-1)
 
 
-def first_violation(X: np.ndarray, robot: KR500) -> np.ndarray:
+def first_violation(X: np.ndarray, robot: SerialChain) -> np.ndarray:
     """Index of the first state outside the position or velocity limits, per row of X
     (R, N + 1, 12); N + 1 where none is."""
     q, qd = X[..., :NUM_JOINTS], X[..., NUM_JOINTS:]
@@ -184,7 +189,7 @@ def first_violation(X: np.ndarray, robot: KR500) -> np.ndarray:
 
 
 def generate_excitation_dataset(
-    config: ExcitationConfig | None = None, robot: KR500 | None = None, progress: bool = True
+    config: ExcitationConfig | None = None, robot: SerialChain | None = None, progress: bool = True
 ) -> SegmentDataset:
     """Runs Algorithm 1 and returns the kept segments with their provenance.
 
@@ -193,7 +198,7 @@ def generate_excitation_dataset(
     """
     config = config or ExcitationConfig()
     config.validate()
-    robot = robot if robot is not None else load_kr500()
+    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     rng = np.random.default_rng(config.seed)
     h, n_p = config.time_step, config.horizon
     steps = round(config.duration_s / h)

@@ -1,12 +1,16 @@
-"""Numpy kinematics of the KR500 head frame and the motion-cueing plant output (equation 1).
+"""Numpy kinematics of a serial platform's head frame and the plant output (equation 1).
 
-All functions are batched over leading dimensions: joint arrays have shape (..., 6) and
-results keep the leading shape. Units are SI (rad, rad/s, rad/s^2, m, m/s^2).
+All functions take the platform (`mca_drake.platforms.serial.SerialChain`, n joints) and are
+batched over leading dimensions: joint arrays have shape (..., n) and results keep the
+leading shape. Units are SI (rad, rad/s, rad/s^2 for revolute joints, m, m/s, m/s^2 for
+prismatic ones and for the head).
 
-Method. Forward kinematics follows the DH table of the robot. Velocities and accelerations
-use twists: joint i (axis Z_i through O_i, fixed on link i-1, in W) has the unit twist
-xi_i = (Z_i, O_i x Z_i) (angular, linear at the world origin), and with [., .] the Lie
-bracket of twists and P_i- = sum_(j<i) qd_j xi_j the twist of the joints before i,
+Method. Forward kinematics is the chain product of the platform's normal form (each joint
+turns about, or slides along, the z axis of its frame). Velocities and accelerations use
+twists: joint i (axis Z_i through O_i, in W) has the unit twist xi_i = (Z_i, O_i x Z_i)
+(angular, linear at the world origin) if it is revolute and xi_i = (0, Z_i) if it is
+prismatic, and with [., .] the Lie bracket of twists and P_i- = sum_(j<i) qd_j xi_j the
+twist of the joints before i,
 
     V = (omega, v_0)  = sum_i qd_i xi_i                          the head's twist
     A = (alpha, a_0)  = sum_i qdd_i xi_i + [P_i-, qd_i xi_i]     its time derivative
@@ -14,7 +18,7 @@ bracket of twists and P_i- = sum_(j<i) qd_j xi_j the twist of the joints before 
 
 for the head's origin r. The output y = [R^T omega, (R^T (r_ddot - g))_xy, (R^T r_ddot)_z]
 (`mca_drake.conventions`). The Jacobians are exact closed forms of the same quantities
-(`plant_output_jacobians`): turning joint k turns every twist beyond it by [xi_k, .].
+(`plant_output_jacobians`): moving joint k turns every twist beyond it by [xi_k, .].
 """
 
 from __future__ import annotations
@@ -25,55 +29,41 @@ import numpy as np
 
 from mca_drake.conventions import GRAVITY_W
 from mca_drake.input_checks import as_float_array, same_shapes
-from mca_drake.robot import KR500, NUM_JOINTS, load_kr500
+from mca_drake.platforms.serial import SerialChain
 
 
-def _robot(robot: KR500 | None) -> KR500:
-    return robot if robot is not None else load_kr500()
+def _joint_array(name: str, value, robot: SerialChain) -> np.ndarray:
+    return as_float_array(name, value, last_dim=robot.num_joints)
 
 
-def _joint_array(name: str, value) -> np.ndarray:
-    return as_float_array(name, value, last_dim=NUM_JOINTS)
+def joint_frames(q, robot: SerialChain) -> np.ndarray:
+    """World poses of the joints' moving frames M_1..M_n (joint i turns about, or slides
+    along, the z axis of M_i), shape (..., n, 4, 4)."""
+    return _frames(_joint_array("q", q, robot), robot)
 
 
-def dh_transforms(q: np.ndarray, robot: KR500 | None = None) -> np.ndarray:
-    """The six DH link transforms A_i(q_i) = X_(i-1),i, shape (..., 6, 4, 4)."""
-    return _transforms(_joint_array("q", q), _robot(robot))
-
-
-def _transforms(q: np.ndarray, robot: KR500) -> np.ndarray:
-    """dh_transforms of an already checked q."""
-    dh = robot.dh
-    theta = q + dh.offset
-    c, s = np.cos(theta), np.sin(theta)
-    ca, sa = np.cos(dh.alpha), np.sin(dh.alpha)
-    A = np.zeros((*q.shape, 4, 4))
-    A[..., 0, 0], A[..., 0, 1], A[..., 0, 2], A[..., 0, 3] = c, -s * ca, s * sa, dh.a * c
-    A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = s, c * ca, -c * sa, dh.a * s
-    A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = sa, ca, dh.d
-    A[..., 3, 3] = 1.0
-    return A
-
-
-def dh_frames(q: np.ndarray, robot: KR500 | None = None) -> np.ndarray:
-    """World poses of DH frames 0..6, X_W0 = I, shape (..., 7, 4, 4)."""
-    return _frames(_joint_array("q", q), _robot(robot))
-
-
-def _frames(q: np.ndarray, robot: KR500) -> np.ndarray:
-    """dh_frames of an already checked q (the NMPC's hot path checks it once)."""
-    A = _transforms(q, robot)
-    frames = np.empty((*A.shape[:-3], NUM_JOINTS + 1, 4, 4))
-    frames[..., 0, :, :] = np.eye(4)
-    for i in range(NUM_JOINTS):  # a chain product: inherently sequential, 6 batched matmuls
-        frames[..., i + 1, :, :] = frames[..., i, :, :] @ A[..., i, :, :]
+def _frames(q: np.ndarray, robot: SerialChain) -> np.ndarray:
+    """joint_frames of an already checked q (the NMPC's hot path checks it once)."""
+    P = robot.X_prev  # (n, 4, 4): X_prev[i] Rz(q_i) changes columns 0 and 1 only
+    revolute = ~robot.prismatic
+    c = np.where(revolute, np.cos(q), 1.0)[..., None]
+    s = np.where(revolute, np.sin(q), 0.0)[..., None]
+    A = np.empty((*q.shape, 4, 4))
+    A[..., :, 0] = P[:, :, 0] * c + P[:, :, 1] * s
+    A[..., :, 1] = P[:, :, 1] * c - P[:, :, 0] * s
+    A[..., :, 2] = P[:, :, 2]
+    # Tz(q_i) moves the origin along the joint's axis
+    A[..., :, 3] = P[:, :, 3] + np.where(revolute, 0.0, q)[..., None] * P[:, :, 2]
+    frames = np.empty_like(A)
+    frames[..., 0, :, :] = A[..., 0, :, :]
+    for i in range(1, robot.num_joints):  # a chain product: inherently sequential
+        frames[..., i, :, :] = frames[..., i - 1, :, :] @ A[..., i, :, :]
     return frames
 
 
-def head_pose(q, robot: KR500 | None = None) -> np.ndarray:
+def head_pose(q, robot: SerialChain) -> np.ndarray:
     """F(q) = X_WH, the head frame pose in the world, shape (..., 4, 4) (equation 1b)."""
-    robot = _robot(robot)
-    return dh_frames(q, robot)[..., -1, :, :] @ robot.X_6H
+    return joint_frames(q, robot)[..., -1, :, :] @ robot.X_last_H
 
 
 @dataclasses.dataclass(frozen=True)
@@ -142,9 +132,9 @@ class _Twists:
 
     R: np.ndarray  # (..., 3, 3) R_WH
     r: np.ndarray  # (..., 3) the head's origin in W
-    S_Z: np.ndarray  # (..., 6, 3, 3) [Z_i]x
-    xi: np.ndarray  # (..., 6, 6) joint twists
-    r_per_q: np.ndarray  # (..., 6, 3) Z_i x (r - O_i): dr/dq_i, and d r_ddot / d qdd_i
+    S_Z: np.ndarray  # (..., n, 3, 3) [Z_i]x of the twists' angular parts (0: prismatic)
+    xi: np.ndarray  # (..., n, 6) joint twists
+    r_per_q: np.ndarray  # (..., n, 3) xi_lin + xi_ang x r: dr/dq_i, and d r_ddot / d qdd_i
     W: np.ndarray  # (..., 6, 6) qd_i xi_i
     P: np.ndarray  # (..., 6, 6) twist through joint i
     before: np.ndarray  # (..., 6, 6) twist before joint i
@@ -157,19 +147,23 @@ class _Twists:
     r_ddot: np.ndarray  # (..., 3), without gravity
 
 
-def _twists(q, qd, qdd, robot: KR500 | None) -> _Twists:
-    robot = _robot(robot)
-    q, qd, qdd = _joint_array("q", q), _joint_array("qd", qd), _joint_array("qdd", qdd)
+def _twists(q, qd, qdd, robot: SerialChain) -> _Twists:
+    q, qd, qdd = (_joint_array(n, v, robot) for n, v in (("q", q), ("qd", qd), ("qdd", qdd)))
     same_shapes(q=q, qd=qd, qdd=qdd)
     frames = _frames(q, robot)
-    X_WH = frames[..., -1, :, :] @ robot.X_6H
+    X_WH = frames[..., -1, :, :] @ robot.X_last_H
     R, r = X_WH[..., :3, :3], X_WH[..., :3, 3]
-    Z = frames[..., :-1, :3, 2]  # (..., 6, 3): axis of joint i = z of DH frame i-1
-    O = frames[..., :-1, :3, 3]
-    S_Z = _skew(Z)
-    # O_i x Z_i (the twist's linear part) and Z_i x (r - O_i) (its velocity at the head)
+    Z = frames[..., :3, 2]  # (..., n, 3): the joints' axes
+    O = frames[..., :3, 3]  # a point on each axis
+    prismatic = robot.prismatic[:, None]
+    angular = np.where(prismatic, 0.0, Z)
+    S_Z = _skew(angular)
+    # the twist's linear part O_i x Z_i (revolute) or Z_i (prismatic), and the velocity it
+    # gives the head: Z_i x (r - O_i) or Z_i
     lever = S_Z @ np.stack([-O, r[..., None, :] - O], axis=-1)
-    xi = np.concatenate([Z, lever[..., 0]], axis=-1)
+    linear = np.where(prismatic, Z, lever[..., 0])
+    xi = np.concatenate([angular, linear], axis=-1)
+    r_per_q = np.where(prismatic, Z, lever[..., 1])
     W = qd[..., None] * xi
     P = np.cumsum(W, axis=-2)
     before = P - W
@@ -181,12 +175,10 @@ def _twists(q, qd, qdd, robot: KR500 | None) -> _Twists:
     omega, alpha = V[..., :3], A[..., :3]
     r_dot = V[..., 3:] + _cross(omega, r)
     r_ddot = A[..., 3:] + _cross(alpha, r) + _cross(omega, r_dot)
-    return _Twists(
-        R, r, S_Z, xi, lever[..., 1], W, P, before, ad_before, B, Qdd, V, A, r_dot, r_ddot
-    )
+    return _Twists(R, r, S_Z, xi, r_per_q, W, P, before, ad_before, B, Qdd, V, A, r_dot, r_ddot)
 
 
-def head_motion(q, qd, qdd, robot: KR500 | None = None) -> HeadMotion:
+def head_motion(q, qd, qdd, robot: SerialChain) -> HeadMotion:
     """Pose, velocity and acceleration of the head frame for joint states (..., 6) each."""
     t = _twists(q, qd, qdd, robot)
     X_WH = np.zeros((*t.R.shape[:-2], 4, 4))
@@ -195,7 +187,7 @@ def head_motion(q, qd, qdd, robot: KR500 | None = None) -> HeadMotion:
 
 
 def head_pose_derivatives(
-    q, qd, qdd, robot: KR500 | None = None
+    q, qd, qdd, robot: SerialChain
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """F, dF/dt and d^2F/dt^2 of equations (1b)-(1d), each shape (..., 4, 4).
 
@@ -230,7 +222,7 @@ def _head_rows(R: np.ndarray, omega: np.ndarray, r_ddot: np.ndarray) -> np.ndarr
     return np.concatenate([head[..., 0, :], head[..., 1, :2], head[..., 2, 2:]], axis=-1)
 
 
-def plant_output(q, qd, qdd, robot: KR500 | None = None) -> np.ndarray:
+def plant_output(q, qd, qdd, robot: SerialChain) -> np.ndarray:
     """The plant output y = [w_x, w_y, w_z, f_x, f_y, a_z] in H (equation 1), shape (..., 6).
 
     Args:
@@ -247,7 +239,7 @@ def plant_output(q, qd, qdd, robot: KR500 | None = None) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class OutputJacobians:
-    """y and its exact Jacobians; each Jacobian has shape (..., 6 outputs, 6 joints)."""
+    """y and its exact Jacobians; each Jacobian has shape (..., 6 outputs, n joints)."""
 
     y: np.ndarray
     dy_dq: np.ndarray
@@ -255,7 +247,7 @@ class OutputJacobians:
     dy_dqdd: np.ndarray
 
 
-def plant_output_jacobians(q, qd, qdd, robot: KR500 | None = None) -> OutputJacobians:
+def plant_output_jacobians(q, qd, qdd, robot: SerialChain) -> OutputJacobians:
     """y(q, qd, qdd) and its exact Jacobians with respect to q, qd and qdd.
 
     Batch over horizon nodes rather than looping. Method (module docstring): turning joint k
@@ -284,11 +276,12 @@ def plant_output_jacobians(q, qd, qdd, robot: KR500 | None = None) -> OutputJaco
     B, Qdd = t.B, t.Qdd
     beyond = (B.sum(axis=-2) + Qdd.sum(axis=-2))[..., None, :] - np.cumsum(B + Qdd, axis=-2)
     (turn_rest,) = _ad_times(ad_xi, beyond - P_S)
-    # tangents along q_1..q_6, then qd_1..qd_6: (..., 12, 6) twists, (..., 12, 3) points
+    n = robot.num_joints
+    # tangents along q_1..q_n, then qd_1..qd_n: (..., 2n, 6) twists, (..., 2n, 3) points
     dV = np.concatenate([turn_S, xi], axis=-2)
     dA = np.concatenate([turn_rest + P_turn_S, turn_S + before_xi], axis=-2)
-    dr = np.zeros((*t.r.shape[:-1], 2 * NUM_JOINTS, 3))
-    dr[..., :NUM_JOINTS, :] = t.r_per_q
+    dr = np.zeros((*t.r.shape[:-1], 2 * n, 3))
+    dr[..., :n, :] = t.r_per_q
     omega, alpha = t.V[..., :3], t.A[..., :3]
     skews = _skew(np.stack([t.r, -omega, -alpha, t.r_dot], axis=-2))  # (..., 4, 3, 3)
     S_r, S_r_dot = skews[..., 0, :, :], skews[..., 3, :, :]
@@ -304,23 +297,24 @@ def plant_output_jacobians(q, qd, qdd, robot: KR500 | None = None) -> OutputJaco
     # rows of y before the rotation into H: omega (wx wy wz), r_ddot - g (fx fy), r_ddot (az)
     world = np.stack([omega, t.r_ddot - GRAVITY_W, t.r_ddot], axis=-2)  # (..., 3, 3)
     d_world = np.stack([d_omega, d_r_ddot, d_r_ddot], axis=-2)  # (..., 12, 3, 3)
-    d_world[..., :NUM_JOINTS, :, :] += world[..., None, :, :] @ t.S_Z  # - Z_k x (row)
+    d_world[..., :n, :, :] += world[..., None, :, :] @ t.S_Z  # - Z_k x (row)
     head, d_head = world @ t.R, d_world @ t.R[..., None, :, :]  # x -> R^T x, as rows
     y = np.concatenate([head[..., 0, :], head[..., 1, :2], head[..., 2, 2:]], axis=-1)
     dy = np.concatenate([d_head[..., 0, :], d_head[..., 1, :2], d_head[..., 2, 2:]], axis=-1)
-    dy = np.swapaxes(dy, -1, -2)  # (..., 6 outputs, 12 tangents)
-    dy_dqdd = np.zeros_like(dy[..., :NUM_JOINTS])
+    dy = np.swapaxes(dy, -1, -2)  # (..., 6 outputs, 2n tangents)
+    dy_dqdd = np.zeros_like(dy[..., :n])
     dy_dqdd[..., 3:, :] = np.swapaxes(t.r_per_q @ t.R, -1, -2)
-    return OutputJacobians(y, dy[..., :NUM_JOINTS], dy[..., NUM_JOINTS:], dy_dqdd)
+    return OutputJacobians(y, dy[..., :n], dy[..., n:], dy_dqdd)
 
 
-def output_velocity_hessians(q, robot: KR500 | None = None) -> np.ndarray:
-    """d^2 y / dqd^2, the output's curvature in the joint velocities: shape (..., 6, 6, 6),
-    [output, i, j], for joint positions q (..., 6) (rad).
+def output_velocity_hessians(q, robot: SerialChain) -> np.ndarray:
+    """d^2 y / dqd^2, the output's curvature in the joint velocities: shape (..., 6, n, n),
+    [output, i, j], for joint positions q (..., n).
 
     y is quadratic in qd with coefficients that depend on q only, so this is independent of qd
     and qdd and exact. The rates are linear in qd (rows 0-2 zero); for the forces (rows 3-5:
-    R^T r_ddot, gravity constant), with e_i = Z_i x (r - O_i) = d r_dot / d qd_i and the
+    R^T r_ddot, gravity constant), with e_i = d r_dot / d qd_i (Z_i x (r - O_i), or Z_i for a
+    prismatic joint, whose Z_i counts as 0 in the products below) and the
     velocity products of A = sum_(j<i) qd_j qd_i [xi_j, xi_i] + ...,
 
         d^2 r_ddot / dqd_i dqd_j = D_ij,lin + D_ij,ang x r + Z_i x e_j + Z_j x e_i,
@@ -328,17 +322,18 @@ def output_velocity_hessians(q, robot: KR500 | None = None) -> np.ndarray:
 
     (module docstring: r_ddot = a_0 + alpha x r + omega x r_dot, omega = sum qd_i Z_i).
     """
-    q = _joint_array("q", q)
+    q = _joint_array("q", q, robot)
     zeros = np.zeros_like(q)
     t = _twists(q, zeros, zeros, robot)
     xi, Z, e = t.xi, t.xi[..., :3], t.r_per_q
     bracket = np.swapaxes(_ad(xi) @ np.swapaxes(xi, -1, -2)[..., None, :, :], -1, -2)
     # bracket[..., i, j, :] = [xi_i, xi_j]; D = that for i < j, [xi_j, xi_i] = -that for i > j
-    order = np.sign(np.subtract.outer(np.arange(NUM_JOINTS), np.arange(NUM_JOINTS)))
+    n = robot.num_joints
+    order = np.sign(np.subtract.outer(np.arange(n), np.arange(n)))
     D = -order[:, :, None] * bracket
     Z_e = _cross(Z[..., :, None, :], e[..., None, :, :])  # [..., i, j] = Z_i x e_j
     h = D[..., 3:] + _cross(D[..., :3], t.r[..., None, None, :]) + Z_e + np.swapaxes(Z_e, -2, -3)
-    out = np.zeros((*q.shape[:-1], 6, NUM_JOINTS, NUM_JOINTS))
+    out = np.zeros((*q.shape[:-1], 6, n, n))
     out[..., 3:, :, :] = np.moveaxis(h @ t.R[..., None, :, :], -1, -3)  # rows x -> R^T x
     return out
 
@@ -349,3 +344,22 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def cut_trajectory(
+    X: np.ndarray, U: np.ndarray, R: np.ndarray, robot: SerialChain, n_p: int, dtype="float32"
+) -> dict[str, np.ndarray]:
+    """A trajectory's segment arrays (`mca_drake.segments`): states X (T, 2n), inputs U
+    (T, n) and references R (T, 6), T a multiple of n_p, with the outputs and head pose they
+    give, each cut into T / n_p segments of n_p steps (U, X, Y, F, dF, ddF, R) of `dtype`."""
+    n_segments = U.shape[0] // n_p
+    if n_segments * n_p != U.shape[0] or X.shape[0] != U.shape[0] or R.shape[0] != U.shape[0]:
+        raise ValueError(f"X, U and R need the same length, a multiple of {n_p}")
+    n = robot.num_joints
+    motion = head_motion(X[:, :n], X[:, n:], U, robot)
+    F, dF, ddF = pose_derivatives_from_motion(motion)
+    signals = {"U": U, "X": X, "Y": output_from_motion(motion), "F": F, "dF": dF, "ddF": ddF}
+    return {
+        name: a.reshape(n_segments, n_p, *a.shape[1:]).astype(dtype)
+        for name, a in {**signals, "R": R}.items()
+    }

@@ -1,0 +1,190 @@
+"""Platform files: a motion platform described in YAML, packaged ones chosen by name.
+
+A platform file holds one tagged description, the same that a scenario's `platform` field
+takes inline:
+
+    !SerialRobot
+    name: kr500
+    urdf: kr500.urdf          # relative to the file's folder
+    head_frame: head
+    home: [0, 0, 0, 0, 0, 0]
+
+The package carries its platforms in `models/` (`packaged_platforms`); a command's
+`--platform` takes a packaged name or a file (`load_platform`). Files are read with PyYAML's
+safe loader (no code runs, no Drake needed), each tag building its typed description.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+import yaml
+
+from mca_drake.platforms.serial import SerialChain, serial_chain_from_urdf
+from mca_drake.resources import packaged_folder
+
+# The platform every scenario and command means when it names none.
+DEFAULT_PLATFORM = "kr500"
+
+
+@dataclasses.dataclass
+class SerialRobot:
+    """A serial robot, with or without a rail, from its URDF (`mca_drake.platforms.serial`)."""
+
+    # The platform's name, as results and policy files record it; a file's stem if empty.
+    name: str = ""
+    # The URDF: a path relative to the platform file's folder (or absolute).
+    urdf: str = ""
+    # The URDF link or frame that is the occupant's head (x forward, y left, z up at home).
+    head_frame: str = "head"
+    # The neutral pose, one value per joint (rad, m for a prismatic joint); empty: zeros.
+    home: list[float] = dataclasses.field(default_factory=list)
+    # Per joint, for a URDF without drake:acceleration limits (rad/s^2 or m/s^2).
+    acceleration_limits: list[float] = dataclasses.field(default_factory=list)
+    # Per joint, the signs that mirror the cabin's motion left to right; empty: none.
+    mirror_joint_signs: list[float] = dataclasses.field(default_factory=list)
+    # Where the description says its numbers come from (maker's data sheet, paper, ...).
+    source: str = ""
+
+    def build(self, base_dir: str | os.PathLike = ".") -> SerialChain:
+        """The kinematic description, with `urdf` read relative to `base_dir`."""
+        if not self.urdf:
+            raise ValueError("a !SerialRobot platform needs `urdf`: the robot's URDF file")
+        if not self.name:
+            raise ValueError("a !SerialRobot platform needs a `name`")
+        return serial_chain_from_urdf(
+            Path(base_dir) / self.urdf,
+            name=self.name,
+            head_frame=self.head_frame,
+            home=self.home,
+            acceleration_limits=self.acceleration_limits,
+            mirror_joint_signs=self.mirror_joint_signs,
+        )
+
+
+# The descriptions a platform file or a scenario's `platform` field can hold, by YAML tag.
+PLATFORM_KINDS = {"!SerialRobot": SerialRobot}
+PlatformDescription = SerialRobot
+
+
+def _loader() -> type[yaml.SafeLoader]:
+    """PyYAML's safe loader that builds the platform descriptions from their tags."""
+
+    class PlatformLoader(yaml.SafeLoader):
+        pass
+
+    for tag, kind in PLATFORM_KINDS.items():
+
+        def construct(loader, node, kind=kind, tag=tag):
+            if not isinstance(node, yaml.MappingNode):
+                raise ValueError(f"{tag} needs a mapping of its fields")
+            fields = loader.construct_mapping(node, deep=True)
+            return _typed(kind, fields, tag)
+
+        PlatformLoader.add_constructor(tag, construct)
+    return PlatformLoader
+
+
+def _typed(kind: type, fields: dict, tag: str):
+    """`kind(**fields)` after checking names and value types."""
+    valid = {f.name: f for f in dataclasses.fields(kind)}
+    unknown = sorted(set(fields) - set(valid))
+    if unknown:
+        raise ValueError(f"{tag}: unknown fields {unknown}; valid: {', '.join(valid)}")
+    for name, value in fields.items():
+        default = getattr(kind(), name)
+        if isinstance(default, list):
+            if not isinstance(value, list) or not all(
+                isinstance(v, int | float) and not isinstance(v, bool) for v in value
+            ):
+                raise ValueError(f"{tag}: {name} must be a list of numbers; got {value!r}")
+            fields[name] = [float(v) for v in value]
+        elif not isinstance(value, str):
+            raise ValueError(f"{tag}: {name} must be text; got {value!r}")
+    return kind(**fields)
+
+
+def read_platform_file(path: str | os.PathLike) -> PlatformDescription:
+    """The description a platform file holds (not yet built; see `load_platform`).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: not YAML, no platform tag, unknown fields or wrong types.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"platform file not found: {path}")
+    try:
+        document = yaml.load(path.read_text(), Loader=_loader())
+    except yaml.YAMLError as err:
+        raise ValueError(f"{path}: not a platform file: {err}") from err
+    except ValueError as err:
+        raise ValueError(f"{path}: {err}") from err
+    if not isinstance(document, PlatformDescription):
+        raise ValueError(
+            f"{path}: a platform file holds one tagged description "
+            f"({', '.join(PLATFORM_KINDS)}); got {type(document).__name__}"
+        )
+    if not document.name:
+        document = dataclasses.replace(document, name=path.stem)
+    return document
+
+
+def model_path(name: str) -> Path:
+    """Absolute path of a file in the package's models folder, e.g. `model_path("kr500.urdf")`.
+
+    Raises:
+        FileNotFoundError: no such file; the message lists the folder's files.
+    """
+    folder = packaged_folder("models")
+    path = folder / name
+    if not path.is_file():
+        available = sorted(p.name for p in folder.iterdir())
+        raise FileNotFoundError(f"no model '{name}' in {folder}; available: {available}")
+    return path
+
+
+def packaged_platforms() -> dict[str, Path]:
+    """The platform files the package carries, by name (file name without `.yaml`)."""
+    return {p.stem: p for p in sorted(packaged_folder("models").glob("*.yaml"))}
+
+
+def platform_file(name_or_path: str | os.PathLike) -> Path:
+    """A platform file given by its packaged name or its path.
+
+    Raises:
+        FileNotFoundError: neither; the message lists the packaged names.
+    """
+    packaged = packaged_platforms()
+    if str(name_or_path) in packaged:
+        return packaged[str(name_or_path)]
+    path = Path(name_or_path)
+    if path.is_file():
+        return path
+    raise FileNotFoundError(
+        f"unknown platform '{name_or_path}': not a file, nor a packaged platform; "
+        f"packaged: {', '.join(packaged)}"
+    )
+
+
+def load_platform(
+    platform: str | os.PathLike | PlatformDescription, base_dir: str | os.PathLike = "."
+) -> SerialChain:
+    """The platform's description, ready for the MCAs and plants.
+
+    Args:
+        platform: a packaged name ("kr500", "kr500-rail"), a platform file, or a description
+            (as a scenario's `platform` field holds it).
+        base_dir: where a description's relative `urdf` path starts (a scenario's folder).
+
+    Raises:
+        FileNotFoundError: an unknown name or a missing file.
+        ValueError: a file or URDF that does not describe a platform (see
+            `serial_chain_from_urdf`).
+    """
+    if isinstance(platform, PlatformDescription):
+        return platform.build(base_dir)
+    path = platform_file(platform)
+    return read_platform_file(path).build(path.parent)
