@@ -33,6 +33,7 @@ from common import print_calibration, run_with_checkout
 
 from mca_drake.atomic_io import atomic_write_json, atomic_write_npz
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
+from mca_drake.platforms.files import load_platform
 
 # Development flights: (vehicle, seed); seeds outside the evaluation (>= 1000) and training
 # (100-140) ranges.
@@ -112,7 +113,7 @@ def replay(directory: Path, repeats: int) -> dict:
     files = sorted(directory.glob("*.npz"))
     if not files:
         raise SystemExit(f"no captured steps (*.npz) in {directory}: run 'capture' first")
-    ocp = MotionCueingOcp(NmpcConfig(mode="converged"))
+    ocp = MotionCueingOcp(NmpcConfig(mode="converged"), load_platform("kr500"))
     out = {}
     for path in files:
         with np.load(path) as f:

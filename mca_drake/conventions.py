@@ -11,6 +11,8 @@ import numpy as np
 # velocity of H (rad/s), specific force along x and y of H and the kinematic vertical
 # acceleration (m/s^2).
 CHANNELS = ("w_x", "w_y", "w_z", "f_x", "f_y", "a_z")
+# Their count: the size of y and of a reference sample, whatever the platform's joint count.
+NUM_CHANNELS = len(CHANNELS)
 
 # The channels' signs in the vehicle's mirror image about its x-z plane (left and right
 # swapped): roll and yaw rates and the lateral force change sign, the rest keep it. The KR500

@@ -64,10 +64,10 @@ def viable_acceleration_bounds(q, qd, q_min, q_max, qd_max, qdd_max, h, position
     Args:
         q: joint positions, rad, shape (..., 6).
         qd: joint velocities, rad/s, shape (..., 6).
-        q_min: lower position limits, rad, shape (6,).
-        q_max: upper position limits, rad, shape (6,).
-        qd_max: velocity limits, rad/s, shape (6,).
-        qdd_max: acceleration limits, rad/s^2, shape (6,).
+        q_min: lower position limits, rad (m for a prismatic joint), shape (n,).
+        q_max: upper position limits, rad (m for a prismatic joint), shape (n,).
+        qd_max: velocity limits, rad/s (m/s), shape (n,).
+        qdd_max: acceleration limits, rad/s^2 (m/s^2), shape (n,).
         h: control period, s.
         position_coefficient: c of the step q' = q + h qd + c h^2 u (module docstring);
             1/2, the exact zero-order-hold step, by default.
@@ -124,10 +124,10 @@ class ViabilityClamp:
     matters to controllers with a budget of microseconds (tested equal).
 
     Args:
-        q_min: lower position limits, rad, shape (6,).
-        q_max: upper position limits, rad, shape (6,).
-        qd_max: velocity limits, rad/s, shape (6,).
-        qdd_max: acceleration limits, rad/s^2, shape (6,).
+        q_min: lower position limits, rad (m for a prismatic joint), shape (n,).
+        q_max: upper position limits, rad (m for a prismatic joint), shape (n,).
+        qd_max: velocity limits, rad/s (m/s), shape (n,).
+        qdd_max: acceleration limits, rad/s^2 (m/s^2), shape (n,).
         h: control period, s.
         tolerance: a change of the command larger than this (rad/s^2) counts as an
             intervention.
@@ -186,7 +186,7 @@ class ViabilityClamp:
         )
 
     def _joint_interval(self, j: int, q: float, v: float) -> tuple[float, float]:
-        """(lo, hi) of joint j, in plain floats: for one state, Python arithmetic on six
+        """(lo, hi) of joint j, in plain floats: for one state, Python arithmetic on a few
         joints is three times faster than numpy's per-call overhead."""
         h, b0 = self.h, self._b0
         a, h_over_a, inv_2a, four_A2, inv_2A2, vmax, upper, lower = self._joint_constants[j]
@@ -207,7 +207,7 @@ class ViabilityClamp:
         return lo, hi
 
     def is_viable(self, x) -> bool:
-        """Whether state x = [q, qd] (12) is viable: every joint has a non-empty interval,
+        """Whether state x = [q, qd] (2n) is viable: every joint has a non-empty interval,
         so some command keeps the robot inside its limits from here on."""
         xs = np.asarray(x, float).tolist()
         n = self._n
@@ -218,7 +218,7 @@ class ViabilityClamp:
         return True
 
     def __call__(self, x, u) -> tuple[np.ndarray, bool]:
-        """(u_safe, intervened) for state x = [q, qd] (12) and command u (6). A non-finite
+        """(u_safe, intervened) for state x = [q, qd] (2n) and command u (n). A non-finite
         command is replaced by the strongest braking command (and counts)."""
         n, h = self._n, self.h
         xs = np.asarray(x, float).tolist()

@@ -3,6 +3,8 @@ and training that beats doing nothing."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import torch
@@ -12,7 +14,7 @@ from hypothesis import strategies as st
 from loss_helpers import loss_weights_only
 from pydrake.systems.analysis import Simulator
 
-from mca_drake.cueing.dpc import DpcConfig, PolicyInference
+from mca_drake.cueing.dpc import DpcConfig, PolicyInference, default_policy_path, policy_platform
 from mca_drake.learning.dpc_training import (
     DpcTrainingConfig,
     RolloutPlant,
@@ -26,6 +28,7 @@ from mca_drake.learning.policy_network import (
     save_policy,
 )
 from mca_drake.learning.trainer import TrainConfig
+from mca_drake.platforms.files import load_platform
 from mca_drake.safety import ViabilityClamp, is_stoppable
 from mca_drake.segments import SegmentDataset
 from mca_drake.systems.dpc import DpcPolicy
@@ -131,7 +134,7 @@ def test_policy_file_round_trip_and_bad_files(tmp_path, rng):
     with pytest.raises(ValueError, match="not a policy file"):
         load_policy_arrays(tmp_path / "junk.npz")
     with pytest.raises(FileNotFoundError):
-        DpcPolicy(tmp_path / "missing.npz")
+        DpcPolicy(tmp_path / "missing.npz", load_platform("kr500"))
 
 
 def _simulate_with_clamp(robot, x0, commands, h=0.01):
@@ -264,7 +267,6 @@ OMEGA = 2 * np.pi * 0.4  # rad/s
 def _sine_motion(t):
     """A smooth joint motion about the neutral pose and its plant output (all channels vary):
     an achievable target. Returns x (T, 12), y (T, 6)."""
-    from mca_drake.platforms.files import load_platform
     from mca_drake.platforms.kinematics import plant_output
 
     s, c = np.sin(OMEGA * t)[:, None], np.cos(OMEGA * t)[:, None]
@@ -590,3 +592,22 @@ def test_terminal_weights_are_scaled_to_their_horizon():
     np.testing.assert_allclose([cost[T], cost[2 * T]], [cost[0], 2 * cost[0]], rtol=1e-6)
     with pytest.raises(ValueError, match="terminal_weight_horizon"):
         DpcTrainingConfig(terminal_weight_horizon=-1).validate()
+
+
+def test_a_policy_trained_for_another_platform_is_refused_naming_both(tmp_path, robot):
+    """A policy commands the joints it was trained on: the shipped default (a file that
+    names no platform: the KR500's) is refused on the rail, and a file naming the rail is
+    refused on the KR500, each error naming both platforms."""
+    rail = load_platform("kr500-rail")
+    with pytest.raises(ValueError, match=r"trained for platform 'kr500', not for 'kr500-rail'"):
+        DpcPolicy(default_policy_path(), rail)
+    arrays, metadata = load_policy_arrays(default_policy_path())
+    assert policy_platform(metadata) == "kr500"
+    path = tmp_path / "rail_policy.npz"
+    metadata = {**metadata, "platform": rail.summary()}
+    np.savez(path, metadata_json=np.array(json.dumps(metadata)), **arrays)
+    assert policy_platform(load_policy_arrays(path)[1]) == "kr500-rail"
+    with pytest.raises(ValueError, match=r"trained for platform 'kr500-rail', not for 'kr500'"):
+        DpcPolicy(path, robot)
+    with pytest.raises(ValueError, match="record with a name"):
+        policy_platform({"platform": "kr500"})

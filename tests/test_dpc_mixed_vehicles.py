@@ -27,6 +27,7 @@ from mca_drake.learning.dpc_training import DpcTrainingConfig, train_policy
 from mca_drake.learning.policy_network import load_policy_network, save_policy
 from mca_drake.learning.trainer import TrainConfig
 from mca_drake.metrics import performance_index
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.resources import SHIPPED_POLICIES
 from mca_drake.segments import SegmentDataset
@@ -136,6 +137,6 @@ def test_a_policy_file_that_does_not_fit_is_refused(tmp_path):
     with pytest.raises(ValueError, match="W2 has shape"):
         load_policy_arrays(bad)
     with pytest.raises(ValueError, match="W2 has shape"):
-        DpcPolicy(bad)
+        DpcPolicy(bad, load_platform("kr500"))
     with pytest.raises(ValueError, match="W2 has shape"):
         load_policy_network(bad)

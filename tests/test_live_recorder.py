@@ -12,6 +12,7 @@ from pydrake.systems.primitives import LogVectorOutput
 
 from mca_drake.live.loop import PLANT_DELAY_S, PROBE_DELAY_S
 from mca_drake.live.recorder import AFTER_COMMAND_S, BEFORE_POLL_S, LiveRecorder
+from mca_drake.platforms.files import load_platform
 from mca_drake.systems import MotionCueingPlant
 from mca_drake.systems.mca_update import DeclareMcaUpdate
 
@@ -49,7 +50,9 @@ def test_rows_are_the_instants_values_and_the_commands_the_plant_integrated():
     mca = builder.AddSystem(CountingMca())
     x0 = np.r_[np.full(6, 0.1), np.full(6, -0.2)]
     plant = builder.AddSystem(
-        MotionCueingPlant(time_step=H, initial_state=x0, update_offset_s=PLANT_DELAY_S)
+        MotionCueingPlant(
+            load_platform("kr500"), time_step=H, initial_state=x0, update_offset_s=PLANT_DELAY_S
+        )
     )
     builder.Connect(mca.get_output_port(), plant.get_input_port())
     state = plant.GetOutputPort("state")

@@ -10,6 +10,7 @@ from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
 from mca_drake.live.receiver import TELEMETRY_FIELDS
 from mca_drake.live.supervisor import Supervisor, SupervisorConfig
+from mca_drake.platforms.files import load_platform
 from mca_drake.platforms.usage import joint_usage
 from mca_drake.systems.motion_cueing_plant import MotionCueingPlant
 
@@ -36,7 +37,7 @@ def telemetry(fresh: bool):
 def run(command, fresh, step_time=lambda t: 1e-3, reference=lambda t: np.zeros(6), t_end=12.0):
     """Closes the loop plant -> supervisor; returns (supervisor, context, states, commands)."""
     builder = DiagramBuilder()
-    plant = builder.AddSystem(MotionCueingPlant())
+    plant = builder.AddSystem(MotionCueingPlant(load_platform("kr500")))
     supervisor = builder.AddSystem(Supervisor(SupervisorConfig()))
     sources = {
         "mca_command": Scripted(6, command),

@@ -242,11 +242,11 @@ def test_braking_plan_stops_inside_limits(robot):
     assert np.all(np.abs(U) <= robot.qdd_max + 1e-12)
 
 
-def test_bad_config():
+def test_bad_config(robot):
     with pytest.raises(ValueError, match="unknown NMPC mode"):
-        MotionCueingOcp(NmpcConfig(mode="fast"))
+        MotionCueingOcp(NmpcConfig(mode="fast"), robot)
     with pytest.raises(ValueError, match="unknown QP solver"):
-        MotionCueingOcp(NmpcConfig(qp_solver="gurobi"))
+        MotionCueingOcp(NmpcConfig(qp_solver="gurobi"), robot)
 
 
 def test_an_overperforming_step_is_lengthened_only_within_the_bounds(small_ocp):

@@ -44,11 +44,11 @@ def test_shooting_dynamics_rows_are_the_exact_steps():
     x = [rng.normal(size=12)]
     U = rng.normal(size=(4, 6))
     for T, u in zip(durations, U, strict=True):
-        Phi, Gamma = double_integrator_step(T)
+        Phi, Gamma = double_integrator_step(T, 6)
         x.append(Phi @ x[-1] + Gamma @ u)
         q, qd = x[-2][:6], x[-2][6:]
         np.testing.assert_allclose(x[-1][:6], q + T * qd + 0.5 * T * T * u)
-    A, Phis = shooting_dynamics(durations)
+    A, Phis = shooting_dynamics(durations, 6)
     z = np.concatenate([U.reshape(-1), np.concatenate(x[1:])])
     rhs = np.zeros(48)
     rhs[:12] = Phis[0] @ x[0]

@@ -15,11 +15,11 @@ import pytest
 from mca_drake.cueing import NmpcConfig
 from mca_drake.cueing.nmpc import MotionCueingOcp
 from mca_drake.cueing.output_curvature import (
-    STRUCTURE,
     NodeCondensing,
     finite_difference_hessians,
     node_jacobians,
     psb_update,
+    structure,
 )
 from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
@@ -69,14 +69,14 @@ def test_finite_difference_hessians_match_second_differences_of_the_output(robot
         oracle = second_differences(robot, q[k], qd[k], u[k])
         scale = np.abs(oracle).max()
         assert np.abs(M[k] - oracle).max() <= 1e-4 * scale, np.abs(M[k] - oracle).max()
-        # the blocks STRUCTURE declares zero are zero in the oracle too
-        assert np.abs(oracle * (1 - STRUCTURE)).max() <= 1e-6 * scale
+        # the blocks structure(6) declares zero are zero in the oracle too
+        assert np.abs(oracle * (1 - structure(6))).max() <= 1e-6 * scale
 
 
-def test_assembly_and_gradient_equal_the_dense_sums_over_nodes():
-    ocp = MotionCueingOcp(NmpcConfig(mode="converged", nodes=5, horizon_steps=12))
+def test_assembly_and_gradient_equal_the_dense_sums_over_nodes(robot):
+    ocp = MotionCueingOcp(NmpcConfig(mode="converged", nodes=5, horizon_steps=12), robot)
     N = ocp.N
-    condensing = NodeCondensing(ocp.Sq, ocp.Sqd)
+    condensing = NodeCondensing(ocp.Sq, ocp.Sqd, 6)
     rng = np.random.default_rng(2)
     B = rng.standard_normal((N, 18, 18))
     B = B + np.swapaxes(B, 1, 2)
@@ -103,12 +103,12 @@ def test_assembly_and_gradient_equal_the_dense_sums_over_nodes():
 
 
 def test_psb_update_is_exact_along_the_step_and_never_moves_away_from_the_hessian():
-    """On a quadratic with Hessian T (of STRUCTURE's pattern), the change of the gradient
+    """On a quadratic with Hessian T (of structure(6)'s pattern), the change of the gradient
     along s is T s; the update makes M s = T s where the step is free of masked directions
     and, being two projections onto sets that hold T, never increases |M - T|_F."""
     rng = np.random.default_rng(3)
     T = rng.standard_normal((2, 6, 18, 18))
-    T = (T + np.swapaxes(T, -1, -2)) * STRUCTURE
+    T = (T + np.swapaxes(T, -1, -2)) * structure(6)
     M = np.zeros_like(T)
     previous = np.linalg.norm(M - T)
     for _ in range(30):
@@ -129,7 +129,7 @@ def test_psb_update_is_exact_along_the_step_and_never_moves_away_from_the_hessia
 
 
 def test_tiny_steps_leave_the_estimates_alone():
-    M = np.ones((1, 6, 18, 18)) * STRUCTURE
+    M = np.ones((1, 6, 18, 18)) * structure(6)
     s = np.full((1, 18), 1e-9)
     assert np.array_equal(psb_update(M, s, np.ones((1, 6, 18))), M)
 

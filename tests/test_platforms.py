@@ -14,7 +14,10 @@ from drake_oracle import drake_head_pose, drake_plant_of, drake_plant_output
 from pydrake.math import RollPitchYaw, RotationMatrix
 
 from mca_drake.app.cli import main
+from mca_drake.app.jobs import run_closed_loop_scenario
+from mca_drake.app.scenarios import load_scenario
 from mca_drake.conventions import MIRROR_CHANNEL_SIGNS
+from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
 from mca_drake.learning.torch_plant import TorchPlant
 from mca_drake.platforms import kinematics, serial, urdf_chain
 from mca_drake.platforms.files import (
@@ -457,3 +460,49 @@ def test_the_platforms_command_describes_a_file_and_refuses_an_unknown_name(tmp_
     assert (record["name"], record["dof"]) == ("mine", 6)
     assert main(["platforms", "kr5000"]) == 2
     assert "unknown platform 'kr5000'" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ closed loops
+def test_a_scenario_runs_on_the_platform_it_names(tmp_path):
+    """By packaged name, by file and inline: the summary records the platform that ran,
+    and the rail's extra joint is in the states and the joint use."""
+    (tmp_path / "kr500_rail.urdf").write_text(model_path("kr500_rail.urdf").read_text())
+    inline = "{platform: !SerialRobot {name: my-rail, urdf: %s, home: [0, 0, 0, 0, 0, 0, 0]}}" % (
+        tmp_path / "kr500_rail.urdf"
+    )
+    quick = "{mca: nmpc-rti, plant: analytical, duration_s: 1.0}"
+    for override, name, dof in (
+        ("{platform: kr500-rail}", "kr500-rail", 7),
+        (f"{{platform: {packaged_platforms()['kr500']}}}", "kr500", 6),
+        (inline, "my-rail", 7),
+    ):
+        scenario = load_scenario("closed_loop_dpc", [quick, override])
+        result = run_closed_loop_scenario(scenario, progress=False, json_path="", plot_dir="")
+        assert result.summary["platform"] == {"name": name, "kind": "serial", "dof": dof}
+        assert result.states.shape[1] == 2 * dof
+        assert len(result.summary["joint_range_used"]) == dof
+        assert sum(result.summary["violations"].values()) == 0
+    with pytest.raises(ValueError, match=r"platform: unknown platform 'kr5000'"):
+        load_scenario("closed_loop_dpc", [quick, "{platform: kr5000}"])
+
+
+def test_the_dpc_of_the_kr500_is_refused_on_the_rail_and_simulate_takes_platform(tmp_path, capsys):
+    scenario = load_scenario(
+        "closed_loop_dpc", ["{platform: kr500-rail, plant: analytical, duration_s: 1.0}"]
+    )
+    with pytest.raises(ValueError, match=r"trained for platform 'kr500', not for 'kr500-rail'"):
+        run_closed_loop_scenario(scenario, progress=False, json_path="", plot_dir="")
+    summary = tmp_path / "summary.json"
+    argv = ["simulate", "--platform", "kr500-rail", "--mca", "washout", "--plant", "analytical"]
+    argv += ["--duration", "1", "--json", str(summary), "--plots", "", "--quiet"]
+    assert main(argv) == 0
+    assert json.loads(summary.read_text())["platform"]["dof"] == 7
+    capsys.readouterr()
+    assert main(["evaluate", "--suite", "--platform", "kr500-rail"]) == 2
+    assert "the suite runs on the kr500" in capsys.readouterr().err
+
+
+def test_the_nmpc_refuses_a_platform_whose_home_is_not_zero(tmp_path):
+    turned = _load(tmp_path, _kr500_text(), home=[0.5, 0, 0, 0, 0, 0])
+    with pytest.raises(ValueError, match=r"washes out towards q = 0; platform 'test'"):
+        MotionCueingOcp(NmpcConfig(), turned)

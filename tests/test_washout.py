@@ -85,7 +85,7 @@ def test_sustained_surge_is_rendered_by_pitch_within_the_rate_limit(surge_run, r
 def test_robot_returns_to_neutral(surge_run, robot):
     """Back at rest at its home pose (where it started), with the head level."""
     result, _ = surge_run
-    home = np.array(WashoutConfig().home_position)
+    home = robot.washout_home
     np.testing.assert_allclose(result.states[0, :6], home, atol=1e-12)
     final = result.states[-1]
     assert np.abs(final[:6] - home).max() < 2e-3 and np.abs(final[6:]).max() < 1e-3

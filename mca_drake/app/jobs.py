@@ -149,6 +149,7 @@ def run_closed_loop_scenario(
         mca=scenario.mca,
         reference=reference,
         plant=scenario.plant,
+        robot=load_platform(scenario.platform),
         duration_s=min(scenario.duration_s, reference.duration_s),
         station=scenario.station if multibody else None,
         meshcat=meshcat if multibody else None,

@@ -47,7 +47,7 @@ from mca_drake.live.outsim import OutSimConfig
 from mca_drake.live.receiver import allowed_senders
 from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.perception.models import PerceptionConfig
-from mca_drake.platforms.files import DEFAULT_PLATFORM
+from mca_drake.platforms.files import DEFAULT_PLATFORM, SerialRobot, load_platform
 from mca_drake.references.drives import DriveSpec
 from mca_drake.references.flights import FlightSpec
 from mca_drake.resources import scenario_path
@@ -70,8 +70,9 @@ class PlantDemoScenario:
     duration_s: float = 20.0
     # Control period of the plant and of the logged signals, s.
     time_step: float = CONTROL_PERIOD_S
-    # The motion platform: a packaged name (`mca-drake platforms`) or a platform file.
-    platform: str = DEFAULT_PLATFORM
+    # The motion platform: a packaged name (`mca-drake platforms`), a platform file, or an
+    # inline !SerialRobot {name, urdf, ...} (its urdf relative to the working directory).
+    platform: Union[str, SerialRobot] = DEFAULT_PLATFORM  # noqa: UP007 (YAML loader)
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""
@@ -81,6 +82,16 @@ class PlantDemoScenario:
         check_range("PlantDemoScenario", "duration_s", self.duration_s, 0.0, MAX_DURATION_S)
         if not 0 < self.time_step <= 0.1:
             raise ValueError(f"time_step must be in (0, 0.1] s; got {self.time_step}")
+        check_platform(self.platform)
+
+
+def check_platform(platform) -> None:
+    """Raises ValueError (FileNotFoundError for a missing file) naming the `platform` field
+    unless it describes a platform (`mca_drake.platforms.files.load_platform`)."""
+    try:
+        load_platform(platform)
+    except (ValueError, FileNotFoundError) as err:
+        raise type(err)(f"platform: {err}") from err
 
 
 def _fast_simulator() -> SimulatorConfig:
@@ -98,8 +109,12 @@ class ClosedLoopScenario:
     # its default config, or a name with a profile (`mca_drake.cueing.profiles`:
     # nmpc-rti-ground, washout-ground, dpc-ground) for the profile's.
     mca: McaConfig = dataclasses.field(default_factory=DpcConfig)
-    # "multibody" (KR500 MultibodyPlant, inverse dynamics, head IMU) or "analytical".
+    # "multibody" (the platform's MultibodyPlant, inverse dynamics, head IMU) or
+    # "analytical".
     plant: str = "multibody"
+    # The motion platform: a packaged name (`mca-drake platforms`), a platform file, or an
+    # inline !SerialRobot {name, urdf, ...} (its urdf relative to the working directory).
+    platform: Union[str, SerialRobot] = DEFAULT_PLATFORM  # noqa: UP007 (YAML loader)
     # The vehicle motion to cue: a flight (a recording file or a built-in JSBSim flight),
     # or a built-in drive tagged !DriveSpec (`mca_drake.references.drives`).
     flight: Union[FlightSpec, DriveSpec] = dataclasses.field(default_factory=FlightSpec)  # noqa: UP007 (YAML loader)
@@ -132,6 +147,7 @@ class ClosedLoopScenario:
         check_config_numbers(self)
         if self.plant not in PLANTS:
             raise ValueError(f"plant must be one of {', '.join(PLANTS)}; got {self.plant!r}")
+        check_platform(self.platform)
         check_range(
             "ClosedLoopScenario", "duration_s", self.duration_s, CONTROL_PERIOD_S, MAX_DURATION_S
         )
@@ -521,10 +537,14 @@ _UNTAGGED_DEFAULTS = {frozenset({FlightSpec, DriveSpec}): FlightSpec}
 
 
 def _prepare_union(members: tuple, raw, current, where: str):
-    """`_prepare` for a union field (the MCA, or a file's scenario)."""
+    """`_prepare` for a union field (the MCA, the platform, or a file's scenario)."""
     is_mca = set(members) == set(typing.get_args(McaConfig))
-    by_tag = {f"!{t.__name__}": t for t in members}
+    if str in members and isinstance(raw, str):  # a name (the platform's)
+        return raw
+    by_tag = {f"!{t.__name__}": t for t in members if t is not str}
     expected = f"a tagged value ({', '.join(by_tag)})"
+    if str in members:
+        expected = f"a name or {expected}"
     if is_mca:
         expected += f" or an MCA name ({', '.join(MCA_NAMES)}, or one with a profile suffix)"
     if isinstance(raw, str) and is_mca:

@@ -47,6 +47,31 @@ def input_size(preview_steps: int) -> int:
     return INPUT_SIZE + (6 * PREVIEW_POINTS if preview_steps else 0)
 
 
+# The platform a policy file that names none was trained for: every shipped policy's.
+UNNAMED_POLICY_PLATFORM = "kr500"
+
+
+def policy_platform(metadata: dict) -> str:
+    """The name of the platform a policy file was trained for (its metadata's
+    `platform.name`; UNNAMED_POLICY_PLATFORM where it names none)."""
+    record = metadata.get("platform", {"name": UNNAMED_POLICY_PLATFORM})
+    if not isinstance(record, dict) or not isinstance(record.get("name"), str):
+        raise ValueError(f"policy platform must be a record with a name; got {record!r}")
+    return record["name"]
+
+
+def check_policy_platform(path, metadata: dict, platform_name: str) -> None:
+    """Raises ValueError, naming both, unless the policy file at `path` (its `metadata`) was
+    trained for the platform `platform_name`: its joints, limits and kinematics are the ones
+    the policy learned to command."""
+    trained = policy_platform(metadata)
+    if trained != platform_name:
+        raise ValueError(
+            f"policy {path} was trained for platform '{trained}', not for '{platform_name}': "
+            f"a policy commands the joints of the platform it was trained on"
+        )
+
+
 def policy_preview_steps(metadata: dict) -> int:
     """A policy file's reference preview, control periods (0: causal), from its metadata;
     ValueError for a value that is not a whole number >= 0."""

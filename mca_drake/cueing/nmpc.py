@@ -1,7 +1,8 @@
 """Nonlinear MPC motion cueing on the exact joint-space plant, on Drake's MathematicalProgram.
 
 Optimal control problem over a horizon of N intervals of a non-uniform grid (short intervals
-first, longer later: downsampling), with u_k (6) constant over interval k of duration T_k:
+first, longer later: downsampling), with u_k (n, one per joint) constant over interval k of
+duration T_k:
 
     minimise   sum_k w_k ( ||y(x_k, u_k) - r_k||^2_Wy + lambda_u ||u_k||^2 + lambda_q ||q_k||^2 )
                + lambda_qN ||q_N||^2 + lambda_qdN ||qd_N||^2
@@ -63,6 +64,7 @@ from pydrake.solvers import (
 )
 from threadpoolctl import ThreadpoolController
 
+from mca_drake.conventions import NUM_CHANNELS
 from mca_drake.cueing.active_set import (
     active_rows,
     cholesky,
@@ -81,12 +83,12 @@ from mca_drake.cueing.output_curvature import (
 from mca_drake.cueing.shooting import shooting_dynamics
 from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.safety import viable_acceleration_bounds
 
-NU = NUM_JOINTS
+# The output channels of y and of a reference row.
+NY = NUM_CHANNELS
 # A row of a full solver's solution within this of a bound is guessed active (the KKT solve
 # that follows verifies the guess; OSQP's polished solutions are exact, Clarabel's to 1e-10).
 ACTIVE_ROW_TOLERANCE = 1e-6
@@ -121,7 +123,7 @@ class SolveResult:
     """Outcome of one NMPC solve.
 
     Attributes:
-        U: the plan, shape (N, 6), rad/s^2 (u_k over interval k).
+        U: the plan, shape (N, n), rad/s^2 (u_k over interval k).
         cost: the true (nonlinear) cost of U (converged mode; NaN in rti mode, call `cost`).
         iterations: Gauss-Newton QPs solved.
         success: whether the QPs succeeded (else U is a fallback).
@@ -137,7 +139,7 @@ class SolveResult:
             "step" (step below step_tolerance), "no_descent" (the line search found none),
             "iterations" (max_iterations reached) or "failed" (a QP failed).
         output_hessians: converged mode: the estimates of d^2 y_a / dv_k^2 at U's nodes,
-            shape (N, 6, 18, 18) (`output_curvature`): after `shift_output_hessians`, the
+            shape (N, 6, 3n, 3n) (`output_curvature`): after `shift_output_hessians`, the
             next solve's `output_hessians`; None in rti mode.
     """
 
@@ -156,7 +158,7 @@ class SolveResult:
 
 @dataclasses.dataclass(frozen=True)
 class PlanningLimits:
-    """The limits the plan respects: Table I's, less a small reserve (shape (6,) each)."""
+    """The limits the plan respects: the platform's, less a small reserve (shape (n,) each)."""
 
     q_min: np.ndarray
     q_max: np.ndarray
@@ -179,8 +181,8 @@ def _planning_limits(robot: SerialChain, margin: float) -> PlanningLimits:
 @dataclasses.dataclass(frozen=True)
 class _GaussNewtonModel:
     """The Gauss-Newton model of the cost at a plan U: H (6N, 6N) and the exact gradient g
-    (6N,); jac: the output Jacobians at the nodes; residual (N, 6): y - r; cost: the true
-    cost at U; node_jacobian (N, 6, 18): dy/dv_k;
+    (nN,); jac: the output Jacobians at the nodes; residual (N, 6): y - r; cost: the true
+    cost at U; node_jacobian (N, 6, 3n): dy/dv_k;
     weighted_residual (N, 6): c_ka = d cost / d y_ka (2 w_k W_a (y - r)_ka for the inertial
     objective), the weights of the output Hessians in the cost's Hessian."""
 
@@ -198,13 +200,21 @@ class MotionCueingOcp:
 
     Args:
         config: the NMPC settings.
-        robot: the KR500 description (default models/kr500.urdf).
+        robot: the platform (n joints): the plan's inputs and states are sized from it.
     """
 
-    def __init__(self, config: NmpcConfig | None = None, robot: SerialChain | None = None):
+    def __init__(self, config: NmpcConfig | None, robot: SerialChain):
         self.config = config or NmpcConfig()
         self.config.validate()
-        self.robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
+        self.robot = robot
+        self.nu = nu = robot.num_joints
+        if np.any(robot.home != 0.0):
+            # the washout and terminal terms pull the joints towards q = 0
+            raise ValueError(
+                f"the NMPC washes out towards q = 0; platform '{robot.name}' has its home at "
+                f"{robot.home.tolist()}: give it a home of zeros (its URDF's joint origins at "
+                "the neutral pose)"
+            )
         cfg, r = self.config, self.robot
         self.limits = r = _planning_limits(r, cfg.limit_margin)
         self.interval_steps = make_grid(cfg.horizon_steps, cfg.nodes)
@@ -221,17 +231,17 @@ class MotionCueingOcp:
                 Sqd[k, j] = T[j]
                 Sq[k, j] = (t[k] - t[j + 1]) * T[j] + 0.5 * T[j] ** 2
         self.Sq, self.Sqd = Sq, Sqd
-        eye = np.eye(NU)
-        self._Gq = np.kron(Sq, eye)  # (6(N+1), 6N): d q_k / d U
+        eye = np.eye(nu)
+        self._Gq = np.kron(Sq, eye)  # (n(N+1), nN): d q_k / d U
         self._Gqd = np.kron(Sqd, eye)
 
         # Constraint rows, fixed: A U + (x0 terms) within bounds, for nodes 1..N.
         rows, self._row_q0, self._row_qd0, lower, upper = [], [], [], [], []
         for k in range(1, N + 1):
-            Aq, Aqd = self._Gq[6 * k : 6 * k + 6], self._Gqd[6 * k : 6 * k + 6]
+            Aq, Aqd = self._Gq[nu * k : nu * k + nu], self._Gqd[nu * k : nu * k + nu]
             rows += [Aq, Aqd]
             # q_k = q0 + t_k qd0 + Aq U, qd_k = qd0 + Aqd U
-            self._row_q0 += [eye, np.zeros((6, 6))]
+            self._row_q0 += [eye, np.zeros((nu, nu))]
             self._row_qd0 += [t[k] * eye, eye]
             lower += [r.q_min, -r.qd_max]
             upper += [r.q_max, r.qd_max]
@@ -242,11 +252,11 @@ class MotionCueingOcp:
                     rows.append(side * (Aq + slope[:, None] * Aqd))
                     self._row_q0.append(side * eye)
                     self._row_qd0.append(side * (t[k] * eye + np.diag(slope)))
-                    lower.append(np.full(6, -np.inf))
+                    lower.append(np.full(nu, -np.inf))
                     upper.append((r.q_max if side > 0 else -r.q_min) + offset)
         self.A = np.vstack(rows)
         # Every row of the QP in U: the node constraints A, then the box on U itself.
-        self._C = np.vstack([self.A, np.eye(NU * N)])
+        self._C = np.vstack([self.A, np.eye(nu * N)])
         self.num_rows = self._C.shape[0]
         # node 1's rows are multiples of u_0's box rows (the exact viability interval)
         self._parallel = parallel_groups(self._C)
@@ -259,13 +269,13 @@ class MotionCueingOcp:
         self._lower0, self._upper0 = np.concatenate(lower), np.concatenate(upper)
 
         # Constant quadratic terms: input and washout (over nodes 0..N-1) and terminal cost.
-        w6 = np.repeat(self.weights, NU)
-        Gq_nodes = self._Gq[: 6 * N]
+        w6 = np.repeat(self.weights, nu)
+        Gq_nodes = self._Gq[: nu * N]
         self._H_const = 2 * (
             cfg.input_weight * np.diag(w6)
             + cfg.washout_weight * Gq_nodes.T @ (w6[:, None] * Gq_nodes)
-            + cfg.terminal_position_weight * self._Gq[6 * N :].T @ self._Gq[6 * N :]
-            + cfg.terminal_velocity_weight * self._Gqd[6 * N :].T @ self._Gqd[6 * N :]
+            + cfg.terminal_position_weight * self._Gq[nu * N :].T @ self._Gq[nu * N :]
+            + cfg.terminal_velocity_weight * self._Gqd[nu * N :].T @ self._Gqd[nu * N :]
         )
         self._output_weights = np.asarray(cfg.output_weights, float)
         # The perceived objective's quadratic form in the stacked residuals (6N, 6N) and the
@@ -276,10 +286,10 @@ class MotionCueingOcp:
             self._build_perceived_objective()
 
         self._u_max = np.tile(r.qdd_max, N)
-        self._condensing = NodeCondensing(Sq, Sqd)
+        self._condensing = NodeCondensing(Sq, Sqd, nu)
         # Gauss-Newton stage Hessian terms beside J^T W J, on v = [q, qd, u]: washout, input.
         self._stage_regularisation = np.diag(
-            np.r_[np.full(6, cfg.washout_weight), np.zeros(6), np.full(6, cfg.input_weight)]
+            np.r_[np.full(nu, cfg.washout_weight), np.zeros(nu), np.full(nu, cfg.input_weight)]
         )
         self._build_program()
 
@@ -302,16 +312,16 @@ class MotionCueingOcp:
         f = vestibular_filter(PerceptionConfig(model=cfg.perception_model), cfg.time_step)
         Phi, Gamma = f.steps(self.interval_steps)
         n = f.num_states
-        M, L = np.zeros((NU * N, NU * N)), np.zeros((NU * N, n))
-        free, forced = np.eye(n), np.zeros((n, NU * N))  # eps_k = free eps_0 + forced e
+        M, L = np.zeros((NY * N, NY * N)), np.zeros((NY * N, n))
+        free, forced = np.eye(n), np.zeros((n, NY * N))  # eps_k = free eps_0 + forced e
         for k in range(N):
             free, forced = Phi[k] @ free, Phi[k] @ forced
-            forced[:, NU * k : NU * k + NU] += Gamma[k]
-            rows = slice(NU * k, NU * k + NU)  # P_(k+1)
+            forced[:, NY * k : NY * k + NY] += Gamma[k]
+            rows = slice(NY * k, NY * k + NY)  # P_(k+1)
             M[rows] = f.C @ forced
-            M[rows, NU * k : NU * k + NU] += f.D
+            M[rows, NY * k : NY * k + NY] += f.D
             L[rows] = f.C @ free
-        weights = np.repeat(self.weights, NU) * np.tile(self._output_weights, N)
+        weights = np.repeat(self.weights, NY) * np.tile(self._output_weights, N)
         self.perception_filter = f
         self._output_form = M.T @ (weights[:, None] * M)
         self._state_to_reference = np.linalg.solve(M, L)
@@ -327,32 +337,32 @@ class MotionCueingOcp:
                 f"perception_state must be {self.perception_filter.num_states} finite values; "
                 f"got shape {eps.shape}"
             )
-        return refs - (self._state_to_reference @ eps).reshape(self.N, NU)
+        return refs - (self._state_to_reference @ eps).reshape(self.N, NY)
 
     def _build_program(self) -> None:
         """The sparse QP of one Gauss-Newton step, built once. Variables: u_0..u_(N-1) and
         x_1..x_N (multiple shooting keeps every matrix sparse; condensing would make the
         constraint matrix dense and the QP ten times slower)."""
-        cfg, r, N = self.config, self.limits, self.N
+        cfg, r, N, nu = self.config, self.limits, self.N, self.nu
         prog = self.prog = MathematicalProgram()
-        self.U_var = prog.NewContinuousVariables(N, NU, "u")
-        self.X_var = prog.NewContinuousVariables(N, 2 * NU, "x")  # x_1..x_N
+        self.U_var = prog.NewContinuousVariables(N, nu, "u")
+        self.X_var = prog.NewContinuousVariables(N, 2 * nu, "x")  # x_1..x_N
         u_all, x_all = self.U_var.reshape(-1), self.X_var.reshape(-1)
         self._first_input_box = prog.AddBoundingBoxConstraint(
             -r.qdd_max, r.qdd_max, self.U_var[0]
         ).evaluator()
         if N > 1:
             prog.AddBoundingBoxConstraint(
-                -self._u_max[6:], self._u_max[6:], self.U_var[1:].reshape(-1)
+                -self._u_max[nu:], self._u_max[nu:], self.U_var[1:].reshape(-1)
             )
         prog.AddBoundingBoxConstraint(
             np.tile(np.r_[r.q_min, -r.qd_max], N), np.tile(np.r_[r.q_max, r.qd_max], N), x_all
         )
         # Dynamics x_(k+1) = Phi_k x_k + Gamma_k u_k; the first row block carries x_0 in its
-        # bounds. Columns: [u (6N), x (12N)].
-        A_eq, self._Phi = shooting_dynamics(self.durations)
+        # bounds. Columns: [u (nN), x (2nN)].
+        A_eq, self._Phi = shooting_dynamics(self.durations, nu)
         self._dynamics = prog.AddLinearEqualityConstraint(
-            A_eq, np.zeros(12 * N), np.concatenate([u_all, x_all])
+            A_eq, np.zeros(2 * nu * N), np.concatenate([u_all, x_all])
         ).evaluator()
         # Stoppability tangents on every node: rows side * (q_j + slope_j qd_j) <= bound_j.
         tangents = self._tangents()
@@ -363,28 +373,28 @@ class MotionCueingOcp:
                 for side in (+1.0, -1.0):
                     limit = r.q_max if side > 0 else -r.q_min
                     for slope, offset in tangents:
-                        for j in range(NU):
+                        for j in range(nu):
                             rows += [n_rows, n_rows]
-                            cols += [12 * k + j, 12 * k + 6 + j]
+                            cols += [2 * nu * k + j, 2 * nu * k + nu + j]
                             vals += [side, side * slope[j]]
                             upper.append(limit[j] + offset[j])
                             n_rows += 1
-            A_stop = sp.csc_matrix((vals, (rows, cols)), shape=(n_rows, 12 * N))
+            A_stop = sp.csc_matrix((vals, (rows, cols)), shape=(n_rows, 2 * nu * N))
             prog.AddLinearConstraint(A_stop, np.full(n_rows, -np.inf), np.array(upper), x_all)
         # Gauss-Newton stage costs: node 0 on u_0 (x_0 is given), nodes k >= 1 on [x_k, u_k].
         self._stage_costs = [
-            prog.AddQuadraticCost(np.eye(6), np.zeros(6), self.U_var[0], is_convex=True)
+            prog.AddQuadraticCost(np.eye(nu), np.zeros(nu), self.U_var[0], is_convex=True)
         ]
         for k in range(1, N):
             v = np.concatenate([self.X_var[k - 1], self.U_var[k]])
             self._stage_costs.append(
-                prog.AddQuadraticCost(np.eye(18), np.zeros(18), v, is_convex=True)
+                prog.AddQuadraticCost(np.eye(3 * nu), np.zeros(3 * nu), v, is_convex=True)
             )
         self._stage_costs = [c.evaluator() for c in self._stage_costs]
         terminal = 2 * np.diag(
-            [cfg.terminal_position_weight] * 6 + [cfg.terminal_velocity_weight] * 6
+            [cfg.terminal_position_weight] * nu + [cfg.terminal_velocity_weight] * nu
         )
-        prog.AddQuadraticCost(terminal, np.zeros(12), self.X_var[-1], is_convex=True)
+        prog.AddQuadraticCost(terminal, np.zeros(2 * nu), self.X_var[-1], is_convex=True)
         # Drake's solver when the hot start does not settle; its answer is made exact (and
         # given multipliers) by a KKT solve on its active set when that verifies. "auto":
         # OSQP in rti mode, Clarabel in converged mode. (OSQP first and Clarabel after it in
@@ -426,19 +436,19 @@ class MotionCueingOcp:
 
     # ----------------------------------------------------------------- evaluation
     def states(self, x0: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Node positions and velocities for plan U (N, 6): q, qd each (N + 1, 6)."""
-        q0, qd0 = x0[:NU], x0[NU:]
+        """Node positions and velocities for plan U (N, n): q, qd each (N + 1, n)."""
+        q0, qd0 = x0[: self.nu], x0[self.nu :]
         q = q0 + self.node_times[:, None] * qd0 + self.Sq @ U
         qd = qd0 + self.Sqd @ U
         return q, qd
 
     def cost(self, x0: np.ndarray, U: np.ndarray, refs: np.ndarray) -> float:
-        """The true nonlinear cost of plan U (N, 6) for references refs (N, 6)."""
+        """The true nonlinear cost of plan U (N, n) for references refs (N, 6)."""
         q, qd = self.states(x0, U)
         return self._cost_of(q, qd, U, plant_output(q[:-1], qd[:-1], U, self.robot) - refs)
 
     def _cost_of(self, q, qd, U, residual) -> float:
-        """The cost from node states q, qd (N + 1, 6), U (N, 6) and y - r (N, 6)."""
+        """The cost from node states q, qd (N + 1, n), U (N, n) and y - r (N, 6)."""
         cfg = self.config
         stage = cfg.input_weight * (U**2).sum(1) + cfg.washout_weight * (q[:-1] ** 2).sum(1)
         if self._output_form is None:
@@ -453,7 +463,7 @@ class MotionCueingOcp:
 
     def constraint_bounds(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Bounds lb <= A U <= ub for the current state (shape (rows,) each)."""
-        shift = self._A_q0 @ x0[:NU] + self._A_qd0 @ x0[NU:]
+        shift = self._A_q0 @ x0[: self.nu] + self._A_qd0 @ x0[self.nu :]
         return self._lower0 - shift, self._upper0 - shift
 
     def input_bounds(self, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -462,10 +472,16 @@ class MotionCueingOcp:
         (planning) limits whatever the rest of the plan does."""
         lim = self.limits
         lo0, hi0, _ = viable_acceleration_bounds(
-            x0[:NU], x0[NU:], lim.q_min, lim.q_max, lim.qd_max, lim.qdd_max, self.config.time_step
+            x0[: self.nu],
+            x0[self.nu :],
+            lim.q_min,
+            lim.q_max,
+            lim.qd_max,
+            lim.qdd_max,
+            self.config.time_step,
         )
         lo, hi = -self._u_max.copy(), self._u_max.copy()
-        lo[:NU], hi[:NU] = lo0, hi0
+        lo[: self.nu], hi[: self.nu] = lo0, hi0
         return lo, hi
 
     def is_feasible(self, x0: np.ndarray, U: np.ndarray, tol: float = 1e-7) -> bool:
@@ -505,37 +521,37 @@ class MotionCueingOcp:
         else:
             # perceived: the output cost e' S e couples the nodes; with the condensed
             # Jacobian J (6N, 6N), Gauss-Newton's Hessian is 2 J' S J and dcost/dy = 2 S e
-            weighted = (2 * self._output_form @ residual.reshape(-1)).reshape(N, NU)
+            weighted = (2 * self._output_form @ residual.reshape(-1)).reshape(N, NY)
             J = self._condensing.jacobian(node_jacobian)
             H = 2 * J.T @ self._output_form @ J
         H = H + self._H_const
         # gradient of the true cost at U (exact: Gauss-Newton changes only the Hessian)
         Uf = U.reshape(-1)
         q_nodes = q[:-1].reshape(-1)
-        w6 = np.repeat(self.weights, NU)
+        w6 = np.repeat(self.weights, self.nu)
         g = (
             self._condensing.gradient(np.einsum("kai,ka->ki", node_jacobian, weighted))
             + 2 * cfg.input_weight * w6 * Uf
-            + 2 * cfg.washout_weight * self._Gq[: 6 * N].T @ (w6 * q_nodes)
-            + 2 * cfg.terminal_position_weight * self._Gq[6 * N :].T @ q[-1]
-            + 2 * cfg.terminal_velocity_weight * self._Gqd[6 * N :].T @ qd[-1]
+            + 2 * cfg.washout_weight * self._Gq[: self.nu * N].T @ (w6 * q_nodes)
+            + 2 * cfg.terminal_position_weight * self._Gq[self.nu * N :].T @ q[-1]
+            + 2 * cfg.terminal_velocity_weight * self._Gqd[self.nu * N :].T @ qd[-1]
         )
         return _GaussNewtonModel(H, g, jac, residual, cost, node_jacobian, weighted)
 
     # ----------------------------------------------------------------- solving
     def _update_qp(self, x0: np.ndarray, U: np.ndarray, refs: np.ndarray, jac) -> np.ndarray:
         """Loads the QP of y linearised around plan U from x0 (`jac`: the output Jacobians
-        at U's nodes); returns the node states (N + 1, 12) of U."""
+        at U's nodes); returns the node states (N + 1, 2n) of U."""
         N = self.N
         q, qd = self.states(x0, U)
         W = self._output_weights
         x_bar = np.concatenate([q, qd], axis=1)
         c = jac.y - refs  # residual at the linearisation point
-        # Stage k >= 1 is a quadratic in v_k = [x_k, u_k] (18); stage 0 in u_0 alone (x_0 is
+        # Stage k >= 1 is a quadratic in v_k = [x_k, u_k] (3n); stage 0 in u_0 alone (x_0 is
         # given). All stages are formed at once; only the coefficient updates loop.
-        J = np.concatenate([jac.dy_dq, jac.dy_dqd, jac.dy_dqdd], axis=2)  # (N, 6, 18)
-        v_bar = np.concatenate([x_bar[:N], U], axis=1)  # (N, 18)
-        v_bar[0, :12] = 0.0  # x_0 is fixed: stage 0 is linearised in u_0 only
+        J = np.concatenate([jac.dy_dq, jac.dy_dqd, jac.dy_dqdd], axis=2)  # (N, 6, 3n)
+        v_bar = np.concatenate([x_bar[:N], U], axis=1)  # (N, 3n)
+        v_bar[0, : 2 * self.nu] = 0.0  # x_0 is fixed: stage 0 is linearised in u_0 only
         WJ = W[None, :, None] * J
         w = self.weights[:, None, None]
         Q = 2 * w * (np.einsum("kai,kaj->kij", J, WJ) + self._stage_regularisation)
@@ -545,12 +561,14 @@ class MotionCueingOcp:
             * np.einsum("kai,ka->ki", WJ, c - np.einsum("kai,ki->ka", J, v_bar))
         )
         # Stage 0: x_0 is data, so only the u_0 block remains (its b absorbs the x_0 part).
-        self._stage_costs[0].UpdateCoefficients(Q[0, 12:, 12:], b[0, 12:], 0.0, is_convex=True)
+        self._stage_costs[0].UpdateCoefficients(
+            Q[0, 2 * self.nu :, 2 * self.nu :], b[0, 2 * self.nu :], 0.0, is_convex=True
+        )
         for k in range(1, N):
             self._stage_costs[k].UpdateCoefficients(Q[k], b[k], 0.0, is_convex=True)
         first = self._Phi[0] @ x0
-        bounds = np.zeros(12 * N)
-        bounds[:12] = first
+        bounds = np.zeros(2 * self.nu * N)
+        bounds[: 2 * self.nu] = first
         self._dynamics.set_bounds(bounds, bounds)
         return x_bar
 
@@ -566,7 +584,7 @@ class MotionCueingOcp:
         U_new = result.GetSolution(self.U_var)
         if not np.all(np.isfinite(U_new)):
             return None, "non-finite QP solution"
-        return U_new.reshape(self.N, NU), ""
+        return U_new.reshape(self.N, self.nu), ""
 
     def solve(
         self,
@@ -578,19 +596,19 @@ class MotionCueingOcp:
         output_hessians: np.ndarray | None = None,
         perception_state: np.ndarray | None = None,
     ) -> SolveResult:
-        """Solves from state x0 (12) for references refs (N, 6) (or (6,), held constant).
+        """Solves from state x0 (2n) for references refs (N, 6) (or (6,), held constant).
 
         Each Gauss-Newton QP is first solved on a guessed active set (`active_set`: one
         KKT solve, used only when verified optimal); when the guess cannot be corrected, the
         QP is solved in full by Drake's MathematicalProgram (OSQP or Clarabel).
 
         Args:
-            U_guess: warm start (N, 6); default: zeros.
+            U_guess: warm start (N, n); default: zeros.
             mode: override of config.mode ("rti": one QP; "converged": to tolerance).
             active_guess: the active set to try first, shape (`num_rows`,) in {-1, 0, +1}
                 (e.g. the previous step's `SolveResult.active`); default: none active.
             output_hessians: converged mode: estimates of the output Hessians at the warm
-                start's nodes, shape (N, 6, 18, 18) (the previous step's
+                start's nodes, shape (N, 6, 3n, 3n) (the previous step's
                 `SolveResult.output_hessians` after `shift_output_hessians`); default, or
                 when they do not fit or are not finite: finite differences at the warm start.
             perception_state: perceived objective: the vestibular model's state of the
@@ -599,7 +617,7 @@ class MotionCueingOcp:
                 rest). Ignored by the inertial objective.
         """
         if self._output_form is not None:
-            refs = np.broadcast_to(np.asarray(refs, dtype=float), (self.N, NU))
+            refs = np.broadcast_to(np.asarray(refs, dtype=float), (self.N, NY))
             state = perception_state
             if state is None:
                 state = np.zeros(self.perception_filter.num_states)
@@ -691,15 +709,15 @@ class MotionCueingOcp:
         )
 
     def _start(self, x0, refs, U_guess, active_guess):
-        """A solve's data from its arguments: (x0 (12), refs (N, 6), the warm start U (N, 6)
+        """A solve's data from its arguments: (x0 (2n), refs (N, 6), the warm start U (N, n)
         clipped into the input bounds, the rows' lower and upper bounds (`num_rows`,), the
         guessed active set (`num_rows`,) in {-1, 0, +1}); loads the first input's box."""
         x0 = np.asarray(x0, dtype=float)
-        refs = np.broadcast_to(np.asarray(refs, dtype=float), (self.N, 6))
-        U = np.zeros((self.N, NU)) if U_guess is None else np.array(U_guess, dtype=float)
+        refs = np.broadcast_to(np.asarray(refs, dtype=float), (self.N, NY))
+        U = np.zeros((self.N, self.nu)) if U_guess is None else np.array(U_guess, dtype=float)
         lo, hi = self.input_bounds(x0)
-        self._first_input_box.set_bounds(lo[:NU], hi[:NU])
-        U = np.clip(U.reshape(-1), lo, hi).reshape(self.N, NU)
+        self._first_input_box.set_bounds(lo[: self.nu], hi[: self.nu])
+        U = np.clip(U.reshape(-1), lo, hi).reshape(self.N, self.nu)
         lb, ub = self.constraint_bounds(x0)
         row_lo, row_hi = np.concatenate([lb, lo]), np.concatenate([ub, hi])
         active = np.zeros(self.num_rows, dtype=np.int8)
@@ -708,7 +726,7 @@ class MotionCueingOcp:
         return x0, refs, U, row_lo, row_hi, active
 
     def _line_search(self, x0, U, refs, step, cost, model, H, hot, CU, row_lo, row_hi, damping):
-        """The length of the QP's step `step` (N, 6) from U in converged mode: (alpha,
+        """The length of the QP's step `step` (N, n) from U in converged mode: (alpha,
         the true cost at U + alpha step, the Gauss-Newton model there or None where it is not
         at hand, whether the learnt curvature has drifted); alpha < 1e-6: no descent.
 
@@ -758,7 +776,7 @@ class MotionCueingOcp:
 
     def _models_at(self, x0, U, refs, alpha, step, old, model, hessians, drifted):
         """The Gauss-Newton model and the output Hessians at the new plan U, reached from the
-        plan of model `old` by alpha times `step` (N, 6): (model, hessians). `model` is U's
+        plan of model `old` by alpha times `step` (N, n): (model, hessians). `model` is U's
         model where the line search has it (else None), `hessians` the estimates at the old
         plan, `drifted` whether they are to be measured afresh rather than updated."""
         if model is None:
@@ -785,8 +803,8 @@ class MotionCueingOcp:
 
     def _starting_hessians(self, x0, U, model, guess) -> np.ndarray:
         """The output Hessians to start from: `guess` where it fits, else finite differences
-        at U's nodes (shape (N, 6, 18, 18))."""
-        shape = (self.N, 6, 3 * NU, 3 * NU)
+        at U's nodes (shape (N, 6, 3n, 3n))."""
+        shape = (self.N, NY, 3 * self.nu, 3 * self.nu)
         if guess is not None and np.shape(guess) == shape and np.all(np.isfinite(guess)):
             return np.array(guess, dtype=float)
         q, qd = self.states(x0, U)
@@ -820,7 +838,7 @@ class MotionCueingOcp:
         return model.H, None
 
     def _qp_step(self, model, gauss_newton, g, d_lo, d_hi, active, linearisation):
-        """The step d (N, 6) of the QP min 1/2 d'Hd + g'd, d_lo <= C d <= d_hi: (d, verified
+        """The step d (N, n) of the QP min 1/2 d'Hd + g'd, d_lo <= C d <= d_hi: (d, verified
         `ActiveSetSolution` or None, whether the hot start solved it, message); d is None
         when the QP could not be solved.
 
@@ -850,7 +868,7 @@ class MotionCueingOcp:
                     groups=self._parallel,
                 )
             if solution is not None:
-                return solution.d.reshape(self.N, NU), solution, True, ""
+                return solution.d.reshape(self.N, self.nu), solution, True, ""
         if gauss_newton is not H:
             H, factor = gauss_newton, cholesky(gauss_newton)
         x0, U, refs, jac = linearisation
@@ -873,8 +891,8 @@ class MotionCueingOcp:
             guess = active_rows(self._C, d, d_lo, d_hi, ACTIVE_ROW_TOLERANCE)
             solution = self._on_active_set(H, factor, g, d_lo, d_hi, guess, corrections=2)
             if solution is not None:
-                return solution.d.reshape(self.N, NU), solution, False, ""
-        return d.reshape(self.N, NU), None, False, ""
+                return solution.d.reshape(self.N, self.nu), solution, False, ""
+        return d.reshape(self.N, self.nu), None, False, ""
 
     def _solve_condensed_qp(self, H, g, d_lo, d_hi):
         """min 1/2 d'Hd + g'd subject to d_lo <= C d <= d_hi by Drake's solver, on a dense
@@ -883,8 +901,10 @@ class MotionCueingOcp:
         rti's tolerance is too rough to cue with (jumps of 0.3 m/s^2 on a surge pulse)."""
         if self._condensed is None:
             prog = MathematicalProgram()
-            d = prog.NewContinuousVariables(NU * self.N, "d")
-            cost = prog.AddQuadraticCost(np.eye(NU * self.N), np.zeros(NU * self.N), d, True)
+            d = prog.NewContinuousVariables(self.nu * self.N, "d")
+            cost = prog.AddQuadraticCost(
+                np.eye(self.nu * self.N), np.zeros(self.nu * self.N), d, True
+            )
             rows = prog.AddLinearConstraint(
                 self._C, np.full(self.num_rows, -np.inf), np.full(self.num_rows, np.inf), d
             )
@@ -925,7 +945,7 @@ class MotionCueingOcp:
         return U[self._shifted_intervals(steps)]
 
     def shift_output_hessians(self, hessians: np.ndarray, steps: int = 1) -> np.ndarray:
-        """Output Hessians (N, 6, 18, 18) of a plan, moved with it (`shift`): node k takes
+        """Output Hessians (N, 6, 3n, 3n) of a plan, moved with it (`shift`): node k takes
         those of the interval that holds t_k + steps dt."""
         return hessians[self._shifted_intervals(steps)]
 
@@ -936,9 +956,9 @@ class MotionCueingOcp:
 
     def braking_plan(self, x0: np.ndarray) -> np.ndarray:
         """The safest plan when no solve succeeds: brake every joint to rest as fast as the
-        acceleration limits allow, then hold, shape (N, 6)."""
-        qd = np.array(x0[NU:], dtype=float)
-        U = np.zeros((self.N, NU))
+        acceleration limits allow, then hold, shape (N, n)."""
+        qd = np.array(x0[self.nu :], dtype=float)
+        U = np.zeros((self.N, self.nu))
         for k, T in enumerate(self.durations):
             U[k] = np.clip(-qd / T, -self.robot.qdd_max, self.robot.qdd_max)
             qd = qd + T * U[k]
@@ -990,7 +1010,7 @@ DAMPING_START, DAMPING_GROWTH, DAMPING_FLOOR = 1e-2, 4.0, 1e-4
 
 
 def _failed(U, cost, iterations, elapsed, message, active, hot_starts) -> SolveResult:
-    """The result of a solve whose QP failed: its last plan U (N, 6), kept as a fallback."""
+    """The result of a solve whose QP failed: its last plan U (N, n), kept as a fallback."""
     return SolveResult(
         U,
         cost,

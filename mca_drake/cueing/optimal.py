@@ -178,7 +178,7 @@ class OptimalCueing:
         has the same shape), its dynamics w_(k+1)[:n + 12] = F_k w_k from de_0 = dx_0 = 0;
         the weights, Jacobians and bounds are set per iteration."""
         n, h = self.n, self.config.time_step
-        Phi, Gamma = double_integrator_step(h)
+        Phi, Gamma = double_integrator_step(h, NU)
         self._F = np.zeros((n + NX, n + NX + NU))
         self._F[:n, :n] = self._model[0]
         self._F[n:, n : n + NX] = Phi

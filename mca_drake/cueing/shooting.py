@@ -15,29 +15,28 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from mca_drake.platforms.serial import NUM_JOINTS
 
-NU, NX = NUM_JOINTS, 2 * NUM_JOINTS
-
-
-def double_integrator_step(duration: float) -> tuple[np.ndarray, np.ndarray]:
-    """(Phi (12, 12), Gamma (12, 6)) of the exact step of `duration` s."""
-    eye = np.eye(NU)
-    Phi = np.block([[eye, duration * eye], [np.zeros((NU, NU)), eye]])
+def double_integrator_step(duration: float, joints: int) -> tuple[np.ndarray, np.ndarray]:
+    """(Phi (2n, 2n), Gamma (2n, n)) of the exact step of `duration` s for n `joints`."""
+    eye = np.eye(joints)
+    Phi = np.block([[eye, duration * eye], [np.zeros((joints, joints)), eye]])
     Gamma = np.vstack([0.5 * duration * duration * eye, duration * eye])
     return Phi, Gamma
 
 
-def shooting_dynamics(durations) -> tuple[sp.csc_matrix, list[np.ndarray]]:
+def shooting_dynamics(durations, joints: int) -> tuple[sp.csc_matrix, list[np.ndarray]]:
     """The dynamics of N intervals as one sparse equality A z = b over z = (u_0..u_(N-1),
-    x_1..x_N) (6N then 12N columns): row block k is x_(k+1) - Phi_k x_k - Gamma_k u_k, whose
-    right-hand side is 0 except for block 0's, Phi_0 x_0 (x_0 is data). Returns (A (12N,
-    18N), [Phi_k]).
+    x_1..x_N) (nN then 2nN columns for n joints): row block k is x_(k+1) - Phi_k x_k -
+    Gamma_k u_k, whose right-hand side is 0 except for block 0's, Phi_0 x_0 (x_0 is data).
+    Returns (A (2nN, 3nN), [Phi_k]).
 
     Args:
         durations: the intervals' lengths T_k, s, shape (N,).
+        joints: the joint count n.
     """
-    steps = [double_integrator_step(float(T)) for T in np.asarray(durations, dtype=float)]
+    NX = 2 * joints
+    durations = np.asarray(durations, dtype=float)
+    steps = [double_integrator_step(float(T), joints) for T in durations]
     n = len(steps)
     inputs = -sp.block_diag([Gamma for _, Gamma in steps], format="csc")
     # Phi_k in row block k, column block k - 1 (k >= 1): x_k's coefficient in row block k

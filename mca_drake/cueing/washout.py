@@ -59,13 +59,11 @@ class WashoutConfig:
     rotation_gain: float = 0.29299007713281566
     # Gain of the pose-error feedback of the head velocity command (1/s).
     pose_feedback_gain: float = 10.67891731813125
-    # Home joint positions (rad) the washout works about. Not q = 0: there the KR500's wrist
-    # is singular (joints 4 and 6 aligned) and no joint velocity rolls or yaws the head
-    # about the head point. Bending joints 3 and 5 by +-0.5 rad keeps the head level
-    # (R_WH = I) and the Jacobian well conditioned.
-    home_position: list[float] = dataclasses.field(
-        default_factory=lambda: [0.0, 0.0, 0.5, 0.0, -0.5, 0.0]
-    )
+    # Joint positions (rad, m for a prismatic joint) the washout works about; empty: the
+    # platform's `washout_home` (`mca_drake.platforms.serial.SerialChain`), a pose away from
+    # singularities (the KR500's: joints 3 and 5 bent by +-0.5 rad, since at q = 0 its wrist
+    # is singular and no joint velocity rolls or yaws the head about the head point).
+    home_position: list[float] = dataclasses.field(default_factory=list)
     # The shipped profile (`mca_drake.cueing.profiles`: "ground" for cars) these settings
     # are, set by asking for it by name ("washout-ground"); it names the MCA in summaries
     # and reports. "": the flight defaults above.
@@ -100,8 +98,6 @@ class WashoutConfig:
             for k, v in dataclasses.asdict(self).items()
             if k not in ("home_position", "profile")
         }
-        if len(self.home_position) != 6:
-            raise ValueError("home_position must hold six joint positions")
         if any(not (v > 0) for v in values.values()):
             bad = [k for k, v in values.items() if not v > 0]
             raise ValueError(f"washout settings must be positive; got {bad}")

@@ -666,6 +666,8 @@ def train_policy(
         "dataset": str(dataset),
         "dpc_config": json.loads(json.dumps(dataclasses.asdict(config))),
         "tracking_channel_weights": None if channel_weights is None else channel_weights.tolist(),
+        # the platform whose joints the policy commands (`cueing.dpc.check_policy_platform`)
+        "platform": plant.robot.summary(),
     }
     names = ("X", "Y", "U") + (("R",) if config.targets == "reference" else ())
     if config.achievable_cost_floor > 0:

@@ -12,9 +12,9 @@ takes inline:
 The package carries its platforms in `models/` (`packaged_platforms`); a command's
 `--platform` takes a packaged name or a file (`load_platform`). Files are read with PyYAML's
 safe loader (no code runs, no Drake needed), each tag building its typed description.
+(No `from __future__ import annotations` here: Drake's YAML loader reads a scenario's
+inline description through the real field types.)
 """
-
-from __future__ import annotations
 
 import dataclasses
 import os
@@ -41,6 +41,8 @@ class SerialRobot:
     head_frame: str = "head"
     # The neutral pose, one value per joint (rad, m for a prismatic joint); empty: zeros.
     home: list[float] = dataclasses.field(default_factory=list)
+    # The classical washout's working pose, away from singularities; empty: home.
+    washout_home: list[float] = dataclasses.field(default_factory=list)
     # Per joint, for a URDF without drake:acceleration limits (rad/s^2 or m/s^2).
     acceleration_limits: list[float] = dataclasses.field(default_factory=list)
     # Per joint, the signs that mirror the cabin's motion left to right; empty: none.
@@ -59,6 +61,7 @@ class SerialRobot:
             name=self.name,
             head_frame=self.head_frame,
             home=self.home,
+            washout_home=self.washout_home,
             acceleration_limits=self.acceleration_limits,
             mirror_joint_signs=self.mirror_joint_signs,
         )

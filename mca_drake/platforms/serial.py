@@ -57,6 +57,8 @@ class SerialChain:
         qdd_max: symmetric acceleration limits, rad/s^2 or m/s^2, shape (n,).
         effort_max: symmetric effort limits, N m or N, shape (n,).
         home: the neutral pose, shape (n,): where a run starts and a wash-out returns.
+        washout_home: the pose the classical washout's inverse kinematics works about, away
+            from singularities (the head level there too), shape (n,).
         mirror_joint_signs: joint signs that mirror the cabin's motion about the world's
             x-z plane (`conventions.MIRROR_CHANNEL_SIGNS` on the outputs), shape (n,);
             empty where the platform has no such symmetry.
@@ -75,6 +77,7 @@ class SerialChain:
     qdd_max: np.ndarray
     effort_max: np.ndarray
     home: np.ndarray
+    washout_home: np.ndarray
     mirror_joint_signs: np.ndarray
 
     kind = "serial"
@@ -152,6 +155,7 @@ def serial_chain_from_urdf(
     name: str,
     head_frame: str = "head",
     home: Sequence[float] = (),
+    washout_home: Sequence[float] = (),
     acceleration_limits: Sequence[float] = (),
     mirror_joint_signs: Sequence[float] = (),
 ) -> SerialChain:
@@ -165,6 +169,7 @@ def serial_chain_from_urdf(
         head_frame: the URDF link or frame that is the occupant's head H (x forward, y left,
             z up: level at home).
         home: the neutral pose, one value per joint (rad or m); default all zeros.
+        washout_home: the classical washout's working pose (see `SerialChain`); default home.
         acceleration_limits: per joint (rad/s^2 or m/s^2), for a URDF without
             `drake:acceleration`; where both are given they must agree.
         mirror_joint_signs: per joint, the signs that mirror the motion (see `SerialChain`).
@@ -184,14 +189,17 @@ def serial_chain_from_urdf(
         name,
         head_frame,
         tuple(float(v) for v in home),
+        tuple(float(v) for v in washout_home),
         tuple(float(v) for v in acceleration_limits),
         tuple(float(v) for v in mirror_joint_signs),
     )
 
 
 @functools.lru_cache(maxsize=32)
-def _load_cached(path, name, head_frame, home, acceleration_limits, mirror_joint_signs):
-    return _build(read_urdf(path), name, head_frame, home, acceleration_limits, mirror_joint_signs)
+def _load_cached(path, name, head_frame, home, washout_home, acceleration_limits, mirror_signs):
+    return _build(
+        read_urdf(path), name, head_frame, home, washout_home, acceleration_limits, mirror_signs
+    )
 
 
 def _build(
@@ -199,6 +207,7 @@ def _build(
     name: str,
     head_frame: str,
     home: tuple,
+    washout_home: tuple,
     acceleration_limits: tuple,
     mirror_joint_signs: tuple,
 ) -> SerialChain:
@@ -218,6 +227,13 @@ def _build(
         raise ValueError(
             f"{path}: moving joints {others} are not on the chain from the world to "
             f"'{head_frame}'; a serial platform moves the head through one chain"
+        )
+    # The MultibodyPlant station orders its positions as the file lists the joints.
+    in_file = [name for name, j in model.joints.items() if j.kind in MOVING_KINDS]
+    if in_file != [j.name for j in moving]:
+        raise ValueError(
+            f"{path}: list the moving joints from the base to the head ({[j.name for j in moving]}"
+            f"); the file lists {in_file}"
         )
     # Walk the chain: T is the pose of the current link in the last moving frame (the world
     # before the first joint).
@@ -263,8 +279,10 @@ def _build(
     if not (np.all(qd_hi > 0) and np.all(np.isfinite(qd_hi)) and np.all(qdd_hi > 0)):
         raise ValueError(f"{path}: velocity and acceleration limits must be positive and finite")
     home_q = _per_joint("home", home, n) if home else np.zeros(n)
-    if not np.all((q_min < home_q) & (home_q < q_max)):
-        raise ValueError(f"{path}: home {home_q.tolist()} is not strictly inside the limits")
+    washout_q = _per_joint("washout_home", washout_home, n) if washout_home else home_q.copy()
+    for what, pose in (("home", home_q), ("washout_home", washout_q)):
+        if not np.all((q_min < pose) & (pose < q_max)):
+            raise ValueError(f"{path}: {what} {pose.tolist()} is not strictly inside the limits")
     mirror = (
         _per_joint("mirror_joint_signs", mirror_joint_signs, n)
         if mirror_joint_signs
@@ -286,6 +304,7 @@ def _build(
         qdd_max=qdd_hi,
         effort_max=limits(lambda j: j.effort),
         home=home_q,
+        washout_home=washout_q,
         mirror_joint_signs=mirror,
     )
     R_WH = _head_pose_at(chain_description, home_q)[:3, :3]

@@ -129,7 +129,7 @@ def _add_source_and_mca(builder, reference, mca, robot):
         builder.Connect(
             source.GetOutputPort("reference_preview"), controller.GetInputPort("reference_preview")
         )
-    home = getattr(controller, "home_position", np.zeros(len(robot.joint_names)))
+    home = getattr(controller, "home_position", robot.home)
     return source, controller, np.concatenate([home, np.zeros_like(home)])
 
 

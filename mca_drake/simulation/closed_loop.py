@@ -33,7 +33,7 @@ from mca_drake.perception.models import PerceptionConfig
 from mca_drake.perception.scores import perceived_run
 from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.kinematics import head_pose, plant_output
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.platforms.usage import joint_range_used, joint_usage
 from mca_drake.references.reference import Reference
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop, MakeMultibodyClosedLoop
@@ -125,8 +125,8 @@ def closed_loop_summary(
         mca_config: the full config that ran, as a record (`mca_config_record`).
         reference: r_n, shape (n, 6).
         outputs: y_n, shape (n, 6).
-        states: x_n, shape (n, 12).
-        accelerations: the joint accelerations over each step, rad/s^2, shape (n, 6).
+        states: x_n, shape (n, 2j) for the platform's j joints.
+        accelerations: the joint accelerations over each step, rad/s^2, shape (n, j).
         statistics: the MCA's `statistics` log (row k published at t_k, so row n holds the
             totals after n steps), shape (n + 1 or more, 4); None for an offline solve
             (the optimal bound), which has no control steps: `step_time_s` is then None
@@ -144,14 +144,16 @@ def closed_loop_summary(
     score = tracking_score(reference, outputs)
     # Not moving at all renders y = 0 (at rest, the head is level at every home pose).
     zero_motion = tracking_score(reference, np.zeros_like(reference))
-    usage = joint_usage(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], accelerations, robot)
+    joints = robot.num_joints
+    usage = joint_usage(states[:, :joints], states[:, joints:], accelerations, robot)
     # the vertical specific force needs the head's tilt: R_WH[2, 2] from the joint positions
-    head_z_up = head_pose(states[:, :NUM_JOINTS], robot)[:, 2, 2]
+    head_z_up = head_pose(states[:, :joints], robot)[:, 2, 2]
     perceived = perceived_run(reference, outputs, time_step, perception, head_z_up)
     summary = {
         "mca": mca,
         "mca_config": mca_config,
         "plant": plant,
+        "platform": robot.summary(),
         "reference": reference_name,
         "duration_s": duration_s,
         "pi": score.pi,
@@ -164,7 +166,7 @@ def closed_loop_summary(
         "perceived": perceived.summary(),
         "step_time_s": None if offline else step_time_summary(step_times),
         "violations": usage.violations(),
-        "joint_range_used": joint_range_used(states[:, :NUM_JOINTS], robot).round(4).tolist(),
+        "joint_range_used": joint_range_used(states[:, :joints], robot).round(4).tolist(),
         "safety_interventions": int(statistics[n, 2]),
         "solver_failures": int(statistics[n, 1]),
         "realtime_factor": duration_s / max(wall_s, 1e-9),
@@ -297,7 +299,8 @@ def _collect_result(
         states = log("state_log")[:n]
         check_alignment(states, commands, h)
         accelerations = commands
-        outputs = plant_output(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], commands, robot)
+        joints = robot.num_joints
+        outputs = plant_output(states[:, :joints], states[:, joints:], commands, robot)
     else:
         states, accelerations, outputs = station_signals(
             log("measured_state_log"), log("measured_output_log"), n, h
@@ -339,7 +342,8 @@ def _station_summary(
     handles: dict, context, station: StationConfig, states: np.ndarray, desired: np.ndarray
 ) -> dict:
     """The station's own figures: its step, joint tracking error (rad) and interventions."""
-    tracking_error = np.abs(states[:, :NUM_JOINTS] - desired[:, :NUM_JOINTS])
+    joints = states.shape[1] // 2
+    tracking_error = np.abs(states[:, :joints] - desired[:, :joints])
     limiter = handles["station"].limiter
     return {
         "plant_time_step_s": station.plant_time_step,
@@ -356,20 +360,22 @@ def _station_summary(
 def station_signals(
     measured_state: np.ndarray, measured_output: np.ndarray, n: int, h: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(states x_n (n, 12), joint accelerations over each period (n, 6), outputs y_n (n, 6))
-    of the KR500 station from its logs at the control period (at least n + 1 rows each):
-    the MultibodyPlant's state and the head IMU without its delay, what the occupant felt.
-    The IMU's accelerometer rows reflect the period before their sample, so y_n takes the
-    angular rates of row n and the specific force of row n + 1."""
+    """(states x_n (n, 2j), joint accelerations over each period (n, j), outputs y_n (n, 6))
+    of the station of a j-joint platform from its logs at the control period (at least n + 1
+    rows each): the MultibodyPlant's state and the head IMU without its delay, what the
+    occupant felt. The IMU's accelerometer rows reflect the period before their sample, so y_n
+    takes the angular rates of row n and the specific force of row n + 1."""
     outputs = np.concatenate([measured_output[:n, :3], measured_output[1 : n + 1, 3:]], axis=1)
-    accelerations = (measured_state[1 : n + 1, NUM_JOINTS:] - measured_state[:n, NUM_JOINTS:]) / h
+    joints = measured_state.shape[1] // 2
+    accelerations = (measured_state[1 : n + 1, joints:] - measured_state[:n, joints:]) / h
     return measured_state[:n], accelerations, outputs
 
 
 def check_alignment(states: np.ndarray, commands: np.ndarray, h: float) -> None:
     """Raises RuntimeError unless x_(n+1) = step(x_n, u_n) on the analytical plant (the logs
-    are aligned). states: (m, 12); commands: (m - 1 or more, 6), u_n in row n."""
-    q, qd = states[:-1, :NUM_JOINTS], states[:-1, NUM_JOINTS:]
+    are aligned). states: (m, 2j); commands: (m - 1 or more, j), u_n in row n."""
+    joints = states.shape[1] // 2
+    q, qd = states[:-1, :joints], states[:-1, joints:]
     u = commands[: states.shape[0] - 1]
     step = np.concatenate([q + h * qd + 0.5 * h * h * u, qd + h * u], axis=1)
     if not np.allclose(step, states[1:], rtol=0, atol=_CONSISTENCY_TOL):

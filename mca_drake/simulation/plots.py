@@ -7,7 +7,7 @@ from pathlib import Path
 
 from mca_drake.perception.filters import perceive
 from mca_drake.perception.models import PerceptionConfig
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.platforms.usage import joint_usage
 from mca_drake.plotting import plot_joint_usage, plot_tracking, save_figure
 
@@ -45,16 +45,15 @@ def perceived_figure(result):
     )
 
 
-def joint_usage_figure(result, robot: SerialChain | None = None):
+def joint_usage_figure(result, robot: SerialChain):
     """Normalised joint positions, velocities and accelerations as strip charts (Fig. 5)."""
-    usage = joint_usage(
-        result.states[:, :NUM_JOINTS], result.states[:, NUM_JOINTS:], result.accelerations, robot
-    )
+    n = robot.num_joints
+    usage = joint_usage(result.states[:, :n], result.states[:, n:], result.accelerations, robot)
     return plot_joint_usage(usage, title=f"{result.summary['mca']}: normalised joint usage")
 
 
 def write_closed_loop_plots(
-    result, folder: str | Path, robot: SerialChain | None = None
+    result, folder: str | Path, robot: SerialChain
 ) -> tuple[Path, Path, Path]:
     """Writes `tracking.png` (Fig. 4), `perceived.png` (the same, perceived) and
     `joint_usage.png` (Fig. 5) of a ClosedLoopResult into `folder` (created if missing);

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.safety import ViabilityClamp, substep_position_coefficient
 
 
@@ -38,7 +38,7 @@ class CommandLimiter(LeafSystem):
     (1) counts the commands it changed by more than 1e-9 rad/s^2.
 
     Args:
-        robot: the KR500 description (its joint limits).
+        robot: the platform (its joint limits).
         control_period: the MCA's period, s.
         plant_time_step: the station's plant (and desired-trajectory) period, s; the
             control period must be a whole number of these.
@@ -55,9 +55,10 @@ class CommandLimiter(LeafSystem):
         self._clamp = ViabilityClamp.for_robot(
             robot, control_period, position_coefficient=substep_position_coefficient(substeps)
         )
-        self._command_port = self.DeclareVectorInputPort("command", NUM_JOINTS)
-        self._desired_port = self.DeclareVectorInputPort("desired_state", 2 * NUM_JOINTS)
-        self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
+        n = robot.num_joints
+        self._command_port = self.DeclareVectorInputPort("command", n)
+        self._desired_port = self.DeclareVectorInputPort("desired_state", 2 * n)
+        self._command_index = self.DeclareDiscreteState(n)
         self._interventions_index = self.DeclareDiscreteState(1)
         self.DeclarePeriodicDiscreteUpdateEvent(control_period, 0.5 * plant_time_step, self._update)
         self.DeclareStateOutputPort("limited_command", self._command_index)

@@ -12,11 +12,11 @@ from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 from mca_drake.conventions import CONTROL_PERIOD_S, MCA_STATISTICS
 from mca_drake.cueing.dpc import (
     PolicyInference,
+    check_policy_platform,
     load_policy_arrays,
     policy_preview_steps,
     preview_offsets,
 )
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
@@ -48,7 +48,8 @@ class DpcPolicy(LeafSystem):
 
     Args:
         policy: a policy file (`mca_drake.learning.policy_network.save_policy`) or its arrays.
-        robot: the KR500 description (the clamp's limits).
+        robot: the platform the policy was trained for (the clamp's limits); a policy file
+            trained for another is refused (`cueing.dpc.check_policy_platform`).
         time_step: control period, s.
         update_event: the phase of t_k the step runs in (`mca_update.MCA_UPDATE_EVENTS`):
             "unrestricted" offline, "discrete" in the live loop (after its telemetry poll).
@@ -59,7 +60,7 @@ class DpcPolicy(LeafSystem):
     def __init__(
         self,
         policy: str | Path | dict,
-        robot: SerialChain | None = None,
+        robot: SerialChain,
         time_step: float = CONTROL_PERIOD_S,
         update_event: str = "unrestricted",
         preview_steps: int = 0,
@@ -67,10 +68,11 @@ class DpcPolicy(LeafSystem):
         super().__init__()
         if isinstance(policy, str | Path):
             arrays, metadata = load_policy_arrays(policy)
+            check_policy_platform(policy, metadata, robot.name)
             preview_steps = policy_preview_steps(metadata)
         else:
             arrays, preview_steps = policy, int(preview_steps)
-        self._robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
+        self._robot = robot
         self._inference = PolicyInference(arrays)
         # a policy with a preview reads the reference at its offsets ahead, from a preview
         # of offsets[-1] + 1 samples (the current one first)

@@ -47,11 +47,10 @@ from pydrake.systems.primitives import (
 )
 from pydrake.systems.sensors import Accelerometer, Gyroscope
 
-from mca_drake.conventions import CONTROL_PERIOD_S, GRAVITY
+from mca_drake.conventions import CONTROL_PERIOD_S, GRAVITY, NUM_CHANNELS
 from mca_drake.input_checks import check_config_numbers, check_range
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.kinematics import plant_output
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.systems.command_limiter import CommandLimiter
 
 
@@ -104,10 +103,10 @@ class StationConfig:
         """The measurement delay in plant steps."""
         return round(self.measurement_delay_s / self.plant_time_step)
 
-    def gains(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(kp, ki, kd) per joint."""
+    def gains(self, joints: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(kp, ki, kd) for each of `joints` joints."""
         w, zeta = self.tracking_bandwidth, self.tracking_damping
-        ones = np.ones(NUM_JOINTS)
+        ones = np.ones(joints)
         return w * w * ones, self.integral_gain * ones, 2 * zeta * w * ones
 
 
@@ -161,13 +160,13 @@ class StationHandles:
         controller: the InverseDynamicsController.
         desired: the desired-trajectory LinearSystem (state [q_d, qd_d]).
         limiter: the CommandLimiter every command passes.
-        joint_acceleration: input port for the MCA's command, rad/s^2 (6).
-        measured_state: output port [q, qd] the MCA reads (after the delay), (12).
+        joint_acceleration: input port for the MCA's command, rad/s^2 (n).
+        measured_state: output port [q, qd] the MCA reads (after the delay), (2n).
         measured_output: output port measured y the MCA reads (after the delay), (6).
-        desired_state: output port [q_d, qd_d] (12).
-        true_state: output port of the plant's state without delay (12).
+        desired_state: output port [q_d, qd_d] (2n).
+        true_state: output port of the plant's state without delay (2n).
         true_output: measured y without delay (6).
-        initial_state: [q, qd] at rest that `SetInitialState` applies (12).
+        initial_state: [q, qd] at rest that `SetInitialState` applies (2n).
         delay_lines: the measurement delay lines with the value each holds at rest (empty
             without a delay).
     """
@@ -199,10 +198,9 @@ class StationHandles:
             state.SetFromVector(np.tile(value, state.size() // value.size))
 
 
-def _double_integrator(h: float) -> LinearSystem:
-    """x = [q, qd] (12), u = qdd (6): the semi-implicit Euler step of the discrete
+def _double_integrator(h: float, n: int) -> LinearSystem:
+    """x = [q, qd] (2n), u = qdd (n): the semi-implicit Euler step of the discrete
     MultibodyPlant (qd' = qd + h u, q' = q + h qd'), output x."""
-    n = NUM_JOINTS
     eye = np.eye(n)
     A = np.block([[eye, h * eye], [np.zeros((n, n)), eye]])
     B = np.vstack([h * h * eye, h * eye])
@@ -255,12 +253,12 @@ def _AddTrackingController(
     control_plant = MultibodyPlant(0.0)
     Parser(control_plant).AddModels(str(robot.urdf_path))
     control_plant.Finalize()
-    kp, ki, kd = config.gains()
+    kp, ki, kd = config.gains(robot.num_joints)
     controller = builder.AddNamedSystem(
         "inverse_dynamics",
         InverseDynamicsController(control_plant, kp, ki, kd, has_reference_acceleration=True),
     )
-    desired = builder.AddNamedSystem("desired_trajectory", _double_integrator(h))
+    desired = builder.AddNamedSystem("desired_trajectory", _double_integrator(h, robot.num_joints))
     builder.Connect(desired.get_output_port(), controller.get_input_port_desired_state())
     builder.Connect(plant.get_state_output_port(), controller.get_input_port_estimated_state())
     torque = controller.get_output_port_control()
@@ -328,19 +326,19 @@ def _AddHeadImu(
 
 def AddKR500Station(
     builder: DiagramBuilder,
-    robot: SerialChain | None = None,
+    robot: SerialChain,
     config: StationConfig | None = None,
     initial_state: np.ndarray | None = None,
     with_geometry: bool = False,
     control_period: float = CONTROL_PERIOD_S,
 ) -> StationHandles:
-    """Adds the simulated KR500 with its controller and head IMU to `builder`.
+    """Adds the simulated robot with its controller and head IMU to `builder`.
 
     Args:
         builder: the diagram builder.
-        robot: the KR500 description (default models/kr500.urdf).
+        robot: the serial platform (its URDF is the MultibodyPlant's; n joints).
         config: station settings (default StationConfig()).
-        initial_state: [q, qd] at rest to start from, shape (12,) (default zeros). Apply it
+        initial_state: [q, qd] at rest to start from, shape (2n,) (default home, at rest). Apply it
             to a context with `StationHandles.SetInitialState`.
         with_geometry: also add a SceneGraph (needed for Meshcat); off, the plant runs
             without geometry, which is faster.
@@ -352,13 +350,14 @@ def AddKR500Station(
         `handles.joint_acceleration`, and its inputs from `measured_state` and
         `measured_output`.
     """
-    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     config = config if config is not None else StationConfig()
     config.validate()
     h = config.plant_time_step
-    x0 = np.zeros(2 * NUM_JOINTS) if initial_state is None else np.asarray(initial_state, float)
-    if x0.shape != (2 * NUM_JOINTS,) or not np.all(np.isfinite(x0)):
-        raise ValueError(f"initial_state must be 12 finite numbers; got {x0}")
+    n = robot.num_joints
+    home = np.concatenate([robot.home, np.zeros(n)])
+    x0 = home if initial_state is None else np.asarray(initial_state, float)
+    if x0.shape != (2 * n,) or not np.all(np.isfinite(x0)):
+        raise ValueError(f"initial_state must be {2 * n} finite numbers; got {x0}")
 
     plant, scene_graph = _AddRobotPlant(builder, robot, h, with_geometry)
     controller, desired, limiter = _AddTrackingController(
@@ -369,14 +368,14 @@ def AddKR500Station(
     delays = []
     if config.delay_steps > 0:
         state_delay = builder.AddNamedSystem(
-            "state_delay", DiscreteTimeDelay(h, config.delay_steps, 2 * NUM_JOINTS)
+            "state_delay", DiscreteTimeDelay(h, config.delay_steps, 2 * n)
         )
         y_delay = builder.AddNamedSystem(
-            "output_delay", DiscreteTimeDelay(h, config.delay_steps, 6)
+            "output_delay", DiscreteTimeDelay(h, config.delay_steps, NUM_CHANNELS)
         )
         builder.Connect(state_out, state_delay.get_input_port())
         builder.Connect(y_out, y_delay.get_input_port())
-        y0 = plant_output(x0[:NUM_JOINTS], x0[NUM_JOINTS:], np.zeros(NUM_JOINTS), robot)
+        y0 = plant_output(x0[:n], x0[n:], np.zeros(n), robot)
         delays = [(state_delay, x0), (y_delay, y0)]
         state_out, y_out = state_delay.get_output_port(), y_delay.get_output_port()
 

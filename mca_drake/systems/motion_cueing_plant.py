@@ -7,15 +7,15 @@ from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.conventions import CONTROL_PERIOD_S, NUM_CHANNELS
 from mca_drake.input_checks import as_float_array
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.kinematics import head_pose, plant_output
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 
 
 class MotionCueingPlant(LeafSystem):
-    """The exact plant of equation (1): one double integrator per joint, output y in H.
+    """The exact plant of equation (1) of a platform: one double integrator per joint, output
+    y in H.
 
     .. pydrake_system::
 
@@ -27,17 +27,18 @@ class MotionCueingPlant(LeafSystem):
         - inertial_output
         - head_pose
 
-    Discrete state x = [q, qd] (12), updated every `time_step` with the exact zero-order-hold
-    step q += h qd + h^2/2 u, qd += h u, where u is `joint_acceleration` (rad/s^2, 6) sampled
+    Discrete state x = [q, qd] (2n for n joints), updated every `time_step` with the exact
+    zero-order-hold step q += h qd + h^2/2 u, qd += h u, where u is `joint_acceleration`
+    (rad/s^2, m/s^2 for a prismatic joint; n) sampled
     at the update time. `state` is x; `inertial_output` is y(q, qd, u) =
     [w_x, w_y, w_z, f_x, f_y, a_z] (rad/s, m/s^2; direct feedthrough of u); `head_pose` is
     X_WH as a RigidTransform. The plant is ideal: it does not enforce joint limits, so
     evaluations can count violations.
 
     Args:
-        robot: the KR500 description (default models/kr500.urdf).
+        robot: the platform (`mca_drake.platforms.files.load_platform`).
         time_step: control period h, s (default 0.01).
-        initial_state: default [q, qd], shape (12,); default zeros (the neutral pose, at rest).
+        initial_state: default [q, qd], shape (2n,); default the platform's home, at rest.
         update_offset_s: the updates come at t_n + this (s, in [0, time_step)); the live
             loop delays them past the moment its command is sent, so that the plant's work
             is not between a sample and its command (the state still changes once per
@@ -46,7 +47,7 @@ class MotionCueingPlant(LeafSystem):
 
     def __init__(
         self,
-        robot: SerialChain | None = None,
+        robot: SerialChain,
         time_step: float = CONTROL_PERIOD_S,
         initial_state: np.ndarray | None = None,
         update_offset_s: float = 0.0,
@@ -56,16 +57,16 @@ class MotionCueingPlant(LeafSystem):
             raise ValueError(f"time_step must be positive; got {time_step}")
         if not 0 <= update_offset_s < time_step:
             raise ValueError(f"update_offset_s must be in [0, time_step); got {update_offset_s}")
-        self._robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
+        self._robot = robot
+        self._n = n = robot.num_joints
         self._time_step = float(time_step)
-        x0 = np.zeros(2 * NUM_JOINTS) if initial_state is None else initial_state
-        x0 = as_float_array("initial_state", x0, last_dim=2 * NUM_JOINTS)
-        if x0.shape != (2 * NUM_JOINTS,):
-            raise ValueError(f"initial_state must have shape (12,); got {x0.shape}")
+        home = np.concatenate([robot.home, np.zeros(n)])
+        x0 = home if initial_state is None else initial_state
+        x0 = as_float_array("initial_state", x0, last_dim=2 * n)
+        if x0.shape != (2 * n,):
+            raise ValueError(f"initial_state must have shape ({2 * n},); got {x0.shape}")
 
-        self._joint_acceleration_port = self.DeclareVectorInputPort(
-            "joint_acceleration", NUM_JOINTS
-        )
+        self._joint_acceleration_port = self.DeclareVectorInputPort("joint_acceleration", n)
         self._state_index = self.DeclareDiscreteState(x0)
         self.DeclarePeriodicDiscreteUpdateEvent(
             period_sec=self._time_step, offset_sec=update_offset_s, update=self._update
@@ -75,7 +76,7 @@ class MotionCueingPlant(LeafSystem):
         # events stays cached through them (the live loop reads it before its poll)
         self._inertial_output_port = self.DeclareVectorOutputPort(
             "inertial_output",
-            NUM_JOINTS,
+            NUM_CHANNELS,
             self._calc_inertial_output,
             {self.xd_ticket(), self.all_input_ports_ticket()},
         )
@@ -97,9 +98,9 @@ class MotionCueingPlant(LeafSystem):
         return self._time_step
 
     def SetJointState(self, context: Context, q: np.ndarray, qd: np.ndarray) -> None:
-        """Sets x = [q, qd] in this system's `context` (rad, rad/s, shape (6,) each)."""
-        q = as_float_array("q", q, last_dim=NUM_JOINTS).reshape(NUM_JOINTS)
-        qd = as_float_array("qd", qd, last_dim=NUM_JOINTS).reshape(NUM_JOINTS)
+        """Sets x = [q, qd] in this system's `context` (rad, rad/s, shape (n,) each)."""
+        q = as_float_array("q", q, last_dim=self._n).reshape(self._n)
+        qd = as_float_array("qd", qd, last_dim=self._n).reshape(self._n)
         context.SetDiscreteState(self._state_index, np.concatenate([q, qd]))
 
     def _acceleration(self, context: Context) -> np.ndarray:
@@ -115,7 +116,7 @@ class MotionCueingPlant(LeafSystem):
         x = context.get_discrete_state(self._state_index).value()
         u = self._acceleration(context)
         h = self._time_step
-        q, qd = x[:NUM_JOINTS], x[NUM_JOINTS:]
+        q, qd = x[: self._n], x[self._n :]
         discrete_state.set_value(
             self._state_index, np.concatenate([q + h * qd + (0.5 * h * h) * u, qd + h * u])
         )
@@ -123,8 +124,8 @@ class MotionCueingPlant(LeafSystem):
     def _calc_inertial_output(self, context: Context, output: BasicVector) -> None:
         x = context.get_discrete_state(self._state_index).value()
         u = self._acceleration(context)
-        output.SetFromVector(plant_output(x[:NUM_JOINTS], x[NUM_JOINTS:], u, self._robot))
+        output.SetFromVector(plant_output(x[: self._n], x[self._n :], u, self._robot))
 
     def _calc_head_pose(self, context: Context, output: AbstractValue) -> None:
-        q = context.get_discrete_state(self._state_index).value()[:NUM_JOINTS]
+        q = context.get_discrete_state(self._state_index).value()[: self._n]
         output.set_value(RigidTransform(head_pose(q, self._robot)))

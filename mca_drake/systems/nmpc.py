@@ -7,10 +7,10 @@ import time
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
-from mca_drake.conventions import MCA_STATISTICS
+from mca_drake.conventions import MCA_STATISTICS, NUM_CHANNELS
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
 from mca_drake.platforms.kinematics import plant_output
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
 
@@ -51,7 +51,7 @@ class NmpcController(LeafSystem):
 
     Args:
         config: NMPC settings (mode "rti" or "converged", horizon, weights, QP solver).
-        robot: the KR500 description.
+        robot: the platform (n joints).
         preview_samples: length N of the `reference_preview` port (6 N values, sample after
             sample); 0 declares no preview port; default `config.preview_steps`.
         update_event: the phase of t_k the step runs in (`mca_update.MCA_UPDATE_EVENTS`):
@@ -60,8 +60,8 @@ class NmpcController(LeafSystem):
 
     def __init__(
         self,
-        config: NmpcConfig | None = None,
-        robot: SerialChain | None = None,
+        config: NmpcConfig | None,
+        robot: SerialChain,
         preview_samples: int | None = None,
         update_event: str = "unrestricted",
     ):
@@ -72,15 +72,16 @@ class NmpcController(LeafSystem):
         if preview_samples is None:
             preview_samples = self._config.preview_steps
         self._preview_samples = int(preview_samples)
-        self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
-        self._reference_port = self.DeclareVectorInputPort("reference", 6)
+        self._n = n = self._ocp.nu
+        self._state_port = self.DeclareVectorInputPort("state", 2 * n)
+        self._reference_port = self.DeclareVectorInputPort("reference", NUM_CHANNELS)
         self._preview_port = None
         if self._preview_samples > 0:
             self._preview_port = self.DeclareVectorInputPort(
-                "reference_preview", 6 * self._preview_samples
+                "reference_preview", NUM_CHANNELS * self._preview_samples
             )
-        self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
-        self._plan_index = self.DeclareDiscreteState(self._ocp.N * NUM_JOINTS)
+        self._command_index = self.DeclareDiscreteState(n)
+        self._plan_index = self.DeclareDiscreteState(self._ocp.N * n)
         # The last QP's active set (-1, 0, +1 per row): the next step's hot start. State, not
         # a cache, so that a run's result never depends on what the system solved before.
         self._active_index = self.DeclareDiscreteState(self._ocp.num_rows)
@@ -88,7 +89,7 @@ class NmpcController(LeafSystem):
         # next step's start; all zeros (the initial state) means none: finite differences.
         self._hessians_index = None
         if self._config.mode == "converged":
-            self._hessians_shape = (self._ocp.N, 6, 3 * NUM_JOINTS, 3 * NUM_JOINTS)
+            self._hessians_shape = (self._ocp.N, NUM_CHANNELS, 3 * n, 3 * n)
             self._hessians_index = self.DeclareDiscreteState(int(np.prod(self._hessians_shape)))
         # perceived objective: the vestibular model's state of perceived y minus perceived r
         # (`MotionCueingOcp.perceived_references`), advanced with each applied command
@@ -142,7 +143,7 @@ class NmpcController(LeafSystem):
             raise RuntimeError(
                 f"NmpcController: non-finite state or reference at t = {context.get_time()} s"
             )
-        plan = context.get_discrete_state(self._plan_index).value().reshape(-1, NUM_JOINTS)
+        plan = context.get_discrete_state(self._plan_index).value().reshape(-1, self._n)
         _, failures, interventions, iterations = context.get_discrete_state(
             self._statistics_index
         ).value()
@@ -183,7 +184,7 @@ class NmpcController(LeafSystem):
             # the error the occupant's model integrates over this period: the output the
             # command makes now against the reference now
             f = self._ocp.perception_filter
-            error = plant_output(x[:NUM_JOINTS], x[NUM_JOINTS:], command, self._ocp.robot)
+            error = plant_output(x[: self._n], x[self._n :], command, self._ocp.robot)
             error = error - refs[0]
             discrete.set_value(self._perception_index, f.A @ perception + f.B @ error)
         step_time = time.perf_counter() - start

@@ -18,8 +18,7 @@ from pydrake.systems.framework import Context, DiscreteValues, LeafSystem, Value
 
 from mca_drake.conventions import CONTROL_PERIOD_S, MCA_STATISTICS
 from mca_drake.cueing.washout import WashoutConfig, WashoutFilters
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
 
@@ -51,7 +50,7 @@ class ClassicalWashout(LeafSystem):
 
     Args:
         config: filter cut-offs, gains and the tilt-rate limit.
-        robot: the KR500 description (its URDF is parsed into the MultibodyPlant).
+        robot: the platform (its URDF is parsed into the MultibodyPlant).
         time_step: control period, s.
         update_event: the phase of t_k the step runs in (`mca_update.MCA_UPDATE_EVENTS`):
             "unrestricted" offline, "discrete" in the live loop (after its telemetry poll).
@@ -60,13 +59,14 @@ class ClassicalWashout(LeafSystem):
     def __init__(
         self,
         config: WashoutConfig | None = None,
-        robot: SerialChain | None = None,
+        *,
+        robot: SerialChain,
         time_step: float = CONTROL_PERIOD_S,
         update_event: str = "unrestricted",
     ):
         super().__init__()
         self._config = config or WashoutConfig()
-        self._robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
+        self._robot = robot
         self._h = float(time_step)
         self._filters = WashoutFilters(self._config, self._h)
         self._clamp = ViabilityClamp.for_robot(self._robot, self._h)
@@ -75,8 +75,13 @@ class ClassicalWashout(LeafSystem):
         plant.Finalize()
         self._plant = plant  # finalized: never changed again, so shared by every context
         self._head = plant.GetFrameByName("head")
-        self._home = np.array(self._config.home_position, dtype=float)
         r = self._robot
+        self._n = n = r.num_joints
+        self._home = np.array(self._config.home_position or r.washout_home, dtype=float)
+        if self._home.shape != (n,):
+            raise ValueError(
+                f"home_position {self._home.tolist()} needs {n} values for platform '{r.name}'"
+            )
         if np.any(self._home < r.q_min) or np.any(self._home > r.q_max):
             raise ValueError(f"home_position {self._home} is outside the joint limits")
         home_context = plant.CreateDefaultContext()
@@ -101,9 +106,9 @@ class ClassicalWashout(LeafSystem):
         )
 
         self._reference_port = self.DeclareVectorInputPort("reference", 6)
-        self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
+        self._state_port = self.DeclareVectorInputPort("state", 2 * n)
         self._filter_index = self.DeclareDiscreteState(self._filters.state_size)
-        self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
+        self._command_index = self.DeclareDiscreteState(n)
         self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
         DeclareMcaUpdate(self, self._h, self._update, update_event)
         self.DeclareStateOutputPort("joint_acceleration", self._command_index)
@@ -134,7 +139,7 @@ class ClassicalWashout(LeafSystem):
             raise RuntimeError(
                 f"ClassicalWashout: non-finite state or reference at t = {context.get_time()} s"
             )
-        q, qd = x[:NUM_JOINTS], x[NUM_JOINTS:]
+        q, qd = x[: self._n], x[self._n :]
         filters = context.get_discrete_state(self._filter_index).value()
         filters, target = self._filters.step(filters, reference)
         _, failures, interventions, _ = context.get_discrete_state(self._statistics_index).value()
@@ -165,7 +170,7 @@ class ClassicalWashout(LeafSystem):
         )
         if result.status == DifferentialInverseKinematicsStatus.kNoSolutionFound:
             failures += 1
-            v_next = np.zeros(NUM_JOINTS)  # brake towards rest
+            v_next = np.zeros(self._n)  # brake towards rest
         else:
             v_next = np.asarray(result.joint_velocities).reshape(-1)
         u = np.clip((v_next - qd) / self._h, -self._robot.qdd_max, self._robot.qdd_max)
@@ -187,7 +192,8 @@ class _IkScratch:
         self._washout = washout
         r, h = washout._robot, washout._h
         self.plant_context = washout._plant.CreateDefaultContext()
-        params = DifferentialInverseKinematicsParameters(NUM_JOINTS, NUM_JOINTS)
+        n = washout._n
+        params = DifferentialInverseKinematicsParameters(n, n)
         params.set_time_step(h)
         params.set_joint_position_limits((washout._ik_lower, washout._ik_upper))
         params.set_joint_velocity_limits((-r.qd_max, r.qd_max))
@@ -195,7 +201,7 @@ class _IkScratch:
         # moves faster than qdd_max h, and the QP reports no solution at ordinary speeds.
         # The acceleration is clipped afterwards and then passes the viability clamp.
         params.set_nominal_joint_position(washout._home)
-        params.set_joint_centering_gain(np.zeros((NUM_JOINTS, NUM_JOINTS)))
+        params.set_joint_centering_gain(np.zeros((n, n)))
         self.parameters = params
 
     def __deepcopy__(self, memo) -> _IkScratch:

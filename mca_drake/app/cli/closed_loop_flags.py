@@ -1,4 +1,5 @@
-"""The flags that choose an MCA and a reference, shared by `simulate` and `evaluate`."""
+"""The flags that choose an MCA, a platform and a reference, shared by `simulate` and
+`evaluate`."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import argparse
 
 from mca_drake.app.scenarios import ClosedLoopScenario
 from mca_drake.cueing import MCA_NAMES, DpcConfig, mca_config_from_name, mca_name
+from mca_drake.platforms.files import DEFAULT_PLATFORM
 from mca_drake.references.flights import FlightSpec
 from mca_drake.resources import PROFILES
 
@@ -20,6 +22,15 @@ def add_mca_flags(parser: argparse.ArgumentParser, default_mca, *, policy: bool 
     )
     if policy:
         parser.add_argument("--policy", help="policy file for --mca dpc (default: the shipped one)")
+
+
+def add_platform_flag(parser: argparse.ArgumentParser) -> None:
+    """--platform NAME_OR_FILE: a packaged platform (`mca-drake platforms`) or a file."""
+    parser.add_argument(
+        "--platform",
+        help="the motion platform: a packaged name (mca-drake platforms) or a platform file "
+        f"(default {DEFAULT_PLATFORM})",
+    )
 
 
 def mca_from_flags(args: argparse.Namespace, default):
@@ -40,4 +51,6 @@ def closed_loop_scenario_from_flags(args: argparse.Namespace, **fixed) -> Closed
         scenario.flight = FlightSpec(recording=args.reference)
     if args.duration_s is not None:
         scenario.duration_s = args.duration_s
+    if getattr(args, "platform", None) is not None:
+        scenario.platform = args.platform
     return scenario

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from mca_drake.app.cli.closed_loop_flags import (
     add_mca_flags,
+    add_platform_flag,
     closed_loop_scenario_from_flags,
 )
 from mca_drake.app.cli.flags import (
@@ -22,6 +23,7 @@ from mca_drake.app.jobs import run_closed_loop_scenario, run_scenario
 from mca_drake.app.scenarios import ClosedLoopScenario, EvaluationScenario
 from mca_drake.cueing import DpcConfig, mca_config_from_name, mca_name
 from mca_drake.cueing.optimal import OptimalConfig
+from mca_drake.platforms.files import DEFAULT_PLATFORM
 from mca_drake.plotting import save_figure
 from mca_drake.references.recording import load_recording
 from mca_drake.simulation.plots import tracking_figure
@@ -52,6 +54,7 @@ def add_parser(commands) -> None:
         help="run one recording through an MCA on the analytical plant, or the suite",
     )
     add_mca_flags(parser, ClosedLoopScenario().mca)
+    add_platform_flag(parser)
     parser.add_argument("--reference", help="recording CSV (one run)")
     parser.add_argument(
         "--suite",
@@ -105,6 +108,10 @@ def add_parser(commands) -> None:
 def run(args: argparse.Namespace) -> int:
     """One recording (--reference) or the suite (--suite)."""
     if args.suite:
+        if args.platform not in (None, DEFAULT_PLATFORM):
+            raise ValueError(
+                f"the suite runs on the {DEFAULT_PLATFORM}; --platform is for one --reference"
+            )
         return run_suite(args)
     if args.report_only or args.keep_report:
         raise ValueError("--report-only and --keep-report are for the suite's report: add --suite")

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import argparse
 
-from mca_drake.app.cli.closed_loop_flags import add_mca_flags, closed_loop_scenario_from_flags
+from mca_drake.app.cli.closed_loop_flags import (
+    add_mca_flags,
+    add_platform_flag,
+    closed_loop_scenario_from_flags,
+)
 from mca_drake.app.cli.flags import add_config_flags, add_quiet
 from mca_drake.app.cli.report import format_closed_loop_report, hold_meshcat
 from mca_drake.app.jobs import closed_loop_outputs, run_closed_loop_scenario, start_meshcat
@@ -23,6 +27,7 @@ def add_parser(commands) -> None:
     )
     add_config_flags(parser, defaults, {"duration_s": "--duration", "random_seed": "--seed"})
     add_mca_flags(parser, defaults.mca)
+    add_platform_flag(parser)
     parser.add_argument("--reference", help="recording CSV (default: the built-in flight)")
     parser.add_argument(
         "--json",
@@ -31,7 +36,8 @@ def add_parser(commands) -> None:
     parser.add_argument(
         "--plant",
         choices=PLANTS,
-        help="multibody: the KR500 MultibodyPlant with inverse-dynamics control and head IMU; "
+        help="multibody: the platform's MultibodyPlant with inverse-dynamics control and head "
+        "IMU; "
         f"analytical: the ideal joint-space plant of the paper (default {defaults.plant})",
     )
     parser.add_argument("--meshcat", action="store_true", help="watch it in Meshcat")

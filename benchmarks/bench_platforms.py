@@ -1,0 +1,178 @@
+"""Every packaged platform on the same flights: what each MCA cues on it, and at what cost.
+
+    python benchmarks/bench_platforms.py [--flights 4] [--duration 120]
+        [--mcas nmpc-rti,washout] [--station-seconds 60] [--json results/platforms.json]
+
+Flies the same built-in flights (validation seeds 700.., light aircraft and jet in turn:
+flights nothing trains or tunes on, and not the evaluation suite's) through each MCA on
+the analytical plant of every packaged platform (`mca-drake platforms`), and once through
+the NMPC-rti on each platform's MultibodyPlant station. Prints and writes, per platform and
+MCA: the median PI and perceived PI over the flights (with the interquartile range), the
+worst flight, limit violations, joint range used, the MCA's step time (median and p99 over
+every step); per platform, the station's real-time factor; and the rail's gain over the
+KR500 per channel (median over flights of the RMSE decrease and CC increase). The result
+file holds the date, command, machine and calibration.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+from common import default_result_path, print_calibration, result_header
+
+from mca_drake.atomic_io import atomic_write_json
+from mca_drake.conventions import CHANNELS
+from mca_drake.cueing import mca_config_from_name
+from mca_drake.platforms.files import load_platform, packaged_platforms
+from mca_drake.references.flights import FlightSpec, flight_reference
+from mca_drake.simulation.closed_loop import run_closed_loop
+
+FIRST_SEED = 700
+VEHICLES = ("light", "jet")
+
+
+def _flights(count: int) -> list[tuple[str, int]]:
+    return [(VEHICLES[i % len(VEHICLES)], FIRST_SEED + i) for i in range(count)]
+
+
+def _spread(values) -> dict:
+    values = np.asarray(values, float)
+    q1, median, q3 = np.percentile(values, [25, 50, 75])
+    return {"median": float(median), "q1": float(q1), "q3": float(q3)}
+
+
+def measure(platforms, mcas, flights, duration: float, station_seconds: float) -> dict:
+    """{platform: {"mcas": {mca: figures}, "station": figures}} on the given flights."""
+    references = {
+        (vehicle, seed): flight_reference(FlightSpec(vehicle=vehicle, seed=seed), duration)
+        for vehicle, seed in flights
+    }
+    out = {}
+    for name in platforms:
+        robot = load_platform(name)
+        per_mca = {}
+        for mca in mcas:
+            runs, step_times = [], []
+            for (vehicle, seed), reference in references.items():
+                result = run_closed_loop(
+                    mca=mca_config_from_name(mca),
+                    reference=reference,
+                    plant="analytical",
+                    robot=robot,
+                    progress=False,
+                )
+                s = result.summary
+                runs.append(
+                    {
+                        "vehicle": vehicle,
+                        "seed": seed,
+                        "pi": s["pi"],
+                        "perceived_pi": s["perceived"]["pi"],
+                        "pi_zero_motion": s["pi_zero_motion"],
+                        "rmse": s["rmse"],
+                        "cc": s["cc"],
+                        "violations": s["violations"],
+                        "joint_range_used": s["joint_range_used"],
+                    }
+                )
+                step_times.append(result.step_times_s)
+                print(f"{name:>11} {mca:>9} {vehicle:>5} {seed}: PI {s['pi']:.3f}", flush=True)
+            steps = np.concatenate(step_times)
+            per_mca[mca] = {
+                "pi": _spread([r["pi"] for r in runs]),
+                "perceived_pi": _spread([r["perceived_pi"] for r in runs]),
+                "worst_pi": max(r["pi"] for r in runs),
+                "violations": int(sum(sum(r["violations"].values()) for r in runs)),
+                "joint_range_used": np.median([r["joint_range_used"] for r in runs], 0).tolist(),
+                "step_time_s": {
+                    "median": float(np.median(steps)),
+                    "p99": float(np.percentile(steps, 99)),
+                },
+                "runs": runs,
+            }
+        vehicle, seed = flights[0]
+        reference = flight_reference(FlightSpec(vehicle=vehicle, seed=seed), station_seconds)
+        station = run_closed_loop(
+            mca=mca_config_from_name("nmpc-rti"),
+            reference=reference,
+            plant="multibody",
+            robot=robot,
+            progress=False,
+        ).summary
+        out[name] = {
+            "platform": robot.summary(),
+            "mcas": per_mca,
+            "station": {
+                "mca": "nmpc-rti",
+                "flight": f"{vehicle} {seed}, {station_seconds:g} s",
+                "realtime_factor": station["realtime_factor"],
+                "pi": station["pi"],
+                "violations": station["violations"],
+            },
+        }
+    return out
+
+
+def rail_gain(results: dict, mca: str) -> dict | None:
+    """Per channel, the median over flights of the KR500's RMSE less the rail's and of the
+    rail's CC less the KR500's (positive: the rail cues that channel better)."""
+    if "kr500" not in results or "kr500-rail" not in results:
+        return None
+    base, rail = results["kr500"]["mcas"][mca]["runs"], results["kr500-rail"]["mcas"][mca]["runs"]
+    rmse = np.median(
+        [np.subtract(b["rmse"], r["rmse"]) for b, r in zip(base, rail, strict=True)], 0
+    )
+    cc = np.median([np.subtract(r["cc"], b["cc"]) for b, r in zip(base, rail, strict=True)], 0)
+    pi = np.median([b["pi"] - r["pi"] for b, r in zip(base, rail, strict=True)])
+    return {
+        "pi_decrease": float(pi),
+        "rmse_decrease": dict(zip(CHANNELS, rmse.round(4).tolist(), strict=True)),
+        "cc_increase": dict(zip(CHANNELS, cc.round(4).tolist(), strict=True)),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--flights", type=int, default=4)
+    parser.add_argument("--duration", type=float, default=120.0, help="s per flight")
+    parser.add_argument("--mcas", default="nmpc-rti,washout")
+    parser.add_argument("--platforms", default=",".join(packaged_platforms()))
+    parser.add_argument("--station-seconds", type=float, default=60.0)
+    parser.add_argument("--json", default=default_result_path("platforms.json"))
+    args = parser.parse_args()
+    calibration = print_calibration()
+    mcas = args.mcas.split(",")
+    flights = _flights(args.flights)
+    results = measure(args.platforms.split(","), mcas, flights, args.duration, args.station_seconds)
+    gains = {mca: rail_gain(results, mca) for mca in mcas}
+    print()
+    for name, figures in results.items():
+        for mca, f in figures["mcas"].items():
+            pi, perceived, steps = f["pi"], f["perceived_pi"], f["step_time_s"]
+            print(
+                f"{name:>11} {mca:>9}: PI {pi['median']:.3f} ({pi['q1']:.3f}..{pi['q3']:.3f}), "
+                f"perceived {perceived['median']:.3f}, worst {f['worst_pi']:.3f}, violations "
+                f"{f['violations']}, step {steps['median'] * 1e3:.2f} ms (p99 "
+                f"{steps['p99'] * 1e3:.2f})"
+            )
+        station = figures["station"]
+        print(f"{name:>11} station: real-time factor {station['realtime_factor']:.1f}")
+    for mca, gain in gains.items():
+        if gain:
+            print(f"rail gain, {mca}: PI {gain['pi_decrease']:+.3f}; RMSE {gain['rmse_decrease']}")
+    atomic_write_json(
+        args.json,
+        {
+            "provenance": result_header(calibration),
+            "flights": [{"vehicle": v, "seed": s} for v, s in flights],
+            "duration_s": args.duration,
+            "platforms": results,
+            "rail_gain": gains,
+        },
+    )
+    print(f"wrote {args.json}")
+
+
+if __name__ == "__main__":
+    main()
