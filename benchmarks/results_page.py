@@ -536,6 +536,44 @@ def _station(results_dir: Path, data: dict) -> list[str]:
     return lines
 
 
+def _platforms(results_dir: Path, data: dict) -> list[str]:
+    flights = ", ".join(f"{f['vehicle']} {f['seed']}" for f in data["flights"])
+    lines = [f"Flights of {data['duration_s']:g} s: {flights} (validation seeds).", ""]
+    for name, platform in data["platforms"].items():
+        rows = [
+            [
+                mca_label(mca),
+                f"{fmt_pi(m['pi']['median'])} ({fmt_pi(m['pi']['q1'])} to {fmt_pi(m['pi']['q3'])})",
+                fmt_pi(m["perceived_pi"]["median"]),
+                fmt_pi(m["worst_pi"]),
+                str(m["violations"]),
+                " ".join(f"{v:.0%}" for v in m["joint_range_used"]),
+                f"{fmt_ms(m['step_time_s']['median'])} ({fmt_ms(m['step_time_s']['p99'])})",
+            ]
+            for mca, m in platform["mcas"].items()
+        ]
+        station = platform["station"]
+        header = ["MCA", "PI median (IQR)", "perceived PI", "worst PI", "violations"]
+        header += ["joint range used", "step median (p99)"]
+        lines += [f"**{name}** ({platform['platform']['dof']} joints)", ""]
+        lines += _table(header, rows)
+        lines += [
+            "",
+            f"Station ({mca_label(station['mca'])}, {station['flight']}): real-time factor "
+            f"{station['realtime_factor']:.1f}, PI {fmt_pi(station['pi'])}.",
+            "",
+        ]
+    for mca, gain in data["rail_gain"].items():
+        if gain:
+            channels = ", ".join(f"{c} {v:+.3f}" for c, v in gain["rmse_decrease"].items())
+            lines += [
+                f"The rail against the KR500, {mca_label(mca)}: median PI lower by "
+                f"{gain['pi_decrease']:.3f}; RMSE lower per channel by {channels}.",
+                "",
+            ]
+    return lines
+
+
 def _paired_keys(entry: dict) -> list[str]:
     return [k for k in entry if k.startswith("paired_vs_")]
 
@@ -791,6 +829,14 @@ SECTIONS = (
         "analytical plant's on the unseen aircraft's flights, and the station's real-time "
         "factor",
         _station,
+    ),
+    Section(
+        "Motion platforms",
+        "platforms.json",
+        "every packaged platform (the KR500, the KR500 on a rail) on the same flights: each "
+        "MCA's PI, limits, joint use and step time, the station's real-time factor, and what "
+        "the rail adds per channel (`bench_platforms.py`)",
+        _platforms,
     ),
     Section(
         "Validation flights",

@@ -15,11 +15,7 @@ Layers (imports point down only; tests/test_architecture.py checks it):
     perception   vestibular models, thresholds, sickness
     references   vehicle motion: recordings, JSBSim flights, scaling to references
     core         conventions, safety, metrics, segments, resources, plotting, atomic_io,
-                 input_checks, deprecation
+                 input_checks
 """
 
-from mca_drake.deprecation import install_module_aliases
-
 __version__ = "0.1.0"
-
-install_module_aliases()

@@ -118,7 +118,7 @@ def nmpc_qp_at_the_limits(robot, **config):
     x0 = np.r_[0.9 * robot.q_max * np.array([1, 0.5, -0.5, 1, 0.5, -1]), 0.5 * robot.qd_max]
     refs = np.broadcast_to(6 * np.array([0.15, -0.1, 0.2, 1.2, -0.8, 0.6]), (ocp.N, 6))
     lo, hi = ocp.input_bounds(x0)
-    ocp._first_input_box.set_bounds(lo[:6], hi[:6])
+    ocp._shooting.set_first_input_bounds(lo[:6], hi[:6])
     U = np.zeros((ocp.N, 6))
     model = ocp._gauss_newton(x0, U, refs)
     lb, ub = ocp.constraint_bounds(x0)

@@ -26,7 +26,7 @@ from mca_drake.studies.closed_loop_dataset import (
     flight_path,
     generate_closed_loop_dataset,
 )
-from mca_drake.systems.kr500_station import StationConfig
+from mca_drake.systems.station import StationConfig
 
 
 @pytest.mark.parametrize(

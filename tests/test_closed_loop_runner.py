@@ -15,7 +15,7 @@ from mca_drake.references.recording import Recording
 from mca_drake.references.reference import Reference, reference_from_recording
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop
 from mca_drake.simulation.closed_loop import run_closed_loop
-from mca_drake.systems.kr500_station import StationConfig
+from mca_drake.systems.station import StationConfig
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.kinematics import plant_output
 from mca_drake.platforms.serial import NUM_JOINTS
-from mca_drake.systems.kr500_station import AddKR500Station, StationConfig
+from mca_drake.systems.station import AddStation, StationConfig
 
 H = 0.01  # control period of the command, s
 HOME = np.array([0.0, 0.0, 0.5, 0.0, -0.5, 0.0])
@@ -41,7 +41,7 @@ def run_station(robot, config: StationConfig, duration: float, log_period: float
     )
     hold = builder.AddSystem(ZeroOrderHold(H, NUM_JOINTS))
     builder.Connect(source.get_output_port(), hold.get_input_port())
-    station = AddKR500Station(builder, robot, config, np.r_[HOME, np.zeros(6)])
+    station = AddStation(builder, robot, config, np.r_[HOME, np.zeros(6)])
     builder.Connect(hold.get_output_port(), station.joint_acceleration)
     ports = dict(
         x=station.true_state,
@@ -106,7 +106,7 @@ def test_tracking_error_decays_as_the_designed_critically_damped_loop(robot, ban
 
     config = StationConfig(tracking_bandwidth=bandwidth)
     builder = DiagramBuilder()
-    station = AddKR500Station(builder, robot, config, np.r_[HOME, np.zeros(6)])
+    station = AddStation(builder, robot, config, np.r_[HOME, np.zeros(6)])
     source = builder.AddSystem(ConstantVectorSource(np.zeros(NUM_JOINTS)))
     builder.Connect(source.get_output_port(), station.joint_acceleration)
     log = LogVectorOutput(station.true_state, builder, config.plant_time_step)
@@ -190,7 +190,7 @@ def test_torque_limits_bound_the_applied_torques(robot):
     config = StationConfig(torque_limits=True)
     builder = DiagramBuilder()
     weak = robot.__class__(**{**robot.__dict__, "effort_max": 0.1 * robot.effort_max})
-    station = AddKR500Station(builder, weak, config, np.r_[HOME, np.zeros(6)])
+    station = AddStation(builder, weak, config, np.r_[HOME, np.zeros(6)])
     source = builder.AddSystem(ConstantVectorSource(np.array([1.5, 1.0, 1.5, 0.5, 1.5, 0.5])))
     builder.Connect(source.get_output_port(), station.joint_acceleration)
     torque_log = LogVectorOutput(

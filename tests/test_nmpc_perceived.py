@@ -139,10 +139,10 @@ def test_controller_carries_the_state_of_the_perceived_error(robot):
 
 
 def test_drakes_solver_takes_the_perceived_qps_the_dual_method_cannot_solve(monkeypatch):
-    from mca_drake.cueing import nmpc
+    from mca_drake.cueing import nmpc, nmpc_qp
 
     calls = {"drake": 0}
-    original = nmpc.MotionCueingOcp._solve_condensed_qp
+    original = nmpc_qp.CondensedQp.solve
 
     def counted(self, *args):
         calls["drake"] += 1
@@ -151,7 +151,7 @@ def test_drakes_solver_takes_the_perceived_qps_the_dual_method_cannot_solve(monk
     config = NmpcConfig(objective="perceived")
     hot = run_closed_loop(mca=config, reference=_pulse(), progress=False)
     monkeypatch.setattr(nmpc, "solve_dual_active_set", lambda *args, **kwargs: None)
-    monkeypatch.setattr(nmpc.MotionCueingOcp, "_solve_condensed_qp", counted)
+    monkeypatch.setattr(nmpc_qp.CondensedQp, "solve", counted)
     result = run_closed_loop(mca=config, reference=_pulse(), progress=False)
     assert calls["drake"] > 0
     assert result.summary["solver_failures"] == 0

@@ -8,6 +8,7 @@ import pytest
 import scipy.optimize
 
 from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.reference import Reference
 from mca_drake.simulation.closed_loop import run_closed_loop
 
@@ -191,3 +192,19 @@ def test_the_perceived_bound_weighs_what_the_occupant_perceives(robot):
     assert ours.converged
     assert ours.cost == pytest.approx(theirs.fun, rel=1e-6)
     assert ours.cost <= theirs.fun * (1 + 1e-9)
+
+
+def test_the_rail_bound_is_at_most_the_kr500s(robot):
+    """The rail's motions are a superset of the KR500's: from the KR500's bound with the rail
+    still (the same cost, its outputs equal), the rail's bound descends to at most that cost,
+    within the rail's limits, and uses the rail."""
+    rail = load_platform("kr500-rail")
+    reference = _reference(120, seed=3)
+    kr500 = OptimalCueing(120, OptimalConfig(max_iterations=30), robot).solve(reference)
+    start = np.hstack([np.zeros((120, 1)), kr500.U])
+    ocp = OptimalCueing(120, OptimalConfig(max_iterations=30), rail)
+    assert ocp.cost(np.zeros(14), start, reference) == pytest.approx(kr500.cost, rel=1e-9)
+    on_rail = ocp.solve(reference, U_start=start)
+    assert on_rail.cost <= kr500.cost
+    assert ocp.within_limits(np.zeros(14), on_rail.U)
+    assert np.abs(on_rail.U[:, 0]).max() > 0.0

@@ -92,10 +92,10 @@ def test_limiter_keeps_a_reckless_command_inside(robot):
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
 
-    from mca_drake.systems.kr500_station import AddKR500Station
+    from mca_drake.systems.station import AddStation
 
     builder = DiagramBuilder()
-    station = AddKR500Station(builder, robot)
+    station = AddStation(builder, robot)
     reckless = builder.AddSystem(ConstantVectorSource(10.0 * robot.qdd_max))
     builder.Connect(reckless.get_output_port(), station.joint_acceleration)
     state_log = LogVectorOutput(station.true_state, builder, 0.001)

@@ -9,7 +9,7 @@ from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
 from mca_drake.simulation.builders import MakeMultibodyClosedLoop
 from mca_drake.simulation.closed_loop import run_closed_loop
-from mca_drake.systems.kr500_station import StationConfig
+from mca_drake.systems.station import StationConfig
 
 SUMMARY_KEYS = {
     "mca",

@@ -71,7 +71,9 @@ def rail_urdf(kr500: str) -> str:
         "     tools/generate_kr500_urdf.py",
         1,
     )
-    text = text.replace("see that script for the conventions.", "see that script for the conventions).", 1)
+    text = text.replace(
+        "see that script for the conventions.", "see that script for the conventions).", 1
+    )
     start = text.index(weld)
     return text[:start] + rail + weld.replace('"world"', '"carriage"') + text[start + len(weld) :]
 

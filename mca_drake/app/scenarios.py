@@ -59,7 +59,7 @@ from mca_drake.studies.evaluation import (
     EvaluationConfig,
     default_cases,
 )
-from mca_drake.systems.kr500_station import StationConfig
+from mca_drake.systems.station import StationConfig
 
 
 @dataclasses.dataclass

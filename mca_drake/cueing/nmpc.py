@@ -54,14 +54,6 @@ import dataclasses
 import time
 
 import numpy as np
-import scipy.sparse as sp
-from pydrake.solvers import (
-    ClarabelSolver,
-    MathematicalProgram,
-    OsqpSolver,
-    SolutionResult,
-    SolverOptions,
-)
 from threadpoolctl import ThreadpoolController
 
 from mca_drake.conventions import NUM_CHANNELS
@@ -73,6 +65,7 @@ from mca_drake.cueing.active_set import (
 )
 from mca_drake.cueing.dual_active_set import solve_dual_active_set
 from mca_drake.cueing.nmpc_config import MODES, NmpcConfig
+from mca_drake.cueing.nmpc_qp import CondensedQp, ShootingQp
 from mca_drake.cueing.output_curvature import (
     NodeCondensing,
     finite_difference_hessians,
@@ -80,7 +73,6 @@ from mca_drake.cueing.output_curvature import (
     psb_update,
     residual_curvature,
 )
-from mca_drake.cueing.shooting import shooting_dynamics
 from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
@@ -281,7 +273,7 @@ class MotionCueingOcp:
         # The perceived objective's quadratic form in the stacked residuals (6N, 6N) and the
         # map from the perception state to its equivalent reference shift; None: inertial.
         self.perception_filter: DiscreteFilter | None = None
-        self._output_form = self._state_to_reference = self._condensed = None
+        self._output_form = self._state_to_reference = None
         if cfg.objective == "perceived":
             self._build_perceived_objective()
 
@@ -340,61 +332,10 @@ class MotionCueingOcp:
         return refs - (self._state_to_reference @ eps).reshape(self.N, NY)
 
     def _build_program(self) -> None:
-        """The sparse QP of one Gauss-Newton step, built once. Variables: u_0..u_(N-1) and
-        x_1..x_N (multiple shooting keeps every matrix sparse; condensing would make the
-        constraint matrix dense and the QP ten times slower)."""
-        cfg, r, N, nu = self.config, self.limits, self.N, self.nu
-        prog = self.prog = MathematicalProgram()
-        self.U_var = prog.NewContinuousVariables(N, nu, "u")
-        self.X_var = prog.NewContinuousVariables(N, 2 * nu, "x")  # x_1..x_N
-        u_all, x_all = self.U_var.reshape(-1), self.X_var.reshape(-1)
-        self._first_input_box = prog.AddBoundingBoxConstraint(
-            -r.qdd_max, r.qdd_max, self.U_var[0]
-        ).evaluator()
-        if N > 1:
-            prog.AddBoundingBoxConstraint(
-                -self._u_max[nu:], self._u_max[nu:], self.U_var[1:].reshape(-1)
-            )
-        prog.AddBoundingBoxConstraint(
-            np.tile(np.r_[r.q_min, -r.qd_max], N), np.tile(np.r_[r.q_max, r.qd_max], N), x_all
-        )
-        # Dynamics x_(k+1) = Phi_k x_k + Gamma_k u_k; the first row block carries x_0 in its
-        # bounds. Columns: [u (nN), x (2nN)].
-        A_eq, self._Phi = shooting_dynamics(self.durations, nu)
-        self._dynamics = prog.AddLinearEqualityConstraint(
-            A_eq, np.zeros(2 * nu * N), np.concatenate([u_all, x_all])
-        ).evaluator()
-        # Stoppability tangents on every node: rows side * (q_j + slope_j qd_j) <= bound_j.
-        tangents = self._tangents()
-        if tangents:
-            rows, cols, vals, upper = [], [], [], []
-            n_rows = 0
-            for k in range(N):
-                for side in (+1.0, -1.0):
-                    limit = r.q_max if side > 0 else -r.q_min
-                    for slope, offset in tangents:
-                        for j in range(nu):
-                            rows += [n_rows, n_rows]
-                            cols += [2 * nu * k + j, 2 * nu * k + nu + j]
-                            vals += [side, side * slope[j]]
-                            upper.append(limit[j] + offset[j])
-                            n_rows += 1
-            A_stop = sp.csc_matrix((vals, (rows, cols)), shape=(n_rows, 2 * nu * N))
-            prog.AddLinearConstraint(A_stop, np.full(n_rows, -np.inf), np.array(upper), x_all)
-        # Gauss-Newton stage costs: node 0 on u_0 (x_0 is given), nodes k >= 1 on [x_k, u_k].
-        self._stage_costs = [
-            prog.AddQuadraticCost(np.eye(nu), np.zeros(nu), self.U_var[0], is_convex=True)
-        ]
-        for k in range(1, N):
-            v = np.concatenate([self.X_var[k - 1], self.U_var[k]])
-            self._stage_costs.append(
-                prog.AddQuadraticCost(np.eye(3 * nu), np.zeros(3 * nu), v, is_convex=True)
-            )
-        self._stage_costs = [c.evaluator() for c in self._stage_costs]
-        terminal = 2 * np.diag(
-            [cfg.terminal_position_weight] * nu + [cfg.terminal_velocity_weight] * nu
-        )
-        prog.AddQuadraticCost(terminal, np.zeros(2 * nu), self.X_var[-1], is_convex=True)
+        """Drake's QP back-ends of the Gauss-Newton step (`cueing.nmpc_qp`): the sparse
+        multiple-shooting program, built now, and the condensed one for the perceived
+        objective, built at its first use."""
+        cfg = self.config
         # Drake's solver when the hot start does not settle; its answer is made exact (and
         # given multipliers) by a KKT solve on its active set when that verifies. "auto":
         # OSQP in rti mode, Clarabel in converged mode. (OSQP first and Clarabel after it in
@@ -402,28 +343,13 @@ class MotionCueingOcp:
         # start fails, OSQP's answer rarely verifies either.)
         auto = "osqp" if cfg.mode == "rti" else "clarabel"
         self.qp_solver_name = auto if cfg.qp_solver == "auto" else cfg.qp_solver
-        self._solver, self._options = self._make_solver(self.qp_solver_name)
-
-    def _make_solver(self, name: str, clarabel_tolerance: float | None = None):
-        """(solver, options) of one of Drake's QP solvers, with this config's settings
-        (Clarabel's tolerance `clarabel_tolerance` where given)."""
-        cfg = self.config
-        solver = ClarabelSolver() if name == "clarabel" else OsqpSolver()
-        options = SolverOptions()
-        sid = solver.solver_id()
-        if name == "clarabel":
-            for option in ("tol_gap_abs", "tol_gap_rel", "tol_feas"):
-                options.SetOption(sid, option, clarabel_tolerance or cfg.clarabel_tolerance)
-        else:
-            for option, value in (
-                ("eps_abs", cfg.osqp_tolerance),
-                ("eps_rel", cfg.osqp_tolerance),
-                ("max_iter", cfg.osqp_max_iterations or 20000),
-                ("polishing", 1),
-                ("verbose", 0),
-            ):
-                options.SetOption(sid, option, value)
-        return solver, options
+        self._shooting = ShootingQp(
+            cfg, self.limits, self.durations, self._tangents(), self.qp_solver_name
+        )
+        # On the dense, condensed QP OSQP's answer at rti's tolerance is too rough to cue
+        # with (jumps of 0.3 m/s^2 on a surge pulse): "auto" takes Clarabel in both modes.
+        name = "clarabel" if cfg.qp_solver == "auto" else self.qp_solver_name
+        self._condensed_qp = CondensedQp(cfg, self._C, name)
 
     def _tangents(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """(slope, offset) per tangent of the stopping parabola q = q_max - v^2 / (2 a) at
@@ -560,31 +486,12 @@ class MotionCueingOcp:
             * self.weights[:, None]
             * np.einsum("kai,ka->ki", WJ, c - np.einsum("kai,ki->ka", J, v_bar))
         )
-        # Stage 0: x_0 is data, so only the u_0 block remains (its b absorbs the x_0 part).
-        self._stage_costs[0].UpdateCoefficients(
-            Q[0, 2 * self.nu :, 2 * self.nu :], b[0, 2 * self.nu :], 0.0, is_convex=True
-        )
-        for k in range(1, N):
-            self._stage_costs[k].UpdateCoefficients(Q[k], b[k], 0.0, is_convex=True)
-        first = self._Phi[0] @ x0
-        bounds = np.zeros(2 * self.nu * N)
-        bounds[: 2 * self.nu] = first
-        self._dynamics.set_bounds(bounds, bounds)
+        self._shooting.load(x0, Q, b)
         return x_bar
 
     def _solve_qp(self, U: np.ndarray, x_bar: np.ndarray):
         """Solves the loaded QP warm-started at (U, x_bar); (U_new, message)."""
-        guess = np.concatenate([U.reshape(-1), x_bar[1:].reshape(-1)])
-        result = self._solver.Solve(self.prog, guess, self._options)
-        status = result.get_solution_result()
-        # OSQP stopped by its iteration limit still holds a usable approximate step (rti
-        # takes one approximate step by design; the viability clamp guards the command).
-        if not (result.is_success() or status == SolutionResult.kIterationLimit):
-            return None, str(status)
-        U_new = result.GetSolution(self.U_var)
-        if not np.all(np.isfinite(U_new)):
-            return None, "non-finite QP solution"
-        return U_new.reshape(self.N, self.nu), ""
+        return self._shooting.solve(U, x_bar)
 
     def solve(
         self,
@@ -716,7 +623,7 @@ class MotionCueingOcp:
         refs = np.broadcast_to(np.asarray(refs, dtype=float), (self.N, NY))
         U = np.zeros((self.N, self.nu)) if U_guess is None else np.array(U_guess, dtype=float)
         lo, hi = self.input_bounds(x0)
-        self._first_input_box.set_bounds(lo[: self.nu], hi[: self.nu])
+        self._shooting.set_first_input_bounds(lo[: self.nu], hi[: self.nu])
         U = np.clip(U.reshape(-1), lo, hi).reshape(self.N, self.nu)
         lb, ub = self.constraint_bounds(x0)
         row_lo, row_hi = np.concatenate([lb, lo]), np.concatenate([ub, hi])
@@ -881,7 +788,7 @@ class MotionCueingOcp:
         else:
             # the perceived cost couples the nodes: the sparse program's stage costs cannot
             # hold it, so Drake's solver takes the condensed QP in the step itself
-            d, message = self._solve_condensed_qp(gauss_newton, g, d_lo, d_hi)
+            d, message = self._condensed_qp.solve(gauss_newton, g, d_lo, d_hi)
             if d is None:
                 return None, None, False, message
         if factor is not None:
@@ -893,35 +800,6 @@ class MotionCueingOcp:
             if solution is not None:
                 return solution.d.reshape(self.N, self.nu), solution, False, ""
         return d.reshape(self.N, self.nu), None, False, ""
-
-    def _solve_condensed_qp(self, H, g, d_lo, d_hi):
-        """min 1/2 d'Hd + g'd subject to d_lo <= C d <= d_hi by Drake's solver, on a dense
-        program built at the first call: (d (6N,) or None, message). With qp_solver "auto"
-        the solver is Clarabel in both modes: on this dense, condensed QP OSQP's answer at
-        rti's tolerance is too rough to cue with (jumps of 0.3 m/s^2 on a surge pulse)."""
-        if self._condensed is None:
-            prog = MathematicalProgram()
-            d = prog.NewContinuousVariables(self.nu * self.N, "d")
-            cost = prog.AddQuadraticCost(
-                np.eye(self.nu * self.N), np.zeros(self.nu * self.N), d, True
-            )
-            rows = prog.AddLinearConstraint(
-                self._C, np.full(self.num_rows, -np.inf), np.full(self.num_rows, np.inf), d
-            )
-            name = "clarabel" if self.config.qp_solver == "auto" else self.qp_solver_name
-            solver = self._make_solver(name, CONDENSED_CLARABEL_TOLERANCE)
-            self._condensed = (prog, d, cost.evaluator(), rows.evaluator(), solver)
-        prog, d, cost, rows, (solver, options) = self._condensed
-        cost.UpdateCoefficients(H, g, 0.0, is_convex=True)
-        rows.set_bounds(d_lo, d_hi)
-        result = solver.Solve(prog, None, options)
-        status = result.get_solution_result()
-        if not (result.is_success() or status == SolutionResult.kIterationLimit):
-            return None, str(status)
-        step = result.GetSolution(d)
-        if not np.all(np.isfinite(step)):
-            return None, "non-finite QP solution"
-        return step, ""
 
     def _on_active_set(self, H, factor, g, d_lo, d_hi, guess, corrections=None):
         """`solve_on_active_set` of this OCP's rows from `guess` (None: not settled) with
@@ -964,11 +842,6 @@ class MotionCueingOcp:
             qd = qd + T * U[k]
         return U
 
-
-# Clarabel's tolerance on the perceived objective's dense condensed QP (the fallback of
-# `_solve_condensed_qp`): at 1e-10 it stops short on it (insufficient progress); the KKT
-# solve on its active set that follows makes a verified answer exact anyway.
-CONDENSED_CLARABEL_TOLERANCE = 1e-8
 
 # `_convex_model`'s multiples of N_A^T N_A (the guessed active rows' normals; H's entries are
 # of order 1e-2 to 1) and fractions of the residual curvature, in the order tried.

@@ -44,9 +44,8 @@ from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 
-NU, NX = NUM_JOINTS, 2 * NUM_JOINTS
 # Each QP's tolerance as a share of the last KKT residual (inexact SQP).
 QP_TOLERANCE_SHARE = 1e-3
 # The scaled residual up to which an unconverged QP's step is still tried.
@@ -158,6 +157,14 @@ class OptimalCueing:
         if steps < 1:
             raise ValueError(f"steps must be at least 1; got {steps}")
         self.robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
+        self.nu = robot_joints = self.robot.num_joints
+        self.nx = 2 * robot_joints
+        if np.any(self.robot.home != 0.0):
+            # the washout term pulls the joints towards q = 0
+            raise ValueError(
+                f"the bound washes out towards q = 0; platform '{self.robot.name}' has its "
+                f"home at {self.robot.home.tolist()}"
+            )
         self.T = int(steps)
         h = self.config.time_step
         # the tracking term's model of the errors: none (inertial: P = e) or the vestibular
@@ -178,26 +185,26 @@ class OptimalCueing:
         has the same shape), its dynamics w_(k+1)[:n + 12] = F_k w_k from de_0 = dx_0 = 0;
         the weights, Jacobians and bounds are set per iteration."""
         n, h = self.n, self.config.time_step
-        Phi, Gamma = double_integrator_step(h, NU)
-        self._F = np.zeros((n + NX, n + NX + NU))
+        Phi, Gamma = double_integrator_step(h, self.nu)
+        self._F = np.zeros((n + self.nx, n + self.nx + self.nu))
         self._F[:n, :n] = self._model[0]
-        self._F[n:, n : n + NX] = Phi
-        self._F[n:, n + NX :] = Gamma
+        self._F[n:, n : n + self.nx] = Phi
+        self._F[n:, n + self.nx :] = Gamma
 
     # ------------------------------------------------------------------ trajectories
     def states(self, x0: np.ndarray, U: np.ndarray) -> np.ndarray:
-        """x_0..x_T (T + 1, 12) of inputs U (T, 6) from x0 (12), by the exact step."""
+        """x_0..x_T (T + 1, 2n) of inputs U (T, n) from x0 (2n), by the exact step."""
         h = self.config.time_step
-        qd = x0[NU:] + h * np.concatenate([np.zeros((1, NU)), np.cumsum(U, axis=0)])
+        qd = x0[self.nu :] + h * np.concatenate([np.zeros((1, self.nu)), np.cumsum(U, axis=0)])
         # q_(k+1) = q_k + h qd_k + h^2/2 u_k
         increments = h * qd[:-1] + 0.5 * h * h * U
-        q = x0[:NU] + np.concatenate([np.zeros((1, NU)), np.cumsum(increments, axis=0)])
+        q = x0[: self.nu] + np.concatenate([np.zeros((1, self.nu)), np.cumsum(increments, axis=0)])
         return np.concatenate([q, qd], axis=1)
 
     def cost(self, x0: np.ndarray, U: np.ndarray, reference: np.ndarray) -> float:
-        """The objective of inputs U (T, 6) from x0 for the reference (T, 6)."""
+        """The objective of inputs U (T, n) from x0 for the reference (T, 6)."""
         x = self.states(x0, U)
-        y = plant_output(x[:-1, :NU], x[:-1, NU:], U, self.robot)
+        y = plant_output(x[:-1, : self.nu], x[:-1, self.nu :], U, self.robot)
         return self._cost_of(x, U, y - reference)
 
     def tracked(self, errors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -213,12 +220,12 @@ class OptimalCueing:
         cfg = self.config
         tracked, _ = self.tracked(residual)
         stage = tracked**2 @ np.asarray(cfg.output_weights) + cfg.input_weight * (U**2).sum(1)
-        stage = stage + cfg.washout_weight * (x[:-1, :NU] ** 2).sum(1)
+        stage = stage + cfg.washout_weight * (x[:-1, : self.nu] ** 2).sum(1)
         return float(stage.mean())
 
     # ------------------------------------------------------------------ solving
     def solve(self, reference, U_start=None, x0=None, progress=None) -> OptimalResult:
-        """The bound for `reference` (T, 6), from `U_start` (T, 6; default zeros, which is
+        """The bound for `reference` (T, 6), from `U_start` (T, n; default zeros, which is
         feasible from rest) and x0 (default rest at q = 0).
 
         Args:
@@ -234,17 +241,17 @@ class OptimalCueing:
         reference = as_float_array("reference", reference, last_dim=6)
         if reference.shape != (T, 6):
             raise ValueError(f"reference must have shape ({T}, 6); got {reference.shape}")
-        x0 = np.zeros(NX) if x0 is None else as_float_array("x0", x0, last_dim=NX)
-        U = np.zeros((T, NU)) if U_start is None else np.array(U_start, dtype=float)
-        if U.shape != (T, NU) or not np.all(np.isfinite(U)):
-            raise ValueError(f"U_start must be finite with shape ({T}, 6); got {U.shape}")
+        x0 = np.zeros(self.nx) if x0 is None else as_float_array("x0", x0, last_dim=self.nx)
+        U = np.zeros((T, self.nu)) if U_start is None else np.array(U_start, dtype=float)
+        if U.shape != (T, self.nu) or not np.all(np.isfinite(U)):
+            raise ValueError(f"U_start must be finite with shape ({T}, {self.nu}); got {U.shape}")
         x = self.states(x0, U)
         if not self._feasible(x, U):
             raise ValueError("U_start leaves the robot's limits: no feasible start")
         weights = np.asarray(cfg.output_weights)
         w = 1.0 / T
         costs, kkt, iterations = [], float("inf"), 0
-        jac = plant_output_jacobians(x[:-1, :NU], x[:-1, NU:], U, robot)
+        jac = plant_output_jacobians(x[:-1, : self.nu], x[:-1, self.nu :], U, robot)
         cost = self._cost_of(x, U, jac.y - reference)
         costs.append(cost)
         for iterations in range(1, cfg.max_iterations + 1):
@@ -267,7 +274,9 @@ class OptimalCueing:
                 # inputs must meet them to 1e-9, or the step is shortened (the limits are
                 # convex in U, and U is within them)
                 if self._feasible(x_try, U_try):
-                    jac_try = plant_output_jacobians(x_try[:-1, :NU], x_try[:-1, NU:], U_try, robot)
+                    jac_try = plant_output_jacobians(
+                        x_try[:-1, : self.nu], x_try[:-1, self.nu :], U_try, robot
+                    )
                     trial = self._cost_of(x_try, U_try, jac_try.y - reference)
                     if trial <= cost + 1e-12 * max(1.0, abs(cost)):
                         break
@@ -280,7 +289,7 @@ class OptimalCueing:
                 progress(iterations, cost, kkt, alpha)
             if kkt <= cfg.kkt_tolerance and alpha == 1.0:
                 break
-        y = plant_output(x[:-1, :NU], x[:-1, NU:], U, robot)
+        y = plant_output(x[:-1, : self.nu], x[:-1, self.nu :], U, robot)
         return OptimalResult(
             U=U,
             states=x,
@@ -300,7 +309,7 @@ class OptimalCueing:
 
     def _feasible(self, x, U, tol: float = 1e-9) -> bool:
         r = self.robot
-        q, qd = x[1:, :NU], x[1:, NU:]
+        q, qd = x[1:, : self.nu], x[1:, self.nu :]
         return bool(
             np.all(q >= r.q_min - tol)
             and np.all(q <= r.q_max + tol)
@@ -320,8 +329,8 @@ class OptimalCueing:
         G = np.concatenate([np.broadcast_to(C, (self.T, *C.shape)), D @ J], axis=2)
         WG = weights[None, :, None] * G
         Q = 2 * w * np.einsum("kai,kaj->kij", G, WG)
-        washout, inputs = np.full(NU, cfg.washout_weight), np.full(NU, cfg.input_weight)
-        diag = np.r_[np.zeros(n), washout, np.zeros(NU), inputs]
+        washout, inputs = np.full(self.nu, cfg.washout_weight), np.full(self.nu, cfg.input_weight)
+        diag = np.r_[np.zeros(n), washout, np.zeros(self.nu), inputs]
         Q = Q + 2 * w * np.diag(diag)[None]
         if cfg.curvature and n == 0:
             # Newton's stage Hessian, Gauss-Newton's plus the residual curvature on
@@ -331,19 +340,19 @@ class OptimalCueing:
             dcost_dy = 2 * w * weights * tracked
             Q = _positive_part(Q + self._residual_curvature(x, U, J, dcost_dy))
         b = 2 * w * np.einsum("kai,ka->ki", WG, tracked)
-        b[:, n : n + NU] += 2 * w * cfg.washout_weight * x[:-1, :NU]
-        b[:, n + 2 * NU :] += 2 * w * cfg.input_weight * U
+        b[:, n : n + self.nu] += 2 * w * cfg.washout_weight * x[:-1, : self.nu]
+        b[:, n + 2 * self.nu :] += 2 * w * cfg.input_weight * U
         return Q, b, J
 
     def _residual_curvature(self, x, U, J, weighted) -> np.ndarray:
         """sum_a c_ka d^2 y_a / dv_k^2 per stage (T, 18, 18) for c (T, 6) = dcost/dy, the
         output Hessians by finite differences of the exact Jacobians
         (`output_curvature.finite_difference_hessians`), in chunks of stages."""
-        out = np.empty((self.T, NX + NU, NX + NU))
+        out = np.empty((self.T, self.nx + self.nu, self.nx + self.nu))
         for lo in range(0, self.T, CURVATURE_CHUNK):
             hi = min(lo + CURVATURE_CHUNK, self.T)
             M = finite_difference_hessians(
-                x[lo:hi, :NU], x[lo:hi, NU:], U[lo:hi], self.robot, J[lo:hi]
+                x[lo:hi, : self.nu], x[lo:hi, self.nu :], U[lo:hi], self.robot, J[lo:hi]
             )
             out[lo:hi] = residual_curvature(M, weighted[lo:hi])
         return out
@@ -352,18 +361,18 @@ class OptimalCueing:
         """The QP step (dU (T, 6), dX (T, 12), dE (T, n)) of the stage-wise QP
         (`stagewise_qp`), or None where it did not converge."""
         r, n, T = self.robot, self.n, self.T
-        m = n + NX + NU
+        m = n + self.nx + self.nu
         # the objective summed rather than averaged over the stages: its multipliers and
         # residuals then have the scale of one stage's
         H = np.zeros((T + 1, m, m))
         g = np.zeros((T + 1, m))
         H[:T], g[:T] = T * Q, T * b
-        H[T, n + NX :, n + NX :] = np.eye(NU)  # stage T's input: nothing weighs it
+        H[T, n + self.nx :, n + self.nx :] = np.eye(self.nu)  # stage T's input: nothing weighs it
         lower, upper = np.full((T + 1, m), -np.inf), np.full((T + 1, m), np.inf)
-        lower[1:, n : n + NX] = np.r_[r.q_min, -r.qd_max] - x[1:]
-        upper[1:, n : n + NX] = np.r_[r.q_max, r.qd_max] - x[1:]
-        lower[:T, n + NX :] = -r.qdd_max - U
-        upper[:T, n + NX :] = r.qdd_max - U
+        lower[1:, n : n + self.nx] = np.r_[r.q_min, -r.qd_max] - x[1:]
+        upper[1:, n : n + self.nx] = np.r_[r.q_max, r.qd_max] - x[1:]
+        lower[:T, n + self.nx :] = -r.qdd_max - U
+        upper[:T, n + self.nx :] = r.qdd_max - U
         F = self._F
         if n:  # the model's dynamics, linearised: de_(k+1) = A de_k + B J_k (dx_k, du_k)
             F = np.broadcast_to(F, (T, *F.shape)).copy()
@@ -374,7 +383,7 @@ class OptimalCueing:
             F,
             lower,
             upper,
-            np.zeros(n + NX),
+            np.zeros(n + self.nx),
             tolerance=tolerance,
             max_iterations=self.config.qp_iterations,
         )
@@ -383,14 +392,14 @@ class OptimalCueing:
         if not solution.converged and not solution.residual <= QP_RESIDUAL_USABLE:
             return None
         w = solution.w
-        return w[:T, n + NX :], w[1:, n : n + NX], w[1:, :n]
+        return w[:T, n + self.nx :], w[1:, n : n + self.nx], w[1:, :n]
 
     def _stationarity(self, Q, b, dU, dX, dE) -> float:
         """|H d|_inf / max(1, |g|_inf) of the last QP's step: the nonlinear program's
         stationarity residual with that QP's multipliers."""
-        start = np.zeros((1, self.n + NX))
+        start = np.zeros((1, self.n + self.nx))
         v = np.concatenate([np.vstack([start, np.concatenate([dE, dX], 1)[:-1]]), dU], axis=1)
-        fixed = slice(0, self.n + NX)  # de_0 and dx_0: data, not variables
+        fixed = slice(0, self.n + self.nx)  # de_0 and dx_0: data, not variables
         Hd = np.einsum("kij,kj->ki", Q, v)
         Hd[0, fixed] = 0.0
         g = b.copy()

@@ -66,7 +66,7 @@ from mca_drake.simulation.closed_loop import (
     step_time_summary,
 )
 from mca_drake.systems import MotionCueingPlant
-from mca_drake.systems.kr500_station import AddKR500Station, StationConfig
+from mca_drake.systems.station import AddStation, StationConfig
 
 _ARRIVAL = TELEMETRY_FIELDS.index("arrival_s")
 _POLL = TELEMETRY_FIELDS.index("poll_s")
@@ -205,7 +205,7 @@ def _AddLiveRobot(
             f"the station's plant_time_step ({station.plant_time_step} s) must be longer "
             f"than the live recorder's {BEFORE_POLL_S} s before the poll"
         )
-    handles = AddKR500Station(
+    handles = AddStation(
         builder, robot, station, initial_state, with_geometry=with_geometry, control_period=h
     )
     return _LiveRobotPorts(

@@ -21,9 +21,9 @@ from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import Reference
 from mca_drake.systems import MotionCueingPlant, ReferenceSource
 from mca_drake.systems.dpc import DpcPolicy
-from mca_drake.systems.kr500_station import AddKR500Station, StationConfig
 from mca_drake.systems.meshcat_traces import MeshcatOutputTraces
 from mca_drake.systems.nmpc import NmpcController
+from mca_drake.systems.station import AddStation, StationConfig
 from mca_drake.systems.washout import ClassicalWashout
 
 
@@ -235,7 +235,7 @@ def MakeMultibodyClosedLoop(
     time_step = reference.time_step
     builder = DiagramBuilder()
     source, controller, initial_state = _add_source_and_mca(builder, reference, mca, robot)
-    station_handles = AddKR500Station(
+    station_handles = AddStation(
         builder,
         robot,
         station,

@@ -37,7 +37,7 @@ from mca_drake.platforms.serial import SerialChain
 from mca_drake.platforms.usage import joint_range_used, joint_usage
 from mca_drake.references.reference import Reference
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop, MakeMultibodyClosedLoop
-from mca_drake.systems.kr500_station import StationConfig
+from mca_drake.systems.station import StationConfig
 
 # The plants a closed loop runs on: the paper's joint-space plant, or the KR500 station.
 PLANTS = ("analytical", "multibody")

@@ -21,7 +21,7 @@ from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.kinematics import plant_output
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import Reference
 from mca_drake.simulation.closed_loop import (
     ClosedLoopResult,
@@ -76,11 +76,14 @@ def run_optimal_bound(
     n = min(round(duration / reference.time_step) + 1, reference.y.shape[0])
     target = np.asarray(reference.y[:n], dtype=float)
     ocp = OptimalCueing(n, config, robot)
-    rest = np.zeros(2 * NUM_JOINTS)
-    candidates = {"no motion": np.zeros((n, NUM_JOINTS))}
+    joints = robot.num_joints
+    rest = np.zeros(2 * joints)
+    candidates = {"no motion": np.zeros((n, joints))}
     for mca in starts:
         mca = as_mca_config(mca)
-        causal = run_closed_loop(mca=mca, reference=reference, duration_s=duration, progress=False)
+        causal = run_closed_loop(
+            mca=mca, reference=reference, duration_s=duration, robot=robot, progress=False
+        )
         candidates[mca_name(mca)] = causal.commands[:n]
     start_costs = {name: ocp.cost(rest, U, target) for name, U in candidates.items()}
     start = min(start_costs, key=start_costs.get)
@@ -93,7 +96,7 @@ def run_optimal_bound(
 
     solution = ocp.solve(target, U_start=candidates[start], progress=report if progress else None)
     states = solution.states[:n]
-    outputs = plant_output(states[:, :NUM_JOINTS], states[:, NUM_JOINTS:], solution.U, robot)
+    outputs = plant_output(states[:, :joints], states[:, joints:], solution.U, robot)
     summary, _ = closed_loop_summary(
         mca="optimal",
         mca_config={"type": "OptimalConfig", **dataclasses.asdict(config)},

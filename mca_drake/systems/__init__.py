@@ -4,8 +4,9 @@
 - ReferenceSource: plays a motion-cueing reference, with a preview for the NMPC.
 - NmpcController, DpcPolicy, ClassicalWashout (their modules): the MCAs, each configured
   by its config of `mca_drake.cueing`.
-- kr500_station: `AddKR500Station`, the KR500 MultibodyPlant with inverse-dynamics control
-  and a head IMU; meshcat_traces: live strip charts in Meshcat.
+- station: `AddStation`, a serial platform's MultibodyPlant (the KR500's in the default
+  scenario) with inverse-dynamics control and a head IMU; meshcat_traces: live strip charts
+  in Meshcat.
 """
 
 from mca_drake.systems.motion_cueing_plant import MotionCueingPlant

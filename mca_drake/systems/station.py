@@ -1,8 +1,8 @@
-"""The KR500 station: the physical robot simulated by Drake, as the MCA sees it.
+"""The station: a serial platform's physical robot simulated by Drake, as the MCA sees it.
 
-`AddKR500Station` adds to a DiagramBuilder:
+`AddStation` adds to a DiagramBuilder, for the platform it is given (its URDF, its n joints):
 
-- a discrete MultibodyPlant of models/kr500.urdf (1 ms by default, no contact: a motion
+- a discrete MultibodyPlant of the platform's URDF (1 ms by default, no contact: a motion
   simulator touches nothing, so every collision pair of the robot is filtered out);
 - `CommandLimiter`: every command passes it before it reaches the robot; it clamps the
   command into the viability interval of the commanded trajectory, so that trajectory never
@@ -152,7 +152,7 @@ class HeadImuOutput(LeafSystem):
 
 @dataclasses.dataclass
 class StationHandles:
-    """What `AddKR500Station` added, and the ports a closed loop connects to.
+    """What `AddStation` added, and the ports a closed loop connects to.
 
     Attributes:
         plant: the simulated MultibodyPlant (discrete).
@@ -324,7 +324,7 @@ def _AddHeadImu(
     return measured
 
 
-def AddKR500Station(
+def AddStation(
     builder: DiagramBuilder,
     robot: SerialChain,
     config: StationConfig | None = None,
