@@ -1,13 +1,14 @@
-"""Symmetries of the training windows: the KR500's left-right symmetry and its independence
-of the base joint's angle (each checked against Drake's MultibodyPlant), the mirroring and
-base turning of a share of each batch, and the checks that refuse a plant without them."""
+"""Symmetries of the training windows: the KR500's independence of the base joint's angle
+(checked against Drake's MultibodyPlant; its left-right symmetry is checked with every
+platform's in tests/test_platforms.py), the mirroring and base turning of a share of each
+batch, and the checks that refuse a plant without them."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import torch
-from test_kinematics import drake_plant_output
+from drake_oracle import drake_plant_output
 
 from mca_drake.conventions import MIRROR_CHANNEL_SIGNS
 from mca_drake.learning.dpc_training import (
@@ -22,22 +23,6 @@ from mca_drake.learning.dpc_training import (
     stretch_some_targets,
 )
 from mca_drake.learning.policy_network import PolicyNetwork
-
-
-def test_mirrored_joint_motion_is_the_mirrored_cue_in_drake(robot, drake_plant, rng):
-    """Drake's MultibodyPlant (the oracle) gives, for joints 1, 4 and 6 turned the other way,
-    the head outputs with roll rate, yaw rate and lateral force reversed; the limits of the
-    mirrored joints are symmetric, so a mirrored state is as reachable as the original."""
-    context = drake_plant.CreateDefaultContext()
-    joints = np.array(robot.mirror_joint_signs)
-    for _ in range(50):
-        q = rng.uniform(robot.q_min, robot.q_max) * 0.9
-        qd, qdd = rng.uniform(-1, 1, 6), rng.uniform(-1, 1, 6)
-        y = drake_plant_output(drake_plant, context, q, qd, qdd)
-        y_mirror = drake_plant_output(drake_plant, context, joints * q, joints * qd, joints * qdd)
-        np.testing.assert_allclose(y_mirror, np.array(MIRROR_CHANNEL_SIGNS) * y, atol=1e-9)
-    flipped = joints < 0
-    np.testing.assert_array_equal(robot.q_min[flipped], -robot.q_max[flipped])
 
 
 def test_mirrored_windows_are_a_random_share_flipped_whole(robot):
