@@ -17,6 +17,7 @@ from mca_drake.app.cli import main
 from mca_drake.app.jobs import run_closed_loop_scenario
 from mca_drake.app.scenarios import load_scenario
 from mca_drake.conventions import MIRROR_CHANNEL_SIGNS
+from mca_drake.cueing.dpc import default_policy_path, load_policy_arrays
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
 from mca_drake.learning.torch_plant import TorchPlant
 from mca_drake.platforms import kinematics, serial, urdf_chain
@@ -27,6 +28,7 @@ from mca_drake.platforms.files import (
     read_platform_file,
 )
 from mca_drake.platforms.serial import serial_chain_from_urdf
+from mca_drake.systems.dpc import DpcPolicy
 
 # Table I of the paper, as printed.
 TABLE_I = {
@@ -506,3 +508,11 @@ def test_the_nmpc_refuses_a_platform_whose_home_is_not_zero(tmp_path):
     turned = _load(tmp_path, _kr500_text(), home=[0.5, 0, 0, 0, 0, 0])
     with pytest.raises(ValueError, match=r"washes out towards q = 0; platform 'test'"):
         MotionCueingOcp(NmpcConfig(), turned)
+
+
+def test_the_dpc_network_refuses_a_platform_of_another_joint_count():
+    """Policy arrays given directly (no file to name a platform) still meet the network's
+    six joints: the rail's seven are refused, naming both counts."""
+    arrays, _ = load_policy_arrays(default_policy_path())
+    with pytest.raises(ValueError, match=r"made for 6 joints; platform 'kr500-rail' has 7"):
+        DpcPolicy(arrays, load_platform("kr500-rail"))

@@ -17,7 +17,7 @@ from mca_drake.cueing.dpc import (
     policy_preview_steps,
     preview_offsets,
 )
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import NUM_JOINTS, SerialChain, check_joint_count
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
 
@@ -72,6 +72,7 @@ class DpcPolicy(LeafSystem):
             preview_steps = policy_preview_steps(metadata)
         else:
             arrays, preview_steps = policy, int(preview_steps)
+        check_joint_count(robot, NUM_JOINTS, "the DPC policy network")
         self._robot = robot
         self._inference = PolicyInference(arrays)
         # a policy with a preview reads the reference at its offsets ahead, from a preview
