@@ -135,6 +135,7 @@ class TorchPlant(nn.Module):
         buffer("R_prev", robot.X_prev[:, :3, :3])
         buffer("p_prev", robot.X_prev[:, :3, 3])
         buffer("R_last_H", robot.X_last_H[:3, :3])
+        self.register_buffer("revolute", torch.tensor(~robot.prismatic), persistent=False)
         buffer("p_last_H", robot.X_last_H[:3, 3])
         # Constants of the recursive output computation, as Python floats (dtype-free), with
         # round-off zeros of the URDF's rpy (cos(pi/2) = 6e-17) made exact so that the
@@ -184,8 +185,7 @@ class TorchPlant(nn.Module):
         c, s = torch.cos(q), torch.sin(q)
         zero, one = torch.zeros_like(c), torch.ones_like(c)
         # Rz(q_i) of every joint, (..., n, 3, 3); the identity for a prismatic joint
-        revolute = torch.tensor([not p for p in self._prismatic], device=q.device)
-        c, s = torch.where(revolute, c, one), torch.where(revolute, s, zero)
+        c, s = torch.where(self.revolute, c, one), torch.where(self.revolute, s, zero)
         Rz = torch.stack([c, -s, zero, s, c, zero, zero, zero, one], dim=-1).unflatten(-1, (3, 3))
         R = torch.eye(3, dtype=q.dtype, device=q.device).expand(*q.shape[:-1], 3, 3)
         p = torch.zeros(*q.shape[:-1], 3, dtype=q.dtype, device=q.device)
