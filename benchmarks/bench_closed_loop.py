@@ -22,17 +22,29 @@ import numpy as np
 from common import calibration_s, result_header
 
 from mca_drake.atomic_io import atomic_write_json
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
 from mca_drake.simulation.closed_loop import run_closed_loop
 
+KR500 = load_platform("kr500")
+
 
 def measure(reference, seconds: float) -> dict[str, float]:
     """One repeat of the three figures."""
-    dpc = run_closed_loop(mca="dpc", reference=reference, duration_s=seconds, progress=False)
-    rti = run_closed_loop(mca="nmpc-rti", reference=reference, duration_s=seconds, progress=False)
+    dpc = run_closed_loop(
+        mca="dpc", reference=reference, duration_s=seconds, progress=False, robot=KR500
+    )
+    rti = run_closed_loop(
+        mca="nmpc-rti", reference=reference, duration_s=seconds, progress=False, robot=KR500
+    )
     station = run_closed_loop(
-        mca="dpc", reference=reference, plant="multibody", duration_s=seconds, progress=False
+        mca="dpc",
+        reference=reference,
+        plant="multibody",
+        duration_s=seconds,
+        progress=False,
+        robot=KR500,
     )
     return {
         "dpc_step_median_us": float(np.median(dpc.step_times_s) * 1e6),

@@ -22,8 +22,11 @@ from common import default_result_path, parse_mca, result_header
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.conventions import CHANNELS
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.reference import Reference
 from mca_drake.simulation.closed_loop import run_closed_loop
+
+KR500 = load_platform("kr500")
 
 STEP_SIZES = (0.05, 0.05, 0.03, 0.5, 0.3, 1.0)  # rad/s, m/s^2
 STEP_START_S, STEP_LENGTH_S, FLIGHT_S, TIME_STEP_S = 2.0, 10.0, 20.0, 0.01
@@ -41,7 +44,9 @@ def step_reference(channel: int) -> Reference:
 
 def step_response(mca, channel: int) -> dict:
     """The rendered shares at SAMPLE_TIMES_S and the other channels' rms during the step."""
-    result = run_closed_loop(mca=mca, reference=step_reference(channel), progress=False)
+    result = run_closed_loop(
+        mca=mca, reference=step_reference(channel), progress=False, robot=KR500
+    )
     start = round(STEP_START_S / TIME_STEP_S)
     during = slice(start, start + round(STEP_LENGTH_S / TIME_STEP_S))
     achieved = result.outputs[:, channel] / STEP_SIZES[channel]

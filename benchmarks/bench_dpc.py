@@ -27,9 +27,12 @@ from common import default_result_path, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import DpcConfig
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
 from mca_drake.simulation.closed_loop import run_closed_loop
+
+KR500 = load_platform("kr500")
 
 
 def _policy_path(arg: str | None, folder: str) -> tuple[str, str]:
@@ -44,7 +47,7 @@ def _policy_path(arg: str | None, folder: str) -> tuple[str, str]:
 
         torch.manual_seed(0)
         path = Path(folder) / "untrained.npz"
-        save_policy(path, PolicyNetwork(), {"note": "untrained, for timing only"})
+        save_policy(path, PolicyNetwork(KR500), {"note": "untrained, for timing only"})
         return str(path), "untrained (timing only)"
 
 
@@ -96,7 +99,11 @@ def main() -> None:
             results = {}
             for mca, seconds in seconds_of.items():
                 r = run_closed_loop(
-                    mca=configs[mca], reference=reference, duration_s=seconds, progress=False
+                    mca=configs[mca],
+                    reference=reference,
+                    duration_s=seconds,
+                    progress=False,
+                    robot=KR500,
                 )
                 results[mca] = r
                 runs[mca].append(_run_figures(r))

@@ -35,7 +35,10 @@ from mca_drake.live.drive_demo import DEMO_SEED as DRIVE_SEED
 from mca_drake.live.loop import make_decoder, run_live
 from mca_drake.live.phase_lock import PhaseLockConfig
 from mca_drake.live.receiver import ReceiverConfig
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.recording import save_recording
+
+KR500 = load_platform("kr500")
 
 
 def children_cpu_s() -> float:
@@ -89,6 +92,7 @@ def main() -> None:
             on_listening=start,
             plant=args.plant,
             phase_lock=PhaseLockConfig(enabled=lock),
+            robot=KR500,
         )
         for process in senders:
             process.terminate()

@@ -30,8 +30,11 @@ from common import default_result_path, print_calibration, result_header, run_wi
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import NmpcConfig
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
+
+KR500 = load_platform("kr500")
 
 # Runs of the default-size evaluation suite that use converged NMPC: cases A and B,
 # 10 flights each, 300 s at 100 Hz.
@@ -68,7 +71,7 @@ def measure_flight(
                 NmpcConfig(mode=mode, **weights) if label == "shipped" else NmpcConfig.paper(mode)
             )
             result = run_closed_loop(
-                mca=config, reference=reference, duration_s=seconds, progress=False
+                mca=config, reference=reference, duration_s=seconds, progress=False, robot=KR500
             )
             out[f"{label}/{mode}"] = _figures(result, seconds)
             print(f"  {label:8s} {mode:9s} {_line(out[f'{label}/{mode}'])}", flush=True)
@@ -77,7 +80,7 @@ def measure_flight(
                 NmpcConfig(mode="rti", **weights) if label == "shipped" else NmpcConfig.paper("rti")
             )
             result = run_closed_loop(
-                mca=config, reference=reference, duration_s=converged_s, progress=False
+                mca=config, reference=reference, duration_s=converged_s, progress=False, robot=KR500
             )
             out[f"{label}/rti_window"] = _figures(result, converged_s)
     return out
@@ -117,6 +120,7 @@ def measure_adversarial(duration_s: float) -> dict:
             reference=adversarial_reference(kind, duration_s),
             duration_s=duration_s,
             progress=False,
+            robot=KR500,
         )
         out[kind] = _figures(result, duration_s)
         print(f"  {kind:8s} {_line(out[kind])}", flush=True)
@@ -151,7 +155,11 @@ def profile_modes(vehicle: str, seed: int, seconds: float) -> dict:
         profiler = cProfile.Profile()
         profiler.enable()
         run_closed_loop(
-            mca=NmpcConfig(mode=mode), reference=reference, duration_s=seconds, progress=False
+            mca=NmpcConfig(mode=mode),
+            reference=reference,
+            duration_s=seconds,
+            progress=False,
+            robot=KR500,
         )
         profiler.disable()
         stats = pstats.Stats(profiler).stats  # {(file, line, name): (cc, nc, tt, ct, callers)}
@@ -259,7 +267,7 @@ def main() -> None:
                 else NmpcConfig.paper("converged")
             )
             result = run_closed_loop(
-                mca=config, reference=reference, duration_s=window, progress=False
+                mca=config, reference=reference, duration_s=window, progress=False, robot=KR500
             )
             same_window[f"{weights}/converged"] = _figures(result, window)
         report["converged_on_baseline_window"] = same_window

@@ -37,14 +37,20 @@ def solve_one(vehicle: str, seed: int, duration_s: float, objective: str) -> dic
     from threadpoolctl import threadpool_limits
 
     from mca_drake.cueing.optimal import OptimalConfig
+    from mca_drake.platforms.files import load_platform
     from mca_drake.references.flights import FlightSpec, flight_reference
     from mca_drake.simulation.optimal_bound import run_optimal_bound
+
+    KR500 = load_platform("kr500")
 
     reference = flight_reference(FlightSpec(vehicle=vehicle, seed=seed), duration_s)
     start = time.perf_counter()
     with threadpool_limits(limits=1):
         result = run_optimal_bound(
-            reference=reference, config=OptimalConfig(objective=objective), progress=True
+            reference=reference,
+            config=OptimalConfig(objective=objective),
+            progress=True,
+            robot=KR500,
         )
     s = result.summary
     solver = s["solver"]

@@ -29,8 +29,11 @@ from common import default_result_path, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import NmpcConfig
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
+
+KR500 = load_platform("kr500")
 
 OBJECTIVES = ("inertial", "perceived")
 
@@ -46,6 +49,7 @@ def measure_objectives(vehicle: str, seed: int, duration_s: float, repeats: int)
                 mca=NmpcConfig(mode="rti", objective=objective),
                 reference=reference,
                 progress=False,
+                robot=KR500,
             )
             s = result.summary
             steps = s["step_time_s"]

@@ -1,17 +1,22 @@
 """Every packaged platform on the same flights: what each MCA cues on it, and at what cost.
 
     python benchmarks/bench_platforms.py [--flights 4] [--duration 120]
-        [--mcas nmpc-rti,washout] [--station-seconds 60] [--json results/platforms.json]
+        [--mcas dpc,nmpc-rti,washout] [--bound] [--station-seconds 60]
+        [--json results/platforms.json]
 
 Flies the same built-in flights (validation seeds 700.., light aircraft and jet in turn:
 flights nothing trains or tunes on, and not the evaluation suite's) through each MCA on
-the analytical plant of every packaged platform (`mca-drake platforms`), and once through
+the analytical plant of every packaged platform (`mca-drake platforms`), each MCA as its
+name means on that platform (its shipped policy, its tuned settings), and once through
 the NMPC-rti on each platform's MultibodyPlant station. Prints and writes, per platform and
 MCA: the median PI and perceived PI over the flights (with the interquartile range), the
 worst flight, limit violations, joint range used, the MCA's step time (median and p99 over
-every step); per platform, the station's real-time factor; and the rail's gain over the
-KR500 per channel (median over flights of the RMSE decrease and CC increase). The result
-file holds the date, command, machine and calibration.
+every step) and, with --bound, the share of the achievable improvement it gets (median
+over flights of (PI_zero - PI) / (PI_zero - PI_bound), each flight's offline-optimal bound
+on that platform); per platform, the station's real-time factor and how its shipped
+policy was trained (command and wall time, from the policy file); and the rail's gain over
+the KR500 per channel (median over flights of the RMSE decrease and CC increase). The
+result file holds the date, command, machine and calibration.
 """
 
 from __future__ import annotations
@@ -23,10 +28,13 @@ from common import default_result_path, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.conventions import CHANNELS
-from mca_drake.cueing import mca_config_from_name
-from mca_drake.platforms.files import load_platform, packaged_platforms
+from mca_drake.cueing import DpcConfig, mca_config_from_name
+from mca_drake.cueing.dpc import load_policy_arrays
+from mca_drake.platforms.files import load_platform, packaged_name, packaged_platforms
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
+from mca_drake.simulation.optimal_bound import run_optimal_bound
+from mca_drake.studies.evaluation import improvement_share
 
 FIRST_SEED = 700
 VEHICLES = ("light", "jet")
@@ -42,8 +50,22 @@ def _spread(values) -> dict:
     return {"median": float(median), "q1": float(q1), "q3": float(q3)}
 
 
-def measure(platforms, mcas, flights, duration: float, station_seconds: float) -> dict:
-    """{platform: {"mcas": {mca: figures}, "station": figures}} on the given flights."""
+def policy_provenance(platform: str) -> dict:
+    """How the platform's shipped DPC policy was made: its file, command and training wall
+    time (this run and the runs its starting weights came from), from the file itself."""
+    path = DpcConfig().policy_path(platform)
+    _, metadata = load_policy_arrays(path)
+    return {
+        "file": path.name,
+        "command": metadata.get("command", ""),
+        "training_wall_s": metadata.get("training_wall_s"),
+        "training_wall_s_total": metadata.get("training_wall_s_total"),
+    }
+
+
+def measure(platforms, mcas, flights, duration: float, station_seconds: float, bound: bool) -> dict:
+    """{platform: {"mcas": {mca: figures}, "station": figures, "bound": figures}} on the
+    given flights."""
     references = {
         (vehicle, seed): flight_reference(FlightSpec(vehicle=vehicle, seed=seed), duration)
         for vehicle, seed in flights
@@ -51,12 +73,18 @@ def measure(platforms, mcas, flights, duration: float, station_seconds: float) -
     out = {}
     for name in platforms:
         robot = load_platform(name)
+        bounds = {}
+        if bound:
+            for (vehicle, seed), reference in references.items():
+                s = run_optimal_bound(reference=reference, robot=robot, progress=False).summary
+                bounds[seed] = {"pi": s["pi"], "wall_s": s["solver"]["solve_time_s"]}
+                print(f"{name:>11}     bound {vehicle:>5} {seed}: PI {s['pi']:.3f}", flush=True)
         per_mca = {}
         for mca in mcas:
             runs, step_times = [], []
             for (vehicle, seed), reference in references.items():
                 result = run_closed_loop(
-                    mca=mca_config_from_name(mca),
+                    mca=mca_config_from_name(mca, packaged_name(name)),
                     reference=reference,
                     plant="analytical",
                     robot=robot,
@@ -76,6 +104,10 @@ def measure(platforms, mcas, flights, duration: float, station_seconds: float) -
                         "joint_range_used": s["joint_range_used"],
                     }
                 )
+                if seed in bounds:
+                    runs[-1]["bound_share"] = improvement_share(
+                        s["pi_zero_motion"], s["pi"], bounds[seed]["pi"]
+                    )
                 step_times.append(result.step_times_s)
                 print(f"{name:>11} {mca:>9} {vehicle:>5} {seed}: PI {s['pi']:.3f}", flush=True)
             steps = np.concatenate(step_times)
@@ -91,6 +123,8 @@ def measure(platforms, mcas, flights, duration: float, station_seconds: float) -
                 },
                 "runs": runs,
             }
+            if bounds:
+                per_mca[mca]["bound_share"] = _spread([r["bound_share"] for r in runs])
         vehicle, seed = flights[0]
         reference = flight_reference(FlightSpec(vehicle=vehicle, seed=seed), station_seconds)
         station = run_closed_loop(
@@ -102,7 +136,14 @@ def measure(platforms, mcas, flights, duration: float, station_seconds: float) -
         ).summary
         out[name] = {
             "platform": robot.summary(),
+            "policy": policy_provenance(robot.name),
             "mcas": per_mca,
+            "bound": {
+                "pi": _spread([b["pi"] for b in bounds.values()]),
+                "wall_s": _spread([b["wall_s"] for b in bounds.values()]),
+            }
+            if bounds
+            else None,
             "station": {
                 "mca": "nmpc-rti",
                 "flight": f"{vehicle} {seed}, {station_seconds:g} s",
@@ -136,7 +177,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--flights", type=int, default=4)
     parser.add_argument("--duration", type=float, default=120.0, help="s per flight")
-    parser.add_argument("--mcas", default="nmpc-rti,washout")
+    parser.add_argument("--mcas", default="dpc,nmpc-rti,washout")
+    parser.add_argument("--bound", action="store_true", help="each flight's bound and shares")
     parser.add_argument("--platforms", default=",".join(packaged_platforms()))
     parser.add_argument("--station-seconds", type=float, default=60.0)
     parser.add_argument("--json", default=default_result_path("platforms.json"))
@@ -144,7 +186,9 @@ def main() -> None:
     calibration = print_calibration()
     mcas = args.mcas.split(",")
     flights = _flights(args.flights)
-    results = measure(args.platforms.split(","), mcas, flights, args.duration, args.station_seconds)
+    results = measure(
+        args.platforms.split(","), mcas, flights, args.duration, args.station_seconds, args.bound
+    )
     gains = {mca: rail_gain(results, mca) for mca in mcas}
     print()
     for name, figures in results.items():
@@ -155,6 +199,7 @@ def main() -> None:
                 f"perceived {perceived['median']:.3f}, worst {f['worst_pi']:.3f}, violations "
                 f"{f['violations']}, step {steps['median'] * 1e3:.2f} ms (p99 "
                 f"{steps['p99'] * 1e3:.2f})"
+                + (f", bound share {f['bound_share']['median']:.2f}" if "bound_share" in f else "")
             )
         station = figures["station"]
         print(f"{name:>11} station: real-time factor {station['realtime_factor']:.1f}")

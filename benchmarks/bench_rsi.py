@@ -45,7 +45,10 @@ from mca_drake.live.receiver import ReceiverConfig
 from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.live.rsi.emulator import split_reply_latency
 from mca_drake.live.rsi.motion import RsiMotionConfig
+from mca_drake.platforms.files import load_platform
 from mca_drake.simulation.closed_loop import step_time_summary
+
+KR500 = load_platform("kr500")
 
 STALL_PROBE = Path(__file__).with_name("machine_stalls.py")
 
@@ -136,6 +139,7 @@ def main() -> None:
             receiver=ReceiverConfig(port=0),
             on_listening=start,
             rsi=rsi,
+            robot=KR500,
         )
         sender, emulator = processes
         sender.terminate()

@@ -28,11 +28,14 @@ import numpy as np
 from common import default_result_path, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.evaluation import default_cases
+
+KR500 = load_platform("kr500")
 
 
 def compare_case(
@@ -51,7 +54,12 @@ def compare_case(
         reference = flight_reference(FlightSpec(vehicle=vehicle, seed=seed), duration)
         station, analytical = (
             run_closed_loop(
-                plant=plant, mca=mca, reference=reference, duration_s=duration, progress=False
+                plant=plant,
+                mca=mca,
+                reference=reference,
+                duration_s=duration,
+                progress=False,
+                robot=KR500,
             ).summary
             for plant in ("multibody", "analytical")
         )
@@ -114,11 +122,12 @@ def main() -> None:
             reference=reference,
             duration_s=duration,
             progress=False,
+            robot=KR500,
         )
         rtf.append(station.summary["realtime_factor"])
         print(f"  multibody run: real-time factor {rtf[-1]:.1f}")
     analytical = run_closed_loop(
-        mca=args.mca, reference=reference, duration_s=duration, progress=False
+        mca=args.mca, reference=reference, duration_s=duration, progress=False, robot=KR500
     )
     s, a = station.summary, analytical.summary
     print(

@@ -11,6 +11,9 @@ import torch
 from common import describe, print_calibration, time_calls
 
 from mca_drake.learning.torch_plant import TorchPlant
+from mca_drake.platforms.files import load_platform
+
+KR500 = load_platform("kr500")
 
 
 def main() -> None:
@@ -35,7 +38,7 @@ def main() -> None:
 
 def rollout_calls(batch: int, steps: int, dtype: torch.dtype):
     """(forward+backward, forward-only) closures over one random rollout problem."""
-    plant = TorchPlant(dtype=dtype, check_inputs=False)
+    plant = TorchPlant(KR500, dtype=dtype, check_inputs=False)
     gen = torch.Generator().manual_seed(0)
     x0 = 0.3 * torch.randn(batch, 12, generator=gen, dtype=dtype)
     U = (0.5 * torch.randn(batch, steps, 6, generator=gen, dtype=dtype)).requires_grad_()

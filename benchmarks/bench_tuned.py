@@ -28,9 +28,12 @@ from common import default_result_path, print_calibration, result_header
 from mca_drake.app.scenarios import load_scenario
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import NmpcConfig, mca_config_from_name
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.parallel import run_tasks
+
+KR500 = load_platform("kr500")
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -48,7 +51,9 @@ def _run(label: str, config, vehicle: str, seed: int, duration: float, out: str)
     reference = flight_reference(
         FlightSpec(vehicle=vehicle, seed=seed), duration, cache_dir=Path(out) / "flights"
     )
-    s = run_closed_loop(mca=config, reference=reference, duration_s=duration, progress=False)
+    s = run_closed_loop(
+        mca=config, reference=reference, duration_s=duration, progress=False, robot=KR500
+    )
     summary = s.summary
     atomic_write_json(
         Path(out) / f"{label}_{vehicle}_{seed}.json",

@@ -43,11 +43,14 @@ from mca_drake.conventions import CHANNELS, FIRST_EVALUATION_SEED
 from mca_drake.cueing.configs import mca_config_from_name
 from mca_drake.cueing.dpc import for_vehicle
 from mca_drake.metrics import wilcoxon_signed_rank
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.drives import is_car, motion_reference, training_spec
 from mca_drake.references.flights import FlightSpec
 from mca_drake.references.jsbsim import UNSEEN_VEHICLES, VALIDATION_VEHICLES, check_vehicle
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.evaluation import policy_fingerprint
+
+KR500 = load_platform("kr500")
 
 FIRST_VALIDATION_SEED = 700
 
@@ -78,7 +81,9 @@ def run_flights(
                         else FlightSpec(vehicle=vehicle, seed=seed, pilot=pilot)
                     )
                     reference = motion_reference(spec, duration_s, cache_dir=cache_dir)
-                result = run_closed_loop(mca=config, reference=reference, progress=False)
+                result = run_closed_loop(
+                    mca=config, reference=reference, progress=False, robot=KR500
+                )
                 keep = ("pi", "rmse", "cc", "safety_interventions", "violations", "step_time_s")
                 summary = {k: result.summary[k] for k in keep}
                 atomic_write_json(path, {**summary, "policy_sha256": fingerprint})

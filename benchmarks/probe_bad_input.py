@@ -33,8 +33,11 @@ from mca_drake.app import cli
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.conventions import GRAVITY
 from mca_drake.cueing.dpc import default_policy_path, load_policy_arrays
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.recording import Recording, recording_to_csv
 from mca_drake.simulation.closed_loop import run_closed_loop
+
+KR500 = load_platform("kr500")
 
 REPO = Path(__file__).resolve().parents[1]
 SCENARIO = str(REPO / "diagrams" / "closed_loop_dpc.yaml")
@@ -220,7 +223,11 @@ def station_violations() -> dict[str, int]:
         count = 0
         for kind in KINDS:
             r = run_closed_loop(
-                mca=mca, reference=adversarial_reference(kind), plant="multibody", progress=False
+                mca=mca,
+                reference=adversarial_reference(kind),
+                plant="multibody",
+                progress=False,
+                robot=KR500,
             )
             count += sum(r.summary["violations"].values())
         totals[mca] = count

@@ -35,6 +35,8 @@ from mca_drake.atomic_io import atomic_write_json, atomic_write_npz
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
 from mca_drake.platforms.files import load_platform
 
+KR500 = load_platform("kr500")
+
 # Development flights: (vehicle, seed); seeds outside the evaluation (>= 1000) and training
 # (100-140) ranges.
 FLIGHTS = (("light", 5), ("jet", 6))
@@ -99,6 +101,7 @@ def capture(directory: Path, per_case: int, flight_duration: float) -> None:
                 reference=reference,
                 duration_s=duration,
                 progress=False,
+                robot=KR500,
             )
         for rank, (seconds, inputs) in enumerate(recorder.slowest_first()):
             names = ("x0", "refs", "U", "active", "hessians")

@@ -550,19 +550,35 @@ def _platforms(results_dir: Path, data: dict) -> list[str]:
                 " ".join(f"{v:.0%}" for v in m["joint_range_used"]),
                 f"{fmt_ms(m['step_time_s']['median'])} ({fmt_ms(m['step_time_s']['p99'])})",
             ]
+            + ([f"{m['bound_share']['median']:.0%}"] if "bound_share" in m else [])
             for mca, m in platform["mcas"].items()
         ]
         station = platform["station"]
         header = ["MCA", "PI median (IQR)", "perceived PI", "worst PI", "violations"]
         header += ["joint range used", "step median (p99)"]
+        header += ["bound share"] if platform.get("bound") else []
         lines += [f"**{name}** ({platform['platform']['dof']} joints)", ""]
         lines += _table(header, rows)
         lines += [
             "",
             f"Station ({mca_label(station['mca'])}, {station['flight']}): real-time factor "
             f"{station['realtime_factor']:.1f}, PI {fmt_pi(station['pi'])}.",
-            "",
         ]
+        if platform.get("bound"):
+            bound = platform["bound"]
+            lines += [
+                f"Offline-optimal bound: median PI {fmt_pi(bound['pi']['median'])}, solved in "
+                f"{bound['wall_s']['median']:.0f} s (median) per flight."
+            ]
+        policy = platform.get("policy")
+        if policy and policy.get("training_wall_s_total") is not None:
+            lines += [
+                f"Shipped policy `{policy['file']}`: trained in "
+                f"{policy['training_wall_s'] / 60:.1f} min "
+                f"({policy['training_wall_s_total'] / 60:.1f} min with its starting weights' "
+                "runs)."
+            ]
+        lines += [""]
     for mca, gain in data["rail_gain"].items():
         if gain:
             channels = ", ".join(f"{c} {v:+.3f}" for c, v in gain["rmse_decrease"].items())
@@ -833,9 +849,10 @@ SECTIONS = (
     Section(
         "Motion platforms",
         "platforms.json",
-        "every packaged platform (the KR500, the KR500 on a rail) on the same flights: each "
-        "MCA's PI, limits, joint use and step time, the station's real-time factor, and what "
-        "the rail adds per channel (`bench_platforms.py`)",
+        "every packaged platform (the KR500, the KR500 on a rail, the FANUC M-900iB/700) on "
+        "the same flights: each MCA's PI (the DPC with the platform's own policy), limits, "
+        "joint use and step time, the station's real-time factor, how each policy was "
+        "trained, and what the rail adds per channel (`bench_platforms.py`)",
         _platforms,
     ),
     Section(

@@ -21,6 +21,8 @@ SHIPPED_POLICIES = (
     "ground_policy",
     "light_policy",
     "transport_policy",
+    "kr500-rail_policy",
+    "fanuc-m900ib700_policy",
 )
 # MCA profiles shipped for vehicle motion other than flight (`mca_drake.cueing.profiles`): the
 # NMPC's and washout's settings in data/profiles/<name>.yaml, the DPC's policy

@@ -3,8 +3,8 @@
 Both the open-loop excitation dataset (Algorithm 1) and the closed-loop NMPC dataset are
 collections of segments, as the paper's equation (12) defines them:
 
-    U   (J, n_p, 6)      joint accelerations u_t, rad/s^2
-    X   (J, n_p, 12)     states x_t = [q_t, qd_t] at the start of each step
+    U   (J, n_p, n)      joint accelerations u_t of the platform's n joints, rad/s^2 or m/s^2
+    X   (J, n_p, 2n)     states x_t = [q_t, qd_t] at the start of each step
     Y   (J, n_p, 6)      outputs y_t = y(x_t, u_t) (the paper's y_(t+1))
     F   (J, n_p, 4, 4)   head pose F(q_t)
     dF  (J, n_p, 4, 4)   its first time derivative
@@ -34,13 +34,41 @@ SOURCE_COLUMNS = ("flight_seed", "start_step", "split")
 SPLIT_NAMES = ("train", "validation", "test")
 
 CORE_ARRAYS = ("U", "X", "Y", "F", "dF", "ddF")
-# Each core array's shape per step: a dataset's array `name` is (J, n_p, *CORE_SHAPES[name]).
-CORE_SHAPES = {"U": (6,), "X": (12,), "Y": (6,), "F": (4, 4), "dF": (4, 4), "ddF": (4, 4)}
+
+
+def core_shapes(joints: int) -> dict[str, tuple[int, ...]]:
+    """Each core array's shape per step for a platform of `joints` joints: a dataset's
+    array `name` is (J, n_p, *core_shapes(n)[name])."""
+    return {
+        "U": (joints,),
+        "X": (2 * joints,),
+        "Y": (6,),
+        "F": (4, 4),
+        "dF": (4, 4),
+        "ddF": (4, 4),
+    }
+
+
 FORMAT = "mca-drake segments v1"
 
 # Where `mca-drake dataset closed-loop` writes, and where training looks by default.
 DEFAULT_DATASET_DIR = "datasets/closed_loop"
 DEFAULT_DATASET = f"{DEFAULT_DATASET_DIR}/dataset.npz"
+
+
+# The platform of a dataset whose metadata names none: datasets were made on the KR500 before
+# platforms were named.
+UNNAMED_DATASET_PLATFORM = "kr500"
+
+
+def dataset_platform(metadata: dict) -> str:
+    """The name of the platform a segment dataset was made on (its metadata's
+    `platform.name`; UNNAMED_DATASET_PLATFORM where it names none)."""
+    record = metadata.get("platform", {"name": UNNAMED_DATASET_PLATFORM})
+    name = record.get("name") if isinstance(record, dict) else None
+    if not isinstance(name, str):
+        raise ValueError(f"dataset platform must be a record with a name; got {record!r}")
+    return name
 
 
 def kept_file(path: str | os.PathLike, field: str, value) -> bool:
@@ -74,9 +102,12 @@ class SegmentDataset:
         missing = [k for k in CORE_ARRAYS if k not in self.arrays]
         if missing:
             raise ValueError(f"segment dataset lacks arrays {missing}")
-        J, n_p = self.arrays["U"].shape[:2]
+        if self.arrays["U"].ndim != 3:
+            raise ValueError(f"array U has shape {self.arrays['U'].shape}; expected (J, n_p, n)")
+        J, n_p, joints = self.arrays["U"].shape
+        shapes = core_shapes(joints)
         for name, array in self.arrays.items():
-            expected = (J, n_p, *CORE_SHAPES[name]) if name in CORE_SHAPES else None
+            expected = (J, n_p, *shapes[name]) if name in shapes else None
             if array.shape[:2] != (J, n_p) or (expected and array.shape != expected):
                 raise ValueError(
                     f"array {name} has shape {array.shape}; expected {expected or (J, n_p, '...')}"

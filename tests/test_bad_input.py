@@ -17,6 +17,7 @@ from mca_drake.app.scenarios import ClosedLoopScenario, DatasetScenario, Evaluat
 from mca_drake.atomic_io import atomic_write_json, atomic_write_text, check_writable
 from mca_drake.cueing import DpcConfig, NmpcConfig, WashoutConfig
 from mca_drake.cueing.dpc import default_policy_path, load_policy_arrays
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.recording import Recording
 from mca_drake.references.reference import reference_from_recording
 from mca_drake.segments import SegmentDataset
@@ -27,6 +28,8 @@ from mca_drake.studies.closed_loop_dataset import (
     generate_closed_loop_dataset,
 )
 from mca_drake.systems.station import StationConfig
+
+KR500 = load_platform("kr500")
 
 
 @pytest.mark.parametrize(
@@ -73,6 +76,7 @@ def test_outputs_are_checked_before_the_run(short_reference, tmp_path):
             reference=short_reference,
             json_path=blocker / "summary.json",
             progress=False,
+            robot=KR500,
         )
     with pytest.raises(OSError, match="is a folder"):
         check_writable(tmp_path)

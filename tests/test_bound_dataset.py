@@ -12,6 +12,7 @@ import pytest
 from hidden_drake import PYDRAKE_LOADED, run_without_drake
 
 from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing
+from mca_drake.platforms.files import load_platform
 from mca_drake.platforms.kinematics import plant_output
 from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset
 from mca_drake.studies.bound_dataset import (
@@ -24,6 +25,7 @@ from mca_drake.studies.bound_dataset import (
     solve_bound,
 )
 
+KR500 = load_platform("kr500")
 N_P, SEGMENTS = 16, 3
 REPO = Path(__file__).resolve().parents[1]
 
@@ -117,7 +119,7 @@ def test_a_flight_solved_from_its_arrays_elsewhere_is_kept_from_its_inputs(tmp_p
     flight = flight_arrays(dataset, flight_rows(dataset)[5])
     np.savez(tmp_path / "flight.npz", **flight)
     with np.load(tmp_path / "flight.npz") as carried:
-        result, figures = solve_bound(carried["R"], carried["U"], carried["x0"], config)
+        result, figures = solve_bound(carried["R"], carried["U"], carried["x0"], config, KR500)
     key = bound_key(path, config)
     keep_flight_bound(dataset, 5, result.U, figures, config, key, out_dir, 1.0)
     kept = bound_path(out_dir, 5)
@@ -169,6 +171,7 @@ def test_datasets_that_are_not_closed_loop_ones_are_refused(tmp_path, robot):
 WITHOUT_DRAKE = f"""
 from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.studies.bound_dataset import generate_bound_dataset
+
 config = OptimalConfig(max_iterations=1)
 out = generate_bound_dataset(sys.argv[1], sys.argv[2], config, progress=False)
 print(json.dumps({{"out": str(out), "pydrake_loaded": {PYDRAKE_LOADED}}}))

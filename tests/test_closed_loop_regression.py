@@ -27,10 +27,13 @@ import pytest
 
 from mca_drake.cueing import DpcConfig, NmpcConfig, WashoutConfig
 from mca_drake.cueing.dpc import shipped_policy_path
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.jsbsim import fly
 from mca_drake.references.recording import Recording
 from mca_drake.references.reference import reference_from_recording
 from mca_drake.simulation.closed_loop import run_closed_loop
+
+KR500 = load_platform("kr500")
 
 DATA = Path(__file__).parent / "data"
 # Absolute tolerance of the NMPC runs (rad/s^2, rad, rad/s, output units and PI).
@@ -87,6 +90,7 @@ def compare(plant: str, mca: str) -> None:
         plant=plant,
         duration_s=expected["duration_s"],
         progress=False,
+        robot=KR500,
     )
     tolerances = {"nmpc": NMPC_TOLERANCE, "dpc": OUTPUT_TOLERANCE, "washout": WASHOUT_TOLERANCE}
     atol = tolerances.get(mca.split("-")[0], 0.0)

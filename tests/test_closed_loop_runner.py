@@ -10,12 +10,15 @@ from pydrake.systems.analysis import Simulator
 from mca_drake.conventions import GRAVITY
 from mca_drake.cueing import NmpcConfig, WashoutConfig
 from mca_drake.perception import perceive, subjective_vertical_conflict
+from mca_drake.platforms.files import load_platform
 from mca_drake.platforms.kinematics import head_pose
 from mca_drake.references.recording import Recording
 from mca_drake.references.reference import Reference, reference_from_recording
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.systems.station import StationConfig
+
+KR500 = load_platform("kr500")
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +36,9 @@ def reference() -> Reference:
 
 def test_summary_records_zero_motion_pi_and_the_config(reference, robot):
     config = NmpcConfig(mode="rti", washout_weight=0.3)
-    result = run_closed_loop(mca=config, reference=reference, duration_s=2.0, progress=False)
+    result = run_closed_loop(
+        mca=config, reference=reference, duration_s=2.0, progress=False, robot=KR500
+    )
     s = result.summary
     # Oracle: not moving renders y = 0, so each channel's RMSE is the reference's RMS and
     # its CC is 0 (a constant signal co-varies with nothing).
@@ -75,6 +80,7 @@ def test_random_seed_reaches_the_imu_noise(reference):
             station=station,
             random_seed=seed,
             progress=False,
+            robot=KR500,
         )
 
     a, b, c = outputs(1), outputs(1), outputs(2)
@@ -85,18 +91,22 @@ def test_random_seed_reaches_the_imu_noise(reference):
 
 def test_bad_plant_and_plant_settings_fail_clearly(reference):
     with pytest.raises(ValueError, match="unknown plant 'mujoco'"):
-        run_closed_loop(mca="dpc", reference=reference, plant="mujoco", progress=False)
+        run_closed_loop(mca="dpc", reference=reference, plant="mujoco", progress=False, robot=KR500)
     with pytest.raises(ValueError, match="need plant 'multibody'"):
-        run_closed_loop(mca="dpc", reference=reference, station=StationConfig(), progress=False)
+        run_closed_loop(
+            mca="dpc", reference=reference, station=StationConfig(), progress=False, robot=KR500
+        )
     with pytest.raises(ValueError, match="differs from the control period"):
-        run_closed_loop(mca=NmpcConfig(time_step=0.02), reference=reference, progress=False)
+        run_closed_loop(
+            mca=NmpcConfig(time_step=0.02), reference=reference, progress=False, robot=KR500
+        )
 
 
 def test_washout_keeps_its_scratch_per_context(reference):
     """ClassicalWashout's plant context and IK parameters live in each context: running one
     context leaves another's untouched, and a cloned context carries on exactly like the
     original."""
-    diagram, handles = MakeAnalyticalClosedLoop(reference, WashoutConfig())
+    diagram, handles = MakeAnalyticalClosedLoop(reference, WashoutConfig(), robot=KR500)
     washout = handles["mca"]
     plant = washout._plant
     first, second = Simulator(diagram), Simulator(diagram)

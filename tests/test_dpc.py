@@ -33,10 +33,12 @@ from mca_drake.safety import ViabilityClamp, is_stoppable
 from mca_drake.segments import SegmentDataset
 from mca_drake.systems.dpc import DpcPolicy
 
+KR500 = load_platform("kr500")
+
 
 def _random_policy(seed: int, gain: float = 3.0) -> PolicyNetwork:
     torch.manual_seed(seed)
-    policy = PolicyNetwork()
+    policy = PolicyNetwork(KR500)
     with torch.no_grad():
         for p in policy.parameters():
             p.mul_(gain)  # large weights: outputs reach the saturation often
@@ -64,19 +66,19 @@ def test_a_policy_file_keeps_its_own_input_scales(tmp_path, rng):
     from mca_drake.learning.configs import OUTPUT_SCALE, OUTPUT_SCALE_V6
 
     v6_path = shipped_policy_path("policy_v6")
-    v6 = load_policy_network(v6_path).double()
+    v6 = load_policy_network(v6_path, KR500).double()
     np.testing.assert_allclose(v6.export()["input_scale"][:6], OUTPUT_SCALE_V6)
     inference = PolicyInference(load_policy_arrays(v6_path)[0])
     y, x, r = rng.normal(size=6) * 0.3, rng.normal(size=12) * 0.3, rng.normal(size=6) * 0.3
     u_torch, _ = v6(*(torch.tensor(v)[None] for v in (y, x, r)))
     np.testing.assert_allclose(inference(y, x, r)[0], u_torch[0].detach().numpy(), atol=1e-9)
-    fresh = PolicyNetwork()
+    fresh = PolicyNetwork(KR500)
     np.testing.assert_allclose(fresh.export()["input_scale"][18:], OUTPUT_SCALE, rtol=1e-6)
     save_policy(tmp_path / "fresh.npz", fresh, {"model": "dpc-policy"})
-    again = load_policy_network(tmp_path / "fresh.npz")
+    again = load_policy_network(tmp_path / "fresh.npz", KR500)
     np.testing.assert_allclose(again.export()["input_scale"], fresh.export()["input_scale"])
     with pytest.raises(ValueError, match="output_scale"):
-        PolicyNetwork(output_scale=(0.1, 0.1, 0.0, 2.0, 2.0, 2.0))
+        PolicyNetwork(KR500, output_scale=(0.1, 0.1, 0.0, 2.0, 2.0, 2.0))
     with pytest.raises(ValueError, match="output_scale"):
         DpcTrainingConfig(output_scale=(1.0,) * 5).validate()
 
@@ -112,7 +114,7 @@ def test_policy_file_round_trip_and_bad_files(tmp_path, rng):
     save_policy(path, policy, {"command": "test"})
     arrays, meta = load_policy_arrays(path)
     assert meta["command"] == "test" and arrays["W1"].shape == (128, 24)
-    back = load_policy_network(path)
+    back = load_policy_network(path, KR500)
     y, x, r = (torch.randn(5, n) for n in (6, 12, 6))
     torch.testing.assert_close(back(y, x, r)[0], policy(y, x, r)[0])
     bad = dict(arrays)
@@ -318,7 +320,7 @@ def test_trained_policy_tracks_better_than_doing_nothing(trained, robot):
     _, y_ref = _sine_motion(1.0 + 0.01 * np.arange(150))
     reference = Reference(y_ref, 0.01, "sine motion")
     result = run_closed_loop(
-        mca=DpcConfig(policy=str(policy_path)), reference=reference, progress=False
+        mca=DpcConfig(policy=str(policy_path)), reference=reference, progress=False, robot=KR500
     )
     zero_pi = performance_index(result.reference, np.zeros_like(result.reference))
     assert result.summary["pi"] < zero_pi - 0.5, (result.summary["pi"], zero_pi)
@@ -330,8 +332,8 @@ def test_rollout_on_exact_plant_is_the_plant(robot):
     from mca_drake.platforms.kinematics import plant_output
 
     torch.manual_seed(5)
-    policy = PolicyNetwork()
-    plant = RolloutPlant(DpcTrainingConfig(compile=False))
+    policy = PolicyNetwork(KR500)
+    plant = RolloutPlant(DpcTrainingConfig(compile=False), KR500)
     targets = torch.randn(3, 20, 6)
     with torch.no_grad():
         roll = closed_loop_rollout(policy, plant, torch.zeros(3, 12), torch.zeros(3, 6), targets)
@@ -345,7 +347,7 @@ def test_export_checkpoint_policy_gives_the_best_weights(trained, tmp_path):
 
     policy, policy_path, _ = trained
     out = export_checkpoint_policy(policy_path.with_name("policy.pt"), tmp_path / "e.npz")
-    back = load_policy_network(out)
+    back = load_policy_network(out, KR500)
     y, x, r = (torch.randn(4, n) for n in (6, 12, 6))
     torch.testing.assert_close(back(y, x, r)[0], policy(y, x, r)[0])
     with pytest.raises(ValueError, match="not a DPC policy checkpoint"):
@@ -359,7 +361,7 @@ def test_perturbed_initial_states_stay_inside_the_limits(robot):
     from mca_drake.learning.dpc_training import perturb_initial_states
 
     torch.manual_seed(0)
-    policy = PolicyNetwork()
+    policy = PolicyNetwork(KR500)
     x0 = torch.zeros(4000, 12)
     x0[:, :6] = torch.tensor(robot.q_max, dtype=torch.float32) * 0.85
     out = perturb_initial_states(x0, policy, DpcTrainingConfig(perturbed_fraction=0.5))
@@ -391,7 +393,7 @@ def test_channel_weights_make_every_channel_count_alike():
     fixed = tracking_channel_weights(given, targets)
     assert fixed.tolist() == [1, 2, 3, 4, 5, 6]
     # the tracking term weights each channel's squared error
-    policy = PolicyNetwork()
+    policy = PolicyNetwork(KR500)
     T = 7
     roll = type("R", (), {})()
     roll.Y = torch.randn(2, T, 6, generator=g)
@@ -417,7 +419,7 @@ def test_perceived_tracking_term_is_the_vestibular_model_of_the_errors():
     from mca_drake.perception import perceive
 
     g = torch.Generator().manual_seed(3)
-    policy, T = PolicyNetwork(), 60
+    policy, T = PolicyNetwork(KR500), 60
     roll = type("R", (), {})()
     roll.Y = torch.randn(3, T, 6, generator=g, dtype=torch.float64)
     roll.U, roll.X_hat = torch.zeros(3, T, 6), torch.zeros(3, T, 12)
@@ -531,7 +533,7 @@ def test_clamp_bounds_are_constants_of_the_step_unless_asked(robot):
 
     def clamped(config, state):
         state = state.clone().requires_grad_(True)
-        out = RolloutPlant(config).clamp(state, u)
+        out = RolloutPlant(config, KR500).clamp(state, u)
         if not out.requires_grad:  # no path from the state to the command at all
             return out, torch.zeros_like(state)
         (grad,) = torch.autograd.grad(out[0, 0], state)
@@ -557,10 +559,14 @@ def test_near_neutral_windows_keep_the_starts_inside_the_bound(tmp_path):
     data.arrays["X"][3, 0, 2] = 0.5  # starts 0.5 rad out on joint 3
     data.arrays["X"][7, 0, 0] = -0.31
     data.arrays["X"][5, 4, 1] = 2.0  # far out later in the window: does not count
-    kept = near_neutral_windows(data, 0.3)
+    revolute = np.ones(6, bool)
+    kept = near_neutral_windows(data, 0.3, revolute)
     assert len(kept) == 8
     assert np.abs(kept.arrays["X"][:, 0, :6]).max() <= 0.3
-    assert near_neutral_windows(data, 0.6).arrays["X"].shape[0] == 10
+    assert near_neutral_windows(data, 0.6, revolute).arrays["X"].shape[0] == 10
+    # a prismatic joint (a rail's carriage, m) away from its centre tilts nothing
+    rail_first = np.array([False, True, True, True, True, True])
+    assert len(near_neutral_windows(data, 0.3, rail_first)) == 9
     with pytest.raises(ValueError, match="max_start_position_rad"):
         DpcTrainingConfig(max_start_position_rad=0.0).validate()
     path = data.save(tmp_path / "far.npz")
@@ -582,12 +588,12 @@ def test_terminal_weights_are_scaled_to_their_horizon():
     T = 12
     only_terminal = loss_weights_only(terminal_position_weight=1.0) | {"compile": False}
     batch = {"X": torch.randn(4, T, 12) * 0.3, "Y": torch.zeros(4, T, 6), "R": torch.randn(4, T, 6)}
-    policy = PolicyNetwork().eval()
+    policy = PolicyNetwork(KR500).eval()
     cost = {}
     for horizon in (0, T, 2 * T):
         config = DpcTrainingConfig(terminal_weight_horizon=horizon, **only_terminal)
         with torch.no_grad():
-            cost[horizon] = float(dpc_objective(config, RolloutPlant(config))(policy, batch))
+            cost[horizon] = float(dpc_objective(config, RolloutPlant(config, KR500))(policy, batch))
     assert cost[0] > 0
     np.testing.assert_allclose([cost[T], cost[2 * T]], [cost[0], 2 * cost[0]], rtol=1e-6)
     with pytest.raises(ValueError, match="terminal_weight_horizon"):
@@ -604,10 +610,20 @@ def test_a_policy_trained_for_another_platform_is_refused_naming_both(tmp_path, 
     arrays, metadata = load_policy_arrays(default_policy_path())
     assert policy_platform(metadata) == "kr500"
     path = tmp_path / "rail_policy.npz"
-    metadata = {**metadata, "platform": rail.summary()}
-    np.savez(path, metadata_json=np.array(json.dumps(metadata)), **arrays)
+    save_policy(path, PolicyNetwork(rail, hidden=8), {"platform": rail.summary()})
     assert policy_platform(load_policy_arrays(path)[1]) == "kr500-rail"
     with pytest.raises(ValueError, match=r"trained for platform 'kr500-rail', not for 'kr500'"):
         DpcPolicy(path, robot)
+    with pytest.raises(ValueError, match=r"trained for platform 'kr500-rail', not for 'kr500'"):
+        load_policy_network(path, robot)
+    # the KR500's arrays under a record of the rail's seven joints do not fit together
+    lying = tmp_path / "lying.npz"
+    np.savez(
+        lying,
+        metadata_json=np.array(json.dumps({**metadata, "platform": rail.summary()})),
+        **arrays,
+    )
+    with pytest.raises(ValueError, match="has 6 joints, its platform record 7"):
+        load_policy_arrays(lying)
     with pytest.raises(ValueError, match="record with a name"):
         policy_platform({"platform": "kr500"})

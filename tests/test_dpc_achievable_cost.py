@@ -21,7 +21,10 @@ from mca_drake.learning.dpc_training import (
 )
 from mca_drake.learning.policy_network import PolicyNetwork
 from mca_drake.learning.trainer import TrainConfig
+from mca_drake.platforms.files import load_platform
 from mca_drake.segments import SegmentDataset
+
+KR500 = load_platform("kr500")
 
 N_P = 4
 
@@ -109,8 +112,8 @@ def test_the_weights_scale_each_windows_tracking_term():
         yaw_shift_fraction=0.0,
         time_stretch_fraction=0.0,
     )
-    policy = PolicyNetwork(hidden=8).eval()
-    objective = dpc_objective(config, RolloutPlant(config))
+    policy = PolicyNetwork(KR500, hidden=8).eval()
+    objective = dpc_objective(config, RolloutPlant(config, KR500))
     batch = {
         "R": torch.randn(2, 6, 6) * 0.3,
         "X": torch.zeros(2, 6, 12),

@@ -23,6 +23,9 @@ from mca_drake.learning.dpc_training import (
     stretch_some_targets,
 )
 from mca_drake.learning.policy_network import PolicyNetwork
+from mca_drake.platforms.files import load_platform
+
+KR500 = load_platform("kr500")
 
 
 def test_mirrored_windows_are_a_random_share_flipped_whole(robot):
@@ -42,7 +45,7 @@ def test_mirrored_windows_are_a_random_share_flipped_whole(robot):
 
 
 def test_the_symmetry_check_passes_the_kr500_and_refuses_a_lopsided_plant():
-    plant = RolloutPlant(DpcTrainingConfig(compile=False))
+    plant = RolloutPlant(DpcTrainingConfig(compile=False), KR500)
     check_mirror_symmetry(plant)
 
     class Lopsided(torch.nn.Module):
@@ -71,7 +74,7 @@ def test_the_training_objective_flies_the_mirrored_window(robot):
     batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
     _, x_signs, y_signs = mirror_signs(robot)
     by_hand = {"X": batch["X"] * x_signs, "Y": batch["Y"] * y_signs, "R": batch["R"] * y_signs}
-    policy = PolicyNetwork().train()
+    policy = PolicyNetwork(KR500).train()
     loss = {}
     for fraction, data in ((1.0, batch), (0.0, by_hand), (0.0, batch)):
         config = DpcTrainingConfig(
@@ -82,7 +85,7 @@ def test_the_training_objective_flies_the_mirrored_window(robot):
         )
         with torch.no_grad():
             loss[fraction, id(data)] = float(
-                dpc_objective(config, RolloutPlant(config))(policy, data)
+                dpc_objective(config, RolloutPlant(config, KR500))(policy, data)
             )
     mirrored = loss[1.0, id(batch)]
     np.testing.assert_allclose(mirrored, loss[0.0, id(by_hand)], rtol=1e-5)
@@ -103,11 +106,13 @@ def test_the_base_joint_angle_changes_no_cue_in_drake(robot, drake_plant, rng):
         np.testing.assert_allclose(
             drake_plant_output(drake_plant, context, q, qd, qdd), y, atol=1e-9
         )
-    plant = RolloutPlant(DpcTrainingConfig(compile=False))
+    plant = RolloutPlant(DpcTrainingConfig(compile=False), KR500)
     check_base_yaw_invariance(plant)
 
     class Tilted(torch.nn.Module):
         """The KR500 on a base tilted about x: gravity then leaks into f_y with joint 1."""
+
+        robot = KR500
 
         def output(self, x, u):
             return plant.output(x, u) + 0.2 * torch.sin(x[:, :1]) * torch.tensor(
@@ -149,12 +154,12 @@ def test_the_training_objective_flies_the_turned_or_stretched_window(option):
     torch.manual_seed(4)
     T = 16
     batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
-    policy = PolicyNetwork()
+    policy = PolicyNetwork(KR500)
     loss = {}
     for fraction in (0.0, 1.0):
         off = dict(yaw_shift_fraction=0.0, mirror_fraction=0.0, time_stretch_fraction=0.0)
         config = DpcTrainingConfig(**{**off, option: fraction}, compile=False)
-        objective = dpc_objective(config, RolloutPlant(config))
+        objective = dpc_objective(config, RolloutPlant(config, KR500))
         with torch.no_grad():
             loss[fraction] = float(objective(policy.train(), batch))
             if fraction:

@@ -16,6 +16,9 @@ from mca_drake.learning.dpc_training import (
 )
 from mca_drake.learning.policy_network import PolicyNetwork
 from mca_drake.metrics import pearson_cc
+from mca_drake.platforms.files import load_platform
+
+KR500 = load_platform("kr500")
 
 
 def _windows(seed: int, shape=(5, 40, 6)) -> tuple[torch.Tensor, torch.Tensor]:
@@ -69,15 +72,15 @@ def test_the_objective_adds_the_weighted_correlation_term():
     torch.manual_seed(5)
     T = 16
     batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
-    policy = PolicyNetwork().eval()
+    policy = PolicyNetwork(KR500).eval()
     off = dict(mirror_fraction=0.0, yaw_shift_fraction=0.0, time_stretch_fraction=0.0)
     loss = {}
     for weight in (0.0, 0.5):
         config = DpcTrainingConfig(**off, correlation_weight=weight, compile=False)
         with torch.no_grad():
-            loss[weight] = float(dpc_objective(config, RolloutPlant(config))(policy, batch))
+            loss[weight] = float(dpc_objective(config, RolloutPlant(config, KR500))(policy, batch))
     config = DpcTrainingConfig(**off, compile=False)
-    plant = RolloutPlant(config)
+    plant = RolloutPlant(config, KR500)
     with torch.no_grad():
         rollout = closed_loop_rollout(policy, plant, batch["X"][:, 0], batch["Y"][:, 0], batch["R"])
         terms = dpc_loss_terms(rollout, batch["R"], policy, correlation=True)

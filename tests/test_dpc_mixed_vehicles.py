@@ -21,6 +21,7 @@ from mca_drake.cueing.dpc import (
     DpcConfig,
     default_policy_path,
     load_policy_arrays,
+    policy_platform,
     shipped_policy_path,
 )
 from mca_drake.learning.dpc_training import DpcTrainingConfig, train_policy
@@ -36,6 +37,8 @@ from mca_drake.studies.closed_loop_dataset import (
     ClosedLoopDatasetConfig,
     generate_closed_loop_dataset,
 )
+
+KR500 = load_platform("kr500")
 
 DATA = Path(__file__).parent / "data"
 TINY_MIXED = ClosedLoopDatasetConfig(
@@ -89,7 +92,7 @@ def test_policy_fine_tuned_on_mixed_vehicles_runs_and_beats_zero_motion(fine_tun
     # a DHC6 flight: a vehicle (and seed) the tiny set never flew
     reference = flight_reference(FlightSpec(vehicle="DHC6", seed=34), 20.0)
     result = run_closed_loop(
-        mca=DpcConfig(policy=str(policy_path)), reference=reference, progress=False
+        mca=DpcConfig(policy=str(policy_path)), reference=reference, progress=False, robot=KR500
     )
     zero_pi = performance_index(result.reference, np.zeros_like(result.reference))
     assert result.summary["pi"] < zero_pi - 0.5, (result.summary["pi"], zero_pi)
@@ -111,8 +114,8 @@ OLDER_POLICY_FILES = (
 @pytest.mark.parametrize("name", [*SHIPPED_POLICIES, *OLDER_POLICY_FILES])
 def test_policy_files_round_trip(name, tmp_path):
     path = shipped_policy_path(name) if name in SHIPPED_POLICIES else DATA / f"{name}.npz"
-    arrays, _ = load_policy_arrays(path)
-    network = load_policy_network(path)
+    arrays, metadata = load_policy_arrays(path)
+    network = load_policy_network(path, load_platform(policy_platform(metadata)))
     copy = tmp_path / "copy.npz"
     save_policy(copy, network, {"copied_from": name})
     again, recorded = load_policy_arrays(copy)
@@ -139,4 +142,4 @@ def test_a_policy_file_that_does_not_fit_is_refused(tmp_path):
     with pytest.raises(ValueError, match="W2 has shape"):
         DpcPolicy(bad, load_platform("kr500"))
     with pytest.raises(ValueError, match="W2 has shape"):
-        load_policy_network(bad)
+        load_policy_network(bad, KR500)

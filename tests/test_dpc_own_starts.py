@@ -19,7 +19,10 @@ from mca_drake.learning.dpc_training import (
 )
 from mca_drake.learning.policy_network import PolicyNetwork
 from mca_drake.learning.trainer import TrainConfig
+from mca_drake.platforms.files import load_platform
 from mca_drake.segments import SegmentDataset
+
+KR500 = load_platform("kr500")
 
 N_P = 8
 
@@ -50,8 +53,8 @@ def _row(data: SegmentDataset, flight: int, step: int) -> int:
 @pytest.fixture(scope="module")
 def own():
     torch.manual_seed(2)
-    policy = PolicyNetwork()
-    plant = RolloutPlant(DpcTrainingConfig(compile=False))
+    policy = PolicyNetwork(KR500)
+    plant = RolloutPlant(DpcTrainingConfig(compile=False), KR500)
     data = _flights()
     return policy, plant, data, own_closed_loop_states(policy, plant, data)
 

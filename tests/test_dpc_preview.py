@@ -20,17 +20,20 @@ from mca_drake.cueing.dpc import (
 from mca_drake.learning.configs import DpcTrainingConfig, TrainConfig
 from mca_drake.learning.dpc_training import rollout_previews, train_policy
 from mca_drake.learning.policy_network import PolicyNetwork, load_policy_network, save_policy
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.reference import Reference
 from mca_drake.segments import SegmentDataset
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.systems.dpc import DpcPolicy
+
+KR500 = load_platform("kr500")
 
 PREVIEW = 20
 
 
 def test_numpy_and_torch_agree_with_a_preview_and_the_file_keeps_it(tmp_path):
     torch.manual_seed(0)
-    policy = PolicyNetwork(hidden=16, preview_steps=PREVIEW).double()
+    policy = PolicyNetwork(KR500, hidden=16, preview_steps=PREVIEW).double()
     rng = np.random.default_rng(0)
     y, x, target, preview = (rng.normal(size=n) for n in (6, 12, 6, 24))
     u, x_hat = policy(*(torch.tensor(v)[None] for v in (y, x, target, preview)))
@@ -41,7 +44,7 @@ def test_numpy_and_torch_agree_with_a_preview_and_the_file_keeps_it(tmp_path):
     got_u, got_x = PolicyInference(arrays)(y, x, target, preview)
     np.testing.assert_allclose(got_u, u[0].detach().numpy(), atol=1e-9)
     np.testing.assert_allclose(got_x, x_hat[0].detach().numpy(), atol=1e-9)
-    assert load_policy_network(path).preview_steps == PREVIEW
+    assert load_policy_network(path, KR500).preview_steps == PREVIEW
     np.testing.assert_array_equal(preview_offsets(PREVIEW), [5, 10, 15, 20])
 
 
@@ -108,6 +111,7 @@ def test_the_diagram_feeds_a_trained_preview_policy_the_future(preview_policy, r
         mca=DpcConfig(policy=str(preview_policy)),
         reference=Reference(y, 0.01, "surge"),
         progress=False,
+        robot=KR500,
     )
     assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
 

@@ -17,6 +17,9 @@ from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.live.csv_udp import CsvDecoder, encode_csv_sample
 from mca_drake.live.loop import STALL_PERIODS, run_live
 from mca_drake.live.receiver import ReceiverConfig
+from mca_drake.platforms.files import load_platform
+
+KR500 = load_platform("kr500")
 
 
 def stream(address, duration_s, rate_hz=100.0, gap=(1.0, 1.6), nan_at=2.0):
@@ -82,7 +85,7 @@ def live_with_sender(sender, sender_seconds, mca, seconds, **options):
         seconds,
         receiver=ReceiverConfig(port=0),
         on_listening=start_sender,
-        **options,
+        **{"robot": KR500, **options},
     )
     threads[0].join(timeout=5)
     return summary
@@ -247,7 +250,7 @@ def test_the_phase_lock_brings_the_polls_just_after_a_periodic_senders_packets()
         processes.append(process)
 
     summary = run_live(
-        CsvDecoder(), "dpc", 6.0, receiver=ReceiverConfig(port=0), on_listening=start
+        CsvDecoder(), "dpc", 6.0, receiver=ReceiverConfig(port=0), on_listening=start, robot=KR500
     )
     processes[0].join(timeout=5)
     live = summary["live"]

@@ -14,6 +14,8 @@ from mca_drake.platforms.files import load_platform
 from mca_drake.platforms.usage import joint_usage
 from mca_drake.systems.motion_cueing_plant import MotionCueingPlant
 
+KR500 = load_platform("kr500")
+
 
 class Scripted(LeafSystem):
     """An output of `size` given by fn(t)."""
@@ -38,7 +40,7 @@ def run(command, fresh, step_time=lambda t: 1e-3, reference=lambda t: np.zeros(6
     """Closes the loop plant -> supervisor; returns (supervisor, context, states, commands)."""
     builder = DiagramBuilder()
     plant = builder.AddSystem(MotionCueingPlant(load_platform("kr500")))
-    supervisor = builder.AddSystem(Supervisor(SupervisorConfig()))
+    supervisor = builder.AddSystem(Supervisor(SupervisorConfig(), robot=KR500))
     sources = {
         "mca_command": Scripted(6, command),
         "reference": Scripted(6, reference),
@@ -122,4 +124,4 @@ def test_bad_settings_are_refused(change):
 
 def test_a_judgement_offset_outside_the_period_is_refused():
     with pytest.raises(ValueError, match="judge_offset_s"):
-        Supervisor(SupervisorConfig(), judge_offset_s=SupervisorConfig().time_step)
+        Supervisor(SupervisorConfig(), judge_offset_s=SupervisorConfig().time_step, robot=KR500)

@@ -14,9 +14,12 @@ import pytest
 from pydrake.geometry import StartMeshcat
 from pydrake.systems.analysis import Simulator
 
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
 from mca_drake.simulation.builders import MakeMultibodyClosedLoop
+
+KR500 = load_platform("kr500")
 
 
 def _chromium() -> str:
@@ -33,7 +36,7 @@ def _chromium() -> str:
 def served_closed_loop():
     meshcat = StartMeshcat()
     reference = reference_from_recording(fly("light", 5.0, 1000), name="light 1000")
-    diagram, handles = MakeMultibodyClosedLoop(reference, "dpc", meshcat=meshcat)
+    diagram, handles = MakeMultibodyClosedLoop(reference, "dpc", meshcat=meshcat, robot=KR500)
     simulator = Simulator(diagram)
     handles["station"].SetInitialState(simulator.get_mutable_context())
     simulator.AdvanceTo(2.0)

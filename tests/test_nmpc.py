@@ -7,8 +7,11 @@ import pytest
 import scipy.optimize
 
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig, make_grid
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.reference import Reference
 from mca_drake.simulation.closed_loop import run_closed_loop
+
+KR500 = load_platform("kr500")
 
 SMALL = dict(horizon_steps=40, nodes=6)
 REF = np.array([0.15, -0.1, 0.2, 1.2, -0.8, 0.6])
@@ -178,7 +181,7 @@ def extreme_reference(duration_s=12.0):
 )
 def test_no_violation_with_references_beyond_the_robot(mca, duration):
     result = run_closed_loop(
-        mca=mca, reference=extreme_reference(), duration_s=duration, progress=False
+        mca=mca, reference=extreme_reference(), duration_s=duration, progress=False, robot=KR500
     )
     assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     assert np.all(np.isfinite(result.commands))
@@ -202,7 +205,7 @@ def test_solver_failures_fall_back_and_stay_in_limits(monkeypatch, robot):
 
     monkeypatch.setattr(nmpc.MotionCueingOcp, "_qp_step", flaky)
     result = run_closed_loop(
-        mca="nmpc-rti", reference=extreme_reference(), duration_s=4.0, progress=False
+        mca="nmpc-rti", reference=extreme_reference(), duration_s=4.0, progress=False, robot=KR500
     )
     assert result.summary["solver_failures"] >= 200
     assert result.summary["safety_interventions"] > 0  # the clamp caught the stale plans
@@ -213,7 +216,7 @@ def test_solver_failures_fall_back_and_stay_in_limits(monkeypatch, robot):
 def test_drakes_solver_takes_the_qps_the_dual_method_cannot_solve(monkeypatch):
     """With the dual active-set method failing (as round-off could make it), every QP whose
     guess is wrong goes to Drake's solver, and the loop still cues within the limits."""
-    from mca_drake.cueing import nmpc
+    from mca_drake.cueing import nmpc, nmpc_sqp
 
     calls = {"drake": 0}
     original = nmpc.MotionCueingOcp._solve_qp
@@ -222,10 +225,10 @@ def test_drakes_solver_takes_the_qps_the_dual_method_cannot_solve(monkeypatch):
         calls["drake"] += 1
         return original(self, U, x_bar)
 
-    monkeypatch.setattr(nmpc, "solve_dual_active_set", lambda *args, **kwargs: None)
+    monkeypatch.setattr(nmpc_sqp, "solve_dual_active_set", lambda *args, **kwargs: None)
     monkeypatch.setattr(nmpc.MotionCueingOcp, "_solve_qp", counted)
     result = run_closed_loop(
-        mca="nmpc-rti", reference=extreme_reference(), duration_s=2.0, progress=False
+        mca="nmpc-rti", reference=extreme_reference(), duration_s=2.0, progress=False, robot=KR500
     )
     assert calls["drake"] > 0
     assert result.summary["solver_failures"] == 0
@@ -252,7 +255,7 @@ def test_bad_config(robot):
 def test_an_overperforming_step_is_lengthened_only_within_the_bounds(small_ocp):
     """`_expanded_step`: the longest multiple of the step that the rows' bounds allow, capped
     at EXPANSION_MAX; None where the full step already reaches a bound it moves towards."""
-    from mca_drake.cueing.nmpc import EXPANSION_MAX
+    from mca_drake.cueing.nmpc_sqp import EXPANSION_MAX
 
     rng = np.random.default_rng(4)
     U = np.zeros((small_ocp.N, 6))
@@ -275,7 +278,7 @@ def test_damping_restarts_from_the_last_that_was_in_use():
     """`_next_damping`: the first rejection starts mu at DAMPING_START; accepted full steps
     shrink it by DAMPING_GROWTH until it is dropped; a rejection after that restarts from
     DAMPING_GROWTH times the last mu in use, not from DAMPING_START."""
-    from mca_drake.cueing.nmpc import (
+    from mca_drake.cueing.nmpc_sqp import (
         DAMPING_FLOOR,
         DAMPING_GROWTH,
         DAMPING_START,
@@ -308,9 +311,9 @@ def test_preview_lets_the_nmpc_anticipate_what_the_causal_one_cannot_know():
     """With a preview the NMPC reads the known future at its nodes and moves before a step;
     causal, it holds the present reference and stays still until the step comes."""
     reference = _surge_step()
-    causal = run_closed_loop(mca=NmpcConfig(), reference=reference, progress=False)
+    causal = run_closed_loop(mca=NmpcConfig(), reference=reference, progress=False, robot=KR500)
     preview = run_closed_loop(
-        mca=NmpcConfig(preview_steps=256), reference=reference, progress=False
+        mca=NmpcConfig(preview_steps=256), reference=reference, progress=False, robot=KR500
     )
     before = causal.times < 1.5
     assert np.max(np.abs(causal.states[before])) < 1e-12

@@ -12,10 +12,13 @@ from pydrake.systems.analysis import Simulator
 
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
 from mca_drake.perception import PerceptionConfig, vestibular_filter
+from mca_drake.platforms.files import load_platform
 from mca_drake.platforms.kinematics import plant_output
 from mca_drake.references.reference import Reference
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop
 from mca_drake.simulation.closed_loop import run_closed_loop
+
+KR500 = load_platform("kr500")
 
 SMALL = dict(horizon_steps=40, nodes=6)
 REF = np.array([0.15, -0.1, 0.2, 1.2, -0.8, 0.6])
@@ -139,7 +142,7 @@ def test_controller_carries_the_state_of_the_perceived_error(robot):
 
 
 def test_drakes_solver_takes_the_perceived_qps_the_dual_method_cannot_solve(monkeypatch):
-    from mca_drake.cueing import nmpc, nmpc_qp
+    from mca_drake.cueing import nmpc_qp, nmpc_sqp
 
     calls = {"drake": 0}
     original = nmpc_qp.CondensedQp.solve
@@ -149,10 +152,10 @@ def test_drakes_solver_takes_the_perceived_qps_the_dual_method_cannot_solve(monk
         return original(self, *args)
 
     config = NmpcConfig(objective="perceived")
-    hot = run_closed_loop(mca=config, reference=_pulse(), progress=False)
-    monkeypatch.setattr(nmpc, "solve_dual_active_set", lambda *args, **kwargs: None)
+    hot = run_closed_loop(mca=config, reference=_pulse(), progress=False, robot=KR500)
+    monkeypatch.setattr(nmpc_sqp, "solve_dual_active_set", lambda *args, **kwargs: None)
     monkeypatch.setattr(nmpc_qp.CondensedQp, "solve", counted)
-    result = run_closed_loop(mca=config, reference=_pulse(), progress=False)
+    result = run_closed_loop(mca=config, reference=_pulse(), progress=False, robot=KR500)
     assert calls["drake"] > 0
     assert result.summary["solver_failures"] == 0
     assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}

@@ -12,6 +12,8 @@ from mca_drake.platforms.files import load_platform
 from mca_drake.references.reference import Reference
 from mca_drake.simulation.closed_loop import run_closed_loop
 
+KR500 = load_platform("kr500")
+
 
 def _reference(T: int, seed: int = 0) -> np.ndarray:
     t = np.arange(T) * 0.01
@@ -109,7 +111,7 @@ def test_the_bound_holds_the_limits_and_improves_on_its_causal_start(robot):
     T = 300
     y = _reference(T, seed=3) * [1, 1, 1, 4, 4, 4]  # beyond what the robot can render
     reference = Reference(y, 0.01, "sines")
-    causal = run_closed_loop(mca="nmpc-rti", reference=reference, progress=False)
+    causal = run_closed_loop(mca="nmpc-rti", reference=reference, progress=False, robot=KR500)
     ocp = OptimalCueing(T, OptimalConfig(max_iterations=15), robot)
     start = causal.commands[:T]
     start_cost = ocp.cost(np.zeros(12), start, y)
@@ -123,7 +125,7 @@ def test_the_bound_holds_the_limits_and_improves_on_its_causal_start(robot):
 
 
 def test_bad_input_is_refused(robot):
-    ocp = OptimalCueing(5, robot=robot)
+    ocp = OptimalCueing(5, None, robot)
     with pytest.raises(ValueError, match="reference must have shape"):
         ocp.solve(np.zeros((4, 6)))
     with pytest.raises(ValueError, match="non-finite"):
@@ -150,12 +152,13 @@ def test_the_bound_costs_no_more_than_any_causal_mca_on_a_flight(seed, robot):
         config=OptimalConfig(max_iterations=10),
         starts=mcas,
         progress=False,
+        robot=KR500,
     )
     s = result.summary
     assert s["mca"] == "optimal" and s["violations"] == {"q": 0, "qd": 0, "qdd": 0}
-    ocp = OptimalCueing(y.shape[0], robot=robot)
+    ocp = OptimalCueing(y.shape[0], None, robot)
     for mca in mcas:
-        causal = run_closed_loop(mca=mca, reference=reference, progress=False)
+        causal = run_closed_loop(mca=mca, reference=reference, progress=False, robot=KR500)
         causal_cost = ocp.cost(np.zeros(12), causal.commands[: y.shape[0]], y)
         assert s["solver"]["cost"] <= causal_cost + 1e-12, mca
         assert s["solver"]["start_costs"][mca] == pytest.approx(causal_cost)

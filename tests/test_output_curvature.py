@@ -161,7 +161,7 @@ def test_a_curvature_model_that_overpromises_is_measured_afresh(robot, monkeypat
     step gains: the solve re-measures them (finite differences at the new point, counted
     here) and still ends at the KKT point the good estimates reach. (Where the check pays,
     on 3 g steps with drifted estimates, is measured in benchmarks/bench_nmpc.py.)"""
-    from mca_drake.cueing import nmpc
+    from mca_drake.cueing import nmpc_sqp as nmpc
 
     ocp = _paper_converged(robot)
     x0, refs = np.zeros(12), np.array([0.5, 0.3, 0.0, 14.715, 5.0, 9.81])

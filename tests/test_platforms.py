@@ -17,7 +17,7 @@ from mca_drake.app.cli import main
 from mca_drake.app.jobs import run_closed_loop_scenario
 from mca_drake.app.scenarios import load_scenario
 from mca_drake.conventions import MIRROR_CHANNEL_SIGNS
-from mca_drake.cueing.dpc import default_policy_path, load_policy_arrays
+from mca_drake.cueing.dpc import DpcConfig, default_policy_path, load_policy_arrays
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
 from mca_drake.learning.torch_plant import TorchPlant
 from mca_drake.platforms import kinematics, serial, urdf_chain
@@ -45,7 +45,12 @@ def test_the_kr500_has_table_i_limits():
     assert robot.joint_kinds == ("revolute",) * 6
     for name, values in TABLE_I.items():
         np.testing.assert_array_equal(getattr(robot, name), values, err_msg=name)
-    assert robot.summary() == {"name": "kr500", "kind": "serial", "dof": 6}
+    assert robot.summary() == {
+        "name": "kr500",
+        "kind": "serial",
+        "dof": 6,
+        "joints": [f"joint_{i}" for i in range(1, 7)],
+    }
 
 
 def test_the_kr500_masses_are_of_its_class(drake_plant):
@@ -480,7 +485,8 @@ def test_a_scenario_runs_on_the_platform_it_names(tmp_path):
     ):
         scenario = load_scenario("closed_loop_dpc", [quick, override])
         result = run_closed_loop_scenario(scenario, progress=False, json_path="", plot_dir="")
-        assert result.summary["platform"] == {"name": name, "kind": "serial", "dof": dof}
+        assert result.summary["platform"]["name"] == name
+        assert result.summary["platform"]["dof"] == dof
         assert result.states.shape[1] == 2 * dof
         assert len(result.summary["joint_range_used"]) == dof
         assert sum(result.summary["violations"].values()) == 0
@@ -492,6 +498,7 @@ def test_the_dpc_of_the_kr500_is_refused_on_the_rail_and_simulate_takes_platform
     scenario = load_scenario(
         "closed_loop_dpc", ["{platform: kr500-rail, plant: analytical, duration_s: 1.0}"]
     )
+    scenario.mca = DpcConfig(policy=str(default_policy_path()))
     with pytest.raises(ValueError, match=r"trained for platform 'kr500', not for 'kr500-rail'"):
         run_closed_loop_scenario(scenario, progress=False, json_path="", plot_dir="")
     summary = tmp_path / "summary.json"
@@ -500,8 +507,12 @@ def test_the_dpc_of_the_kr500_is_refused_on_the_rail_and_simulate_takes_platform
     assert main(argv) == 0
     assert json.loads(summary.read_text())["platform"]["dof"] == 7
     capsys.readouterr()
-    assert main(["evaluate", "--suite", "--platform", "kr500-rail"]) == 2
-    assert "the suite runs on the kr500" in capsys.readouterr().err
+    # a platform without a shipped policy: the suite's DPC says how to train one
+    mine = tmp_path / "mine.yaml"
+    mine.write_text(packaged_platforms()["kr500"].read_text().replace("name: kr500", "name: mine"))
+    (tmp_path / "kr500.urdf").write_text(model_path("kr500.urdf").read_text())
+    assert main(["evaluate", "--suite", "--platform", str(mine), "--mcas", "dpc"]) == 2
+    assert "train-policy --platform mine" in capsys.readouterr().err
 
 
 def test_the_nmpc_refuses_a_platform_whose_home_is_not_zero(tmp_path):
@@ -511,8 +522,32 @@ def test_the_nmpc_refuses_a_platform_whose_home_is_not_zero(tmp_path):
 
 
 def test_the_dpc_network_refuses_a_platform_of_another_joint_count():
-    """Policy arrays given directly (no file to name a platform) still meet the network's
-    six joints: the rail's seven are refused, naming both counts."""
+    """Policy arrays given directly (no file to name a platform) still meet the platform's
+    joints: the KR500's six are refused on the rail's seven, naming both counts."""
     arrays, _ = load_policy_arrays(default_policy_path())
-    with pytest.raises(ValueError, match=r"made for 6 joints; platform 'kr500-rail' has 7"):
+    with pytest.raises(ValueError, match=r"commands 6 joints, platform 'kr500-rail' has 7"):
         DpcPolicy(arrays, load_platform("kr500-rail"))
+
+
+def test_the_fanuc_is_the_robot_ros_industrial_describes():
+    """Oracle: ROS-Industrial's m900ib700_macro.xacro (fanuc_m900ib_support), its numbers
+    copied here by hand: each joint's origin, axis, position and velocity limit."""
+    published = {  # joint: (origin xyz, axis, lower, upper, velocity)
+        "joint_1": ((0, 0, 0.940), (0, 0, 1), -3.1415, 3.1415, 1.3962),
+        "joint_2": ((0.410, 0, 0), (0, 1, 0), -1.1170, 1.5707, 1.3962),
+        "joint_3": ((0, 0, 1.120), (0, -1, 0), -2.2689, 0.5235, 1.3962),
+        "joint_4": ((0, 0, 0.250), (-1, 0, 0), -6.2831, 6.2831, 1.7453),
+        "joint_5": ((1.285, 0, 0), (0, -1, 0), -2.1293, 2.1293, 1.7453),
+        "joint_6": ((0.300, 0, 0), (-1, 0, 0), -6.2831, 6.2831, 2.7925),
+    }
+    robot = load_platform("fanuc-m900ib700")
+    joints = urdf_chain.read_urdf_with_xml(str(robot.urdf_path)).joints
+    assert robot.joint_names == tuple(published)
+    for name, (xyz, axis, lower, upper, velocity) in published.items():
+        joint = joints[name]
+        np.testing.assert_allclose(joint.X_PJ[:3, 3], xyz, atol=1e-12, err_msg=name)
+        np.testing.assert_allclose(joint.X_PJ[:3, :3], np.eye(3), atol=1e-12, err_msg=name)
+        np.testing.assert_allclose(joint.axis, axis, atol=1e-12, err_msg=name)
+        assert joint.position == (lower, upper) and joint.velocity == (-velocity, velocity), name
+    np.testing.assert_allclose(robot.q_min, [p[2] for p in published.values()])
+    np.testing.assert_allclose(robot.qd_max, [p[4] for p in published.values()])

@@ -54,11 +54,11 @@ def test_the_ground_profiles_settings_are_the_files():
 def test_the_ground_dpc_runs_the_ground_policy():
     config = mca_config_from_name("dpc-ground")
     assert config == DpcConfig(profile="ground")
-    assert config.policy_path() == shipped_policy_path("ground_policy")
-    assert DpcConfig().policy_path() != config.policy_path()
+    assert config.policy_path("kr500") == shipped_policy_path("ground_policy")
+    assert DpcConfig().policy_path("kr500") != config.policy_path("kr500")
     # a policy file given outright wins over the profile's
     other = shipped_policy_path("policy_v6")
-    assert DpcConfig(policy=str(other), profile="ground").policy_path() == other
+    assert DpcConfig(policy=str(other), profile="ground").policy_path("kr500") == other
 
 
 def test_names_and_profiles_that_do_not_exist_are_refused():

@@ -58,6 +58,8 @@ def test_bad_names_are_refused():
         "ground_policy.npz",
         "light_policy.npz",
         "transport_policy.npz",
+        "kr500-rail_policy.npz",
+        "fanuc-m900ib700_policy.npz",
     ]
 
 

@@ -34,8 +34,11 @@ from mca_drake.live.rsi.emulator import (
 )
 from mca_drake.live.rsi.link import RobotClockServo, segment_socket_pair, start_rsi_driver
 from mca_drake.live.rsi.motion import CommandSegment, RsiMotionConfig, SegmentBuffer
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
+
+KR500 = load_platform("kr500")
 
 CYCLE = 0.004
 # Replies with the right IPOC within the cycle, as a share of the cycles: how many make it is
@@ -297,7 +300,13 @@ def test_a_live_run_drives_the_emulated_robot_through_a_telemetry_stop(tmp_path)
         processes.append(subprocess.Popen(command, stdout=subprocess.DEVNULL))
 
     summary = run_live(
-        CsvDecoder(), "washout", 3.0, receiver=ReceiverConfig(port=0), on_listening=start, rsi=rsi
+        CsvDecoder(),
+        "washout",
+        3.0,
+        receiver=ReceiverConfig(port=0),
+        on_listening=start,
+        rsi=rsi,
+        robot=KR500,
     )
     processes[0].wait(timeout=30)
     threads[0].join(timeout=5)
@@ -408,7 +417,9 @@ def test_a_replayed_flight_drives_the_emulated_axes_along_the_mcas_trajectory(ro
     six decimals) at the best whole-millisecond offset, every reply on time with its IPOC;
     the end segment brings the robot to rest."""
     reference = flight_reference(FlightSpec(vehicle="light", seed=3), 3.0)
-    result = run_closed_loop(mca="dpc", reference=reference, plant="analytical", progress=False)
+    result = run_closed_loop(
+        mca="dpc", reference=reference, plant="analytical", progress=False, robot=KR500
+    )
     segments = [
         CommandSegment(k, x[:6], x[6:], u)
         for k, (x, u) in enumerate(zip(result.states[:-1], result.commands[:-1], strict=True))

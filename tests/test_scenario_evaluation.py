@@ -11,12 +11,15 @@ import pytest
 from mca_drake.cueing import DpcConfig, NmpcConfig, mca_config_from_name, mca_config_record
 from mca_drake.cueing.dpc import for_vehicle
 from mca_drake.cueing.optimal import OptimalConfig
+from mca_drake.platforms.files import load_platform
 from mca_drake.studies.evaluation import (
     EvaluationCase,
     EvaluationConfig,
     policy_fingerprint,
     run_evaluation,
 )
+
+KR500 = load_platform("kr500")
 
 
 def test_small_suite_report_and_resume(tmp_path):
@@ -101,7 +104,7 @@ def _write_runs(runs, pis: dict, perceived_pis: dict, seeds=(1000, 1001, 1002)) 
                 },
             }
             if mca == "dpc":
-                run["policy_sha256"] = policy_fingerprint(config)
+                run["policy_sha256"] = policy_fingerprint(config, "kr500")
             (runs / f"A_{mca}_{seed}.json").write_text(json.dumps(run))
 
 
@@ -175,20 +178,20 @@ def test_dpc_runs_of_another_policy_are_run_again(tmp_path):
 
     torch.manual_seed(3)
     other = tmp_path / "other_policy.npz"
-    save_policy(other, PolicyNetwork(), {"model": "dpc-policy"})
+    save_policy(other, PolicyNetwork(KR500), {"model": "dpc-policy"})
     case = EvaluationCase("A", "light", (1000,))
     out = tmp_path / "eval"
     shipped = EvaluationConfig(mcas=("dpc",), cases=(case,), duration_s=2.0)
     first = run_evaluation(shipped, out, progress=False)
     run_file = out / "runs" / "A_dpc_1000.json"
     # the light aircraft's flight ran the policy of its envelope
-    light = policy_fingerprint(DpcConfig(vehicle="light"))
+    light = policy_fingerprint(DpcConfig(vehicle="light"), "kr500")
     assert (
         json.loads(run_file.read_text())["policy_sha256"]
         == light
-        != policy_fingerprint(DpcConfig())
+        != policy_fingerprint(DpcConfig(), "kr500")
     )
-    assert first["policy_sha256"] == policy_fingerprint(DpcConfig())
+    assert first["policy_sha256"] == policy_fingerprint(DpcConfig(), "kr500")
     # the other policy's evaluation re-runs the flight and records the other file's hash
     second = run_evaluation(
         EvaluationConfig(mcas=(DpcConfig(policy=str(other)),), cases=(case,), duration_s=2.0),
@@ -308,13 +311,15 @@ def test_a_run_file_that_is_not_an_object_is_run_again(tmp_path, text):
     """Valid JSON that is no summary (a list, a number, a string) does not stop the suite:
     the run counts as not finished, so it is simulated again and the file overwritten."""
     from mca_drake.cueing import WashoutConfig
-    from mca_drake.studies.evaluation import _finished_run, _run_path
+    from mca_drake.studies.evaluation import finished_run, run_path
 
-    path = _run_path(tmp_path, "A", "washout", 1000)
+    path = run_path(tmp_path, "A", "washout", 1000)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
     assert (
-        _finished_run(tmp_path, EvaluationCase("A", "light", (1000,)), WashoutConfig(), 1000, 5.0)
+        finished_run(
+            tmp_path, EvaluationCase("A", "light", (1000,)), WashoutConfig(), 1000, 5.0, "kr500"
+        )
         is None
     )
 

@@ -17,10 +17,13 @@ import numpy as np
 import pytest
 
 from mca_drake.cueing import NmpcConfig
+from mca_drake.platforms.files import load_platform
 from mca_drake.platforms.usage import joint_usage
 from mca_drake.references.adversarial import ADVERSARIAL_KINDS, adversarial_reference
 from mca_drake.safety import ViabilityClamp, substep_position_coefficient
 from mca_drake.simulation.closed_loop import run_closed_loop
+
+KR500 = load_platform("kr500")
 
 DURATION_S = 5.0
 KINDS = ADVERSARIAL_KINDS
@@ -51,7 +54,11 @@ def _assert_no_violation(result, robot) -> None:
 )
 def test_station_holds_the_limits(mca, kind, robot):
     result = run_closed_loop(
-        mca=mca, reference=adversarial_reference(kind), plant="multibody", progress=False
+        mca=mca,
+        reference=adversarial_reference(kind),
+        plant="multibody",
+        progress=False,
+        robot=KR500,
     )
     _assert_no_violation(result, robot)
 
@@ -65,6 +72,7 @@ def test_station_holds_the_limits_with_converged_nmpc(kind, objective, robot):
         reference=adversarial_reference(kind),
         plant="multibody",
         progress=False,
+        robot=KR500,
     )
     _assert_no_violation(result, robot)
 
@@ -75,7 +83,11 @@ def test_adversarial_references_reach_the_limits(robot):
     peaks = {"q": 0.0, "qd": 0.0}
     for kind in ("step_fx", "step_fy"):
         result = run_closed_loop(
-            mca="dpc", reference=adversarial_reference(kind), plant="multibody", progress=False
+            mca="dpc",
+            reference=adversarial_reference(kind),
+            plant="multibody",
+            progress=False,
+            robot=KR500,
         )
         usage = joint_usage(
             result.desired_states[:, :6], result.desired_states[:, 6:], result.commands, robot

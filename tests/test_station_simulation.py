@@ -5,11 +5,14 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator, SimulatorConfig
 
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.jsbsim import fly
 from mca_drake.references.reference import reference_from_recording
 from mca_drake.simulation.builders import MakeMultibodyClosedLoop
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.systems.station import StationConfig
+
+KR500 = load_platform("kr500")
 
 SUMMARY_KEYS = {
     "mca",
@@ -34,7 +37,7 @@ def reference():
 
 @pytest.mark.parametrize("mca", ["dpc", "nmpc-rti", "washout"])
 def test_every_mca_runs_on_the_station(mca, reference):
-    diagram, handles = MakeMultibodyClosedLoop(reference, mca)
+    diagram, handles = MakeMultibodyClosedLoop(reference, mca, robot=KR500)
     simulator = Simulator(diagram)
     handles["station"].SetInitialState(simulator.get_mutable_context())
     simulator.AdvanceTo(0.5)
@@ -55,8 +58,11 @@ def test_measured_pi_matches_the_analytical_plant(reference, tmp_path):
         duration_s=10.0,
         progress=False,
         plot_dir=tmp_path,
+        robot=KR500,
     )
-    analytical = run_closed_loop(mca="dpc", reference=reference, duration_s=10.0, progress=False)
+    analytical = run_closed_loop(
+        mca="dpc", reference=reference, duration_s=10.0, progress=False, robot=KR500
+    )
     summary = station.summary
     assert SUMMARY_KEYS <= set(summary)
     assert summary["plant"] == "multibody"
@@ -83,6 +89,7 @@ def test_noise_and_delay_degrade_gracefully(reference):
         duration_s=5.0,
         station=config,
         progress=False,
+        robot=KR500,
     )
     assert np.isfinite(result.summary["pi"])
     assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
@@ -92,7 +99,12 @@ def test_noise_and_delay_degrade_gracefully(reference):
 def test_bad_arguments_fail_clearly(reference):
     with pytest.raises(ValueError, match="duration_s"):
         run_closed_loop(
-            plant="multibody", mca="dpc", reference=reference, duration_s=1e4, progress=False
+            plant="multibody",
+            mca="dpc",
+            reference=reference,
+            duration_s=1e4,
+            progress=False,
+            robot=KR500,
         )
     with pytest.raises(ValueError, match="whole number of plant steps"):
         run_closed_loop(
@@ -102,10 +114,16 @@ def test_bad_arguments_fail_clearly(reference):
             duration_s=1.0,
             station=StationConfig(plant_time_step=0.003),
             progress=False,
+            robot=KR500,
         )
     with pytest.raises(ValueError, match="unknown MCA"):
         run_closed_loop(
-            plant="multibody", mca="lqr", reference=reference, duration_s=1.0, progress=False
+            plant="multibody",
+            mca="lqr",
+            reference=reference,
+            duration_s=1.0,
+            progress=False,
+            robot=KR500,
         )
 
 
@@ -117,5 +135,6 @@ def test_realtime_mode_paces_the_simulation(reference):
         duration_s=0.5,
         simulator_config=SimulatorConfig(target_realtime_rate=1.0),
         progress=False,
+        robot=KR500,
     )
     assert 0.7 < result.summary["realtime_factor"] <= 1.05

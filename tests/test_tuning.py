@@ -15,6 +15,7 @@ import pytest
 from mca_drake.app.jobs import run_scenario
 from mca_drake.app.scenarios import load_scenario
 from mca_drake.cueing import NmpcConfig, WashoutConfig
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.drives import training_spec
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.studies.tuning import (
@@ -25,6 +26,8 @@ from mca_drake.studies.tuning import (
     search_space,
     starting_point,
 )
+
+KR500 = load_platform("kr500")
 
 REPO = Path(__file__).resolve().parents[1]
 # no false-rotation limit: what is tested here is the tune's machinery, whatever 2 s show
@@ -139,7 +142,11 @@ def test_a_car_in_the_flights_is_tuned_on_its_training_drive(tmp_path):
     assert spec.manoeuvre == "lap" and spec.car == "bmw-320i"
     assert training_spec("bmw-320i", 101).manoeuvre == "proving-ground"
     direct = run_closed_loop(
-        mca=WashoutConfig(), reference=motion_reference(spec, 4.0), duration_s=4.0, progress=False
+        mca=WashoutConfig(),
+        reference=motion_reference(spec, 4.0),
+        duration_s=4.0,
+        progress=False,
+        robot=KR500,
     ).summary
     assert scores["pi"] == [pytest.approx(direct["pi"])]
     assert scores["pi_zero_motion"] == [pytest.approx(direct["pi_zero_motion"])]
@@ -205,3 +212,35 @@ def test_a_resumed_tune_draws_the_trials_of_an_uninterrupted_one(tmp_path):
     ]
     assert len(drawn[0]) == len(drawn[1]) == 3
     assert drawn[0] == drawn[1]
+
+
+def test_a_tune_on_a_platform_scores_its_closed_loops_there(tmp_path):
+    """Oracle: the closed loop run directly on the rail: a trial of a tune with
+    platform kr500-rail scores exactly that run, not the KR500's."""
+    from mca_drake.references.drives import motion_reference
+    from mca_drake.studies.tuning import score_config
+
+    tuning = TuningConfig(
+        mca="washout",
+        duration_s=3.0,
+        flights=(("light", 100),),
+        max_false_rotation_deg_s=0,
+        platform="kr500-rail",
+    )
+    tuning.validate()
+    scores = score_config(WashoutConfig(), tuning, tmp_path)
+    reference = motion_reference(training_spec("light", 100), 3.0)
+    on = {
+        name: run_closed_loop(
+            mca=WashoutConfig(),
+            reference=reference,
+            duration_s=3.0,
+            progress=False,
+            robot=load_platform(name),
+        ).summary["pi"]
+        for name in ("kr500-rail", "kr500")
+    }
+    assert scores["pi"] == [pytest.approx(on["kr500-rail"])]
+    assert on["kr500-rail"] != on["kr500"]
+    with pytest.raises(FileNotFoundError, match="kr5000"):
+        TuningConfig(platform="kr5000").validate()

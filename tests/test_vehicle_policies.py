@@ -16,13 +16,16 @@ from mca_drake.cueing.dpc import (
     vehicle_policy_name,
 )
 from mca_drake.learning.dpc_training import flights_of_vehicles
+from mca_drake.platforms.files import load_platform
 from mca_drake.references.jsbsim import VEHICLES
 from mca_drake.references.recording import Recording
 from mca_drake.references.reference import Reference, reference_from_recording
 from mca_drake.references.synthetic import ENVELOPES, VEHICLE_ENVELOPES
 from mca_drake.resources import SHIPPED_POLICIES
-from mca_drake.segments import CORE_SHAPES, SOURCE_COLUMNS, SegmentDataset
+from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, core_shapes
 from mca_drake.simulation.closed_loop import run_closed_loop
+
+KR500 = load_platform("kr500")
 
 LIGHT = ("light", "DHC6")
 TRANSPORT = ("jet", "A320", "787-8", "MD11", "B747")
@@ -43,24 +46,26 @@ def test_light_and_transport_aircraft_get_their_policy_and_the_rest_the_default(
         for vehicle in vehicles:
             assert VEHICLE_ENVELOPES[vehicle] == envelope
             assert vehicle_policy_name(vehicle) == policy, vehicle
-            assert DpcConfig(vehicle=vehicle).policy_path() == shipped_policy_path(policy)
+            assert DpcConfig(vehicle=vehicle).policy_path("kr500") == shipped_policy_path(policy)
     for vehicle in (*AEROBATIC_FIGHTER, "", "bmw-320i", "no-such-aircraft"):
         assert vehicle_policy_name(vehicle) == "default_policy", vehicle
-        assert DpcConfig(vehicle=vehicle).policy_path() == default_policy_path()
+        assert DpcConfig(vehicle=vehicle).policy_path("kr500") == default_policy_path()
     files = {shipped_policy_path(p).read_bytes() for p in ("light_policy", "transport_policy")}
     assert len(files | {default_policy_path().read_bytes()}) == 3
 
 
 def test_a_named_policy_or_profile_wins_over_the_vehicle():
     v6 = shipped_policy_path("policy_v6")
-    assert DpcConfig(policy=str(v6), vehicle="light").policy_path() == v6
-    ground = DpcConfig(profile="ground", vehicle="light").policy_path()
+    assert DpcConfig(policy=str(v6), vehicle="light").policy_path("kr500") == v6
+    ground = DpcConfig(profile="ground", vehicle="light").policy_path("kr500")
     assert ground == shipped_policy_path("ground_policy")
 
 
 def test_for_vehicle_fills_only_a_dpc_without_a_vehicle():
     assert for_vehicle(DpcConfig(), "MD11") == DpcConfig(vehicle="MD11")
-    assert for_vehicle(DpcConfig(), "light").policy_path() == shipped_policy_path("light_policy")
+    assert for_vehicle(DpcConfig(), "light").policy_path("kr500") == shipped_policy_path(
+        "light_policy"
+    )
     assert for_vehicle(DpcConfig(vehicle="f16"), "MD11") == DpcConfig(vehicle="f16")
     assert for_vehicle(DpcConfig(), "") == DpcConfig()
     nmpc = NmpcConfig(mode="rti")
@@ -100,9 +105,13 @@ def _reference(vehicle: str) -> Reference:
 def test_the_closed_loop_runs_the_reference_vehicles_policy(vehicle, policy):
     """The run of DpcConfig() on a reference of `vehicle` is, array for array, the run of
     the envelope's policy file named outright; its summary records the vehicle."""
-    picked = run_closed_loop(mca=DpcConfig(), reference=_reference(vehicle), progress=False)
+    picked = run_closed_loop(
+        mca=DpcConfig(), reference=_reference(vehicle), progress=False, robot=KR500
+    )
     named = DpcConfig(policy=str(shipped_policy_path(policy)))
-    outright = run_closed_loop(mca=named, reference=_reference(vehicle), progress=False)
+    outright = run_closed_loop(
+        mca=named, reference=_reference(vehicle), progress=False, robot=KR500
+    )
     np.testing.assert_array_equal(picked.outputs, outright.outputs)
     assert picked.summary["mca"] == "dpc"
     assert picked.summary["mca_config"]["vehicle"] == vehicle
@@ -112,7 +121,7 @@ def test_the_closed_loop_runs_the_reference_vehicles_policy(vehicle, policy):
 def _dataset(vehicles: dict[str, str]) -> SegmentDataset:
     """Two 4-step segments per flight seed, zeros, with `flight_vehicles` metadata."""
     seeds = [int(s) for s in vehicles for _ in range(2)]
-    arrays = {k: np.zeros((len(seeds), 4, *shape)) for k, shape in CORE_SHAPES.items()}
+    arrays = {k: np.zeros((len(seeds), 4, *shape)) for k, shape in core_shapes(6).items()}
     source = np.zeros((len(seeds), len(SOURCE_COLUMNS)), dtype=int)
     source[:, SOURCE_COLUMNS.index("flight_seed")] = seeds
     return SegmentDataset(arrays, source, {"flight_vehicles": vehicles})
@@ -143,4 +152,4 @@ def test_a_recording_names_no_vehicle_and_a_built_in_flight_its_own(tmp_path):
     recorded = motion_reference(FlightSpec(recording=str(csv)), 0.5)
     assert recorded.vehicle == "" and FlightSpec(vehicle="DHC6").flown_by() == "DHC6"
     picked = for_vehicle(DpcConfig(), recorded.vehicle)
-    assert picked.policy_path() == default_policy_path()
+    assert picked.policy_path("kr500") == default_policy_path()

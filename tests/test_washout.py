@@ -9,9 +9,12 @@ from scipy import signal
 
 from mca_drake.conventions import GRAVITY
 from mca_drake.cueing.washout import WashoutConfig, WashoutFilters
+from mca_drake.platforms.files import load_platform
 from mca_drake.platforms.kinematics import head_pose
 from mca_drake.references.reference import Reference
 from mca_drake.simulation.closed_loop import run_closed_loop
+
+KR500 = load_platform("kr500")
 
 H = 0.01
 
@@ -60,7 +63,9 @@ def surge_run():
     steps, on = 2000, 800
     y = np.zeros((steps, 6))
     y[:on, 3] = 1.0  # 8 s of sustained surge
-    result = run_closed_loop(mca="washout", reference=Reference(y, H, "surge"), progress=False)
+    result = run_closed_loop(
+        mca="washout", reference=Reference(y, H, "surge"), progress=False, robot=KR500
+    )
     return result, on
 
 

@@ -61,7 +61,13 @@ def test_train_policy_runs_without_drake_on_a_profiles_objective(tmp_path):
 
     assert result["status"] == 0
     assert result["pydrake_loaded"] == []
-    assert result["commands"] == ["export-policy", "platforms", "table2", "train-policy"]
+    assert result["commands"] == [
+        "export-policy",
+        "platforms",
+        "table2",
+        "train-policy",
+        "transfer-policy",
+    ]
     policy = np.load(tmp_path / "policy" / "policy.npz")
     metadata = json.loads(str(policy["metadata_json"]))
     # The loss is the ground profile's NMPC objective, read without Drake's YAML loader.

@@ -22,8 +22,8 @@ from mca_drake.app.scenarios import (
 )
 from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.conventions import CHANNELS
-from mca_drake.cueing import mca_config_record, mca_name
-from mca_drake.platforms.files import load_platform
+from mca_drake.cueing import mca_config_record, mca_name, on_platform
+from mca_drake.platforms.files import load_platform, packaged_name
 from mca_drake.platforms.usage import joint_usage
 from mca_drake.plotting import plot_outputs, save_figure
 from mca_drake.references.drives import motion_reference
@@ -146,7 +146,7 @@ def run_closed_loop_scenario(
     if multibody and scenario.visualization is not None and meshcat is None:
         meshcat = start_meshcat()
     return run_closed_loop(
-        mca=scenario.mca,
+        mca=on_platform(scenario.mca, packaged_name(scenario.platform)),
         reference=reference,
         plant=scenario.plant,
         robot=load_platform(scenario.platform),
@@ -247,8 +247,9 @@ def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None
         rsi = dataclasses.replace(scenario.rsi, host=host, port=port, motion=motion)
     summary = run_live(
         decoder,
-        scenario.mca,
+        on_platform(scenario.mca, packaged_name(scenario.platform)),
         scenario.duration_s,
+        robot=load_platform(scenario.platform),
         receiver=ReceiverConfig(
             host=scenario.host, port=scenario.port, allowed_senders=scenario.allowed_senders
         ),

@@ -47,7 +47,12 @@ from mca_drake.live.outsim import OutSimConfig
 from mca_drake.live.receiver import allowed_senders
 from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.perception.models import PerceptionConfig
-from mca_drake.platforms.files import DEFAULT_PLATFORM, SerialRobot, load_platform
+from mca_drake.platforms.files import (
+    DEFAULT_PLATFORM,
+    SerialRobot,
+    load_platform,
+    packaged_name,
+)
 from mca_drake.references.drives import DriveSpec
 from mca_drake.references.flights import FlightSpec
 from mca_drake.resources import scenario_path
@@ -139,7 +144,7 @@ class ClosedLoopScenario:
     output_dir: str = "results/closed_loop"
 
     def __post_init__(self) -> None:
-        self.mca = as_mca_config(self.mca)
+        self.mca = as_mca_config(self.mca, packaged_name(self.platform))
 
     def validate(self) -> None:
         """Raises ValueError (FileNotFoundError for a missing file) for values that cannot
@@ -225,9 +230,13 @@ class EvaluationScenario:
     # Each flight's offline-optimal bound too, with these settings, and every MCA's share
     # of the achievable improvement; null: no bound.
     bound: Optional[OptimalConfig] = None  # noqa: UP045 (YAML loader)
+    # The motion platform every run cues on: a packaged name (`mca-drake platforms`; its
+    # tuned settings are the defaults of the MCAs named), a platform file, or an inline
+    # !SerialRobot {...}.
+    platform: Union[str, SerialRobot] = DEFAULT_PLATFORM  # noqa: UP007 (YAML loader)
 
     def __post_init__(self) -> None:
-        self.mcas = [as_mca_config(m) for m in self.mcas]
+        self.mcas = [as_mca_config(m, packaged_name(self.platform)) for m in self.mcas]
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""
@@ -288,7 +297,11 @@ class EvaluationScenario:
                 )
             )
         return EvaluationConfig(
-            mcas=tuple(self.mcas), cases=tuple(cases), duration_s=self.duration_s, bound=self.bound
+            mcas=tuple(self.mcas),
+            cases=tuple(cases),
+            duration_s=self.duration_s,
+            bound=self.bound,
+            platform=self.platform,
         )
 
 
@@ -325,14 +338,18 @@ class DatasetScenario:
     address: str = ""
     # Folder of the per-flight files and the merged dataset.npz (resumable).
     output_dir: str = DEFAULT_DATASET_DIR
+    # The motion platform the MCA cues on: a packaged name (`mca-drake platforms`), a
+    # platform file, or an inline !SerialRobot {...}.
+    platform: Union[str, SerialRobot] = DEFAULT_PLATFORM  # noqa: UP007 (YAML loader)
 
     def __post_init__(self) -> None:
-        self.mca = as_mca_config(self.mca)
+        self.mca = as_mca_config(self.mca, packaged_name(self.platform))
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""
         if self.workers < 1:
             raise ValueError(f"workers must be >= 1; got {self.workers}")
+        check_platform(self.platform)
         self.mca.validate()
         self.to_config().validate()
 
@@ -349,6 +366,7 @@ class DatasetScenario:
             horizon=self.horizon,
             mca=self.mca,
             split_seed=self.split_seed,
+            platform=self.platform,
         )
 
 
@@ -398,9 +416,12 @@ class LiveScenario:
     realtime_rate: float = 1.0
     # The result summary with its live (and rsi) block; "": none.
     output_json: str = "results/live/summary.json"
+    # The motion platform cued: a packaged name (`mca-drake platforms`), a platform file,
+    # or an inline !SerialRobot {...}.
+    platform: Union[str, SerialRobot] = DEFAULT_PLATFORM  # noqa: UP007 (YAML loader)
 
     def __post_init__(self) -> None:
-        self.mca = as_mca_config(self.mca)
+        self.mca = as_mca_config(self.mca, packaged_name(self.platform))
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run, naming the field."""
@@ -408,6 +429,7 @@ class LiveScenario:
         if self.plant not in PLANTS:
             raise ValueError(f"plant must be one of {', '.join(PLANTS)}; got {self.plant!r}")
         check_range("LiveScenario", "duration_s", self.duration_s, CONTROL_PERIOD_S, MAX_DURATION_S)
+        check_platform(self.platform)
         if self.rsi_cycle_ms not in (4, 12):
             raise ValueError(f"rsi_cycle_ms must be 4 or 12; got {self.rsi_cycle_ms}")
         try:
@@ -436,7 +458,9 @@ class LiveScenario:
             raise ValueError("live telemetry has no future: the NMPC's preview_steps must be 0")
         self.mca.validate()
         if isinstance(self.mca, DpcConfig):
-            _, metadata = load_policy_arrays(self.mca.policy_path())
+            _, metadata = load_policy_arrays(
+                self.mca.policy_path(load_platform(self.platform).name)
+            )
             if policy_preview_steps(metadata):
                 raise ValueError(
                     "live telemetry has no future: the DPC policy reads a reference preview"

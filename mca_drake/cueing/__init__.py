@@ -18,6 +18,7 @@ from mca_drake.cueing.configs import (
     mca_config_from_name,
     mca_config_record,
     mca_name,
+    on_platform,
 )
 from mca_drake.cueing.dpc import DpcConfig
 from mca_drake.cueing.nmpc_config import NmpcConfig
@@ -33,4 +34,5 @@ __all__ = [
     "mca_config_from_name",
     "mca_config_record",
     "mca_name",
+    "on_platform",
 ]

@@ -15,7 +15,12 @@ from typing import Union
 
 from mca_drake.cueing.dpc import DpcConfig
 from mca_drake.cueing.nmpc_config import NmpcConfig
-from mca_drake.cueing.profiles import PROFILES, profile_config, split_profile
+from mca_drake.cueing.profiles import (
+    PROFILES,
+    load_platform_settings,
+    profile_config,
+    split_profile,
+)
 from mca_drake.cueing.washout import WashoutConfig
 
 # typing.Union, not `|`: Drake's YAML loader reads the members' tags from it.
@@ -31,14 +36,22 @@ MCA_NAMES = (
 )
 
 
-def mca_config_from_name(name: str) -> McaConfig:
+def mca_config_from_name(name: str, platform: str = "") -> McaConfig:
     """The default config of the MCA called `name` (one of MCA_NAMES), or its shipped
-    profile's config where the name ends in one ("washout-ground": `cueing.profiles`).
+    profile's config where the name ends in one ("washout-ground": `cueing.profiles`). On
+    the packaged platform named `platform` ("": none) that ships tuned settings
+    (`profiles.load_platform_settings`), the NMPC's and the washout's defaults are those.
 
     Raises:
         ValueError: an unknown name; the message lists the valid ones.
     """
     base, profile = split_profile(name)
+    tuned = load_platform_settings(platform) if not profile else None
+    if tuned is not None and base in MCA_NAMES and base != "dpc":
+        default = mca_config_from_name(base)
+        if isinstance(default, NmpcConfig):
+            return dataclasses.replace(tuned.nmpc, mode=default.mode, objective=default.objective)
+        return tuned.washout
     if profile:
         if base not in MCA_NAMES:
             raise ValueError(
@@ -60,14 +73,31 @@ def mca_config_from_name(name: str) -> McaConfig:
     raise ValueError(f"unknown MCA '{name}'; valid: {', '.join(MCA_NAMES)}")
 
 
-def as_mca_config(mca: McaConfig | str) -> McaConfig:
-    """`mca` itself if it is an MCA config, else the default config of that name."""
+def as_mca_config(mca: McaConfig | str, platform: str = "") -> McaConfig:
+    """`mca` itself if it is an MCA config, else the default config of that name; on the
+    packaged platform named `platform` ("": none), as `on_platform` gives it."""
     if isinstance(mca, str):
-        return mca_config_from_name(mca)
+        return mca_config_from_name(mca, platform)
     if not isinstance(mca, MCA_CONFIG_TYPES):
         valid = ", ".join(t.__name__ for t in MCA_CONFIG_TYPES)
         raise TypeError(f"an MCA is one of {valid} or a name; got {type(mca).__name__}")
-    return mca
+    return on_platform(mca, platform)
+
+
+def on_platform(config: McaConfig, platform: str) -> McaConfig:
+    """`config` for the packaged platform named `platform` ("": none): a config equal to
+    the class defaults of its name (what `--mca nmpc-rti` or `mca: nmpc-rti` give) stands
+    for that name, and becomes the name's defaults on the platform, its tuned settings
+    where it ships them (`profiles.load_platform_settings`); a config with any field set
+    otherwise is the user's and is returned as it is."""
+    if not platform or load_platform_settings(platform) is None:
+        return config
+    name = mca_name(config)
+    try:
+        default = mca_config_from_name(name)
+    except ValueError:  # a preview NMPC's name, say: no shorthand stands for it
+        return config
+    return mca_config_from_name(name, platform) if config == default else config
 
 
 def mca_name(config: McaConfig) -> str:

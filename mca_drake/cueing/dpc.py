@@ -1,9 +1,11 @@
 """DPC inference: the policy-file format, its reader and the numpy policy (no torch).
 
 A policy file (.npz, no pickle) holds the exported weights of
-`mca_drake.learning.policy_network.PolicyNetwork` and a JSON metadata string: W1 (hidden, 24),
-W2 (18, hidden), input_scale (24), lower, upper (18); a policy with a reference preview
-(metadata `preview_steps` > 0) has 24 more inputs, the reference at `preview_offsets`.
+`mca_drake.learning.policy_network.PolicyNetwork` and a JSON metadata string; for a platform
+of n joints: W1 (hidden, 12 + 2n), W2 (3n, hidden), input_scale (12 + 2n), lower, upper (3n)
+(the KR500's n = 6: 24 inputs, 18 outputs); a policy with a reference preview (metadata
+`preview_steps` > 0) has 24 more inputs, the reference at `preview_offsets`. The metadata's
+`platform` names the platform the policy was trained for (`check_policy_platform`).
 `PolicyInference` evaluates it in numpy, equal to the torch network (tested to 1e-6): the
 same scaled inputs, two bias-free layers with the exact (erf) GELU between, and the
 saturation to the limits.
@@ -17,7 +19,7 @@ import numpy as np
 from scipy.special import erf
 
 from mca_drake.atomic_io import load_npz_with_metadata
-from mca_drake.platforms.serial import NUM_JOINTS
+from mca_drake.conventions import NUM_CHANNELS
 from mca_drake.references.synthetic import VEHICLE_ENVELOPES
 from mca_drake.resources import SHIPPED_POLICIES, check_profile, data_dir
 
@@ -26,9 +28,6 @@ _SQRT_HALF = np.sqrt(0.5)
 POLICY_FORMAT = "mca-drake-policy-1"
 # The arrays of a policy file, in the order `PolicyNetwork.export` writes them.
 POLICY_ARRAYS = ("W1", "W2", "input_scale", "lower", "upper")
-# Inputs [y (6), x = [q, qd] (12), target (6)] and outputs [u (6), x_hat (12)] of the policy.
-INPUT_SIZE = 6 + 2 * NUM_JOINTS + 6
-OUTPUT_SIZE = NUM_JOINTS + 2 * NUM_JOINTS
 # A policy with a reference preview of N control periods (its file's `preview_steps`) also
 # reads the reference at this many instants spread evenly over the next N periods
 # (`preview_offsets`): 6 more inputs each.
@@ -42,22 +41,48 @@ def preview_offsets(preview_steps: int) -> np.ndarray:
     return np.maximum(np.rint(preview_steps * points / PREVIEW_POINTS).astype(int), 1)
 
 
-def input_size(preview_steps: int) -> int:
-    """The policy's inputs: INPUT_SIZE, plus 6 per preview instant with a preview."""
-    return INPUT_SIZE + (6 * PREVIEW_POINTS if preview_steps else 0)
+def input_size(preview_steps: int, joints: int) -> int:
+    """The inputs of a policy for a platform of `joints` joints: [y (6), x = [q, qd]
+    (2 joints), target (6)], plus 6 per preview instant with a preview."""
+    return (
+        NUM_CHANNELS
+        + 2 * joints
+        + NUM_CHANNELS
+        + (NUM_CHANNELS * PREVIEW_POINTS if preview_steps else 0)
+    )
+
+
+def output_size(joints: int) -> int:
+    """The outputs of a policy for a platform of `joints` joints: [u (joints),
+    x_hat = [q, qd] (2 joints)]."""
+    return 3 * joints
+
+
+def policy_joints(arrays: dict[str, np.ndarray]) -> int:
+    """The joint count of a policy's arrays (a third of its outputs)."""
+    return arrays["W2"].shape[0] // 3
 
 
 # The platform a policy file that names none was trained for: every shipped policy's.
 UNNAMED_POLICY_PLATFORM = "kr500"
 
 
-def policy_platform(metadata: dict) -> str:
-    """The name of the platform a policy file was trained for (its metadata's
-    `platform.name`; UNNAMED_POLICY_PLATFORM where it names none)."""
+def policy_platform_record(metadata: dict) -> dict:
+    """A policy file's record of the platform it was trained for (`SerialChain.summary`:
+    name, kind, dof, joints); {"name": UNNAMED_POLICY_PLATFORM} where it names none."""
     record = metadata.get("platform", {"name": UNNAMED_POLICY_PLATFORM})
     if not isinstance(record, dict) or not isinstance(record.get("name"), str):
         raise ValueError(f"policy platform must be a record with a name; got {record!r}")
-    return record["name"]
+    dof = record.get("dof")
+    if dof is not None and (isinstance(dof, bool) or not isinstance(dof, int) or dof < 1):
+        raise ValueError(f"policy platform dof must be a whole number >= 1; got {dof!r}")
+    return record
+
+
+def policy_platform(metadata: dict) -> str:
+    """The name of the platform a policy file was trained for (its metadata's
+    `platform.name`; UNNAMED_POLICY_PLATFORM where it names none)."""
+    return policy_platform_record(metadata)["name"]
 
 
 def check_policy_platform(path, metadata: dict, platform_name: str) -> None:
@@ -107,17 +132,57 @@ class DpcConfig:
         if self.policy and not Path(self.policy).is_file():
             raise FileNotFoundError(f"DpcConfig.policy: policy file {self.policy!r} not found")
         if self.profile and not self.policy:
-            self.policy_path()  # the profile's shipped policy: ValueError or FileNotFoundError
+            # the profile's shipped policy: ValueError or FileNotFoundError
+            self.policy_path(UNNAMED_POLICY_PLATFORM)
 
-    def policy_path(self) -> Path:
-        """The policy file this config runs: `policy`, or the shipped one of `profile`, or
-        the shipped one for `vehicle`'s envelope."""
+    def policy_path(self, platform: str) -> Path:
+        """The policy file this config runs on the platform named `platform`: `policy`, or
+        the shipped one of `profile`, or the shipped one for `vehicle`'s envelope (on the
+        KR500), or the platform's shipped policy (`PLATFORM_POLICIES`).
+
+        Raises:
+            ValueError: a profile asked for on a platform without a policy of that profile.
+            FileNotFoundError: no policy is shipped for the platform (the message gives the
+                command that trains one), or the install lacks the file.
+        """
         if self.policy:
             return Path(self.policy)
+        if platform != UNNAMED_POLICY_PLATFORM:
+            return platform_policy_path(platform, self.profile)
         if self.profile:
             return shipped_policy_path(f"{check_profile(self.profile)}_policy")
         name = vehicle_policy_name(self.vehicle)
         return default_policy_path() if name == "default_policy" else shipped_policy_path(name)
+
+
+# The shipped policy of each packaged platform other than the KR500 (whose policies are
+# chosen by profile and flight envelope): the KR500's default policy moved onto its joints
+# (`mca-drake transfer-policy`), which cued the validation flights better than fine-tuning
+# it on a dataset made on the platform (docs/concepts/platforms.md gives the commands and
+# figures; docs/decisions/0022-each-platform-its-policy-and-settings.md).
+PLATFORM_POLICIES = {
+    "kr500-rail": "kr500-rail_policy",
+    "fanuc-m900ib700": "fanuc-m900ib700_policy",
+}
+
+
+def platform_policy_path(platform: str, profile: str = "") -> Path:
+    """The shipped policy of `platform` (`PLATFORM_POLICIES`); a profile's policy exists on
+    the KR500 alone (ValueError for another). FileNotFoundError names the command that
+    trains one for a platform without a shipped policy."""
+    check_profile(profile)
+    if platform not in PLATFORM_POLICIES:
+        raise FileNotFoundError(
+            f"no policy is shipped for platform '{platform}': train one with `mca-drake "
+            f"dataset closed-loop --platform {platform}` and `mca-drake train-policy "
+            f"--platform {platform}`, then pass it as --policy (DpcConfig.policy)"
+        )
+    if profile:
+        raise ValueError(
+            f"the {profile} profile's policy is shipped for the {UNNAMED_POLICY_PLATFORM} "
+            f"alone, not for '{platform}': pass a policy trained for it (DpcConfig.policy)"
+        )
+    return shipped_policy_path(PLATFORM_POLICIES[platform])
 
 
 def vehicle_policy_name(vehicle: str) -> str:
@@ -203,14 +268,22 @@ def load_policy_arrays(path) -> tuple[dict[str, np.ndarray], dict]:
     arrays = {k: v.astype(float) for k, v in raw.items()}
     if metadata.get("format") != POLICY_FORMAT:
         raise ValueError(f"{path}: unknown policy format {metadata.get('format')!r}")
-    hidden = arrays["W1"].shape[0]
-    inputs = input_size(policy_preview_steps(metadata))
+    if arrays["W1"].ndim != 2 or arrays["W2"].ndim != 2 or arrays["W2"].shape[0] % 3:
+        raise ValueError(
+            f"{path}: W1 {arrays['W1'].shape} and W2 {arrays['W2'].shape} are not the layers "
+            "of a policy (W2 has 3 rows per joint)"
+        )
+    hidden, joints = arrays["W1"].shape[0], policy_joints(arrays)
+    named = policy_platform_record(metadata).get("dof", joints)
+    if named != joints:
+        raise ValueError(f"{path}: the policy has {joints} joints, its platform record {named}")
+    inputs = input_size(policy_preview_steps(metadata), joints)
     expected = {
         "W1": (hidden, inputs),
-        "W2": (OUTPUT_SIZE, hidden),
+        "W2": (output_size(joints), hidden),
         "input_scale": (inputs,),
-        "lower": (OUTPUT_SIZE,),
-        "upper": (OUTPUT_SIZE,),
+        "lower": (output_size(joints),),
+        "upper": (output_size(joints),),
     }
     for name, shape in expected.items():
         if arrays[name].shape != shape:
@@ -226,8 +299,9 @@ class PolicyInference:
     """u, x_hat = policy(y, x, target) in numpy from the arrays of a policy file.
 
     Args:
-        arrays: W1 (hidden, 24), W2 (18, hidden), input_scale (24), lower, upper (18), as
-            written by `mca_drake.learning.policy_network.save_policy` (see `load_policy_arrays`).
+        arrays: W1 (hidden, 12 + 2n), W2 (3n, hidden), input_scale (12 + 2n), lower, upper
+            (3n) for a platform of n joints, as written by
+            `mca_drake.learning.policy_network.save_policy` (see `load_policy_arrays`).
     """
 
     def __init__(self, arrays: dict[str, np.ndarray]):
@@ -238,31 +312,30 @@ class PolicyInference:
         self._W1 = np.ascontiguousarray(arrays["W1"] / arrays["input_scale"][None, :] * _SQRT_HALF)
         self._W2 = np.ascontiguousarray(arrays["W2"] * _SQRT_HALF)
         self._lower, self._upper = arrays["lower"].copy(), arrays["upper"].copy()
+        self.joints = n = policy_joints(arrays)
         # u's rows and bounds alone, for `command`
-        self._W2_u = np.ascontiguousarray(self._W2[:NUM_JOINTS])
-        self._u_bounds = list(
-            zip(self._lower[:NUM_JOINTS].tolist(), self._upper[:NUM_JOINTS].tolist(), strict=True)
-        )
+        self._W2_u = np.ascontiguousarray(self._W2[:n])
+        self._u_bounds = list(zip(self._lower[:n].tolist(), self._upper[:n].tolist(), strict=True))
 
     def __call__(self, y, x, target, preview=()) -> tuple[np.ndarray, np.ndarray]:
-        """(u (6), x_hat (12)) for y (6), x (12), target (6) and, for a policy with a
+        """(u (n), x_hat (2n)) for y (6), x (2n), target (6) and, for a policy with a
         preview, the reference at its `preview_offsets` (24); 1-D numpy arrays."""
         # A new feature vector per call (0.1 us), not a buffer on self: one inference object
         # may serve several contexts at once.
         b = self._W1 @ np.concatenate((y, x, target, preview))
         z = np.minimum(np.maximum(self._W2 @ (b + b * erf(b)), self._lower), self._upper)
-        return z[:NUM_JOINTS], z[NUM_JOINTS:]
+        return z[: self.joints], z[self.joints :]
 
     def command(self, y, x, target, preview=()) -> list[float]:
-        """u alone, as `__call__` computes it, in six Python floats: the live loop's step
-        (fewer numpy calls, and none to bound u). NaN in all six where an input is not finite
+        """u alone, as `__call__` computes it, in n Python floats: the live loop's step
+        (fewer numpy calls, and none to bound u). NaN in all where an input is not finite
         (their sum is not: one call instead of a check per input) or the network overflows,
         which the bounds would otherwise hide."""
         features = np.concatenate((y, x, target, preview))
         if not math.isfinite(features.sum()):
-            return [math.nan] * NUM_JOINTS
+            return [math.nan] * self.joints
         b = self._W1 @ features
         raw = (self._W2_u @ (b + b * erf(b))).tolist()
         if not all(map(math.isfinite, raw)):
-            return [math.nan] * NUM_JOINTS
+            return [math.nan] * self.joints
         return [min(max(v, low), high) for v, (low, high) in zip(raw, self._u_bounds, strict=True)]

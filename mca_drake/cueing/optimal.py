@@ -42,7 +42,6 @@ from mca_drake.cueing.stagewise_qp import solve_stagewise_qp
 from mca_drake.input_checks import as_float_array, check_config_numbers
 from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
 from mca_drake.platforms.serial import SerialChain
 
@@ -146,17 +145,15 @@ class OptimalCueing:
     Args:
         steps: T, the reference's samples.
         config: the bound's settings (default OptimalConfig()).
-        robot: the KR500 description.
+        robot: the platform (its joints, limits and kinematics).
     """
 
-    def __init__(
-        self, steps: int, config: OptimalConfig | None = None, robot: SerialChain | None = None
-    ):
+    def __init__(self, steps: int, config: OptimalConfig | None, robot: SerialChain):
         self.config = config or OptimalConfig()
         self.config.validate()
         if steps < 1:
             raise ValueError(f"steps must be at least 1; got {steps}")
-        self.robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
+        self.robot = robot
         self.nu = robot_joints = self.robot.num_joints
         self.nx = 2 * robot_joints
         if np.any(self.robot.home != 0.0):

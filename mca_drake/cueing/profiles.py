@@ -11,6 +11,11 @@ profile in its `profile` field, so summaries and reports name it.
 The NMPC's and the washout's settings are in `mca_drake/data/profiles/<profile>.yaml` (with
 the tune that produced them); the DPC's policy is the shipped policy `<profile>_policy`
 (`mca_drake.resources.SHIPPED_POLICIES`).
+
+A packaged motion platform other than the KR500 may ship its own tuned settings in the same
+format, `mca_drake/data/platforms/<platform>.yaml` (`load_platform_settings`): they are the
+defaults of the NMPC and the washout on that platform (`mca_config_from_name(name,
+platform)`), as the class defaults are the KR500's.
 """
 
 import dataclasses
@@ -23,7 +28,14 @@ from mca_drake.cueing.nmpc_config import NmpcConfig
 from mca_drake.cueing.washout import WashoutConfig
 from mca_drake.resources import PROFILES, check_profile, data_dir, split_profile
 
-__all__ = ["PROFILES", "ProfileSettings", "load_profile", "profile_config", "split_profile"]
+__all__ = [
+    "PROFILES",
+    "ProfileSettings",
+    "load_platform_settings",
+    "load_profile",
+    "profile_config",
+    "split_profile",
+]
 
 
 @dataclasses.dataclass
@@ -50,20 +62,44 @@ def load_profile(profile: str) -> ProfileSettings:
     profile's NMPC objective); every key must be a field of its config and every value of
     that field's type, or ValueError names the file and the key.
     """
-    path = profile_path(profile)
-    with open(path, encoding="utf-8") as f:
-        document = yaml.safe_load(f) or {}
-    if not isinstance(document, dict) or not set(document) <= {"nmpc", "washout"}:
-        raise ValueError(f"{path}: want a mapping with the sections nmpc and washout")
-    settings = ProfileSettings(
-        nmpc=_typed_config(NmpcConfig, document.get("nmpc"), f"{path}: nmpc"),
-        washout=_typed_config(WashoutConfig, document.get("washout"), f"{path}: washout"),
-    )
+    settings = read_settings(profile_path(profile))
     settings.nmpc.profile = profile
     settings.washout.profile = profile
     settings.nmpc.validate()
     settings.washout.validate()
     return settings
+
+
+def platform_settings_path(platform: str) -> Path:
+    """Where the tuned settings of the packaged platform `platform` are shipped (the file
+    need not exist: most platforms run the KR500's defaults until tuned)."""
+    return data_dir() / "platforms" / f"{platform}.yaml"
+
+
+def load_platform_settings(platform: str) -> ProfileSettings | None:
+    """The tuned NMPC and washout settings shipped for the platform named `platform`
+    (`mca-drake tune --platform P`), or None where none are shipped (the class defaults,
+    tuned on the KR500, apply). ValueError names the file and the key of a bad file."""
+    path = platform_settings_path(platform) if platform else None
+    if path is None or not path.is_file():
+        return None
+    settings = read_settings(path)
+    settings.nmpc.validate()
+    settings.washout.validate()
+    return settings
+
+
+def read_settings(path: Path) -> ProfileSettings:
+    """A settings file (sections `nmpc` and `washout`, each a mapping of its config's
+    fields; a missing section: the class defaults), read with PyYAML's safe loader."""
+    with open(path, encoding="utf-8") as f:
+        document = yaml.safe_load(f) or {}
+    if not isinstance(document, dict) or not set(document) <= {"nmpc", "washout"}:
+        raise ValueError(f"{path}: want a mapping with the sections nmpc and washout")
+    return ProfileSettings(
+        nmpc=_typed_config(NmpcConfig, document.get("nmpc"), f"{path}: nmpc"),
+        washout=_typed_config(WashoutConfig, document.get("washout"), f"{path}: washout"),
+    )
 
 
 def _typed_config(kind: type, fields, where: str):

@@ -12,6 +12,7 @@ from pathlib import Path
 from mca_drake.cueing import NmpcConfig
 from mca_drake.cueing.nmpc_config import OBJECTIVES
 from mca_drake.perception.models import PerceptionConfig
+from mca_drake.platforms.files import DEFAULT_PLATFORM
 
 # Typical magnitudes of the output channels [w_x, w_y, w_z, f_x, f_y, a_z]: rad/s, m/s^2.
 # The scaled references' rates have a spread of 0.02-0.06 rad/s (the mixed-vehicle set; p99
@@ -134,10 +135,11 @@ class DpcTrainingConfig:
     input_weight: float = _NMPC.input_weight
     # Washout weight of ||q_t||^2, rad^-2: the tuned NMPC's (paper: 1).
     washout_weight: float = _NMPC.washout_weight
-    # Extra washout weight of q_1^2, rad^-2, on the base joint alone (vertical axis: no cue
-    # depends on its angle, so pulling it home costs only yaw-rate error). 0: the base joint
-    # is washed out like the others; long turns then walk it to its limit, where the
-    # viability clamp takes over.
+    # Extra washout weight of q_1^2, rad^-2 (m^-2 for a prismatic first joint), on the first
+    # joint alone (the KR500's vertical axis: no cue depends on its angle, so pulling it home
+    # costs only yaw-rate error; a rail's carriage: no cue depends on where it stands). 0:
+    # the first joint is washed out like the others; long turns then walk it to its limit,
+    # where the viability clamp takes over.
     base_washout_weight: float = 0.0
     # Weight of the squared violation of the state limits by x_(t+1): large beside the other
     # terms (order 1), so that no tracking gain pays for leaving the limits.
@@ -174,10 +176,11 @@ class DpcTrainingConfig:
     # Robot and loss are symmetric, so it teaches turns and slips the other way round
     # (docs/decisions/0003-mirrored-windows-and-scaled-terminal-weights.md).
     mirror_fraction: float = 0.5
-    # Fraction of each training batch whose rollouts start with joint 1 (vertical axis: no
-    # cue depends on its angle, checked at the start of training) turned to a uniform random
-    # angle within 90 % of its range, so that the policy sees the base joint's limits, where
-    # long turns walk it (docs/decisions/0005-base-yaw-shifted-starts.md).
+    # Fraction of each training batch whose rollouts start with the first joint (the
+    # KR500's vertical axis, a rail's carriage: no cue depends on its position, checked at
+    # the start of training) moved to a uniform random position within 90 % of its range,
+    # so that the policy sees that joint's limits, where long turns or sustained sway walk
+    # it (docs/decisions/0005-base-yaw-shifted-starts.md).
     yaw_shift_fraction: float = 0.5
     # Fraction of each training batch whose rollouts track their window's targets slowed
     # down by a uniform random factor in [1, time_stretch_max] (linear interpolation: the
@@ -232,8 +235,14 @@ class DpcTrainingConfig:
     train: TrainConfig = dataclasses.field(default_factory=_default_train)
     # Seed of the weight initialisation.
     seed: int = 0
+    # The platform whose joints the policy commands: a packaged name (`mca-drake platforms`)
+    # or a platform file; the dataset must have been made on it.
+    platform: str = DEFAULT_PLATFORM
     # Start from the weights of this policy file (fine-tuning) instead of a random
-    # initialisation; "" for a fresh policy. Ignored when a run resumes from its checkpoint.
+    # initialisation; "" for a fresh policy. A policy of another platform whose joints this
+    # one has too (the KR500's for the KR500 on a rail) starts the shared joints from its
+    # weights and the others from zero (`policy_network.transfer_policy_network`). Ignored
+    # when a run resumes from its checkpoint.
     initial_policy: str = ""
     # Fuse each rollout step with torch.compile (about 9x faster on CPU after a compile of
     # about a minute; needs a C++ compiler). False: plain eager mode.
@@ -298,6 +307,8 @@ class DpcTrainingConfig:
                 )
         elif len(weights) != 6 or not all(w >= 0 and w < float("inf") for w in weights):
             raise ValueError(f"tracking_channel_weights needs six finite numbers >= 0: {weights}")
+        if not isinstance(self.platform, str) or not self.platform:
+            raise ValueError(f"platform must name a platform or its file; got {self.platform!r}")
         if self.initial_policy and not Path(self.initial_policy).is_file():
             raise ValueError(f"initial_policy file not found: {self.initial_policy}")
         for name in (

@@ -48,27 +48,34 @@ from torch import nn
 
 from mca_drake.atomic_io import check_writable, file_sha256
 from mca_drake.conventions import CONTROL_PERIOD_S, MIRROR_CHANNEL_SIGNS
-from mca_drake.cueing.dpc import load_policy_arrays, preview_offsets
+from mca_drake.cueing.dpc import (
+    UNNAMED_POLICY_PLATFORM,
+    load_policy_arrays,
+    policy_platform,
+    preview_offsets,
+)
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
 from mca_drake.learning.configs import DpcTrainingConfig
-from mca_drake.learning.output_models import MixedAnalyticalOutput
+from mca_drake.learning.output_models import PAPER_PLATFORM, MixedAnalyticalOutput
 from mca_drake.learning.perception import TorchVestibularFilter
 from mca_drake.learning.policy_network import (
     PolicyNetwork,
     load_policy_network,
     save_policy,
+    transfer_policy_network,
 )
 from mca_drake.learning.state_models import Node2State
 from mca_drake.learning.torch_plant import TorchPlant, viable_acceleration_bounds_torch
 from mca_drake.learning.trainer import CurriculumTrainer
 from mca_drake.metrics import STILL_TOLERANCE
 from mca_drake.perception.models import PerceptionConfig
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.files import load_platform
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.segments import (
     SOURCE_COLUMNS,
     SegmentDataset,
     consecutive_runs,
+    dataset_platform,
     long_windows,
     package_versions,
     split_of,
@@ -79,9 +86,8 @@ class RolloutPlant(nn.Module):
     """The frozen plant of the DPC rollouts: step(x, u) -> x_next, output(x, u) -> y, and
     the safety filter `clamp(x, u)` of the deployed robot (identity if switched off)."""
 
-    def __init__(self, config: DpcTrainingConfig, robot: SerialChain | None = None):
+    def __init__(self, config: DpcTrainingConfig, robot: SerialChain):
         super().__init__()
-        robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
         self.robot = robot
         self.kind = config.plant
         self.safety_filter = config.safety_filter
@@ -93,6 +99,11 @@ class RolloutPlant(nn.Module):
             )
         if config.plant == "exact":
             self.exact = TorchPlant(robot, check_inputs=False)
+        elif robot.name != PAPER_PLATFORM:
+            raise ValueError(
+                f"the learned plant models the {PAPER_PLATFORM} (the paper's Table II); "
+                f"train for platform '{robot.name}' on the exact plant (plant='exact')"
+            )
         else:
             self.state_model = Node2State()
             self.output_model = MixedAnalyticalOutput()
@@ -102,7 +113,8 @@ class RolloutPlant(nn.Module):
             p.requires_grad_(False)
 
     def clamp(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        """The viability clamp of ``u`` (B, 6) [rad/s^2] at state ``x`` (B, 12), if enabled."""
+        """The viability clamp of ``u`` (B, n) [rad/s^2, m/s^2] at state ``x`` (B, 2n), if
+        enabled."""
         if not self.safety_filter:
             return u
         lo, hi = viable_acceleration_bounds_torch(
@@ -113,13 +125,13 @@ class RolloutPlant(nn.Module):
         return torch.minimum(torch.maximum(u, lo), hi)
 
     def step(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        """Next state (B, 12) after one time step of ``u`` (B, 6) from ``x`` (B, 12)."""
+        """Next state (B, 2n) after one time step of ``u`` (B, n) from ``x`` (B, 2n)."""
         if self.kind == "exact":
             return self.exact.step(x, u)
         return self.state_model.step(x, u)
 
     def output(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        """Inertial output (B, 6) [m/s^2, rad/s] while ``u`` (B, 6) acts at ``x`` (B, 12)."""
+        """Inertial output (B, 6) [m/s^2, rad/s] while ``u`` (B, n) acts at ``x`` (B, 2n)."""
         if self.kind == "exact":
             return self.exact.output(x, u)
         return self.output_model(x[:, None], u[:, None])[:, 0]
@@ -127,8 +139,8 @@ class RolloutPlant(nn.Module):
 
 @dataclasses.dataclass
 class Rollout:
-    """A closed-loop rollout: U (B, T, 6), X (B, T + 1, 12), X_hat (B, T, 12) predicting
-    X[:, 1:], Y (B, T, 6) the outputs while U acts."""
+    """A closed-loop rollout for n joints: U (B, T, n), X (B, T + 1, 2n), X_hat (B, T, 2n)
+    predicting X[:, 1:], Y (B, T, 6) the outputs while U acts."""
 
     U: torch.Tensor
     X: torch.Tensor
@@ -156,7 +168,7 @@ def closed_loop_rollout(
     targets: torch.Tensor,
     cell=None,
 ) -> Rollout:
-    """Runs policy and plant in a cycle over targets (B, T, 6) from x0 (B, 12), y0 (B, 6).
+    """Runs policy and plant in a cycle over targets (B, T, 6) from x0 (B, 2n), y0 (B, 6).
 
     `cell` may be a compiled `rollout_cell(policy, plant)`."""
     cell = cell or rollout_cell(policy, plant)
@@ -218,7 +230,8 @@ def dpc_loss_terms(
     (the vestibular model of y - Y over the rollout, from rest); with `correlation`, also
     sum_k (1 - CC_k) of `pooled_correlation` (0 to 12)."""
     X_next = rollout.X[:, 1:]
-    lower, upper = policy.lower[NUM_JOINTS:], policy.upper[NUM_JOINTS:]
+    n = policy.joints
+    lower, upper = policy.lower[n:], policy.upper[n:]
     violation = torch.relu(X_next - upper) + torch.relu(lower - X_next)
     error = rollout.Y - targets
     if perception is not None:
@@ -226,7 +239,7 @@ def dpc_loss_terms(
     squared_error = error**2
     if channel_weights is not None:
         squared_error = squared_error * channel_weights
-    squared_angles = rollout.X[:, :-1, :NUM_JOINTS] ** 2  # the states the steps act from
+    squared_angles = rollout.X[:, :-1, :n] ** 2  # the states the steps act from
     terms = {
         "tracking": squared_error.sum(-1).mean(),
         "state_estimate": ((rollout.X_hat - X_next) ** 2).sum(-1).mean(),
@@ -234,8 +247,8 @@ def dpc_loss_terms(
         "washout": squared_angles.sum(-1).mean(),
         "base_washout": squared_angles[..., 0].mean(),
         "limits": (violation**2).sum(-1).mean(),
-        "terminal_position": (rollout.X[:, -1, :NUM_JOINTS] ** 2).sum(-1).mean(),
-        "terminal_velocity": (rollout.X[:, -1, NUM_JOINTS:] ** 2).sum(-1).mean(),
+        "terminal_position": (rollout.X[:, -1, :n] ** 2).sum(-1).mean(),
+        "terminal_velocity": (rollout.X[:, -1, n:] ** 2).sum(-1).mean(),
     }
     if correlation:
         terms["correlation"] = (1.0 - pooled_correlation(rollout.Y, targets)).sum()
@@ -243,12 +256,13 @@ def dpc_loss_terms(
 
 
 def perturb_initial_states(x0: torch.Tensor, policy: PolicyNetwork, config: DpcTrainingConfig):
-    """x0 (B, 12) with the positions of a random `perturbed_fraction` of its rows moved by
+    """x0 (B, 2n) with the positions of a random `perturbed_fraction` of its rows moved by
     uniform noise (see DpcTrainingConfig), clipped to 90 % of the limits (torch's global
     generator)."""
-    lower, upper = policy.lower[NUM_JOINTS:], policy.upper[NUM_JOINTS:]
+    n = policy.joints
+    lower, upper = policy.lower[n:], policy.upper[n:]
     half_range = 0.5 * (upper - lower)
-    half_range[NUM_JOINTS:] = 0.0  # positions only
+    half_range[n:] = 0.0  # positions only
     noise = (2 * torch.rand_like(x0) - 1) * config.initial_state_noise * half_range
     chosen = (torch.rand(x0.shape[0], 1, device=x0.device) < config.perturbed_fraction).to(x0)
     return torch.clamp(x0 + chosen * noise, 0.9 * lower, 0.9 * upper)
@@ -276,7 +290,7 @@ def mirror_signs(
 def mirror_some_windows(
     x0: torch.Tensor, y0: torch.Tensor, targets: torch.Tensor, fraction: float, robot: SerialChain
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """(x0 (B, 12), y0 (B, 6), targets (B, T, 6)) with a random `fraction` of the windows
+    """(x0 (B, 2n), y0 (B, 6), targets (B, T, 6)) with a random `fraction` of the windows
     replaced by their mirror images (torch's global generator; see `mirror_fraction`)."""
     chosen = torch.rand(x0.shape[0], 1, device=x0.device) < fraction
     _, state_signs, channel_signs = mirror_signs(robot, x0.dtype, x0.device)
@@ -289,8 +303,9 @@ def _symmetry_error(plant: RolloutPlant, map_x, map_u, map_y, samples: int = 64)
     """Largest error of plant.output / plant.step under the state, command and output maps
     (x -> map_x(x), u -> map_u(u), y -> map_y(y)) on random states and commands."""
     generator = torch.Generator().manual_seed(0)
-    x = 0.5 * torch.randn(samples, 2 * NUM_JOINTS, generator=generator)
-    u = torch.randn(samples, NUM_JOINTS, generator=generator)
+    n = plant.robot.num_joints
+    x = 0.5 * torch.randn(samples, 2 * n, generator=generator)
+    u = torch.randn(samples, n, generator=generator)
     with torch.no_grad():
         output_error = plant.output(map_x(x), map_u(u)) - map_y(plant.output(x, u))
         step_error = plant.step(map_x(x), map_u(u)) - map_x(plant.step(x, u))
@@ -316,9 +331,10 @@ def check_mirror_symmetry(plant: RolloutPlant) -> None:
 def shift_base_yaw(
     x0: torch.Tensor, fraction: float, q_min: torch.Tensor, q_max: torch.Tensor
 ) -> torch.Tensor:
-    """x0 (B, 12) with joint 1's angle of a random `fraction` of the rows replaced by a
-    uniform random angle within 90 % of its range [q_min[0], q_max[0]] (rad) about the range's
-    centre (torch's global generator; see `yaw_shift_fraction`)."""
+    """x0 (B, 2n) with the first joint's position (the KR500's base yaw, rad; the rail's
+    carriage, m) of a random `fraction` of the rows replaced by a uniform random position
+    within 90 % of its range [q_min[0], q_max[0]] about the range's centre (torch's global
+    generator; see `yaw_shift_fraction`)."""
     chosen = torch.rand(x0.shape[0], device=x0.device) < fraction
     centre, half_range = (q_max[0] + q_min[0]) / 2, (q_max[0] - q_min[0]) / 2
     angle = centre + 0.9 * half_range * (2 * torch.rand(x0.shape[0], device=x0.device) - 1)
@@ -349,13 +365,15 @@ def stretch_some_targets(targets: torch.Tensor, fraction: float, max_factor: flo
 
 def check_base_yaw_invariance(plant: RolloutPlant) -> None:
     """Raises ValueError unless the rollout plant's outputs and motion are independent of
-    joint 1's angle, as base-yaw-shifted training windows assume (a learned plant need not be)."""
-    turn = torch.zeros(2 * NUM_JOINTS)
+    the first joint's position (the KR500's base yaw, a rail's carriage), as shifted
+    training starts assume (a learned plant, or a robot whose first joint tilts the cabin,
+    need not be)."""
+    turn = torch.zeros(2 * plant.robot.num_joints)
     turn[0] = 1.3
     worst = _symmetry_error(plant, lambda x: x + turn, lambda u: u, lambda y: y)
     if not worst <= 1e-4:
         raise ValueError(
-            f"yaw_shift_fraction > 0 needs a plant that does not depend on joint 1's angle; "
+            f"yaw_shift_fraction > 0 needs a plant that does not depend on joint 1's position; "
             f"turned states are off by up to {worst:.3g}: train with --yaw-shift-fraction 0"
         )
 
@@ -582,10 +600,14 @@ def add_own_start_windows(
     return with_own_starts(train, own_splits["train"], config.own_start_fraction, config.seed)
 
 
-def near_neutral_windows(windows: SegmentDataset, max_position_rad: float) -> SegmentDataset:
-    """The windows whose first joint positions X[:, 0, :6] are all within `max_position_rad`
-    of neutral (rad)."""
-    start = np.abs(windows.arrays["X"][:, 0, :NUM_JOINTS]).max(axis=1)
+def near_neutral_windows(
+    windows: SegmentDataset, max_position_rad: float, revolute: np.ndarray
+) -> SegmentDataset:
+    """The windows whose first positions of the revolute joints (`revolute`, bool (n,))
+    are all within `max_position_rad` of neutral (rad): a cabin tilted far out starts
+    them; a prismatic joint (a rail's carriage) away from its centre does not tilt it."""
+    joints = np.flatnonzero(revolute)
+    start = np.abs(windows.arrays["X"][:, 0, joints]).max(axis=1, initial=0.0)
     keep = start <= max_position_rad
     return SegmentDataset(
         {k: v[keep] for k, v in windows.arrays.items()}, windows.source[keep], windows.metadata
@@ -608,8 +630,10 @@ def train_policy(
     """
 
     config.validate()
+    robot = load_platform(config.platform)
     out = check_writable(out_dir, folder=True)
     data = SegmentDataset.load(dataset)
+    check_dataset_platform(data, robot, dataset)
     if "R" not in data.arrays and config.targets == "reference":
         raise ValueError(f"{dataset} has no references R; use targets='achieved'")
     if config.vehicles:
@@ -622,7 +646,7 @@ def train_policy(
         splits = split_of(data)
     if math.isfinite(config.max_start_position_rad):
         splits = {
-            name: near_neutral_windows(part, config.max_start_position_rad)
+            name: near_neutral_windows(part, config.max_start_position_rad, ~robot.prismatic)
             for name, part in splits.items()
         }
     for name in ("train", "validation"):
@@ -633,7 +657,7 @@ def train_policy(
             )
     torch.manual_seed(config.seed)
     if config.initial_policy:
-        policy = load_policy_network(config.initial_policy)
+        policy = initial_policy_network(config.initial_policy, robot)
         if (policy.hidden, policy.preview_steps) != (config.hidden, config.preview_steps):
             raise ValueError(
                 f"initial_policy {config.initial_policy} has {policy.hidden} hidden neurons "
@@ -642,11 +666,12 @@ def train_policy(
             )
     else:
         policy = PolicyNetwork(
+            robot,
             hidden=config.hidden,
             output_scale=config.output_scale,
             preview_steps=config.preview_steps,
         )
-    plant = RolloutPlant(config)
+    plant = RolloutPlant(config, robot)
     if config.mirror_fraction > 0:
         check_mirror_symmetry(plant)
     if config.yaw_shift_fraction > 0:
@@ -705,6 +730,34 @@ def train_policy(
     return policy, path
 
 
+def check_dataset_platform(data: SegmentDataset, robot: SerialChain, path) -> None:
+    """Raises ValueError, naming both, unless the dataset at `path` was made on `robot`'s
+    platform (its metadata's `platform`; a dataset that names none was made on
+    `segments.UNNAMED_DATASET_PLATFORM`, the KR500) with its joint count."""
+    made_on = dataset_platform(data.metadata)
+    if made_on != robot.name:
+        raise ValueError(
+            f"dataset {path} was made on platform '{made_on}', not on '{robot.name}': make "
+            f"one with `mca-drake dataset closed-loop --platform {robot.name}`"
+        )
+    n = robot.num_joints
+    if data.arrays["U"].shape[-1] != n or data.arrays["X"].shape[-1] != 2 * n:
+        raise ValueError(
+            f"dataset {path} holds U {data.arrays['U'].shape} and X {data.arrays['X'].shape}, "
+            f"not the {n} joints of platform '{robot.name}'"
+        )
+
+
+def initial_policy_network(path: str, robot: SerialChain) -> PolicyNetwork:
+    """The network a training run starts from: the policy file at `path` as it is, when it
+    was trained for `robot`'s platform, else transferred to `robot`'s joints by name
+    (`transfer_policy_network`)."""
+    _, metadata = load_policy_arrays(path)
+    if policy_platform(metadata) == robot.name:
+        return load_policy_network(path, robot)
+    return transfer_policy_network(path, robot)
+
+
 def initial_policy_provenance(path: str) -> dict:
     """Where a fine-tuned policy's starting weights came from: the file's SHA-256, its
     command, and its training wall time including its own starting weights' ({} for "")."""
@@ -730,8 +783,11 @@ def export_checkpoint_policy(checkpoint: str | Path, out: str | Path) -> Path:
     if meta.get("model") != "dpc-policy":
         raise ValueError(f"{checkpoint} is not a DPC policy checkpoint (model {meta.get('model')})")
     kwargs = meta.get("model_kwargs", {})
+    platform = meta.get("dpc_config", {}).get("platform", UNNAMED_POLICY_PLATFORM)
     policy = PolicyNetwork(
-        hidden=kwargs.get("hidden", 128), preview_steps=kwargs.get("preview_steps", 0)
+        load_platform(platform),
+        hidden=kwargs.get("hidden", 128),
+        preview_steps=kwargs.get("preview_steps", 0),
     )
     if "best_model" not in payload:
         raise CheckpointError(f"{checkpoint} holds no best weights (best_model) to export")

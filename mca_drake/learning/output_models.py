@@ -27,8 +27,12 @@ from torch import nn
 from mca_drake.conventions import CONTROL_PERIOD_S, GRAVITY
 from mca_drake.learning.blocks import Mlp, pose_top, sin_cos_features
 from mca_drake.learning.torch_plant import TorchPlant
+from mca_drake.platforms.files import load_platform
 from mca_drake.platforms.serial import NUM_JOINTS
 
+# The robot of the paper's plant models (Table II): the candidates are sized and their
+# analytical parts built for its six joints.
+PAPER_PLATFORM = "kr500"
 STATE_SIZE, INPUT_SIZE, OUTPUT_SIZE = 2 * NUM_JOINTS, NUM_JOINTS, 6
 POSE_SIZE = 12  # top 3x4 block of a pose matrix or its derivative
 
@@ -124,7 +128,7 @@ class MixedAnalyticalOutput(OutputModel):
         super().__init__()
         # Pass dtype rather than converting later: a float32 module converted to float64
         # keeps its float32-rounded kinematic constants.
-        self.kinematics = TorchPlant(dt=dt, dtype=dtype, check_inputs=False)
+        self.kinematics = TorchPlant(load_platform(PAPER_PLATFORM), dt, dtype, check_inputs=False)
         self.f3 = Mlp(2 * NUM_JOINTS + POSE_SIZE, POSE_SIZE, hidden)
         self.f4 = Mlp(2 * NUM_JOINTS + POSE_SIZE, POSE_SIZE, hidden)
         self.f5 = Mlp(2 * NUM_JOINTS + POSE_SIZE, POSE_SIZE, hidden)
@@ -166,7 +170,7 @@ class ExactOutput(OutputModel):
 
     def __init__(self, dt: float = CONTROL_PERIOD_S, dtype: torch.dtype = torch.float32):
         super().__init__()
-        self.plant = TorchPlant(dt=dt, dtype=dtype, check_inputs=False)
+        self.plant = TorchPlant(load_platform(PAPER_PLATFORM), dt, dtype, check_inputs=False)
 
     def forward(self, X, U, y_prev=None):
         _check(X, U, y_prev)

@@ -24,7 +24,6 @@ import torch
 from torch import nn
 
 from mca_drake.conventions import CONTROL_PERIOD_S, GRAVITY
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.safety import VIABILITY_TOLERANCE
 
@@ -115,7 +114,7 @@ class TorchPlant(nn.Module):
 
     def __init__(
         self,
-        robot: SerialChain | None = None,
+        robot: SerialChain,
         dt: float = CONTROL_PERIOD_S,
         dtype: torch.dtype = torch.float32,
         check_inputs: bool = True,
@@ -123,7 +122,6 @@ class TorchPlant(nn.Module):
         super().__init__()
         if not dt > 0:
             raise ValueError(f"dt must be positive; got {dt}")
-        robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
         self.robot = robot
         self.n = robot.num_joints
         self.dt = float(dt)

@@ -1,18 +1,18 @@
 """The live closed loop: telemetry -> receiver -> MCA -> supervisor -> robot, in real time.
 
-`MakeLiveClosedLoop` wires the diagram on the analytical plant or the KR500 station;
-`run_live` runs it at a
-real-time rate (1 by default) for a bounded time and returns the result summary with its
-`live` block (docs/guides/live.md): packets, bad, dropped and stale
-counts, the latency from a sample's arrival to the first command computed from it, and the
-time in each health state; the PI is scored against the reference that was received.
+`MakeLiveClosedLoop` wires the diagram on the analytical plant or the platform's station;
+`run_live` runs it at a real-time rate (1 by default) for a bounded time, paced against the
+wall clock (and phase-locked to the sender), and returns the result summary with its
+`live` block (`live_summary`: packets, bad, dropped and stale counts, the latency from a
+sample's arrival to the first command computed from it, the time in each health state;
+the PI scored against the reference that was received). The decoders are chosen by
+protocol in `decoders`.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import gc
-import ipaddress
 import math
 import socket
 import time
@@ -31,12 +31,15 @@ from pydrake.systems.framework import (
 )
 
 from mca_drake.conventions import CONTROL_PERIOD_S
-from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
-from mca_drake.live.beamng import BeamNGConfig, BeamNGDecoder
-from mca_drake.live.csv_udp import CsvDecoder
-from mca_drake.live.f1 import F1Config, F1Decoder
-from mca_drake.live.fgnetfdm import FgNetFdmDecoder
-from mca_drake.live.outsim import OutSimConfig, OutSimDecoder
+from mca_drake.cueing import McaConfig, as_mca_config
+from mca_drake.live.decoders import PROTOCOLS, make_decoder
+from mca_drake.live.live_summary import (
+    STALL_PERIODS,
+    PacedRun,
+    live_block,
+    rsi_block,
+    scored_summary,
+)
 from mca_drake.live.pacing import RealTimePacer
 from mca_drake.live.phase_lock import PhaseLockConfig, phase_correction
 from mca_drake.live.receiver import TELEMETRY_FIELDS, ReceiverConfig, TelemetryReceiver
@@ -45,64 +48,23 @@ from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.live.rsi.link import (
     RobotClockServo,
     RsiCommandSender,
-    RsiLink,
     segment_socket_pair,
     start_rsi_driver,
     wait_for_robot,
 )
 from mca_drake.live.supervisor import Supervisor, SupervisorConfig
 from mca_drake.live.telemetry import Decoder
-from mca_drake.live.xplane import XPlaneDecoder
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
-from mca_drake.platforms.kinematics import plant_output
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import ReferenceScaling
 from mca_drake.simulation.builders import AddMca, AddMeshcatDrawing, default_visualization
 from mca_drake.simulation.closed_loop import (
     PLANTS,
-    check_alignment,
-    closed_loop_summary,
-    station_signals,
-    step_time_summary,
 )
 from mca_drake.systems import MotionCueingPlant
 from mca_drake.systems.station import AddStation, StationConfig
 
 _ARRIVAL = TELEMETRY_FIELDS.index("arrival_s")
 _POLL = TELEMETRY_FIELDS.index("poll_s")
-PROTOCOLS = ("fgnetfdm", "xplane", "csv", "beamng", "outsim", "f1")
-
-
-def make_decoder(
-    protocol: str,
-    *,
-    xplane_version: int | None = None,
-    fgnetfdm_time_resolution_s=None,
-    beamng: BeamNGConfig | None = None,
-    outsim: OutSimConfig | None = None,
-    f1: F1Config | None = None,
-) -> Decoder:
-    """The decoder of `protocol` (PROTOCOLS). X-Plane needs its version (11 or 12: they
-    differ in the body-rate row); FGNetFDM reads the sender's time only when JSBSim's
-    directive sets a resolution (else arrival times). The racing simulators take their
-    configs (None: the defaults: BeamNG's signs, LFS's classic OutSimPack, F1's 2024 format)."""
-    if protocol == "fgnetfdm":
-        return FgNetFdmDecoder(time_resolution_s=fgnetfdm_time_resolution_s)
-    if protocol == "xplane":
-        if xplane_version is None:
-            raise ValueError("protocol xplane needs its version (11 or 12): --xplane-version")
-        return XPlaneDecoder(version=xplane_version)
-    if protocol == "csv":
-        return CsvDecoder()
-    if protocol == "beamng":
-        return BeamNGDecoder(config=beamng)
-    if protocol == "outsim":
-        return OutSimDecoder(config=outsim)
-    if protocol == "f1":
-        return F1Decoder(config=f1)
-    raise ValueError(f"unknown protocol '{protocol}'; valid: {', '.join(PROTOCOLS)}")
-
-
 # The probe publishes this long (s) after each control instant: Drake handles a publish at
 # time t at the end of the step that reaches t, before that instant's updates, so a probe at
 # the instant itself would read the command computed one period earlier, from the previous
@@ -116,9 +78,6 @@ PLANT_DELAY_S = 2e-5
 # The supervisor judges the loop this long (s) after each control instant: after the plant's
 # step (its new blend weight would change the command the plant integrates).
 JUDGE_DELAY_S = 2.5e-5
-# A control interval over this many periods on the wall clock counts as a stall in the
-# summary: the loop (or the machine) held up for half the supervisor's default stale time.
-STALL_PERIODS = 5
 
 
 class LatencyProbe(LeafSystem):
@@ -265,14 +224,14 @@ def MakeLiveClosedLoop(
     receiver: ReceiverConfig | None = None,
     supervisor: SupervisorConfig | None = None,
     scaling: ReferenceScaling | None = None,
-    robot: SerialChain | None = None,
+    robot: SerialChain,
     station: StationConfig | None = None,
     meshcat=None,
     rsi_commands: socket.socket | None = None,
 ) -> tuple[Diagram, dict]:
     """TelemetryReceiver -> MCA -> Supervisor -> robot, with logs and a LatencyProbe; the
-    robot is the analytical plant or the KR500 station (multibody, optionally drawn in
-    `meshcat`). The control period is `receiver.time_step`.
+    robot is the analytical plant or the platform's station (multibody, optionally drawn
+    in `meshcat`). The control period is `receiver.time_step`.
 
     Returns:
         (diagram, handles): the systems `receiver`, `mca`, `supervisor`, `probe`,
@@ -294,7 +253,6 @@ def MakeLiveClosedLoop(
         raise ValueError(
             "a robot over RSI follows the analytical plant's trajectory: use plant 'analytical'"
         )
-    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     receiver_config = receiver or ReceiverConfig()
     h = receiver_config.time_step
     builder = DiagramBuilder()
@@ -359,7 +317,7 @@ def run_live(
     scaling: ReferenceScaling | None = None,
     realtime_rate: float = 1.0,
     on_listening: Callable[[tuple[str, int]], None] | None = None,
-    robot: SerialChain | None = None,
+    robot: SerialChain,
     plant: str = "analytical",
     station: StationConfig | None = None,
     meshcat=None,
@@ -373,7 +331,8 @@ def run_live(
         on_listening: called with the bound (host, port) once the socket is open, before the
             loop starts (the CLI prints `listening on udp://HOST:PORT`; tests start senders).
         realtime_rate: Drake's target real-time rate (1: live; 0: as fast as possible).
-        plant: "analytical" or "multibody" (the KR500 station; `station` its settings,
+        robot: the platform cued (its limits are the supervisor's and the clamp's).
+        plant: "analytical" or "multibody" (the platform's station; `station` its settings,
             `meshcat` a pydrake Meshcat to draw it in).
         phase_lock: how the loop follows a periodic sender's phase (`live.phase_lock`;
             default on), so that samples wait little for their poll; at real-time rates only.
@@ -385,7 +344,6 @@ def run_live(
     """
     if not 0 < duration_s <= 24 * 3600:
         raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
-    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     config = as_mca_config(mca)
     lock = phase_lock or PhaseLockConfig()
     lock.validate()
@@ -423,25 +381,11 @@ def run_live(
         robot=robot,
         sockets=(loop_end, driver_end),
     )
-    summary = _scored_summary(handles, config, plant, decoder, robot, h, run.wall_s)
-    summary["live"] = _live_block(handles, run, decoder, realtime_rate, h)
+    summary = scored_summary(handles, config, plant, decoder, robot, h, run.wall_s)
+    summary["live"] = live_block(handles, run, decoder, realtime_rate, h)
     if run.rsi_status is not None:
-        summary["rsi"] = _rsi_block(handles, run)
+        summary["rsi"] = rsi_block(handles, run)
     return summary
-
-
-@dataclasses.dataclass
-class _PacedRun:
-    """What a finished live run leaves for its summary."""
-
-    context: Context
-    wall_s: float
-    cpu_s: float
-    phase_shifts_s: list
-    pacer: RealTimePacer | None
-    link: RsiLink | None
-    servo: RobotClockServo | None
-    rsi_status: dict | None
 
 
 def _run_paced(
@@ -457,7 +401,7 @@ def _run_paced(
     rsi: RsiDriverConfig | None,
     robot: SerialChain,
     sockets: tuple,
-) -> _PacedRun:
+) -> PacedRun:
     """Starts the robot's driver (with `rsi`), runs the diagram paced to the wall clock and
     closes the socket and the driver whatever happens."""
     source = handles["receiver"]
@@ -509,146 +453,7 @@ def _run_paced(
         for end in sockets:
             if end is not None:
                 end.close()
-    return _PacedRun(simulator.get_context(), wall_s, cpu_s, shifts, pacer, link, servo, rsi_status)
-
-
-def _scored_summary(
-    handles: dict,
-    config: McaConfig,
-    plant: str,
-    decoder: Decoder,
-    robot: SerialChain,
-    h: float,
-    wall_s: float,
-) -> dict:
-    """The closed-loop summary of the recorded run, scored as `run_closed_loop` scores."""
-    source = handles["receiver"]
-    rows = handles["recorder"].rows
-    commands, reference = rows("command"), rows("reference")  # period k: rows 0..N-1
-    n = commands.shape[0]
-    if plant == "analytical":
-        states = rows("state")  # x_k before each poll: rows 0..N
-        # the plant integrated exactly the recorded commands (it steps after the recorder)
-        check_alignment(states[: n + 1], commands, h)
-        states = states[:n]
-        accelerations = commands
-        outputs = plant_output(states[:, :6], states[:, 6:], commands, robot)
-    else:  # what the occupant felt (the IMU without its delay), as run_closed_loop scores it
-        states, accelerations, outputs = station_signals(
-            rows("true_state"), rows("measured_output"), n, h
-        )
-    summary, _ = closed_loop_summary(
-        mca=mca_name(config),
-        mca_config=mca_config_record(config),
-        plant=plant,
-        reference_name=f"live {decoder.protocol} udp://{source.address[0]}:{source.address[1]}",
-        duration_s=n * h,
-        reference=reference,
-        outputs=outputs,
-        states=states,
-        accelerations=accelerations,
-        statistics=rows("statistics"),
-        wall_s=wall_s,
-        robot=robot,
-        time_step=h,
-    )
-    return summary
-
-
-def _live_block(
-    handles: dict, run: _PacedRun, decoder: Decoder, realtime_rate: float, h: float
-) -> dict:
-    """The summary's `live` block: telemetry counters, latency, health and pacing."""
-    source, guard, probe = handles["receiver"], handles["supervisor"], handles["probe"]
-    telemetry = source.counters(source.GetMyContextFromRoot(run.context))
-    health = guard.health(guard.GetMyContextFromRoot(run.context))
-    pacer = run.pacer
-    return {
-        "protocol": decoder.protocol,
-        "address": f"udp://{source.address[0]}:{source.address[1]}",
-        # who was read: the locked first sender, or the senders the scenario allows
-        "sender": _sender_text(telemetry, source),
-        "packets": int(telemetry["packets"]),
-        "bad": int(telemetry["bad"]),
-        "foreign": int(telemetry["foreign"]),
-        "out_of_order": int(telemetry["out_of_order"]),
-        "time_jumps": int(telemetry["time_jumps"]),
-        "restarts": int(telemetry["restarts"]),
-        "sender_changes": int(telemetry["sender_changes"]),
-        "dropped": int(telemetry["dropped"]),
-        "kernel_dropped": int(telemetry["kernel_dropped"]),
-        "stale_periods": int(telemetry["stale_periods"]),
-        "stale_events": sum(
-            1 for _, _, to, why in guard.transitions if why == "telemetry stale" and to == "fault"
-        ),
-        "latency_s": step_time_summary(np.asarray(probe.latencies_s)),
-        # how long samples waited in the socket for their poll (part of the latency)
-        "wait_s": step_time_summary(np.asarray(probe.waits_s)),
-        # the phase lock's shifts of the control instants, s (> 0: earlier)
-        "phase_shifts_s": run.phase_shifts_s,
-        # polls that came after their instant (the loop had overrun)
-        "late_polls": 0 if pacer is None else pacer.late_polls,
-        # control intervals over STALL_PERIODS periods on the wall clock: the process was
-        # held up (by the OS or a slow step) long enough for telemetry to look stale
-        "stalls": _stalls(probe.instants_s, h, realtime_rate),
-        # polls a datagram brought forward (phase lock's wake window)
-        "early_polls": 0 if pacer is None else pacer.early_polls,
-        "health": {
-            "ok_s": float(health["ok_s"]),
-            "degraded_s": float(health["degraded_s"]),
-            "fault_s": float(health["fault_s"]),
-        },
-        "transitions": [
-            {"t_s": t, "from": a, "to": b, "why": why} for t, a, b, why in guard.transitions
-        ],
-        "realtime_rate": realtime_rate,
-        "control_period_s": h,
-        # |period - h| of the loop's control instants on the wall clock
-        "loop_jitter_s": step_time_summary(
-            np.abs(np.diff(probe.instants_s) - h / max(realtime_rate, 1e-9))
-            if realtime_rate > 0
-            else np.zeros(0)
-        ),
-        # this process's CPU time over wall time (1.0: one core busy)
-        "cpu_load": run.cpu_s / max(run.wall_s, 1e-9),
-    }
-
-
-def _sender_text(telemetry: dict, source: TelemetryReceiver) -> str:
-    """The sender a run read, as the live block says it."""
-    allowed = source.allowed_senders
-    if allowed:
-        return f"allowed: {', '.join(allowed)}"
-    if not np.isfinite(telemetry["sender_ip"]):
-        return "none (no datagram arrived)"
-    ip = ipaddress.IPv4Address(int(telemetry["sender_ip"]))
-    return f"udp://{ip}:{int(telemetry['sender_port'])} (the first sender, locked in)"
-
-
-def _rsi_block(handles: dict, run: _PacedRun) -> dict:
-    """The summary's `rsi` block: segments sent, the clock servo and the driver's counters."""
-    sender, link, servo = handles["rsi"], run.link, run.servo
-    return {
-        "address": f"rsi://{link.address[0]}:{link.address[1]}",
-        "segments_sent": sender.sent,
-        "segments_unsent": sender.unsent,
-        # the loop's clock following the robot's (`RobotClockServo`)
-        "rate_trim_ppm": 1e6 * run.pacer.rate_trim,
-        # the driver's lead against its first report, less the phase lock's shifts, s
-        "lead_error_s": {
-            "max_abs": max((abs(e) for _, e, _ in servo.reports), default=0.0),
-            "last": servo.reports[-1][1] if servo.reports else 0.0,
-        },
-        **run.rsi_status,
-    }
-
-
-def _stalls(instants_s: list[float], period_s: float, realtime_rate: float) -> int:
-    """How many wall intervals between consecutive control instants exceed STALL_PERIODS
-    control periods (of wall time at `realtime_rate`); 0 when not paced."""
-    if realtime_rate <= 0 or len(instants_s) < 2:
-        return 0
-    return int(np.sum(np.diff(instants_s) > STALL_PERIODS * period_s / realtime_rate))
+    return PacedRun(simulator.get_context(), wall_s, cpu_s, shifts, pacer, link, servo, rsi_status)
 
 
 def _check_driver(link) -> None:
@@ -717,3 +522,13 @@ def _waits_for_due(probe: LatencyProbe, pacer: RealTimePacer, first: int) -> np.
             if k in due
         ]
     )
+
+
+__all__ = [
+    "PROTOCOLS",
+    "STALL_PERIODS",
+    "LatencyProbe",
+    "MakeLiveClosedLoop",
+    "make_decoder",
+    "run_live",
+]

@@ -32,7 +32,6 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.receiver import TELEMETRY_FIELDS
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
 from mca_drake.safety import ViabilityClamp
 
@@ -123,15 +122,15 @@ class Supervisor(LeafSystem):
 
     def __init__(
         self,
-        config: SupervisorConfig | None = None,
-        robot: SerialChain | None = None,
+        config: SupervisorConfig | None,
+        robot: SerialChain,
         home_position: np.ndarray | None = None,
         judge_offset_s: float = 0.0,
     ):
         super().__init__()
         self._config = config or SupervisorConfig()
         self._config.validate()
-        self._robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
+        self._robot = robot
         h = self._config.time_step
         self._clamp = ViabilityClamp.for_robot(self._robot, h)
         omega = 2 * math.pi * self._config.home_frequency_hz

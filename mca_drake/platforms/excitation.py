@@ -53,6 +53,8 @@ class ExcitationConfig:
     time_step: float = CONTROL_PERIOD_S
     # Seed of every random draw (profiles and initial states).
     seed: int = 0
+    # The platform excited: a packaged name (`mca-drake platforms`) or a platform file.
+    platform: str = DEFAULT_PLATFORM
     # Initial states are drawn uniformly from this fraction of the position and velocity
     # ranges (1.0: anywhere valid, the paper's "random valid state").
     initial_state_fraction: float = 1.0
@@ -189,7 +191,7 @@ def first_violation(X: np.ndarray, robot: SerialChain) -> np.ndarray:
 
 
 def generate_excitation_dataset(
-    config: ExcitationConfig | None = None, robot: SerialChain | None = None, progress: bool = True
+    config: ExcitationConfig | None = None, progress: bool = True
 ) -> SegmentDataset:
     """Runs Algorithm 1 and returns the kept segments with their provenance.
 
@@ -198,7 +200,7 @@ def generate_excitation_dataset(
     """
     config = config or ExcitationConfig()
     config.validate()
-    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
+    robot = load_platform(config.platform)
     rng = np.random.default_rng(config.seed)
     h, n_p = config.time_step, config.horizon
     steps = round(config.duration_s / h)

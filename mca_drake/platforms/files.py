@@ -154,6 +154,12 @@ def packaged_platforms() -> dict[str, Path]:
     return {p.stem: p for p in sorted(packaged_folder("models").glob("*.yaml"))}
 
 
+def packaged_name(platform) -> str:
+    """The packaged platform's name that `platform` (a name, a file or a description) is,
+    or "" for a user's file or description."""
+    return platform if isinstance(platform, str) and platform in packaged_platforms() else ""
+
+
 def platform_file(name_or_path: str | os.PathLike) -> Path:
     """A platform file given by its packaged name or its path.
 

@@ -103,8 +103,14 @@ class SerialChain:
         return np.concatenate([self.q_max, self.qd_max])
 
     def summary(self) -> dict:
-        """The platform as a run's summary names it: name, kind and joint count."""
-        return {"name": self.name, "kind": self.kind, "dof": self.num_joints}
+        """The platform as a run's summary and a policy file name it: name, kind, joint
+        count and joint names."""
+        return {
+            "name": self.name,
+            "kind": self.kind,
+            "dof": self.num_joints,
+            "joints": list(self.joint_names),
+        }
 
 
 def _axis_to_z(axis: np.ndarray) -> np.ndarray:

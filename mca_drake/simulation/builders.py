@@ -16,7 +16,6 @@ from pydrake.visualization import VisualizationConfig
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import DpcConfig, McaConfig, NmpcConfig, WashoutConfig, as_mca_config
 from mca_drake.platforms.demo_motion import demo_joint_motion
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import Reference
 from mca_drake.systems import MotionCueingPlant, ReferenceSource
@@ -31,7 +30,7 @@ def MakePlantDemoDiagram(
     *,
     duration_s: float,
     time_step: float = CONTROL_PERIOD_S,
-    robot: SerialChain | None = None,
+    robot: SerialChain,
 ) -> tuple[Diagram, dict]:
     """Demo joint accelerations -> MotionCueingPlant, with 100 Hz logs.
 
@@ -44,7 +43,6 @@ def MakePlantDemoDiagram(
             f"duration_s must be positive and time_step in (0, 0.1] s; got {duration_s}, "
             f"{time_step}"
         )
-    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     h = time_step
     times = np.arange(0.0, duration_s + 2 * h, h)
     _, _, qdd = demo_joint_motion(times, robot)
@@ -104,7 +102,7 @@ def AddMca(
     if isinstance(config, DpcConfig):
         config.validate()
         return builder.AddNamedSystem(
-            "mca", DpcPolicy(str(config.policy_path()), robot, time_step, update_event)
+            "mca", DpcPolicy(str(config.policy_path(robot.name)), robot, time_step, update_event)
         )
     if isinstance(config, WashoutConfig):
         return builder.AddNamedSystem(
@@ -156,7 +154,7 @@ def _add_logs(builder: DiagramBuilder, ports: dict, controller, time_step: float
 def MakeAnalyticalClosedLoop(
     reference: Reference,
     mca: McaConfig | str,
-    robot: SerialChain | None = None,
+    robot: SerialChain,
 ) -> tuple[Diagram, dict]:
     """ReferenceSource -> MCA -> MotionCueingPlant, the MCA fed the plant state, with logs.
 
@@ -168,12 +166,11 @@ def MakeAnalyticalClosedLoop(
     Args:
         reference: the target outputs.
         mca: an MCA config or name (`mca_drake.cueing`).
-        robot: the KR500 description (default: models/kr500.urdf).
+        robot: the platform the plant moves.
 
     Returns:
         (diagram, handles) with the systems `source`, `mca`, `plant` and the logs.
     """
-    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     time_step = reference.time_step
     builder = DiagramBuilder()
     source, controller, initial_state = _add_source_and_mca(builder, reference, mca, robot)
@@ -202,7 +199,7 @@ def MakeAnalyticalClosedLoop(
 def MakeMultibodyClosedLoop(
     reference: Reference,
     mca: McaConfig | str,
-    robot: SerialChain | None = None,
+    robot: SerialChain,
     station: StationConfig | None = None,
     meshcat=None,
     visualization: VisualizationConfig | None = None,
@@ -231,7 +228,6 @@ def MakeMultibodyClosedLoop(
         logs; call `handles["station"].SetInitialState(root_context)` before simulating
         (the robot starts at rest at the MCA's home pose).
     """
-    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     time_step = reference.time_step
     builder = DiagramBuilder()
     source, controller, initial_state = _add_source_and_mca(builder, reference, mca, robot)

@@ -31,7 +31,6 @@ from mca_drake.cueing.dpc import DpcConfig, for_vehicle
 from mca_drake.metrics import false_rotation, tracking_score
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.perception.scores import perceived_run
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.kinematics import head_pose, plant_output
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.platforms.usage import joint_range_used, joint_usage
@@ -181,7 +180,7 @@ def run_closed_loop(
     reference: Reference,
     plant: str = "analytical",
     duration_s: float | None = None,
-    robot: SerialChain | None = None,
+    robot: SerialChain,
     station: StationConfig | None = None,
     meshcat=None,
     visualization=None,
@@ -200,9 +199,10 @@ def run_closed_loop(
             vehicle takes the reference's (`cueing.dpc.for_vehicle`), and with it the
             policy of that vehicle's envelope.
         reference: the target outputs; its time step is the control period.
-        plant: "analytical" (the paper's joint-space plant) or "multibody" (the KR500
-            station).
+        plant: "analytical" (the paper's joint-space plant) or "multibody" (the platform's
+            MultibodyPlant station).
         duration_s: simulated time, s; default the whole reference.
+        robot: the platform cued (`mca_drake.platforms.files.load_platform`).
         station: the station settings (multibody only; default StationConfig()).
         meshcat: a pydrake Meshcat to watch the run in (multibody only; None: none); the
             run is recorded into it for replay.
@@ -231,7 +231,6 @@ def run_closed_loop(
         check_writable(plot_dir, folder=True)
     # The DPC runs the policy of the reference's vehicle where the config names none.
     config = for_vehicle(as_mca_config(mca), reference.vehicle)
-    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     duration = checked_duration(reference, duration_s)
     if plant == "analytical":
         if meshcat is not None or station is not None or visualization is not None:
@@ -264,7 +263,9 @@ def run_closed_loop(
     if random_seed is not None:
         result.summary["random_seed"] = int(random_seed)
     if isinstance(config, DpcConfig):
-        result.summary["policy_file"] = config.policy_path().name  # the one the vehicle picked
+        result.summary["policy_file"] = config.policy_path(
+            robot.name
+        ).name  # the one the vehicle picked
     if json_path:
         atomic_write_json(json_path, result.summary)
     if plot_dir:

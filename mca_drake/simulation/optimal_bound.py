@@ -19,7 +19,6 @@ from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import as_mca_config, mca_name
 from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing
 from mca_drake.perception.models import PerceptionConfig
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.platforms.kinematics import plant_output
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import Reference
@@ -41,7 +40,7 @@ def run_optimal_bound(
     config: OptimalConfig | None = None,
     starts=DEFAULT_STARTS,
     duration_s: float | None = None,
-    robot: SerialChain | None = None,
+    robot: SerialChain,
     progress: bool = True,
     json_path: str | Path | None = None,
     plot_dir: str | Path | None = None,
@@ -56,6 +55,7 @@ def run_optimal_bound(
             analytical plant are candidate starts; the cheapest of them and of no motion is
             used. Empty: start from no motion.
         duration_s: the span of the reference to solve, s (default all of it).
+        robot: the platform whose limits and kinematics bound the cue.
         progress: print each Gauss-Newton iteration's cost and KKT residual.
         json_path: optional result summary (JSON), written atomically.
         plot_dir: optional folder for `tracking.png`, `perceived.png`, `joint_usage.png`.
@@ -71,7 +71,6 @@ def run_optimal_bound(
             f"OptimalConfig.time_step {config.time_step} s differs from the reference's "
             f"{reference.time_step} s"
         )
-    robot = robot if robot is not None else load_platform(DEFAULT_PLATFORM)
     duration = checked_duration(reference, duration_s)
     n = min(round(duration / reference.time_step) + 1, reference.y.shape[0])
     target = np.asarray(reference.y[:n], dtype=float)

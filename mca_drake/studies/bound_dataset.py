@@ -30,10 +30,10 @@ import numpy as np
 
 from mca_drake.atomic_io import check_writable, file_sha256
 from mca_drake.cueing.optimal import OptimalConfig, OptimalCueing, OptimalResult
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.files import load_platform
 from mca_drake.platforms.kinematics import cut_trajectory
-from mca_drake.platforms.serial import NUM_JOINTS
-from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, kept_file
+from mca_drake.platforms.serial import SerialChain
+from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, dataset_platform, kept_file
 from mca_drake.studies.parallel import run_tasks
 
 KIND = "offline-optimal bound dataset"
@@ -66,7 +66,11 @@ def flight_rows(dataset: SegmentDataset) -> dict[int, np.ndarray]:
 
 
 def solve_bound(
-    reference: np.ndarray, causal: np.ndarray, x0: np.ndarray, config: OptimalConfig
+    reference: np.ndarray,
+    causal: np.ndarray,
+    x0: np.ndarray,
+    config: OptimalConfig,
+    robot: SerialChain,
 ) -> tuple[OptimalResult, dict]:
     """The offline-optimal bound of one whole flight, from its arrays alone.
 
@@ -89,7 +93,7 @@ def solve_bound(
     reference = np.asarray(reference, dtype=float)
     causal = np.asarray(causal, dtype=float)
     x0 = np.asarray(x0, dtype=float)
-    ocp = OptimalCueing(reference.shape[0], config, load_platform(DEFAULT_PLATFORM))
+    ocp = OptimalCueing(reference.shape[0], config, robot)
     starts = {"mca": causal, "no motion": np.zeros_like(causal)}
     costs = {}
     for name, U in starts.items():
@@ -112,10 +116,11 @@ def solve_bound(
 
 def flight_arrays(dataset: SegmentDataset, rows: np.ndarray) -> dict[str, np.ndarray]:
     """The flight made of `rows`, put back together: its reference R and causal inputs U,
-    shape (T, 6) each (float32, as stored), and its first state x0, shape (12,)."""
+    shape (T, 6) and (T, n) (float32, as stored), and its first state x0, shape (2n,), for
+    a platform of n joints."""
     return {
         "R": dataset.arrays["R"][rows].reshape(-1, 6),
-        "U": dataset.arrays["U"][rows].reshape(-1, NUM_JOINTS),
+        "U": dataset.arrays["U"][rows].reshape(-1, dataset.arrays["U"].shape[-1]),
         "x0": dataset.arrays["X"][rows[0], 0],
     }
 
@@ -164,7 +169,7 @@ def keep_flight_bound(
             f"flight {seed}'s bound inputs must be finite, shape {flight['U'].shape}; "
             f"got shape {U.shape}"
         )
-    robot = load_platform(DEFAULT_PLATFORM)
+    robot = load_platform(dataset_platform(dataset.metadata))
     ocp = OptimalCueing(U.shape[0], config, robot)
     x0 = flight["x0"].astype(float)
     # the solver's own tolerance on the limits, with float32 round-off of x0
@@ -195,7 +200,8 @@ def _solve_one(dataset_path: str, seed: int, config: OptimalConfig, key: str, ou
     dataset = SegmentDataset.load(dataset_path)
     flight = flight_arrays(dataset, flight_rows(dataset)[seed])
     started = time.perf_counter()
-    result, figures = solve_bound(flight["R"], flight["U"], flight["x0"], config)
+    robot = load_platform(dataset_platform(dataset.metadata))
+    result, figures = solve_bound(flight["R"], flight["U"], flight["x0"], config, robot)
     wall = time.perf_counter() - started
     return str(keep_flight_bound(dataset, seed, result.U, figures, config, key, out, wall))
 

@@ -37,7 +37,7 @@ from mca_drake.atomic_io import check_writable
 from mca_drake.conventions import CONTROL_PERIOD_S, FIRST_EVALUATION_SEED
 from mca_drake.cueing import McaConfig, NmpcConfig, as_mca_config, mca_config_record
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.files import DEFAULT_PLATFORM, SerialRobot, load_platform, packaged_name
 from mca_drake.platforms.kinematics import cut_trajectory
 from mca_drake.references.drives import (
     check_training_motion_vehicle,
@@ -93,14 +93,18 @@ class ClosedLoopDatasetConfig:
     split_seed: int = 0
     # Floating-point type of the stored arrays.
     dtype: str = "float32"
+    # The motion platform the MCA cues on: a packaged name, a platform file or a
+    # description (`mca_drake.platforms.files.load_platform`).
+    platform: str | SerialRobot = DEFAULT_PLATFORM
 
     def __post_init__(self) -> None:
-        self.mca = as_mca_config(self.mca)
+        self.mca = as_mca_config(self.mca, packaged_name(self.platform))
 
     def validate(self) -> None:
         """Raises ValueError for an unknown vehicle, no seeds, a bad horizon, split or
         flight length; before any flight is simulated."""
         check_config_numbers(self)
+        load_platform(self.platform)  # ValueError or FileNotFoundError naming the problem
         for vehicle in self.vehicles or (self.vehicle,):
             check_training_motion_vehicle(vehicle)
         if not self.flight_seeds:
@@ -169,6 +173,8 @@ class ClosedLoopDatasetConfig:
         fields = self.record()
         for name in ("flight_seeds", "split_fractions", "split_seed", "vehicles"):
             fields.pop(name)
+        if fields["platform"] == DEFAULT_PLATFORM:
+            fields.pop("platform")  # the KR500's flight files keep the keys they always had
         fields["vehicle"] = vehicle
         return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:16]
 
@@ -184,7 +190,7 @@ def simulate_flight(
     """One flight of `vehicle` (default `config.vehicle`) through the closed loop, cut into
     segments (no file written)."""
     vehicle = vehicle or config.vehicle
-    robot = load_platform(DEFAULT_PLATFORM)
+    robot = load_platform(config.platform)
     started = time.perf_counter()
     origin = config.flight_source(seed, vehicle)
     if origin == "drive":
@@ -217,6 +223,7 @@ def simulate_flight(
         "flight_seed": seed,
         "vehicle": vehicle,
         "reference_source": origin,
+        "platform": robot.summary(),
         "source_columns": list(SOURCE_COLUMNS),
         "summary": result.summary,
         "recording_metadata": recording.metadata,
@@ -281,6 +288,7 @@ def merge(config: ClosedLoopDatasetConfig, out_dir: str | Path) -> Path:
         {str(p.metadata["flight_seed"]): p.metadata["summary"] for p in parts},
         {seed: vehicle for vehicle, seed in config.flights()},
         config=config.record(),
+        platform=load_platform(config.platform).summary(),
     )
     return merged.save(out_dir / "dataset.npz")
 
@@ -308,8 +316,8 @@ def join_datasets(paths: list[str | Path], out: str | Path) -> Path:
 
     Raises:
         ValueError: fewer than two parts, a part that is not a closed-loop dataset (no
-            flight_vehicles), parts that share a flight seed, or parts with different arrays
-            or horizons.
+            flight_vehicles), parts that share a flight seed, or parts with different arrays,
+            horizons or platforms.
     """
     if len(paths) < 2:
         raise ValueError(f"join needs at least two datasets; got {len(paths)}")
@@ -325,10 +333,16 @@ def join_datasets(paths: list[str | Path], out: str | Path) -> Path:
             raise ValueError(f"{path} repeats flights {shared} of an earlier part")
         vehicles.update(names)
         flights.update(part.metadata.get("flights", {}))
+    made_on = {
+        json.dumps(part.metadata.get("platform", {"name": DEFAULT_PLATFORM})) for part in parts
+    }
+    if len(made_on) > 1:
+        raise ValueError(f"the datasets were made on different platforms: {sorted(made_on)}")
     joined = SegmentDataset.concatenate(parts)
     joined.metadata = _dataset_metadata(
         flights,
         vehicles,
+        platform=json.loads(made_on.pop()),
         joined_from=[
             {"path": str(p), "config": part.metadata.get("config")}
             for p, part in zip(paths, parts, strict=True)

@@ -1,237 +1,63 @@
-"""Evaluation over a scenario set (the paper's Section VI-B, Fig. 3), with more MCAs.
+"""Evaluation over a scenario set (the paper's Section VI-B, Fig. 3), with more MCAs:
+running it.
 
-For every case (Case A: light-aircraft flights with seeds never used in training; Case B:
-jet flights; Case C: flights of aircraft used in neither training nor tuning) and every MCA
-config (default: dpc, nmpc-converged, nmpc-rti, washout) the
-closed loop on the analytical plant is run over each flight; per run the result summary
-(README, "Result summary") is written as one JSON file, atomically. A re-run skips
-finished runs of the same MCA config, duration and policy, so a killed evaluation resumes.
-
-The report gives per case and MCA the PI distribution beside the zero-motion PI, the same
-for the perceived PI (`mca_drake.perception`) with the wrong cues felt and the sickness
-estimate, the false rotation cues (`mca_drake.metrics.false_rotation`, which the PI prices
-cheaply), step times, violations and safety interventions; the Wilcoxon rank-sum test of DPC
-against every other MCA and the paired signed-rank test, on the PI and on the perceived PI;
-the step-time ratios; box-plot figures like the paper's Fig. 3; markdown and JSON.
+For every case (`evaluation_cases`: Case A light-aircraft flights with seeds never used in
+training, B jet flights, C aircraft used in neither training nor tuning, D drives, E the
+route pilot) and every MCA config, the closed loop on the analytical plant of the suite's
+platform is run over each flight (and, with a bound, the flight's offline-optimal bound);
+per run the result summary is written as one JSON file, atomically. A re-run skips finished
+runs of the same MCA config, duration, policy and platform, so a killed evaluation resumes.
+The report (`evaluation_report.write_report`) is written from the run files at the end.
+This module also gives the suite's public names of both.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import json
-import math
 from pathlib import Path
-
-import numpy as np
 
 from mca_drake.atomic_io import (
     atomic_write_json,
-    atomic_write_text,
     check_writable,
-    file_sha256,
 )
-from mca_drake.conventions import CHANNELS, FIRST_EVALUATION_SEED
 from mca_drake.cueing import (
-    DpcConfig,
     McaConfig,
-    as_mca_config,
-    mca_config_from_name,
-    mca_config_record,
     mca_name,
 )
-from mca_drake.cueing.dpc import ENVELOPE_POLICIES, for_vehicle, shipped_policy_path
+from mca_drake.cueing.dpc import for_vehicle
 from mca_drake.cueing.optimal import OptimalConfig
-from mca_drake.input_checks import MAX_DURATION_S, check_range
-from mca_drake.metrics import wilcoxon_rank_sum, wilcoxon_signed_rank
-from mca_drake.plotting import plot_pi_boxes, save_figure
-from mca_drake.references.drives import DriveSpec, motion_reference
-from mca_drake.references.flights import FlightSpec
-from mca_drake.references.jsbsim import UNSEEN_VEHICLES
-from mca_drake.resources import split_profile
+from mca_drake.platforms.files import SerialRobot, load_platform
+from mca_drake.references.drives import motion_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.simulation.optimal_bound import run_optimal_bound
+from mca_drake.studies.evaluation_cases import (
+    BOUND,
+    DEFAULT_MCAS,
+    DRIVE_CARS,
+    DRIVE_MANOEUVRES,
+    ROUTE_VEHICLES,
+    EvaluationCase,
+    EvaluationConfig,
+    default_cases,
+    finished_bound,
+    finished_run,
+    policy_fingerprint,
+    run_path,
+    run_platform,
+    same_config,
+)
+from mca_drake.studies.evaluation_report import (
+    SIGNIFICANCE_LEVEL,
+    dpc_test_key,
+    evaluation_markdown,
+    format_p,
+    improvement_share,
+    is_dpc_test,
+    kept_entries,
+    load_report,
+    rank_sum_verdict,
+    write_report,
+)
 from mca_drake.studies.parallel import run_tasks
-
-# The MCAs a suite compares by default (DPC is tested against each other one).
-DEFAULT_MCAS = ("dpc", "nmpc-converged", "nmpc-rti", "washout", "nmpc-rti-perceived")
-
-
-@dataclasses.dataclass
-class EvaluationCase:
-    """A set of flights, or of drives: of one vehicle, or of several (`vehicles`, dealt to
-    the seeds in turn: seed i flies vehicles[i % len(vehicles)]). With `manoeuvres` the
-    case drives cars (`references.drives`): seed i drives manoeuvres[i % n] in the car
-    vehicles[i % len(vehicles)]."""
-
-    # Label in the report ("A", "B", "C").
-    name: str
-    # The vehicle (`mca_drake.references.jsbsim.VEHICLES`, or a car of
-    # `references.driving.CARS` for drives) when `vehicles` is empty.
-    vehicle: str
-    # Flight seeds: evaluation flights, from FIRST_EVALUATION_SEED on.
-    seeds: tuple[int, ...]
-    # Several vehicles, dealt to the seeds in turn.
-    vehicles: tuple[str, ...] = ()
-    # Who flies the flights (`references.flights.PILOTS`).
-    pilot: str = "scripted"
-    # Drives instead of flights: the manoeuvres (`references.driving.MANOEUVRES`), dealt
-    # to the seeds in turn.
-    manoeuvres: tuple[str, ...] = ()
-
-    def vehicle_of(self, seed: int) -> str:
-        """The vehicle that flight `seed` of this case flies."""
-        if not self.vehicles:
-            return self.vehicle
-        return self.vehicles[self.seeds.index(seed) % len(self.vehicles)]
-
-    def spec_of(self, seed: int) -> FlightSpec | DriveSpec:
-        """The flight, or the drive, of seed `seed` of this case."""
-        vehicle = self.vehicle_of(seed)
-        if self.manoeuvres:
-            manoeuvre = self.manoeuvres[self.seeds.index(seed) % len(self.manoeuvres)]
-            return DriveSpec(manoeuvre=manoeuvre, seed=seed, car=vehicle)
-        return FlightSpec(vehicle=vehicle, seed=seed, pilot=self.pilot)
-
-    def label(self) -> str:
-        """The case's vehicles for the report: "light", or "t6texan2, T38, ...", and who
-        flies them where it is not the scripted pilot (or what the cars drive)."""
-        vehicles = ", ".join(self.vehicles) if self.vehicles else self.vehicle
-        if self.manoeuvres:
-            return f"{vehicles} ({', '.join(self.manoeuvres)} drives)"
-        return vehicles if self.pilot == "scripted" else f"{vehicles} ({self.pilot} pilot)"
-
-
-# The name of the bound's run files and report entries.
-BOUND = "optimal"
-# Level of the report's rank-sum tests (the paper's).
-SIGNIFICANCE_LEVEL = 0.05
-
-
-# Case D's cars and drives: the three cars, each driving proving-ground roads and laps.
-DRIVE_CARS = ("bmw-320i", "ford-escort", "vw-vanagon")
-DRIVE_MANOEUVRES = ("proving-ground", "lap")
-# Case E's aircraft: those of cases A to C, flown by the route pilot.
-ROUTE_VEHICLES = ("light", "jet", *UNSEEN_VEHICLES)
-
-
-def default_cases() -> tuple[EvaluationCase, ...]:
-    """The paper's two cases, 10 light-aircraft and 10 jet flights unseen in training;
-    case C: 10 flights of aircraft neither trained nor tuned on; case D: 10 drives of
-    three cars over proving-ground roads and laps (`references.driving`); case E: 10 flights of
-    cases A to C's aircraft flown by the route pilot, a pilot no training, tuning or
-    recipe choice ever saw (`references.jsbsim.route`)."""
-    return (
-        EvaluationCase("A", "light", tuple(range(1000, 1010))),
-        EvaluationCase("B", "jet", tuple(range(2000, 2010))),
-        EvaluationCase("C", "", tuple(range(3000, 3010)), vehicles=UNSEEN_VEHICLES),
-        EvaluationCase(
-            "D", "", tuple(range(4000, 4010)), vehicles=DRIVE_CARS, manoeuvres=DRIVE_MANOEUVRES
-        ),
-        EvaluationCase("E", "", tuple(range(5000, 5010)), vehicles=ROUTE_VEHICLES, pilot="route"),
-    )
-
-
-@dataclasses.dataclass
-class EvaluationConfig:
-    """What to evaluate; defaults: the paper's scenario set, 5 minutes per flight."""
-
-    # The MCAs compared, as typed configs (names stand for their default configs); each is
-    # labelled in the report by its name (`mca_drake.cueing.mca_name`), so no two may share
-    # one.
-    mcas: tuple[McaConfig, ...] = dataclasses.field(
-        default_factory=lambda: tuple(mca_config_from_name(n) for n in DEFAULT_MCAS)
-    )
-    cases: tuple[EvaluationCase, ...] = dataclasses.field(default_factory=default_cases)
-    # Simulated seconds per flight.
-    duration_s: float = 300.0
-    # The offline-optimal bound's settings: each flight's bound is solved too
-    # (`mca_drake.simulation.optimal_bound`) and every MCA's share of the achievable
-    # improvement reported; None: no bound.
-    bound: OptimalConfig | None = None
-
-    def __post_init__(self) -> None:
-        self.mcas = tuple(as_mca_config(m) for m in self.mcas)
-
-    def validate(self) -> None:
-        """Raises ValueError for no or two MCAs of one name, training seeds, no flight or a
-        bad duration."""
-        if not self.mcas:
-            raise ValueError("mcas is empty: nothing to evaluate")
-        if not any(case.seeds for case in self.cases):
-            raise ValueError("no flight to evaluate: every case is empty")
-        check_range(
-            "EvaluationConfig", "duration_s", self.duration_s, 0.0, MAX_DURATION_S, low_open=True
-        )
-        for case in self.cases:
-            if any(not FIRST_EVALUATION_SEED <= s < 2**32 for s in case.seeds):
-                raise ValueError(
-                    f"case {case.name}: flight seeds must be evaluation seeds, in "
-                    f"[{FIRST_EVALUATION_SEED}, 2^32): lower ones are for training and tuning"
-                )
-            if len(set(case.seeds)) != len(case.seeds):
-                raise ValueError(f"case {case.name}: a flight seed repeats")
-            for seed in case.seeds[: max(len(case.vehicles), len(case.manoeuvres), 1)]:
-                case.spec_of(seed).validate()
-        if self.bound is not None:
-            self.bound.validate()
-        names = self.names()
-        if len(set(names)) != len(names):
-            raise ValueError(f"two MCAs share a name in {names}; compare distinct MCAs")
-
-    def names(self) -> list[str]:
-        """The report's label of every MCA, in order."""
-        return [mca_name(m) for m in self.mcas]
-
-
-def _run_path(out: Path, case: str, mca: str, seed: int) -> Path:
-    return out / "runs" / f"{case}_{mca}_{seed}.json"
-
-
-def policy_fingerprint(config) -> str:
-    """SHA-256 of a DpcConfig's policy file (recorded in every DPC run so that a resumed
-    evaluation never mixes runs of two policies); "" for other MCAs."""
-    return file_sha256(config.policy_path()) if isinstance(config, DpcConfig) else ""
-
-
-def _finished_run(
-    out: Path, case: EvaluationCase, config: McaConfig, seed: int, duration_s: float
-) -> dict | None:
-    """The summary of a finished run of (case, MCA, seed) on disk, or None: not there,
-    unreadable, not a JSON object, or made with another MCA config, duration or DPC policy
-    (then it is run again and overwritten)."""
-    path = _run_path(out, case.name, mca_name(config), seed)
-    if not path.is_file():
-        return None
-    config = for_vehicle(config, case.vehicle_of(seed))  # as `run_closed_loop` records it
-    try:
-        summary = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(summary, dict):  # valid JSON but no summary (a list, a number): redo
-        return None
-    same = (
-        "perceived" in summary  # every figure of the report, perceived ones included
-        and same_config(summary.get("mca_config"), config)
-        and summary.get("duration_s") == duration_s
-        and summary.get("policy_sha256", "") == policy_fingerprint(config)
-    )
-    return summary if same else None
-
-
-def same_config(recorded, config: McaConfig) -> bool:
-    """Whether a run file's `mca_config` record is that of `config`. A field the record
-    lacks (the run is older than the field) counts as the field's default: the run was made
-    with the behaviour the default stands for, so a config at that default matches it."""
-    if not isinstance(recorded, dict):
-        return False
-    current = mca_config_record(config)
-    defaults = mca_config_record(type(config)())
-    missing = current.keys() - recorded.keys()
-    if recorded.keys() - current.keys():
-        return False  # a field this code no longer has: another config
-    return all(recorded[k] == current[k] for k in recorded) and all(
-        current[k] == defaults[k] for k in missing
-    )
 
 
 def _run_one(
@@ -240,40 +66,29 @@ def _run_one(
     seed: int,
     duration_s: float,
     out: str,
+    platform: str | SerialRobot,
 ) -> dict:
-    """One flight of a case through an MCA, or its offline-optimal bound; its summary is
-    written to the run's file."""
+    """One flight of a case through an MCA, or its offline-optimal bound, on `platform`;
+    its summary is written to the run's file."""
     out_dir = Path(out)
+    robot = load_platform(platform)
     vehicle = case.vehicle_of(seed)
     reference = motion_reference(case.spec_of(seed), duration_s, cache_dir=out_dir / "flights")
     if isinstance(config, OptimalConfig):
         result = run_optimal_bound(
-            reference=reference, config=config, duration_s=duration_s, progress=False
+            reference=reference, config=config, duration_s=duration_s, robot=robot, progress=False
         )
     else:
         result = run_closed_loop(
-            mca=config, reference=reference, duration_s=duration_s, progress=False
+            mca=config, reference=reference, duration_s=duration_s, robot=robot, progress=False
         )
     summary = {**result.summary, "case": case.name, "seed": seed, "vehicle": vehicle}
-    fingerprint = policy_fingerprint(for_vehicle(config, vehicle))
+    summary["platform"] = robot.summary()
+    fingerprint = policy_fingerprint(for_vehicle(config, vehicle), robot.name)
     if fingerprint:
         summary["policy_sha256"] = fingerprint
-    atomic_write_json(_run_path(out_dir, case.name, summary["mca"], seed), summary)
+    atomic_write_json(run_path(out_dir, case.name, summary["mca"], seed), summary)
     return summary
-
-
-def _finished_bound(out: Path, case: str, config: OptimalConfig, seed: int, duration_s: float):
-    """The summary of a finished bound of (case, seed) on disk made with `config` and
-    `duration_s`, or None (then it is solved again)."""
-    path = _run_path(out, case, BOUND, seed)
-    try:
-        summary = json.loads(path.read_text()) if path.is_file() else None
-    except (OSError, ValueError):
-        return None
-    record = {"type": "OptimalConfig", **dataclasses.asdict(config)}
-    if not isinstance(summary, dict) or summary.get("mca_config") != record:
-        return None
-    return summary if summary.get("duration_s") == duration_s else None
 
 
 def run_evaluation(
@@ -294,11 +109,12 @@ def run_evaluation(
             (`write_report`): a case's MCA it keeps, or its bound, is not run.
     """
     config.validate()
+    platform = load_platform(config.platform).name
     out = Path(out_dir).resolve()  # a cluster's workers write here from folders of their own
     check_writable(out / "runs", folder=True)
     unfinished = {
         (c.name, mca_name(m)): [
-            s for s in c.seeds if _finished_run(out, c, m, s, config.duration_s) is None
+            s for s in c.seeds if finished_run(out, c, m, s, config.duration_s, platform) is None
         ]
         for c in config.cases
         for m in config.mcas
@@ -312,7 +128,7 @@ def run_evaluation(
         }
         kept = kept_entries(config, on_disk, previous)
     tasks = [
-        (mca, case, seed, config.duration_s, str(out))
+        (mca, case, seed, config.duration_s, str(out), config.platform)
         for case in config.cases
         for seed in case.seeds
         for mca in config.mcas
@@ -320,11 +136,12 @@ def run_evaluation(
     ]
     if config.bound is not None:
         tasks += [
-            (config.bound, case, seed, config.duration_s, str(out))
+            (config.bound, case, seed, config.duration_s, str(out), config.platform)
             for case in config.cases
             for seed in case.seeds
             if "bound" not in (previous or {}).get("cases", {}).get(case.name, {})
-            and _finished_bound(out, case.name, config.bound, seed, config.duration_s) is None
+            and finished_bound(out, case.name, config.bound, seed, config.duration_s, platform)
+            is None
         ]
     per_flight = len(config.mcas) + (config.bound is not None)
     total = sum(len(c.seeds) for c in config.cases) * per_flight
@@ -341,471 +158,30 @@ def run_evaluation(
     return write_report(config, out, previous)
 
 
-def write_report(config: EvaluationConfig, out: Path, previous: dict | None = None) -> dict:
-    """Aggregates the run files of `config` into evaluation.json, evaluation.md and
-    evaluation.png in `out`; returns the JSON dictionary. DPC runs of another policy
-    than each DpcConfig's policy, and runs of another MCA config or duration, are left out.
-
-    With `previous` (an earlier report of the same duration), a case's NMPC or washout
-    with no run on disk keeps its entry from it where that report ran the same config, and
-    a case without bound runs keeps its bound (`kept_entries`): the runs folder is not kept
-    with the results, so a new DPC policy is measured by running the DPCs alone."""
-    runs = {}  # (case, mca name) -> {seed: run summary}, finished runs only
-    for c in config.cases:
-        for m in config.mcas:
-            found = {s: _finished_run(out, c, m, s, config.duration_s) for s in c.seeds}
-            runs[(c.name, mca_name(m))] = {s: r for s, r in found.items() if r is not None}
-    kept = kept_entries(config, runs, previous) if previous is not None else {}
-    report = {
-        "duration_s": config.duration_s,
-        "policy_sha256": next(filter(None, map(policy_fingerprint, config.mcas)), ""),
-        "envelope_policies_sha256": {
-            envelope: file_sha256(shipped_policy_path(name))
-            for envelope, name in ENVELOPE_POLICIES.items()
-        },
-        "mcas": config.names(),
-        "mca_configs": {mca_name(m): mca_config_record(m) for m in config.mcas},
-        "cases": {},
-    }
-    for case in config.cases:
-        entry = {"vehicle": case.label(), "seeds": list(case.seeds), "mcas": {}}
-        for mca in config.names():
-            rs = list(runs[(case.name, mca)].values())
-            if (case.name, mca) in kept:
-                entry["mcas"][mca] = kept[(case.name, mca)]
-                runs[(case.name, mca)] = _stand_in_runs(kept[(case.name, mca)])
-                continue
-            if not rs:
-                continue
-            pis = np.array([r["pi"] for r in rs])
-            steps = np.array([r["step_time_s"]["median"] for r in rs])
-            entry["mcas"][mca] = {
-                "runs": len(rs),
-                "seeds": list(runs[(case.name, mca)]),
-                "pi": pis.tolist(),
-                "pi_median": float(np.median(pis)),
-                "pi_iqr": [float(np.percentile(pis, 25)), float(np.percentile(pis, 75))],
-                "pi_zero_motion_median": float(np.median([r["pi_zero_motion"] for r in rs])),
-                # flights whose PI is below (better than) not moving's
-                "better_than_zero_motion": int(sum(r["pi"] < r["pi_zero_motion"] for r in rs)),
-                # the most-used joint's share of its range, median over flights
-                "joint_range_used_median": float(
-                    np.median([max(r["joint_range_used"]) for r in rs])
-                ),
-                # rotation felt that the vehicle did not make (metrics.false_rotation),
-                # median over flights of each run's RMS, deg/s (nan for run files without
-                # the measure)
-                "false_rotation_median_deg_s": float(
-                    np.median([r.get("false_rotation", {}).get("rms_deg_s", np.nan) for r in rs])
-                ),
-                **_channel_medians(rs),
-                **_perceived_medians(rs),
-                "step_time_median_s": float(np.median(steps)),
-                "step_time_max_s": float(max(r["step_time_s"]["max"] for r in rs)),
-                "violations": int(sum(sum(r["violations"].values()) for r in rs)),
-                "safety_interventions": int(sum(r["safety_interventions"] for r in rs)),
-                "solver_failures": int(sum(r["solver_failures"] for r in rs)),
-            }
-        if config.bound is not None:
-            kept_here = {mca for name, mca in kept if name == case.name}
-            entry |= _bound_entry(config, out, case, runs, kept_here, previous)
-        m = entry["mcas"]
-        # each DPC (the default's, a profile's) against every other MCA (the paper: against
-        # converged NMPC)
-        for dpc in [d for d in m if split_profile(d)[0] == "dpc"]:
-            for other in m:
-                if other == dpc or min(m[dpc]["runs"], m[other]["runs"]) < 2:
-                    continue
-                entry[dpc_test_key(dpc, other)] = _dpc_test(
-                    m[dpc], m[other], runs[(case.name, dpc)], runs[(case.name, other)]
-                ) | {"dpc": dpc, "other": other}
-        report["cases"][case.name] = entry
-    atomic_write_json(out / "evaluation.json", report)
-    atomic_write_text(out / "evaluation.md", evaluation_markdown(report))
-    if any(e["mcas"] for e in report["cases"].values()):
-        save_figure(plot_pi_boxes(report), out / "evaluation.png")
-        save_figure(plot_pi_boxes(report, "perceived_pi"), out / "evaluation_perceived.png")
-    return report
-
-
-def load_report(path: str | Path) -> dict:
-    """A suite report (evaluation.json) as a dictionary.
-
-    Raises:
-        FileNotFoundError: there is none at `path`.
-        ValueError: the file is not a JSON object with the report's cases.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no suite report at {path} to keep entries from")
-    try:
-        report = json.loads(path.read_text())
-    except (OSError, ValueError) as error:
-        raise ValueError(f"{path} is not a readable JSON report: {error}") from None
-    if not isinstance(report, dict) or not isinstance(report.get("cases"), dict):
-        raise ValueError(f"{path} is not a suite report (no cases)")
-    return report
-
-
-def kept_entries(config: EvaluationConfig, runs: dict, previous: dict) -> dict:
-    """{(case, MCA name): report entry} of `previous` (a report dictionary) for every case's
-    non-DPC MCA of `config` with no finished run in `runs`, where `previous` has the same
-    duration and recorded the same config for that MCA. DPC entries are never kept: their
-    runs are quick and their policies change.
-
-    Raises:
-        ValueError: `previous` is not a report of this duration.
-    """
-    if not isinstance(previous, dict) or previous.get("duration_s") != config.duration_s:
-        raise ValueError(
-            f"the previous report is not one of {config.duration_s:g} s flights; "
-            "its entries cannot stand in for runs"
-        )
-    recorded = previous.get("mca_configs", {})
-    kept = {}
-    for case in config.cases:
-        old = previous.get("cases", {}).get(case.name, {}).get("mcas", {})
-        for m in config.mcas:
-            name = mca_name(m)
-            if isinstance(m, DpcConfig) or runs[(case.name, name)] or name not in old:
-                continue
-            if recorded.get(name) == mca_config_record(m):
-                kept[(case.name, name)] = old[name]
-    return kept
-
-
-def _stand_in_runs(entry: dict) -> dict:
-    """{seed: the figures the tests read} of a kept report entry: its per-flight PI and
-    perceived PI."""
-    return {
-        seed: {"pi": pi, "perceived": {"pi": perceived}}
-        for seed, pi, perceived in zip(
-            entry["seeds"], entry["pi"], entry["perceived_pi"], strict=True
-        )
-    }
-
-
-def dpc_test_key(dpc: str, other: str) -> str:
-    """The report's key of the tests of DPC `dpc` against MCA `other`: "dpc_vs_washout",
-    "dpc_ground_vs_nmpc_rti_ground"."""
-    return f"{dpc}_vs_{other}".replace("-", "_")
-
-
-def is_dpc_test(key: str) -> bool:
-    """Whether a key of a case's report entry holds a DPC's tests (`dpc_test_key`)."""
-    return key.startswith("dpc_") and "_vs_" in key
-
-
-def _dpc_test(dpc: dict, other: dict, dpc_runs: dict, other_runs: dict) -> dict:
-    """Rank-sum test of a DPC's PIs against another MCA's, with the paired and the
-    perceived tests, from their report entries and runs (seed -> summary)."""
-    test = wilcoxon_rank_sum(dpc["pi"], other["pi"])
-    return {
-        "z": test.z,
-        "p": test.p,
-        "alpha": SIGNIFICANCE_LEVEL,
-        "significant": test.significant(SIGNIFICANCE_LEVEL),
-        "median_gap": dpc["pi_median"] - other["pi_median"],
-        "step_time_ratio": other["step_time_median_s"] / dpc["step_time_median_s"],
-        "paired": _paired_test(dpc_runs, other_runs),
-        "perceived": _perceived_tests(dpc_runs, other_runs),
-    }
-
-
-def _bound_entry(
-    config: EvaluationConfig,
-    out: Path,
-    case: EvaluationCase,
-    runs: dict,
-    kept: set[str],
-    previous: dict | None,
-) -> dict:
-    """The case's bound (per flight: its PI, KKT residual and solve time) and, per MCA,
-    its share of the achievable improvement on the flights both have:
-    (PI_zero - PI_mca) / (PI_zero - PI_bound); {} without a finished bound. Without bound
-    runs on disk, `previous`'s bound for the case stands in; the MCAs in `kept` (whose
-    entries come from `previous`) keep their shares from it."""
-    old = (previous or {}).get("cases", {}).get(case.name, {})
-    bounds = {}
-    for seed in case.seeds:
-        bound = _finished_bound(out, case.name, config.bound, seed, config.duration_s)
-        if bound is not None:
-            bounds[seed] = bound
-    if bounds:
-        pis = [b["pi"] for b in bounds.values()]
-        summary = {
-            "runs": len(bounds),
-            "seeds": list(bounds),
-            "pi": pis,
-            "pi_median": float(np.median(pis)),
-            "kkt_residual_max": float(max(b["solver"]["kkt_residual"] for b in bounds.values())),
-            "solve_time_median_s": float(
-                np.median([b["solver"]["solve_time_s"] for b in bounds.values()])
-            ),
-        }
-    elif "bound" in old:
-        summary = old["bound"]
-    else:
-        return {}
-    bound_pi = dict(zip(summary["seeds"], summary["pi"], strict=True))
-    entry = {"bound": summary, "shares": {}}
-    for mca in config.names():
-        if mca in kept:
-            if mca in old.get("shares", {}):
-                entry["shares"][mca] = old["shares"][mca]
-            continue
-        mine = runs[(case.name, mca)]
-        shares = [
-            improvement_share(mine[s]["pi_zero_motion"], mine[s]["pi"], bound_pi[s])
-            for s in sorted(mine.keys() & bound_pi.keys())
-        ]
-        if shares:
-            entry["shares"][mca] = {"share": shares, "share_median": float(np.median(shares))}
-    return entry
-
-
-def improvement_share(pi_zero: float, pi_mca: float, pi_bound: float) -> float:
-    """An MCA's share of the achievable improvement on a flight: (PI_zero - PI_mca) /
-    (PI_zero - PI_bound); 1 at the bound, 0 at no motion, above 1 where the MCA beats the
-    bound on the PI (its correlation part, which the bound does not optimise); NaN where
-    the bound gains nothing over no motion."""
-    gain = pi_zero - pi_bound
-    return float((pi_zero - pi_mca) / gain) if gain > 0 else float("nan")
-
-
-def _channel_medians(runs: list[dict]) -> dict:
-    """rmse_median and cc_median (6 each, conventions.CHANNELS), medians over the runs:
-    where the PI comes from (it sums RMSE - CC over the six); {} where a run has neither."""
-    if not all("rmse" in r and "cc" in r for r in runs):
-        return {}
-    return {
-        f"{key}_median": np.median([r[key] for r in runs], axis=0).tolist()
-        for key in ("rmse", "cc")
-    }
-
-
-def _perceived_medians(runs: list[dict]) -> dict:
-    """The perceived figures of the runs (`mca_drake.perception.scores`): each run's
-    perceived PI, their median and quartiles, zero motion's median, the median share of time
-    a wrong cue is felt per channel (6) and the median sickness figures of the simulator."""
-    perceived = [r["perceived"] for r in runs]
-    pis = np.array([p["pi"] for p in perceived])
-    sickness = [p["sickness"]["simulator"] for p in perceived]
-    return {
-        "perceived_pi": pis.tolist(),
-        "perceived_pi_median": float(np.median(pis)),
-        "perceived_pi_iqr": [float(np.percentile(pis, 25)), float(np.percentile(pis, 75))],
-        "perceived_pi_zero_motion_median": float(
-            np.median([p["pi_zero_motion"] for p in perceived])
-        ),
-        "false_cue_share_median": np.median(
-            [p["false_cue_share"] for p in perceived], axis=0
-        ).tolist(),
-        "conflict_rms_median_m_s2": float(np.median([s["conflict_rms_m_s2"] for s in sickness])),
-        "msi_final_median_percent": float(np.median([s["msi_final_percent"] for s in sickness])),
-    }
-
-
-def _perceived_tests(dpc: dict, other: dict) -> dict | None:
-    """DPC against another MCA on the perceived PI: the rank-sum test over their runs and the
-    signed-rank test on the flights both finished; None below two runs each.
-    `dpc`, `other`: {seed: run summary}."""
-    if min(len(dpc), len(other)) < 2:
-        return None
-    a = [r["perceived"]["pi"] for r in dpc.values()]
-    b = [r["perceived"]["pi"] for r in other.values()]
-    test = wilcoxon_rank_sum(a, b)
-    return {
-        "z": test.z,
-        "p": test.p,
-        "alpha": SIGNIFICANCE_LEVEL,
-        "significant": test.significant(SIGNIFICANCE_LEVEL),
-        "median_gap": test.median_a - test.median_b,
-        "paired": _paired_test(dpc, other, lambda r: r["perceived"]["pi"]),
-    }
-
-
-def _paired_test(dpc: dict, other: dict, score=lambda run: run["pi"]) -> dict | None:
-    """Signed-rank test of DPC against another MCA on the flights both have finished (the
-    same flights, so the flight-to-flight spread cancels), with the flight where DPC does
-    worst against it (`worst_seed`, `worst_difference` = DPC's score minus the other's:
-    positive where DPC is worse); None below two shared flights.
-    `dpc`, `other`: {seed: run summary}; `score`: the figure compared (default the PI)."""
-    shared = sorted(dpc.keys() & other.keys())
-    if len(shared) < 2:
-        return None
-    a, b = [score(dpc[s]) for s in shared], [score(other[s]) for s in shared]
-    test = wilcoxon_signed_rank(a, b)
-    differences = np.subtract(a, b)
-    worst = int(np.argmax(differences))
-    return {
-        "seeds": shared,
-        "p": test.p,
-        "median_difference": test.median_difference,
-        "dpc_better": test.a_better,
-        "worst_seed": shared[worst],
-        "worst_difference": float(differences[worst]),
-    }
-
-
-def format_p(p: float) -> str:
-    """A p-value as the report prints it: ``p < 0.001`` below 0.001, else three figures.
-
-    Three significant figures rather than three decimals, so a p of 0.0499 does not
-    print as 0.050 beside the word "significant".
-    """
-    return "p < 0.001" if p < 1e-3 else f"p = {p:.3g}"
-
-
-def rank_sum_verdict(test: dict) -> str:
-    """The words after a report's rank-sum test of DPC (first sample) against another MCA.
-
-    `test`: a DPC's test entry (`dpc_test_key`) of the report (``z``, ``alpha``,
-    ``significant``, the last from `RankSumResult.significant`). A negative z means DPC's
-    PIs rank lower, and a lower PI is better, so a significant result says which side it
-    falls on.
-    """
-    if not test["significant"]:
-        return f"no significant difference at {test['alpha']:g}"
-    return f"significant at {test['alpha']:g}: DPC {'better' if test['z'] < 0 else 'worse'}"
-
-
-def _channel_table(mcas: dict) -> list[str]:
-    """Markdown lines: per MCA, each channel's median RMSE / CC (rad/s for the rates, m/s^2
-    for the specific forces); none for a report without the per-channel medians."""
-    if not all("cc_median" in m for m in mcas.values()):
-        return []
-    lines = [
-        "",
-        "Median RMSE / CC per channel (the PI sums RMSE - CC; CC counts alike on every "
-        "channel, whatever its size):",
-        "",
-        "| MCA | " + " | ".join(CHANNELS) + " |",
-        "|---|" + "---|" * len(CHANNELS),
-    ]
-    for mca, m in mcas.items():
-        cells = (
-            f"{e:.3f} / {c:.2f}" for e, c in zip(m["rmse_median"], m["cc_median"], strict=True)
-        )
-        lines.append(f"| {mca} | " + " | ".join(cells) + " |")
-    return lines
-
-
-def _paired_line(paired: dict | None) -> list[str]:
-    """The report's line on a signed-rank test (`_paired_test`); none without one."""
-    if not paired:
-        return []
-    return [
-        f"Paired on the {len(paired['seeds'])} flights both ran: DPC better on "
-        f"{paired['dpc_better']}, median difference {paired['median_difference']:+.3f}, "
-        f"Wilcoxon signed-rank {format_p(paired['p'])}. DPC's worst flight against it: "
-        f"{paired['worst_seed']}, {paired['worst_difference']:+.3f}."
-    ]
-
-
-def _perceived_table(mcas: dict) -> list[str]:
-    """Markdown lines: per MCA, the median share of time a wrong cue is felt per channel and
-    the sickness model's median conflict and incidence; none without perceived figures."""
-    if not all("false_cue_share_median" in m for m in mcas.values()):
-        return []
-    lines = [
-        "",
-        "What the occupant perceives (vestibular model): median share of time a wrong cue is "
-        "felt per channel, median conflict RMS and incidence of the sickness model:",
-        "",
-        "| MCA | " + " | ".join(CHANNELS) + " | conflict RMS | incidence |",
-        "|---|" + "---|" * (len(CHANNELS) + 2),
-    ]
-    for mca, m in mcas.items():
-        cells = " | ".join(f"{v:.0%}" for v in m["false_cue_share_median"])
-        lines.append(
-            f"| {mca} | {cells} | {m['conflict_rms_median_m_s2']:.3f} m/s^2 | "
-            f"{m['msi_final_median_percent']:.2g} % |"
-        )
-    return lines
-
-
-def _bound_lines(case: dict) -> list[str]:
-    """Markdown lines: the case's offline-optimal bound and each MCA's median share of the
-    achievable improvement; none without a bound."""
-    bound = case.get("bound")
-    if not bound:
-        return []
-    shares = ", ".join(
-        f"{mca} {entry['share_median']:.0%}" for mca, entry in case.get("shares", {}).items()
-    )
-    return [
-        "",
-        f"Offline-optimal bound (perfect preview, the tracking objective): median PI "
-        f"{bound['pi_median']:.3f} over {bound['runs']} flights, largest KKT residual "
-        f"{bound['kkt_residual_max']:.1e}, median solve {bound['solve_time_median_s']:.0f} s. "
-        f"Median share of the achievable improvement, (PI_zero - PI) / (PI_zero - PI_bound): "
-        f"{shares}.",
-    ]
-
-
-def evaluation_markdown(report: dict) -> str:
-    """The report as markdown tables, one per case."""
-    lines = [
-        f"# MCA evaluation on the analytical plant ({report['duration_s']:g} s per flight)",
-        "",
-    ]
-    for name, case in report["cases"].items():
-        lines += [
-            f"## Case {name}: {case['vehicle']} flights, seeds "
-            f"{case['seeds'][0]}-{case['seeds'][-1]}",
-            "",
-            "| MCA | runs | PI median | PI IQR | zero-motion PI median | better than zero "
-            "motion | perceived PI median | perceived zero-motion | joint range used | "
-            "false rotation | step median | step max | violations | safety interventions | "
-            "solver failures |",
-            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
-        ]
-        flights = len(case["seeds"])
-        for mca, m in case["mcas"].items():
-            runs = f"{m['runs']}" if m["runs"] == flights else f"{m['runs']} of {flights}"
-            lines.append(
-                f"| {mca} | {runs} | {m['pi_median']:.3f} | {m['pi_iqr'][0]:.3f} to "
-                f"{m['pi_iqr'][1]:.3f} | {m['pi_zero_motion_median']:.3f} | "
-                f"{m.get('better_than_zero_motion', '-')} of {m['runs']} | "
-                f"{m.get('perceived_pi_median', math.nan):.3f} | "
-                f"{m.get('perceived_pi_zero_motion_median', math.nan):.3f} | "
-                f"{m['joint_range_used_median']:.0%} | "
-                f"{m.get('false_rotation_median_deg_s', math.nan):.1f} deg/s | "
-                f"{m['step_time_median_s'] * 1e3:.3f} ms | "
-                f"{m['step_time_max_s'] * 1e3:.2f} ms | {m['violations']} | "
-                f"{m['safety_interventions']} | {m['solver_failures']} |"
-            )
-        lines += _channel_table(case["mcas"])
-        lines += _perceived_table(case["mcas"])
-        lines += _bound_lines(case)
-        for key, test in case.items():
-            if not is_dpc_test(key):
-                continue
-            lines += [
-                "",
-                f"{test.get('dpc', 'dpc')} vs {test['other']}: Wilcoxon rank-sum "
-                f"z = {test['z']:.3f}, "
-                f"{format_p(test['p'])} ({rank_sum_verdict(test)}); median PI gap "
-                f"{test['median_gap']:+.3f}; step-time ratio {test['step_time_ratio']:.0f}x.",
-            ]
-            lines += _paired_line(test.get("paired"))
-            perceived = test.get("perceived")
-            if perceived:
-                lines += [
-                    f"Perceived PI: rank-sum z = {perceived['z']:.3f}, "
-                    f"{format_p(perceived['p'])} ({rank_sum_verdict(perceived)}); median gap "
-                    f"{perceived['median_gap']:+.3f}.",
-                    *_paired_line(perceived.get("paired")),
-                ]
-        # every configured MCA, including one without a single finished run
-        ran = {mca: m["runs"] for mca, m in case["mcas"].items()}
-        missing = [mca for mca in report["mcas"] if ran.get(mca, 0) < flights]
-        if missing:
-            lines += [
-                "",
-                f"Incomplete: {', '.join(missing)} ran on fewer than the {flights} flights; "
-                "`mca-drake evaluate --suite` with the same --out-dir resumes the rest.",
-            ]
-        lines.append("")
-    return "\n".join(lines)
+__all__ = [
+    "BOUND",
+    "DEFAULT_MCAS",
+    "DRIVE_CARS",
+    "DRIVE_MANOEUVRES",
+    "ROUTE_VEHICLES",
+    "SIGNIFICANCE_LEVEL",
+    "EvaluationCase",
+    "EvaluationConfig",
+    "default_cases",
+    "dpc_test_key",
+    "evaluation_markdown",
+    "finished_bound",
+    "finished_run",
+    "format_p",
+    "improvement_share",
+    "is_dpc_test",
+    "kept_entries",
+    "load_report",
+    "policy_fingerprint",
+    "rank_sum_verdict",
+    "run_evaluation",
+    "run_path",
+    "run_platform",
+    "same_config",
+    "write_report",
+]

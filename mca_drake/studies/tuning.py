@@ -41,6 +41,7 @@ from mca_drake.atomic_io import (
 )
 from mca_drake.cueing import NmpcConfig, WashoutConfig, mca_config_record
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
 from mca_drake.plotting import save_figure
 from mca_drake.references.drives import motion_reference, training_spec
 from mca_drake.simulation.closed_loop import run_closed_loop
@@ -97,6 +98,9 @@ class TuningConfig:
     nmpc_objective: str = "inertial"
     # Seed of the TPE sampler.
     seed: int = 0
+    # The motion platform the trials cue on: a packaged name (`mca-drake platforms`) or a
+    # platform file.
+    platform: str = DEFAULT_PLATFORM
 
     def validate(self) -> None:
         """Raises ValueError for a setting that cannot run or that would tune on evaluation
@@ -116,6 +120,7 @@ class TuningConfig:
             raise ValueError("flights is empty: nothing to tune on")
         for vehicle, seed in self.flights:
             training_spec(vehicle, seed)
+        load_platform(self.platform)  # ValueError or FileNotFoundError naming the problem
         if self.step_time_budget_s < 0:
             raise ValueError("step_time_budget_s must be >= 0")
         if self.max_false_rotation_deg_s < 0:
@@ -212,12 +217,17 @@ def score_config(config, tuning: TuningConfig, flights_dir: str | Path) -> dict:
     "perceived_pi_median", "false_rotation_deg_s" (per flight, RMS), "step_time_p99_s",
     "why"}; the objective is the median of `tuning.score`, plus the penalties."""
     pis, zero, perceived, false, p99, why = [], [], [], [], 0.0, ""
+    robot = load_platform(tuning.platform)
     for vehicle, seed in tuning.flights:
         reference = motion_reference(
             training_spec(vehicle, seed), tuning.duration_s, cache_dir=flights_dir
         )
         result = run_closed_loop(
-            mca=config, reference=reference, duration_s=tuning.duration_s, progress=False
+            mca=config,
+            reference=reference,
+            duration_s=tuning.duration_s,
+            robot=robot,
+            progress=False,
         )
         s = result.summary
         pis.append(s["pi"])
@@ -364,7 +374,8 @@ def run_tuning(
     if resume:
         if not state.exists():
             raise ValueError(f"no tune to resume in {out}")
-        saved = json.loads(state.read_text())
+        # a tune saved before platforms were named ran on the KR500
+        saved = {"platform": DEFAULT_PLATFORM, **json.loads(state.read_text())}
         if saved != identity:
             changed = sorted(k for k in identity if saved.get(k) != identity[k])
             raise ValueError(f"the tune in {out} has other settings ({', '.join(changed)})")
@@ -448,7 +459,8 @@ def write_tuning_report(
     raw = {"mca": {"_tag": f"!{record.pop('type')}", **record}}
     header = (
         f"# Tuned MCA config: {command or 'mca_drake.studies.tuning.run_tuning'}\n"
-        f"# {date}; {len(table)} trials; flights ({tuning.duration_s:g} s): {flights}\n"
+        f"# {date}; {len(table)} trials on platform {tuning.platform}; flights "
+        f"({tuning.duration_s:g} s): {flights}\n"
         f"# median PI {best_row['pi_median']:.3f} (baseline "
         f"{np.median(baseline_scores['pi']):.3f}, zero motion {np.median(zero):.3f})\n"
         f'# Use: mca-drake run diagrams/closed_loop_dpc.yaml --set "$(cat best.yaml)"\n'
@@ -456,6 +468,7 @@ def write_tuning_report(
     atomic_write_text(out / "best.yaml", header + yaml_dump(raw))
     report = {
         "mca": tuning.mca,
+        "platform": tuning.platform,
         "date": date,
         "command": command,
         "trials": len(table),

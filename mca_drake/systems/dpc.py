@@ -17,7 +17,7 @@ from mca_drake.cueing.dpc import (
     policy_preview_steps,
     preview_offsets,
 )
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain, check_joint_count
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
 
@@ -37,14 +37,14 @@ class DpcPolicy(LeafSystem):
         - joint_acceleration
         - statistics
 
-    Every `time_step` an unrestricted update reads the reference Y_t (6), the state x_t = [q, qd]
-    (12) and the measured output y_t (6), evaluates the network in numpy (weights exported
-    from torch, `mca_drake.cueing.dpc`), clamps u_t into the viability interval of the
-    true joint limits (`mca_drake.safety.ViabilityClamp`: the robot can always brake inside
-    its limits) and stores it; `joint_acceleration` outputs it, so the command computed from
-    x_n acts from t_n (like NmpcController). `statistics` has the layout of
-    `mca_drake.conventions.MCA_STATISTICS`: step time (s), 0 solver failures, safety
-    interventions, 0 QP iterations.
+    Every `time_step` an unrestricted update reads the reference Y_t (6), the state
+    x_t = [q, qd] (2n for the platform's n joints) and the measured output y_t (6), evaluates
+    the network in numpy (weights exported from torch, `mca_drake.cueing.dpc`), clamps u_t
+    into the viability interval of the true joint limits (`mca_drake.safety.ViabilityClamp`:
+    the robot can always brake inside its limits) and stores it; `joint_acceleration`
+    outputs it, so the command computed from x_n acts from t_n (like NmpcController).
+    `statistics` has the layout of `mca_drake.conventions.MCA_STATISTICS`: step time (s),
+    0 solver failures, safety interventions, 0 QP iterations.
 
     Args:
         policy: a policy file (`mca_drake.learning.policy_network.save_policy`) or its arrays.
@@ -72,9 +72,14 @@ class DpcPolicy(LeafSystem):
             preview_steps = policy_preview_steps(metadata)
         else:
             arrays, preview_steps = policy, int(preview_steps)
-        check_joint_count(robot, NUM_JOINTS, "the DPC policy network")
         self._robot = robot
         self._inference = PolicyInference(arrays)
+        if self._inference.joints != robot.num_joints:
+            raise ValueError(
+                f"the DPC policy commands {self._inference.joints} joints, platform "
+                f"'{robot.name}' has {robot.num_joints}"
+            )
+        n = robot.num_joints
         # a policy with a preview reads the reference at its offsets ahead, from a preview
         # of offsets[-1] + 1 samples (the current one first)
         self._offsets = preview_offsets(preview_steps) if preview_steps else None
@@ -85,9 +90,9 @@ class DpcPolicy(LeafSystem):
             )
         self._clamp = ViabilityClamp.for_robot(self._robot, time_step)
         self._reference_port = self.DeclareVectorInputPort("reference", 6)
-        self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
+        self._state_port = self.DeclareVectorInputPort("state", 2 * n)
         self._output_port = self.DeclareVectorInputPort("inertial_output", 6)
-        self._command_index = self.DeclareDiscreteState(NUM_JOINTS)
+        self._command_index = self.DeclareDiscreteState(n)
         self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
         DeclareMcaUpdate(self, time_step, self._update, update_event)
         self.DeclareStateOutputPort("joint_acceleration", self._command_index)

@@ -7,7 +7,6 @@ import argparse
 
 from mca_drake.app.scenarios import ClosedLoopScenario
 from mca_drake.cueing import MCA_NAMES, DpcConfig, mca_config_from_name, mca_name
-from mca_drake.platforms.files import DEFAULT_PLATFORM
 from mca_drake.references.flights import FlightSpec
 from mca_drake.resources import PROFILES
 
@@ -24,15 +23,6 @@ def add_mca_flags(parser: argparse.ArgumentParser, default_mca, *, policy: bool 
         parser.add_argument("--policy", help="policy file for --mca dpc (default: the shipped one)")
 
 
-def add_platform_flag(parser: argparse.ArgumentParser) -> None:
-    """--platform NAME_OR_FILE: a packaged platform (`mca-drake platforms`) or a file."""
-    parser.add_argument(
-        "--platform",
-        help="the motion platform: a packaged name (mca-drake platforms) or a platform file "
-        f"(default {DEFAULT_PLATFORM})",
-    )
-
-
 def mca_from_flags(args: argparse.Namespace, default):
     """The MCA config of --mca NAME and --policy FILE (a DPC policy), or `default`."""
     mca = mca_config_from_name(args.mca) if args.mca is not None else default
@@ -46,11 +36,11 @@ def mca_from_flags(args: argparse.Namespace, default):
 def closed_loop_scenario_from_flags(args: argparse.Namespace, **fixed) -> ClosedLoopScenario:
     """A ClosedLoopScenario: its defaults, overridden by the flags that were given."""
     scenario = ClosedLoopScenario(**fixed)
+    if getattr(args, "platform", None) is not None:
+        scenario.platform = args.platform
     scenario.mca = mca_from_flags(args, scenario.mca)
     if args.reference is not None:
         scenario.flight = FlightSpec(recording=args.reference)
     if args.duration_s is not None:
         scenario.duration_s = args.duration_s
-    if getattr(args, "platform", None) is not None:
-        scenario.platform = args.platform
     return scenario

@@ -28,6 +28,7 @@ OPEN_LOOP_FLAGS = {
     "horizon": "",
     "seed": "",
     "initial_state_fraction": "",
+    "platform": "",
 }
 CLOSED_LOOP_FLAGS = {
     "vehicle": "",
@@ -36,6 +37,7 @@ CLOSED_LOOP_FLAGS = {
     "horizon": "",
     "workers": "",
     "output_dir": "--out-dir",
+    "platform": "",
 }
 
 

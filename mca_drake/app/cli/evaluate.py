@@ -8,12 +8,12 @@ from pathlib import Path
 
 from mca_drake.app.cli.closed_loop_flags import (
     add_mca_flags,
-    add_platform_flag,
     closed_loop_scenario_from_flags,
 )
 from mca_drake.app.cli.flags import (
     ADDRESS_HELP,
     add_config_flags,
+    add_platform_flag,
     add_quiet,
     check_outputs,
     given_fields,
@@ -23,7 +23,6 @@ from mca_drake.app.jobs import run_closed_loop_scenario, run_scenario
 from mca_drake.app.scenarios import ClosedLoopScenario, EvaluationScenario
 from mca_drake.cueing import DpcConfig, mca_config_from_name, mca_name
 from mca_drake.cueing.optimal import OptimalConfig
-from mca_drake.platforms.files import DEFAULT_PLATFORM
 from mca_drake.plotting import save_figure
 from mca_drake.references.recording import load_recording
 from mca_drake.simulation.plots import tracking_figure
@@ -108,10 +107,6 @@ def add_parser(commands) -> None:
 def run(args: argparse.Namespace) -> int:
     """One recording (--reference) or the suite (--suite)."""
     if args.suite:
-        if args.platform not in (None, DEFAULT_PLATFORM):
-            raise ValueError(
-                f"the suite runs on the {DEFAULT_PLATFORM}; --platform is for one --reference"
-            )
         return run_suite(args)
     if args.report_only or args.keep_report:
         raise ValueError("--report-only and --keep-report are for the suite's report: add --suite")
@@ -133,7 +128,9 @@ def run(args: argparse.Namespace) -> int:
 
 def run_suite(args: argparse.Namespace) -> int:
     """The evaluation suite over the cases and MCAs the flags choose; prints its report."""
-    scenario = EvaluationScenario(**given_fields(args, [*SUITE_FLAGS, "duration_s", "address"]))
+    scenario = EvaluationScenario(
+        **given_fields(args, [*SUITE_FLAGS, "duration_s", "address", "platform"])
+    )
     if args.mcas is not None:
         scenario.mcas = [mca_config_from_name(n) for n in args.mcas.split(",")]
     if args.policy is not None:

@@ -18,6 +18,7 @@ import typing
 from collections.abc import Mapping, Sequence
 
 from mca_drake.atomic_io import check_writable
+from mca_drake.platforms.files import DEFAULT_PLATFORM
 
 ADDRESS_HELP = (
     "run the tasks on this Ray cluster ('auto', 'ray://host:10001'; default: RAY_ADDRESS, "
@@ -153,3 +154,12 @@ def check_outputs(*paths) -> None:
 def add_quiet(parser: argparse.ArgumentParser) -> None:
     """The `--quiet` flag every long-running command has."""
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_platform_flag(parser: argparse.ArgumentParser) -> None:
+    """--platform NAME_OR_FILE: a packaged platform (`mca-drake platforms`) or a file."""
+    parser.add_argument(
+        "--platform",
+        help="the motion platform: a packaged name (mca-drake platforms) or a platform file "
+        f"(default {DEFAULT_PLATFORM})",
+    )

@@ -15,7 +15,7 @@ from mca_drake.app.scenarios import LiveScenario
 from mca_drake.cueing import mca_config_from_name
 
 # LiveScenario fields with a flag of the same name.
-LIVE_FLAGS = ("host", "port", "allowed_senders", "rsi_cycle_ms", "realtime_rate")
+LIVE_FLAGS = ("host", "port", "allowed_senders", "rsi_cycle_ms", "realtime_rate", "platform")
 
 
 def add_parser(commands) -> None:

@@ -5,9 +5,17 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from mca_drake.app.cli.flags import add_config_flags, add_quiet, check_outputs, given_fields
+from mca_drake.app.cli.flags import (
+    add_config_flags,
+    add_platform_flag,
+    add_quiet,
+    check_outputs,
+    given_fields,
+)
 from mca_drake.app.cli.report import format_closed_loop_report
+from mca_drake.cueing import as_mca_config, on_platform
 from mca_drake.cueing.optimal import OptimalConfig
+from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform, packaged_name
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.references.recording import load_recording
 from mca_drake.simulation.optimal_bound import DEFAULT_STARTS, run_optimal_bound
@@ -44,6 +52,7 @@ def add_parser(commands) -> None:
         f"{','.join(DEFAULT_STARTS)}; '' for none: start from no motion)",
     )
     add_config_flags(parser, OptimalConfig(), OPTIMAL_FLAGS)
+    add_platform_flag(parser)
     parser.add_argument("--json", help="result summary JSON (default: none)")
     parser.add_argument("--plots", help="folder for tracking.png, perceived.png, joint_usage.png")
     add_quiet(parser)
@@ -67,10 +76,12 @@ def run(args: argparse.Namespace) -> int:
     reference = flight_reference(flight, duration, progress=not args.quiet)
     config = dataclasses.replace(OptimalConfig(), **given_fields(args, OPTIMAL_FLAGS))
     starts = DEFAULT_STARTS if args.starts is None else [s for s in args.starts.split(",") if s]
+    platform = args.platform or DEFAULT_PLATFORM
     result = run_optimal_bound(
         reference=reference,
         config=config,
-        starts=starts,
+        starts=[on_platform(as_mca_config(s), packaged_name(platform)) for s in starts],
+        robot=load_platform(platform),
         duration_s=min(duration, reference.duration_s),
         progress=not args.quiet,
         json_path=args.json or None,

@@ -6,10 +6,9 @@ import argparse
 
 from mca_drake.app.cli.closed_loop_flags import (
     add_mca_flags,
-    add_platform_flag,
     closed_loop_scenario_from_flags,
 )
-from mca_drake.app.cli.flags import add_config_flags, add_quiet
+from mca_drake.app.cli.flags import add_config_flags, add_platform_flag, add_quiet
 from mca_drake.app.cli.report import format_closed_loop_report, hold_meshcat
 from mca_drake.app.jobs import closed_loop_outputs, run_closed_loop_scenario, start_meshcat
 from mca_drake.app.scenarios import ClosedLoopScenario

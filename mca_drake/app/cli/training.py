@@ -54,6 +54,7 @@ POLICY_FLAGS = {
     "terminal_weight_horizon": "",
     "hidden": "",
     "seed": "",
+    "platform": "",
 }
 # TrainConfig fields (the policy's optimisation) with a flag.
 POLICY_TRAIN_FLAGS = {
@@ -67,7 +68,8 @@ POLICY_TRAIN_FLAGS = {
 
 
 def add_parsers(commands) -> None:
-    """Adds `train-policy`, `export-policy` and `table2` to the parsers `commands`."""
+    """Adds `train-policy`, `export-policy`, `transfer-policy` and `table2` to the parsers
+    `commands`."""
     _add_train_policy(commands)
     export = commands.add_parser(
         "export-policy", help="best weights so far of a training checkpoint as a policy file"
@@ -75,6 +77,18 @@ def add_parsers(commands) -> None:
     export.add_argument("checkpoint", help="policy.pt of a train-policy run")
     export.add_argument("--out", default="policy.npz", help="the policy file to write")
     export.set_defaults(func=run_export_policy)
+    transfer = commands.add_parser(
+        "transfer-policy",
+        help="a policy file for another platform whose joints include the policy's: the "
+        "shared joints keep their weights (turned where a joint moves the cabin the other "
+        "way), the others start at zero",
+    )
+    transfer.add_argument("policy", help="the policy file (its platform's joints by name)")
+    transfer.add_argument(
+        "--platform", required=True, help="the platform: a packaged name or a platform file"
+    )
+    transfer.add_argument("--out", default="policy.npz", help="the policy file to write")
+    transfer.set_defaults(func=run_transfer_policy)
     _add_table2(commands)
 
 
@@ -172,6 +186,35 @@ def run_export_policy(args: argparse.Namespace) -> int:
     from mca_drake.learning.dpc_training import export_checkpoint_policy
 
     print(f"policy written to {export_checkpoint_policy(args.checkpoint, args.out)}")
+    return 0
+
+
+def run_transfer_policy(args: argparse.Namespace) -> int:
+    """Writes the policy moved onto --platform's joints
+    (`mca_drake.learning.policy_network.transfer_policy_network`)."""
+    check_outputs(args.out)
+    # torch: loaded by the training commands only, so the others start fast
+    from mca_drake.learning.dpc_training import initial_policy_provenance
+    from mca_drake.learning.policy_network import save_policy, transfer_policy_network
+    from mca_drake.platforms.files import load_platform
+
+    robot = load_platform(args.platform)
+    policy = transfer_policy_network(args.policy, robot)
+    provenance = initial_policy_provenance(args.policy)
+    save_policy(
+        args.out,
+        policy,
+        {
+            "model": "dpc-policy",
+            "command": command_line(),
+            # the platform whose joints the policy commands (`cueing.dpc.check_policy_platform`)
+            "platform": robot.summary(),
+            "transferred_from": provenance,
+            "training_wall_s": 0.0,
+            "training_wall_s_total": provenance.get("training_wall_s_total", 0.0),
+        },
+    )
+    print(f"policy for platform '{robot.name}' written to {args.out}")
     return 0
 
 

@@ -20,6 +20,7 @@ TUNING_FLAGS = {
     "score": "",
     "nmpc_objective": "",
     "seed": "",
+    "platform": "",
 }
 
 

@@ -89,6 +89,9 @@ class RsiEmulatorConfig:
     ipoc_unit: str = "ms"
     # Slack on the limit checks, relative (round-off of the driver's degrees, not room).
     relative_tolerance: float = 1e-6
+    # The robot the controller drives, whose axis limits it enforces: a packaged platform's
+    # name or a platform file (six axes).
+    platform: str = DEFAULT_PLATFORM
 
     def validate(self) -> None:
         """Raises ValueError for a setting that cannot run, naming it."""
@@ -147,7 +150,7 @@ class RsiEmulator:
     ):
         self.config = config or RsiEmulatorConfig()
         self.config.validate()
-        self.limits = limits or AxisLimits.of_robot(load_platform(DEFAULT_PLATFORM))
+        self.limits = limits or AxisLimits.of_robot(load_platform(self.config.platform))
         self.tags = tags or RsiTags()
         self._driver = driver
         self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

@@ -1,0 +1,182 @@
+"""A live run's summary: the closed loop scored as `run_closed_loop` scores it, and the
+`live` (telemetry, latency, health, pacing) and `rsi` blocks (docs/guides/live.md)."""
+
+from __future__ import annotations
+
+import dataclasses
+import ipaddress
+
+import numpy as np
+from pydrake.systems.framework import Context
+
+from mca_drake.cueing import McaConfig, mca_config_record, mca_name
+from mca_drake.live.pacing import RealTimePacer
+from mca_drake.live.receiver import TelemetryReceiver
+from mca_drake.live.rsi.link import RobotClockServo, RsiLink
+from mca_drake.live.telemetry import Decoder
+from mca_drake.platforms.kinematics import plant_output
+from mca_drake.platforms.serial import SerialChain
+from mca_drake.simulation.closed_loop import (
+    check_alignment,
+    closed_loop_summary,
+    station_signals,
+    step_time_summary,
+)
+
+# A control interval over this many periods on the wall clock counts as a stall in the
+# summary: the loop (or the machine) held up for half the supervisor's default stale time.
+STALL_PERIODS = 5
+
+
+@dataclasses.dataclass
+class PacedRun:
+    """What a finished live run leaves for its summary."""
+
+    context: Context
+    wall_s: float
+    cpu_s: float
+    phase_shifts_s: list
+    pacer: RealTimePacer | None
+    link: RsiLink | None
+    servo: RobotClockServo | None
+    rsi_status: dict | None
+
+
+def scored_summary(
+    handles: dict,
+    config: McaConfig,
+    plant: str,
+    decoder: Decoder,
+    robot: SerialChain,
+    h: float,
+    wall_s: float,
+) -> dict:
+    """The closed-loop summary of the recorded run, scored as `run_closed_loop` scores."""
+    source = handles["receiver"]
+    rows = handles["recorder"].rows
+    commands, reference = rows("command"), rows("reference")  # period k: rows 0..N-1
+    n = commands.shape[0]
+    if plant == "analytical":
+        states = rows("state")  # x_k before each poll: rows 0..N
+        # the plant integrated exactly the recorded commands (it steps after the recorder)
+        check_alignment(states[: n + 1], commands, h)
+        states = states[:n]
+        accelerations = commands
+        n_joints = robot.num_joints
+        outputs = plant_output(states[:, :n_joints], states[:, n_joints:], commands, robot)
+    else:  # what the occupant felt (the IMU without its delay), as run_closed_loop scores it
+        states, accelerations, outputs = station_signals(
+            rows("true_state"), rows("measured_output"), n, h
+        )
+    summary, _ = closed_loop_summary(
+        mca=mca_name(config),
+        mca_config=mca_config_record(config),
+        plant=plant,
+        reference_name=f"live {decoder.protocol} udp://{source.address[0]}:{source.address[1]}",
+        duration_s=n * h,
+        reference=reference,
+        outputs=outputs,
+        states=states,
+        accelerations=accelerations,
+        statistics=rows("statistics"),
+        wall_s=wall_s,
+        robot=robot,
+        time_step=h,
+    )
+    return summary
+
+
+def live_block(
+    handles: dict, run: PacedRun, decoder: Decoder, realtime_rate: float, h: float
+) -> dict:
+    """The summary's `live` block: telemetry counters, latency, health and pacing."""
+    source, guard, probe = handles["receiver"], handles["supervisor"], handles["probe"]
+    telemetry = source.counters(source.GetMyContextFromRoot(run.context))
+    health = guard.health(guard.GetMyContextFromRoot(run.context))
+    pacer = run.pacer
+    return {
+        "protocol": decoder.protocol,
+        "address": f"udp://{source.address[0]}:{source.address[1]}",
+        # who was read: the locked first sender, or the senders the scenario allows
+        "sender": sender_text(telemetry, source),
+        "packets": int(telemetry["packets"]),
+        "bad": int(telemetry["bad"]),
+        "foreign": int(telemetry["foreign"]),
+        "out_of_order": int(telemetry["out_of_order"]),
+        "time_jumps": int(telemetry["time_jumps"]),
+        "restarts": int(telemetry["restarts"]),
+        "sender_changes": int(telemetry["sender_changes"]),
+        "dropped": int(telemetry["dropped"]),
+        "kernel_dropped": int(telemetry["kernel_dropped"]),
+        "stale_periods": int(telemetry["stale_periods"]),
+        "stale_events": sum(
+            1 for _, _, to, why in guard.transitions if why == "telemetry stale" and to == "fault"
+        ),
+        "latency_s": step_time_summary(np.asarray(probe.latencies_s)),
+        # how long samples waited in the socket for their poll (part of the latency)
+        "wait_s": step_time_summary(np.asarray(probe.waits_s)),
+        # the phase lock's shifts of the control instants, s (> 0: earlier)
+        "phase_shifts_s": run.phase_shifts_s,
+        # polls that came after their instant (the loop had overrun)
+        "late_polls": 0 if pacer is None else pacer.late_polls,
+        # control intervals over STALL_PERIODS periods on the wall clock: the process was
+        # held up (by the OS or a slow step) long enough for telemetry to look stale
+        "stalls": stalls(probe.instants_s, h, realtime_rate),
+        # polls a datagram brought forward (phase lock's wake window)
+        "early_polls": 0 if pacer is None else pacer.early_polls,
+        "health": {
+            "ok_s": float(health["ok_s"]),
+            "degraded_s": float(health["degraded_s"]),
+            "fault_s": float(health["fault_s"]),
+        },
+        "transitions": [
+            {"t_s": t, "from": a, "to": b, "why": why} for t, a, b, why in guard.transitions
+        ],
+        "realtime_rate": realtime_rate,
+        "control_period_s": h,
+        # |period - h| of the loop's control instants on the wall clock
+        "loop_jitter_s": step_time_summary(
+            np.abs(np.diff(probe.instants_s) - h / max(realtime_rate, 1e-9))
+            if realtime_rate > 0
+            else np.zeros(0)
+        ),
+        # this process's CPU time over wall time (1.0: one core busy)
+        "cpu_load": run.cpu_s / max(run.wall_s, 1e-9),
+    }
+
+
+def sender_text(telemetry: dict, source: TelemetryReceiver) -> str:
+    """The sender a run read, as the live block says it."""
+    allowed = source.allowed_senders
+    if allowed:
+        return f"allowed: {', '.join(allowed)}"
+    if not np.isfinite(telemetry["sender_ip"]):
+        return "none (no datagram arrived)"
+    ip = ipaddress.IPv4Address(int(telemetry["sender_ip"]))
+    return f"udp://{ip}:{int(telemetry['sender_port'])} (the first sender, locked in)"
+
+
+def rsi_block(handles: dict, run: PacedRun) -> dict:
+    """The summary's `rsi` block: segments sent, the clock servo and the driver's counters."""
+    sender, link, servo = handles["rsi"], run.link, run.servo
+    return {
+        "address": f"rsi://{link.address[0]}:{link.address[1]}",
+        "segments_sent": sender.sent,
+        "segments_unsent": sender.unsent,
+        # the loop's clock following the robot's (`RobotClockServo`)
+        "rate_trim_ppm": 1e6 * run.pacer.rate_trim,
+        # the driver's lead against its first report, less the phase lock's shifts, s
+        "lead_error_s": {
+            "max_abs": max((abs(e) for _, e, _ in servo.reports), default=0.0),
+            "last": servo.reports[-1][1] if servo.reports else 0.0,
+        },
+        **run.rsi_status,
+    }
+
+
+def stalls(instants_s: list[float], period_s: float, realtime_rate: float) -> int:
+    """How many wall intervals between consecutive control instants exceed STALL_PERIODS
+    control periods (of wall time at `realtime_rate`); 0 when not paced."""
+    if realtime_rate <= 0 or len(instants_s) < 2:
+        return 0
+    return int(np.sum(np.diff(instants_s) > STALL_PERIODS * period_s / realtime_rate))
