@@ -572,11 +572,14 @@ def _platforms(results_dir: Path, data: dict) -> list[str]:
             ]
         policy = platform.get("policy")
         if policy and policy.get("training_wall_s_total") is not None:
+            total = policy["training_wall_s_total"] / 60
+            if policy.get("training_wall_s"):
+                made = f"trained in {policy['training_wall_s'] / 60:.1f} min"
+            else:
+                made = "moved from another platform's (`mca-drake transfer-policy`), not trained"
             lines += [
-                f"Shipped policy `{policy['file']}`: trained in "
-                f"{policy['training_wall_s'] / 60:.1f} min "
-                f"({policy['training_wall_s_total'] / 60:.1f} min with its starting weights' "
-                "runs)."
+                f"Shipped default policy `{policy['file']}`: {made} ({total:.1f} min with its "
+                "starting weights' runs)."
             ]
         lines += [""]
     for mca, gain in data["rail_gain"].items():

@@ -14,6 +14,10 @@ from pathlib import Path
 
 # The folders a wheel carries, by their name in the source tree.
 PACKAGED_FOLDERS = ("models", "diagrams")
+# The packaged platforms other than the KR500 that ship policies, and the KR500's policies
+# each carries moved onto its joints, as <platform>_<name> (`cueing.dpc.platform_policy_name`).
+PLATFORMS_WITH_POLICIES = ("kr500-rail", "fanuc-m900ib700")
+MOVED_POLICIES = ("default_policy", "light_policy", "transport_policy", "ground_policy")
 # Policy files shipped with the package (mca_drake/data/<name>.npz).
 SHIPPED_POLICIES = (
     "default_policy",
@@ -21,8 +25,7 @@ SHIPPED_POLICIES = (
     "ground_policy",
     "light_policy",
     "transport_policy",
-    "kr500-rail_policy",
-    "fanuc-m900ib700_policy",
+    *(f"{platform}_{name}" for platform in PLATFORMS_WITH_POLICIES for name in MOVED_POLICIES),
 )
 # MCA profiles shipped for vehicle motion other than flight (`mca_drake.cueing.profiles`): the
 # NMPC's and washout's settings in data/profiles/<name>.yaml, the DPC's policy

@@ -13,8 +13,8 @@ from mca_drake.cueing.dpc import (
     PolicyInference,
     default_policy_path,
     load_policy_arrays,
-    platform_policy_path,
     policy_platform,
+    shipped_policy_path,
 )
 from mca_drake.learning.configs import DpcTrainingConfig, TrainConfig
 from mca_drake.learning.dpc_training import train_policy
@@ -114,14 +114,21 @@ def test_a_policy_trains_on_the_rail_from_the_kr500s_and_records_it(tmp_path):
 
 
 def test_each_platform_picks_its_own_shipped_policy():
+    """Each packaged platform runs the KR500's choice of policy (by envelope, by profile)
+    moved onto its joints; a platform that ships none says how to make one."""
     assert DpcConfig().policy_path("kr500") == default_policy_path()
     for name in ("kr500-rail", "fanuc-m900ib700"):
-        path = DpcConfig(vehicle="light").policy_path(name)
-        assert path == platform_policy_path(name)
-        assert policy_platform(load_policy_arrays(path)[1]) == name
-    with pytest.raises(ValueError, match="ground profile's policy is shipped for the kr500"):
-        DpcConfig(profile="ground").policy_path("kr500-rail")
-    with pytest.raises(FileNotFoundError, match="train-policy --platform my-robot"):
+        for config, kr500_policy in (
+            (DpcConfig(), "default_policy"),
+            (DpcConfig(vehicle="light"), "light_policy"),
+            (DpcConfig(vehicle="787-8"), "transport_policy"),
+            (DpcConfig(profile="ground"), "ground_policy"),
+        ):
+            assert config.policy_path("kr500").name == f"{kr500_policy}.npz"
+            path = config.policy_path(name)
+            assert path.name == f"{name}_{kr500_policy}.npz"
+            assert policy_platform(load_policy_arrays(path)[1]) == name
+    with pytest.raises(FileNotFoundError, match=r"transfer-policy .* --platform my-robot"):
         DpcConfig().policy_path("my-robot")
 
 
@@ -194,7 +201,7 @@ def test_the_default_dpc_on_the_rail_runs_the_rails_policy_within_its_limits():
             mca="dpc", reference=reference, plant=plant, robot=RAIL, progress=False
         )
         summary = result.summary
-        assert summary["policy_file"] == "kr500-rail_policy.npz"
+        assert summary["policy_file"] == "kr500-rail_light_policy.npz"
         assert summary["platform"]["name"] == "kr500-rail"
         assert sum(summary["violations"].values()) == 0
         assert np.ptp(result.states[:, 0]) < 1e-6  # the carriage stays
@@ -214,6 +221,6 @@ def test_transfer_policy_writes_a_policy_for_the_platform(tmp_path, capsys):
     expected = transfer_policy_network(default_policy_path(), load_platform("fanuc-m900ib700"))
     np.testing.assert_allclose(arrays["W2"], expected.export()["W2"], rtol=1e-6)
     capsys.readouterr()
-    rail = str(platform_policy_path("kr500-rail"))
+    rail = str(shipped_policy_path("kr500-rail_default_policy"))
     assert main(["transfer-policy", rail, "--platform", "kr500", "--out", str(tmp_path / "x")]) == 2
     assert "['rail_axis'] that platform 'kr500' does not have" in capsys.readouterr().err

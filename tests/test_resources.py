@@ -58,8 +58,11 @@ def test_bad_names_are_refused():
         "ground_policy.npz",
         "light_policy.npz",
         "transport_policy.npz",
-        "kr500-rail_policy.npz",
-        "fanuc-m900ib700_policy.npz",
+        *(
+            f"{platform}_{name}.npz"
+            for platform in ("kr500-rail", "fanuc-m900ib700")
+            for name in ("default_policy", "light_policy", "transport_policy", "ground_policy")
+        ),
     ]
 
 

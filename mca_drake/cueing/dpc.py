@@ -21,7 +21,13 @@ from scipy.special import erf
 from mca_drake.atomic_io import load_npz_with_metadata
 from mca_drake.conventions import NUM_CHANNELS
 from mca_drake.references.synthetic import VEHICLE_ENVELOPES
-from mca_drake.resources import SHIPPED_POLICIES, check_profile, data_dir
+from mca_drake.resources import (
+    MOVED_POLICIES,
+    PLATFORMS_WITH_POLICIES,
+    SHIPPED_POLICIES,
+    check_profile,
+    data_dir,
+)
 
 _SQRT_HALF = np.sqrt(0.5)
 
@@ -137,52 +143,42 @@ class DpcConfig:
 
     def policy_path(self, platform: str) -> Path:
         """The policy file this config runs on the platform named `platform`: `policy`, or
-        the shipped one of `profile`, or the shipped one for `vehicle`'s envelope (on the
-        KR500), or the platform's shipped policy (`PLATFORM_POLICIES`).
+        the shipped one of `profile`, or the shipped one for `vehicle`'s envelope, each the
+        KR500's or, on another packaged platform, its own (`PLATFORMS_WITH_POLICIES`).
 
         Raises:
-            ValueError: a profile asked for on a platform without a policy of that profile.
             FileNotFoundError: no policy is shipped for the platform (the message gives the
-                command that trains one), or the install lacks the file.
+                commands that make one), or the install lacks the file.
         """
         if self.policy:
             return Path(self.policy)
-        if platform != UNNAMED_POLICY_PLATFORM:
-            return platform_policy_path(platform, self.profile)
         if self.profile:
-            return shipped_policy_path(f"{check_profile(self.profile)}_policy")
-        name = vehicle_policy_name(self.vehicle)
-        return default_policy_path() if name == "default_policy" else shipped_policy_path(name)
+            name = f"{check_profile(self.profile)}_policy"
+        else:
+            name = vehicle_policy_name(self.vehicle)
+        if platform == UNNAMED_POLICY_PLATFORM:
+            return default_policy_path() if name == "default_policy" else shipped_policy_path(name)
+        return shipped_policy_path(platform_policy_name(platform, name))
 
 
-# The shipped policy of each packaged platform other than the KR500 (whose policies are
-# chosen by profile and flight envelope): the KR500's default policy moved onto its joints
-# (`mca-drake transfer-policy`), which cued the validation flights better than fine-tuning
-# it on a dataset made on the platform (docs/concepts/platforms.md gives the commands and
-# figures; docs/decisions/0022-each-platform-its-policy-and-settings.md).
-PLATFORM_POLICIES = {
-    "kr500-rail": "kr500-rail_policy",
-    "fanuc-m900ib700": "fanuc-m900ib700_policy",
-}
-
-
-def platform_policy_path(platform: str, profile: str = "") -> Path:
-    """The shipped policy of `platform` (`PLATFORM_POLICIES`); a profile's policy exists on
-    the KR500 alone (ValueError for another). FileNotFoundError names the command that
-    trains one for a platform without a shipped policy."""
-    check_profile(profile)
-    if platform not in PLATFORM_POLICIES:
+def platform_policy_name(platform: str, name: str) -> str:
+    """The shipped policy that stands for the KR500's policy `name` (`MOVED_POLICIES`) on the
+    packaged platform `platform` (`PLATFORMS_WITH_POLICIES`): "<platform>_<name>", the
+    KR500's moved onto its joints (`mca-drake transfer-policy`), chosen as the KR500's are.
+    Moved, they cued validation flights better than the KR500 default fine-tuned on a
+    dataset made on the platform (docs/concepts/platforms.md; decision 0022).
+    FileNotFoundError, with the commands that make one, for a platform that ships none."""
+    if platform not in PLATFORMS_WITH_POLICIES:
         raise FileNotFoundError(
-            f"no policy is shipped for platform '{platform}': train one with `mca-drake "
+            f"no policy is shipped for platform '{platform}': move the KR500's onto it with "
+            f"`mca-drake transfer-policy mca_drake/data/default_policy.npz --platform "
+            f"{platform}` (its joints named as the KR500's) or train one with `mca-drake "
             f"dataset closed-loop --platform {platform}` and `mca-drake train-policy "
             f"--platform {platform}`, then pass it as --policy (DpcConfig.policy)"
         )
-    if profile:
-        raise ValueError(
-            f"the {profile} profile's policy is shipped for the {UNNAMED_POLICY_PLATFORM} "
-            f"alone, not for '{platform}': pass a policy trained for it (DpcConfig.policy)"
-        )
-    return shipped_policy_path(PLATFORM_POLICIES[platform])
+    if name not in MOVED_POLICIES:
+        raise ValueError(f"'{name}' is not one of the policies platforms carry: {MOVED_POLICIES}")
+    return f"{platform}_{name}"
 
 
 def vehicle_policy_name(vehicle: str) -> str:
