@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from cabin_link import box_inertia, cabin_xml
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 PI_2 = math.pi / 2
@@ -203,22 +204,13 @@ def main() -> None:
         '  <joint name="flange_weld" type="fixed"><parent link="link_6"/>'
         f'<child link="flange"/>{origin(dh_tail(5))}</joint>',
     ]
-    cx, cy, cz = CABIN_CENTER
-    sx, sy, sz = CABIN_SIZE
-    box = np.array([sx, sy, sz])
-    I_cabin = np.diag(
-        [CABIN_MASS / 12 * (box[(k + 1) % 3] ** 2 + box[(k + 2) % 3] ** 2) for k in range(3)]
+    out += cabin_xml(
+        inertial(CABIN_MASS, np.zeros(3), box_inertia(CABIN_MASS, CABIN_SIZE)),
+        " ".join(str(v) for v in CABIN_SIZE),
+        "flange",
+        " ".join(str(v) for v in CABIN_CENTER),
     )
     out += [
-        '  <link name="cabin">',
-        inertial(CABIN_MASS, np.zeros(3), I_cabin),
-        f'    <visual><origin xyz="0 0 0" rpy="0 0 0"/><geometry><box size="{sx} {sy} {sz}"/>'
-        '</geometry><material name="cabin"/></visual>',
-        f'    <collision><origin xyz="0 0 0" rpy="0 0 0"/><geometry><box size="{sx} {sy} {sz}"/>'
-        "</geometry></collision>",
-        "  </link>",
-        '  <joint name="cabin_weld" type="fixed"><parent link="flange"/><child link="cabin"/>'
-        f'<origin xyz="{cx} {cy} {cz}" rpy="0 0 0"/></joint>',
         '  <link name="head"/>',
         '  <joint name="head_weld" type="fixed"><parent link="flange"/><child link="head"/>'
         f"{origin(RigidTransform(RotationMatrix(R_6H), P_6H))}</joint>",

@@ -26,6 +26,7 @@ and 0.9 m above the flange.
 from __future__ import annotations
 
 import numpy as np
+from cabin_link import box_inertia, cabin_xml
 
 # joint: (origin xyz on the parent link, axis, lower, upper (rad), velocity (rad/s))
 JOINTS = [
@@ -172,20 +173,13 @@ def main() -> None:
             "</transmission>",
         ]
         parent = name
-    box = np.array(CABIN_SIZE)
-    cabin_inertia = np.diag(
-        [CABIN_MASS / 12 * (box[(k + 1) % 3] ** 2 + box[(k + 2) % 3] ** 2) for k in range(3)]
+    out += cabin_xml(
+        _inertial(CABIN_MASS, np.zeros(3), box_inertia(CABIN_MASS, CABIN_SIZE)),
+        _fmt(CABIN_SIZE),
+        "link_6",
+        _fmt(CABIN_CENTER),
     )
     out += [
-        '  <link name="cabin">',
-        _inertial(CABIN_MASS, np.zeros(3), cabin_inertia),
-        f'    <visual><origin xyz="0 0 0" rpy="0 0 0"/><geometry><box size="{_fmt(box)}"/>'
-        '</geometry><material name="cabin"/></visual>',
-        f'    <collision><origin xyz="0 0 0" rpy="0 0 0"/><geometry><box size="{_fmt(box)}"/>'
-        "</geometry></collision>",
-        "  </link>",
-        '  <joint name="cabin_weld" type="fixed"><parent link="link_6"/><child link="cabin"/>'
-        f'<origin xyz="{_fmt(CABIN_CENTER)}" rpy="0 0 0"/></joint>',
         '  <link name="head"/>',
         '  <joint name="head_weld" type="fixed"><parent link="link_6"/><child link="head"/>'
         f'<origin xyz="{_fmt(HEAD)}" rpy="0 0 0"/></joint>',
