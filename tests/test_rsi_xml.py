@@ -65,6 +65,39 @@ def test_a_formatted_state_reads_back():
         parse_reply(packet)  # a state is no reply
 
 
+# A controller with a linear track as E1 adds its external axes' actual positions as its
+# RSI configuration's DEF_EIPos declares them (E1 to E6; E1 in mm, the others unused).
+STATE_WITH_TRACK = STATE.replace(
+    b"  <Delay", b'  <EIPos E1="1250.5" E2="0.0" E3="0.0" E4="0.0" E5="0.0" E6="0.0"/>\n  <Delay'
+)
+
+
+def test_a_controller_with_a_track_gives_its_external_axis():
+    message = parse_state(STATE_WITH_TRACK, external=1)
+    assert message.axes_deg == (0.0, -90.0, 90.0, 0.0, 90.5, -12.5)
+    assert message.external == (1250.5,)
+    assert parse_state(STATE_WITH_TRACK).external == ()  # not asked for: not read
+    with pytest.raises(BadRsiPacket, match="0 <EIPos> elements"):
+        parse_state(STATE, external=1)  # asked for, not sent
+    with pytest.raises(ValueError, match="0 to 6 axes"):
+        parse_state(STATE_WITH_TRACK, external=7)
+
+
+def test_a_reply_with_an_external_correction_is_the_axis_correction_objects_layout():
+    """Oracle: Python's XML parser: the robot's six corrections in AK, the track's in EK
+    (RSI's AXISCORREXT object reads EK.E1), one each, and it reads back."""
+    packet = format_reply(12, (0.5, -1.0, 2.0, 0.0, 0.25, -3.0), external=(-340.125,))
+    root = ElementTree.fromstring(packet)
+    assert [e.tag for e in root] == ["AK", "EK", "IPOC"]
+    assert root.find("EK").attrib == {"E1": "-340.125000"}
+    back = parse_reply(packet, external=1)
+    assert back.external == (-340.125,) and back.axes_deg[4] == 0.25
+    state = format_state(13, (0.0,) * 6, external=(100.0, 0.0))
+    assert parse_state(state, external=2).external == (100.0, 0.0)
+    with pytest.raises(ValueError, match="finite external axis values"):
+        format_reply(12, (0.0,) * 6, external=(float("nan"),))
+
+
 def _replace(old: bytes, new: bytes) -> bytes:
     assert old in STATE
     return STATE.replace(old, new)

@@ -12,8 +12,12 @@ of ROS-Industrial's `kuka_rsi_hw_interface` (tag names configurable, `RsiTags`):
 
 AIPos holds the actual axis positions, AK the axis corrections relative to the pose at the
 start of the RSI motion; both in degrees (the robot's units: this module converts nothing,
-its callers do, at their boundary). The state may carry other elements (RIst, RSol, ASPos,
-Delay, ...): they are ignored.
+its callers do, at their boundary). A controller with external axes (a linear track is E1)
+sends their actual positions in an element of their own, `<EIPos E1=".." ... E6=".."/>`
+(KUKA's DEF_EIPos), and reads their corrections from `<EK E1=".."/>` (RSI's AXISCORREXT
+object), in mm for a linear axis and degrees for a rotary one; `parse_state` reads the first
+`external` of them and the writers write them where given. The state may carry other
+elements (RIst, RSol, ASPos, Delay, ...): they are ignored.
 
 Parsing is a scan for the few elements needed, not a general XML parser: it accepts only
 bounded datagrams of ASCII text with attribute values in double quotes (as KUKA writes them),
@@ -23,6 +27,7 @@ writers produce well-formed XML (checked in the tests with Python's own parser).
 """
 
 import dataclasses
+import functools
 import math
 import re
 
@@ -60,24 +65,37 @@ class RsiTags:
     axes: list[str] = dataclasses.field(
         default_factory=lambda: ["A1", "A2", "A3", "A4", "A5", "A6"]
     )
+    # Elements of the external axes' actual positions and corrections (mm or deg).
+    external_positions: str = "EIPos"
+    external_corrections: str = "EK"
+    # Attribute names of the external axes, in their order (E1 first).
+    external_axes: list[str] = dataclasses.field(
+        default_factory=lambda: ["E1", "E2", "E3", "E4", "E5", "E6"]
+    )
 
     def validate(self) -> None:
         """Raises ValueError for a name that is not a plain XML name, naming it."""
         names = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         axes = names.pop("axes")
+        external = names.pop("external_axes")
         if len(axes) != 6 or len(set(axes)) != 6:
             raise ValueError(f"RsiTags.axes must be six distinct names; got {axes}")
-        for field, value in list(names.items()) + [("axes", a) for a in axes]:
+        if not 1 <= len(external) <= 6 or len(set(external)) != len(external):
+            raise ValueError(f"RsiTags.external_axes must be 1 to 6 distinct names; got {external}")
+        listed = [("axes", a) for a in axes] + [("external_axes", a) for a in external]
+        for field, value in list(names.items()) + listed:
             if not _NAME.fullmatch(value):
                 raise ValueError(f"RsiTags.{field} must be a plain XML name; got {value!r}")
 
 
 @dataclasses.dataclass(frozen=True)
 class RsiMessage:
-    """One parsed message: the cycle counter and six axis values (deg)."""
+    """One parsed message: the cycle counter, six axis values (deg) and the external axes'
+    values read (mm or deg; empty where none were asked for)."""
 
     ipoc: int
     axes_deg: tuple[float, ...]
+    external: tuple[float, ...] = ()
 
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]*")
@@ -111,6 +129,9 @@ def _checked(tags: RsiTags) -> RsiTags:
         tags.corrections,
         tags.ipoc,
         *tags.axes,
+        tags.external_positions,
+        tags.external_corrections,
+        *tags.external_axes,
     )
     if key not in _VALID_TAGS:
         tags.validate()
@@ -132,7 +153,15 @@ def _patterns(root: str, kind: str, element: str, ipoc: str) -> _Patterns:
     return _PATTERNS[key]
 
 
-def _parse(packet: bytes, root: str, kind: str, element: str, tags: RsiTags) -> RsiMessage:
+def _parse(
+    packet: bytes,
+    root: str,
+    kind: str,
+    element: str,
+    tags: RsiTags,
+    external: int = 0,
+    external_element: str = "",
+) -> RsiMessage:
     if not isinstance(packet, bytes | bytearray | memoryview):
         raise BadRsiPacket(f"RSI packet must be bytes; got {type(packet).__name__}")
     if len(packet) > MAX_RSI_BYTES:
@@ -149,24 +178,11 @@ def _parse(packet: bytes, root: str, kind: str, element: str, tags: RsiTags) -> 
     # (ROS-Industrial's simulator sends TYPE="KUKA") or leave it out, and ROS-Industrial's
     # kuka_rsi_hw_interface reads none of it; the root's name and the elements decide.
     body = whole.group(2)
-    elements = found.element.findall(body)
-    if len(elements) != 1:
-        raise BadRsiPacket(f"RSI packet has {len(elements)} <{element}> elements; needs one")
-    attributes = _ATTRIBUTE.findall(elements[0])
-    values = dict(attributes)
-    if len(values) != len(attributes):
-        raise BadRsiPacket(f"RSI <{element}> repeats an attribute")
-    axes = []
-    for axis in tags.axes:
-        raw = values.get(axis)
-        if raw is None:
-            raise BadRsiPacket(f"RSI <{element}> lacks axis {axis}")
-        if not _NUMBER.fullmatch(raw):
-            raise BadRsiPacket(f'RSI <{element}> {axis}="{raw}" is not a decimal number')
-        value = float(raw)
-        if not math.isfinite(value):
-            raise BadRsiPacket(f'RSI <{element}> {axis}="{raw}" is not finite')
-        axes.append(value)
+    axes = _axis_values(body, found.element, element, tags.axes)
+    extra = ()
+    if external:
+        names = tags.external_axes[:external]
+        extra = _axis_values(body, _element_pattern(external_element), external_element, names)
     counters = found.ipoc.findall(body)
     if len(counters) != 1:
         raise BadRsiPacket(
@@ -175,56 +191,151 @@ def _parse(packet: bytes, root: str, kind: str, element: str, tags: RsiTags) -> 
     ipoc = int(counters[0])
     if ipoc > MAX_IPOC:
         raise BadRsiPacket(f"RSI <{tags.ipoc}> {ipoc} exceeds 64 bits")
-    return RsiMessage(ipoc=ipoc, axes_deg=tuple(axes))
+    return RsiMessage(ipoc=ipoc, axes_deg=axes, external=extra)
 
 
-def parse_state(packet: bytes, tags: RsiTags = DEFAULT_TAGS) -> RsiMessage:
-    """The controller's cycle counter and actual axis positions (deg) in `packet`.
+@functools.lru_cache(maxsize=16)
+def _element_pattern(element: str) -> re.Pattern:
+    return re.compile(rf"<{re.escape(element)}\b([^>]*?)/?>")
+
+
+def _axis_values(body: str, pattern: re.Pattern, element: str, names) -> tuple[float, ...]:
+    """The values of the attributes `names` of the one `element` in `body`; BadRsiPacket
+    for no or several such elements, a repeated attribute, a missing, non-numeric or
+    non-finite value."""
+    elements = pattern.findall(body)
+    if len(elements) != 1:
+        raise BadRsiPacket(f"RSI packet has {len(elements)} <{element}> elements; needs one")
+    attributes = _ATTRIBUTE.findall(elements[0])
+    values = dict(attributes)
+    if len(values) != len(attributes):
+        raise BadRsiPacket(f"RSI <{element}> repeats an attribute")
+    out = []
+    for axis in names:
+        raw = values.get(axis)
+        if raw is None:
+            raise BadRsiPacket(f"RSI <{element}> lacks axis {axis}")
+        if not _NUMBER.fullmatch(raw):
+            raise BadRsiPacket(f'RSI <{element}> {axis}="{raw}" is not a decimal number')
+        value = float(raw)
+        if not math.isfinite(value):
+            raise BadRsiPacket(f'RSI <{element}> {axis}="{raw}" is not finite')
+        out.append(value)
+    return tuple(out)
+
+
+def parse_state(packet: bytes, tags: RsiTags = DEFAULT_TAGS, external: int = 0) -> RsiMessage:
+    """The controller's cycle counter and actual axis positions (deg) in `packet`, and the
+    first `external` external axes' positions (mm or deg; `RsiMessage.external`).
 
     Raises:
         BadRsiPacket: too long, not ASCII, not one root element of the right name, no or
-            several position elements, a missing, repeated, non-numeric or non-finite axis,
-            no or several counters, a counter beyond 64 bits.
+            several position elements, a missing, repeated, non-numeric or non-finite axis
+            (external ones too), no or several counters, a counter beyond 64 bits.
     """
-    return _parse(packet, tags.state_root, tags.state_type, tags.actual_positions, tags)
+    return _parse(
+        packet,
+        tags.state_root,
+        tags.state_type,
+        tags.actual_positions,
+        tags,
+        _external_count(external, tags),
+        tags.external_positions,
+    )
 
 
-def parse_reply(packet: bytes, tags: RsiTags = DEFAULT_TAGS) -> RsiMessage:
-    """The echoed cycle counter and the axis corrections (deg) of an external reply (what a
-    controller, or the loopback emulator, reads). Raises BadRsiPacket as `parse_state`."""
-    return _parse(packet, tags.reply_root, tags.reply_type, tags.corrections, tags)
+def parse_reply(packet: bytes, tags: RsiTags = DEFAULT_TAGS, external: int = 0) -> RsiMessage:
+    """The echoed cycle counter, the axis corrections (deg) and the first `external`
+    external axes' corrections of an external reply (what a controller, or the loopback
+    emulator, reads). Raises BadRsiPacket as `parse_state`."""
+    return _parse(
+        packet,
+        tags.reply_root,
+        tags.reply_type,
+        tags.corrections,
+        tags,
+        _external_count(external, tags),
+        tags.external_corrections,
+    )
 
 
-def _format(root: str, kind: str, element: str, ipoc: int, axes_deg, tags: RsiTags) -> bytes:
+def _external_count(external: int, tags: RsiTags) -> int:
+    if isinstance(external, bool) or not isinstance(external, int):
+        raise ValueError(f"external must be a whole number of axes; got {external!r}")
+    if not 0 <= external <= len(tags.external_axes):
+        raise ValueError(f"external must be 0 to {len(tags.external_axes)} axes; got {external}")
+    return external
+
+
+def _attributes(names, values, what: str) -> str:
+    values = [float(v) for v in values]
+    if len(values) != len(names) or not all(map(math.isfinite, values)):
+        raise ValueError(f"{len(names)} finite {what} needed; got {values!r}")
+    # fixed point, as KRL reads it, to RSI_RESOLUTION_DEG: coarser rounding shows in the
+    # second differences a controller checks (1e-4 deg is 12 deg/s^2 at a 4 ms cycle)
+    return " ".join(f'{a}="{v:.6f}"' for a, v in zip(names, values, strict=True))
+
+
+def _format(
+    root: str,
+    kind: str,
+    element: str,
+    ipoc: int,
+    axes_deg,
+    tags: RsiTags,
+    external_element: str,
+    external=(),
+) -> bytes:
     _checked(tags)
     if not (isinstance(ipoc, int) and 0 <= ipoc <= MAX_IPOC):
         raise ValueError(f"IPOC must be an integer in [0, 2^64); got {ipoc!r}")
     values = [float(v) for v in axes_deg]
     if len(values) != 6 or not all(map(math.isfinite, values)):
         raise ValueError(f"six finite axis values (deg) needed; got {axes_deg!r}")
-    # fixed point, as KRL reads it, to RSI_RESOLUTION_DEG: coarser rounding shows in the
-    # second differences a controller checks (1e-4 deg is 12 deg/s^2 at a 4 ms cycle)
-    attributes = " ".join(f'{a}="{v:.6f}"' for a, v in zip(tags.axes, values, strict=True))
-    return (
-        f'<{root} Type="{kind}"><{element} {attributes}/><{tags.ipoc}>{ipoc}</{tags.ipoc}></{root}>'
-    ).encode("ascii")
+    parts = f"<{element} {_attributes(tags.axes, axes_deg, 'axis values (deg)')}/>"
+    external = tuple(external)
+    if external:
+        names = tags.external_axes[: _external_count(len(external), tags)]
+        parts += f"<{external_element} {_attributes(names, external, 'external axis values')}/>"
+    return (f'<{root} Type="{kind}">{parts}<{tags.ipoc}>{ipoc}</{tags.ipoc}></{root}>').encode(
+        "ascii"
+    )
 
 
-def format_reply(ipoc: int, corrections_deg, tags: RsiTags = DEFAULT_TAGS) -> bytes:
-    """The external system's reply: the echoed `ipoc` and six axis corrections (deg).
+def format_reply(ipoc: int, corrections_deg, tags: RsiTags = DEFAULT_TAGS, external=()) -> bytes:
+    """The external system's reply: the echoed `ipoc`, six axis corrections (deg) and, where
+    given, the external axes' corrections (mm or deg, E1 first).
 
     Raises:
-        ValueError: a counter outside [0, 2^64) or corrections that are not six finite
-            numbers (the driver never sends what it could not check).
+        ValueError: a counter outside [0, 2^64), corrections that are not six finite
+            numbers, or external ones that are not finite or too many (the driver never
+            sends what it could not check).
     """
-    return _format(tags.reply_root, tags.reply_type, tags.corrections, ipoc, corrections_deg, tags)
-
-
-def format_state(ipoc: int, positions_deg, tags: RsiTags = DEFAULT_TAGS) -> bytes:
-    """A controller's state message (what the loopback emulator sends): `ipoc` and the six
-    actual axis positions (deg). Raises ValueError as `format_reply`."""
     return _format(
-        tags.state_root, tags.state_type, tags.actual_positions, ipoc, positions_deg, tags
+        tags.reply_root,
+        tags.reply_type,
+        tags.corrections,
+        ipoc,
+        corrections_deg,
+        tags,
+        tags.external_corrections,
+        external,
+    )
+
+
+def format_state(ipoc: int, positions_deg, tags: RsiTags = DEFAULT_TAGS, external=()) -> bytes:
+    """A controller's state message (what the loopback emulator sends): `ipoc`, the six
+    actual axis positions (deg) and, where given, the external axes' positions (mm or deg,
+    E1 first). Raises ValueError as `format_reply`."""
+    return _format(
+        tags.state_root,
+        tags.state_type,
+        tags.actual_positions,
+        ipoc,
+        positions_deg,
+        tags,
+        tags.external_positions,
+        external,
     )
 
 
