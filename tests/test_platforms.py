@@ -551,3 +551,16 @@ def test_the_fanuc_is_the_robot_ros_industrial_describes():
         assert joint.position == (lower, upper) and joint.velocity == (-velocity, velocity), name
     np.testing.assert_allclose(robot.q_min, [p[2] for p in published.values()])
     np.testing.assert_allclose(robot.qd_max, [p[4] for p in published.values()])
+
+
+def test_a_live_robot_run_refuses_a_platform_the_rsi_driver_cannot_move():
+    """The RSI driver moves six axes: a live scenario with a robot on the rail's seven
+    joints is refused before anything starts, naming the platform and its joints."""
+    from mca_drake.app.scenarios import LiveScenario
+
+    scenario = LiveScenario(
+        protocol="csv", robot="rsi://127.0.0.1:49152", plant="analytical", platform="kr500-rail"
+    )
+    with pytest.raises(ValueError, match="six axes A1-A6; platform 'kr500-rail' has 7 joints"):
+        scenario.validate()
+    LiveScenario(protocol="csv", robot="rsi://127.0.0.1:49152", plant="analytical").validate()

@@ -53,6 +53,7 @@ from mca_drake.platforms.files import (
     load_platform,
     packaged_name,
 )
+from mca_drake.platforms.serial import NUM_JOINTS
 from mca_drake.references.drives import DriveSpec
 from mca_drake.references.flights import FlightSpec
 from mca_drake.resources import scenario_path
@@ -454,6 +455,12 @@ class LiveScenario:
             )
         if self.robot and self.plant != "analytical":
             raise ValueError("a robot over RSI follows the analytical plant: plant analytical")
+        joints = load_platform(self.platform).num_joints
+        if self.robot and joints != NUM_JOINTS:
+            raise ValueError(
+                f"the RSI driver moves a robot's six axes A1-A6; platform "
+                f"{load_platform(self.platform).name!r} has {joints} joints"
+            )
         if getattr(self.mca, "preview_steps", 0):
             raise ValueError("live telemetry has no future: the NMPC's preview_steps must be 0")
         self.mca.validate()
