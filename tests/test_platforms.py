@@ -561,6 +561,6 @@ def test_a_live_robot_run_refuses_a_platform_the_rsi_driver_cannot_move():
     scenario = LiveScenario(
         protocol="csv", robot="rsi://127.0.0.1:49152", plant="analytical", platform="kr500-rail"
     )
-    with pytest.raises(ValueError, match="six axes A1-A6; platform 'kr500-rail' has 7 joints"):
+    with pytest.raises(ValueError, match=r"6 axes A1-A6; platform .kr500-rail. has 7 joints"):
         scenario.validate()
     LiveScenario(protocol="csv", robot="rsi://127.0.0.1:49152", plant="analytical").validate()

@@ -53,7 +53,6 @@ from mca_drake.platforms.files import (
     load_platform,
     packaged_name,
 )
-from mca_drake.platforms.serial import NUM_JOINTS
 from mca_drake.references.drives import DriveSpec
 from mca_drake.references.flights import FlightSpec
 from mca_drake.resources import scenario_path
@@ -455,12 +454,14 @@ class LiveScenario:
             )
         if self.robot and self.plant != "analytical":
             raise ValueError("a robot over RSI follows the analytical plant: plant analytical")
-        joints = load_platform(self.platform).num_joints
-        if self.robot and joints != NUM_JOINTS:
-            raise ValueError(
-                f"the RSI driver moves a robot's six axes A1-A6; platform "
-                f"{load_platform(self.platform).name!r} has {joints} joints"
-            )
+        if self.robot:
+            # the driver moves the axes its tags name (A1-A6), one per platform joint
+            axes, robot = self.rsi.tags.axes, load_platform(self.platform)
+            if robot.num_joints != len(axes):
+                raise ValueError(
+                    f"the RSI driver moves the robot's {len(axes)} axes {axes[0]}-{axes[-1]}; "
+                    f"platform {robot.name!r} has {robot.num_joints} joints"
+                )
         if getattr(self.mca, "preview_steps", 0):
             raise ValueError("live telemetry has no future: the NMPC's preview_steps must be 0")
         self.mca.validate()
