@@ -1,13 +1,15 @@
 """RSI driver figures: reply latency per robot cycle and late replies, live.
 
     python benchmarks/bench_rsi.py [--duration 600] [--cycles-ms 4,12] [--mca dpc]
-        [--json results/rsi.json]
+        [--platform kr500] [--json results/rsi.json]
 
 For each RSI cycle: the live loop of `bench_live.py` (JSBSim flies the light aircraft in
 real time and streams FGNetFDM packets over loopback; the MCA on the analytical plant at
 real-time rate 1) drives a robot over RSI (`mca-drake live --robot`): the driver in its own
 process, the loopback RSI robot emulator (`mca_drake.live.rsi.emulator`) in another, started
-at the home pose, sending its state every cycle for the whole run. Prints, per cycle, the
+at the platform's home pose (the DPC's and the NMPC's), sending its state every cycle for the
+whole run. `--platform kr500-rail` drives the rail as the controller's external axis E1
+beside A1-A6. Prints, per cycle, the
 reply latency as the robot sees it (its state left -> the reply in its socket, both the
 kernel's stamps: median, p99, max), the driver's own (the state's kernel arrival -> reply
 sent), late and missed replies, the emulator's own stalls (overruns, late sends), and the
@@ -21,7 +23,7 @@ arrivals, on the clock both share, so each reply splits into the way there and t
 time; it wakes every 5 ms, a few microseconds each, above the live loop) says for each cycle
 left without a reply on time whether the machine stalled in it. Writes the figures with
 their provenance (date, command, calibration, machine) to `--json`, by default
-`benchmarks/results/rsi.json`.
+`benchmarks/results/rsi.json` (the KR500) or `rsi-PLATFORM.json`.
 """
 
 from __future__ import annotations
@@ -43,12 +45,10 @@ from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S, start_demo_sender
 from mca_drake.live.loop import make_decoder, run_live
 from mca_drake.live.receiver import ReceiverConfig
 from mca_drake.live.rsi.driver import RsiDriverConfig
-from mca_drake.live.rsi.emulator import split_reply_latency
+from mca_drake.live.rsi.emulator import default_axis_map, split_reply_latency
 from mca_drake.live.rsi.motion import RsiMotionConfig
 from mca_drake.platforms.files import load_platform
 from mca_drake.simulation.closed_loop import step_time_summary
-
-KR500 = load_platform("kr500")
 
 STALL_PROBE = Path(__file__).with_name("machine_stalls.py")
 
@@ -100,11 +100,20 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=600.0, help="s per cycle time")
     parser.add_argument("--cycles-ms", default="4,12")
     parser.add_argument("--mca", default="dpc")
-    parser.add_argument(
-        "--json", default=default_result_path("rsi.json"), help="write the figures here"
-    )
+    parser.add_argument("--platform", default="kr500", help="a packaged platform or a file")
+    parser.add_argument("--json", help="write the figures here (default: by platform)")
     args = parser.parse_args()
+    platform = load_platform(args.platform)
+    if args.json is None:
+        name = "rsi.json" if platform.name == "kr500" else f"rsi-{platform.name}.json"
+        args.json = default_result_path(name)
+    # the emulated controller starts where the driver expects the robot: the home pose, A1-A6
+    # in degrees and the joints that carry the robot (a rail) as E1.. in mm or degrees
+    axes = default_axis_map(platform)
+    start_deg = ",".join(repr(v) for v in axes.home[axes.external :])
+    start_external = ",".join(repr(v) for v in axes.home[: axes.external])
     report = {"provenance": result_header(print_calibration()), "runs": {}}
+    report["platform"] = platform.summary()
     folder = Path(tempfile.mkdtemp(prefix="bench_rsi_"))
     for cycle_ms in (int(c) for c in args.cycles_ms.split(",")):
         # port 0: the driver takes a free one, written back into rsi.port before start()
@@ -128,7 +137,10 @@ def main() -> None:
             processes.append(start_demo_sender(address[1], args.duration + 3.0))
             command = [sys.executable, "-m", "mca_drake.live.rsi.emulator"]
             command += ["--driver", f"127.0.0.1:{rsi.port}", "--cycle-ms", str(c)]
-            command += ["--duration", repr(args.duration + 2.0)]
+            command += ["--duration", repr(args.duration + 2.0), "--platform", args.platform]
+            command += ["--start-deg", start_deg]
+            if start_external:
+                command += ["--start-external", start_external]
             command += ["--report", str(files[0]), "--recording", str(files[1])]
             processes.append(subprocess.Popen(command, stdout=subprocess.DEVNULL))
 
@@ -139,7 +151,7 @@ def main() -> None:
             receiver=ReceiverConfig(port=0),
             on_listening=start,
             rsi=rsi,
-            robot=KR500,
+            robot=platform,
         )
         sender, emulator = processes
         sender.terminate()

@@ -51,11 +51,12 @@ def mca_like_segments(robot, rng, steps: int, gain: float = 0.8) -> list[Command
     state x_k and the clamped command u_k (a random walk in acceleration, clamped as every
     MCA's command is)."""
     clamp = ViabilityClamp.for_robot(robot, H)
-    q, qd = np.zeros(6), np.zeros(6)
-    wish = np.zeros(6)
+    n = robot.num_joints
+    q, qd = np.array(robot.home, float), np.zeros(n)
+    wish = np.zeros(n)
     segments = []
     for k in range(steps):
-        wish = 0.9 * wish + gain * robot.qdd_max * rng.normal(size=6) * 0.5
+        wish = 0.9 * wish + gain * robot.qdd_max * rng.normal(size=n) * 0.5
         u, _ = clamp(np.r_[q, qd], wish)
         segments.append(CommandSegment(k, q, qd, u))
         q, qd = q + H * qd + 0.5 * H * H * u, qd + H * u

@@ -553,14 +553,27 @@ def test_the_fanuc_is_the_robot_ros_industrial_describes():
     np.testing.assert_allclose(robot.qd_max, [p[4] for p in published.values()])
 
 
-def test_a_live_robot_run_refuses_a_platform_the_rsi_driver_cannot_move():
-    """The RSI driver moves six axes: a live scenario with a robot on the rail's seven
-    joints is refused before anything starts, naming the platform and its joints."""
+def test_a_live_robot_run_checks_the_platform_fits_one_rsi_controller():
+    """Over RSI the rail is external axis E1 beside A1-A6: a live scenario with a robot on
+    the rail validates; settings for external axes it does not have are refused before
+    anything starts, naming the platform."""
     from mca_drake.app.scenarios import LiveScenario
 
-    scenario = LiveScenario(
-        protocol="csv", robot="rsi://127.0.0.1:49152", plant="analytical", platform="kr500-rail"
-    )
-    with pytest.raises(ValueError, match=r"6 axes A1-A6; platform .kr500-rail. has 7 joints"):
-        scenario.validate()
-    LiveScenario(protocol="csv", robot="rsi://127.0.0.1:49152", plant="analytical").validate()
+    def scenario(platform, **rsi):
+        from mca_drake.live.rsi.driver import RsiDriverConfig
+
+        return LiveScenario(
+            protocol="csv",
+            robot="rsi://127.0.0.1:49152",
+            plant="analytical",
+            platform=platform,
+            rsi=RsiDriverConfig(**rsi),
+        )
+
+    scenario("kr500-rail").validate()
+    scenario("kr500-rail", external_home=[4750.0], external_signs=[-1]).validate()
+    scenario("kr500").validate()
+    with pytest.raises(ValueError, match=r"kr500-rail.*external_signs must hold 1 values"):
+        scenario("kr500-rail", external_signs=[1, 1]).validate()
+    with pytest.raises(ValueError, match=r"'kr500'.*external_home must hold 0 values"):
+        scenario("kr500", external_home=[0.0]).validate()

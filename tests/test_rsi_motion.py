@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import struct
 
 import numpy as np
 import pytest
@@ -28,9 +29,15 @@ T = 0.004  # the robot's cycle
 
 def test_segments_round_trip_and_bad_datagrams_are_refused():
     segment = CommandSegment(42, [0.1] * 6, [-0.2] * 6, [1.5] * 6, end=True)
-    back = CommandSegment.unpack(segment.pack())
+    back = CommandSegment.unpack(segment.pack(), 6)
     assert back == segment
     good = segment.pack()
+    # the layout: magic, flags, k, then 18 little-endian doubles (struct as the oracle)
+    assert good == struct.pack("<4sIq18d", b"MCAS", 1, 42, *[0.1] * 6, *[-0.2] * 6, *[1.5] * 6)
+    rail = CommandSegment(7, range(7), [0.5] * 7, [-1.0] * 7)
+    assert CommandSegment.unpack(rail.pack(), 7) == rail
+    with pytest.raises(BadSegment, match=r"expected 160 \(6 joints\)"):
+        CommandSegment.unpack(rail.pack(), 6)  # the loop and the driver disagree
     for bad, why in (
         (good[:-1], "bytes"),
         (b"XXXX" + good[4:], "starts"),
@@ -38,9 +45,11 @@ def test_segments_round_trip_and_bad_datagrams_are_refused():
         (good[:-8] + np.float64(np.nan).tobytes(), "finite"),
     ):
         with pytest.raises(BadSegment, match=why):
-            CommandSegment.unpack(bad)
+            CommandSegment.unpack(bad, 6)
     with pytest.raises(ValueError, match="k must be"):
         CommandSegment(-1, [0] * 6, [0] * 6, [0] * 6)
+    with pytest.raises(ValueError, match="qd must hold 7"):
+        CommandSegment(0, [0] * 7, [0] * 6, [0] * 7)
 
 
 def test_the_segments_trajectory_is_the_analytical_plants(robot, rng):

@@ -45,6 +45,7 @@ from mca_drake.live.beamng import BeamNGConfig
 from mca_drake.live.f1 import F1Config
 from mca_drake.live.outsim import OutSimConfig
 from mca_drake.live.receiver import allowed_senders
+from mca_drake.live.rsi.axes import RsiAxisMap
 from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.files import (
@@ -407,9 +408,10 @@ class LiveScenario:
     # The robot's RSI interpolation cycle, ms (4 or 12).
     rsi_cycle_ms: int = 4
     # The RSI driver's settings: the controller's address, its IPOC unit, the robot's home
-    # pose in axis angles (home_deg, deg) and axis signs, the tolerance of the home check,
-    # the XML tags (docs/guides/rsi.md gives the KR500's). `robot` and `rsi_cycle_ms` set
-    # its listening address and cycle.
+    # pose in axis angles (home_deg, deg) and axis signs, the external axes' (a rail's E1,
+    # mm: external_home, external_signs), the tolerances of the home check, the XML tags
+    # (docs/guides/rsi.md gives the KR500's). `robot` and `rsi_cycle_ms` set its listening
+    # address and cycle.
     rsi: RsiDriverConfig = dataclasses.field(default_factory=RsiDriverConfig)
     # Pace of the loop against the wall clock: 1 is real time (live telemetry, a robot); 0
     # steps as fast as it can (a replayed stream); at most 10 (MAX_LIVE_REALTIME_RATE).
@@ -455,13 +457,22 @@ class LiveScenario:
         if self.robot and self.plant != "analytical":
             raise ValueError("a robot over RSI follows the analytical plant: plant analytical")
         if self.robot:
-            # the driver moves the axes its tags name (A1-A6), one per platform joint
-            axes, robot = self.rsi.tags.axes, load_platform(self.platform)
-            if robot.num_joints != len(axes):
-                raise ValueError(
-                    f"the RSI driver moves the robot's {len(axes)} axes {axes[0]}-{axes[-1]}; "
-                    f"platform {robot.name!r} has {robot.num_joints} joints"
+            # the driver moves the robot's axes A1-A6 and, for joints beyond them, external
+            # axes E1..: the platform must fit one controller, with the settings' lengths
+            robot, rsi = load_platform(self.platform), self.rsi
+            try:
+                RsiAxisMap.build(
+                    robot.joint_kinds,
+                    robot.home,
+                    rsi.tags.axes,
+                    rsi.tags.external_axes,
+                    rsi.axis_signs,
+                    rsi.external_signs,
+                    rsi.home_deg,
+                    rsi.external_home,
                 )
+            except ValueError as err:
+                raise ValueError(f"platform {robot.name!r} over RSI: {err}") from None
         if getattr(self.mca, "preview_steps", 0):
             raise ValueError("live telemetry has no future: the NMPC's preview_steps must be 0")
         self.mca.validate()

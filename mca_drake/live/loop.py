@@ -30,7 +30,6 @@ from pydrake.systems.framework import (
     OutputPort,
 )
 
-from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import McaConfig, as_mca_config
 from mca_drake.live.decoders import PROTOCOLS, make_decoder
 from mca_drake.live.live_summary import (
@@ -85,16 +84,17 @@ class LatencyProbe(LeafSystem):
     from the arrival of the newest telemetry sample to the command computed from it (once
     per sample), and how long that sample waited in the socket for its poll.
 
-    Input `telemetry` (TELEMETRY_FIELDS) and `command` (6: the command the robot gets now).
+    Input `telemetry` (TELEMETRY_FIELDS) and `command` (n, the platform's joints: the
+    command the robot gets now).
     `latencies_s` holds the latencies, `waits_s` the waits (poll - arrival) and
     `instants_s` the wall time of every control instant; `arrivals_s` and
     `sample_instants` the arrival and control instant index of every new sample.
     """
 
-    def __init__(self, time_step: float = CONTROL_PERIOD_S):
+    def __init__(self, time_step: float, joints: int):
         super().__init__()
         self._telemetry = self.DeclareVectorInputPort("telemetry", len(TELEMETRY_FIELDS))
-        self._command = self.DeclareVectorInputPort("command", 6)
+        self._command = self.DeclareVectorInputPort("command", joints)
         self.DeclarePeriodicPublishEvent(time_step, PROBE_DELAY_S, self._probe)
         self._time_step = time_step
         self.latencies_s: list[float] = []
@@ -261,7 +261,8 @@ def MakeLiveClosedLoop(
     )
     # the MCA's step after the poll, in the poll's simulator step (`systems.mca_update`)
     controller = AddMca(builder, mca, robot, h, update_event="discrete")
-    home = getattr(controller, "home_position", np.zeros(6))
+    n = robot.num_joints
+    home = getattr(controller, "home_position", np.zeros(n))
     guard = builder.AddNamedSystem(
         "supervisor",
         Supervisor(
@@ -270,12 +271,12 @@ def MakeLiveClosedLoop(
     )
     handles = dict(receiver=source, mca=controller, supervisor=guard, home=home)
     robot_ports = _AddLiveRobot(
-        builder, plant, robot, h, np.r_[home, np.zeros(6)], station, meshcat is not None
+        builder, plant, robot, h, np.r_[home, np.zeros(n)], station, meshcat is not None
     )
     handles |= robot_ports.handles
     state, inertial_output = robot_ports.state, robot_ports.inertial_output
     before_poll = dict(robot_ports.before_poll)
-    probe = builder.AddNamedSystem("probe", LatencyProbe(h))
+    probe = builder.AddNamedSystem("probe", LatencyProbe(h, n))
     handles["probe"] = probe
     reference = source.GetOutputPort("reference")
     _ConnectMcaToSupervisor(builder, source, controller, guard, robot_ports)
@@ -284,7 +285,7 @@ def MakeLiveClosedLoop(
     builder.Connect(source.GetOutputPort("telemetry"), probe.GetInputPort("telemetry"))
     builder.Connect(command, probe.GetInputPort("command"))
     if rsi_commands is not None:
-        sender = builder.AddNamedSystem("rsi", RsiCommandSender(rsi_commands, h))
+        sender = builder.AddNamedSystem("rsi", RsiCommandSender(rsi_commands, h, robot.num_joints))
         builder.Connect(state, sender.GetInputPort("state"))
         builder.Connect(command, sender.GetInputPort("command"))
         handles["rsi"] = sender

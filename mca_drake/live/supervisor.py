@@ -29,10 +29,10 @@ import math
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
-from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.conventions import CONTROL_PERIOD_S, NUM_CHANNELS
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.receiver import TELEMETRY_FIELDS
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.safety import ViabilityClamp
 
 HEALTH_STATES = ("ok", "degraded", "fault")
@@ -82,7 +82,7 @@ class SupervisorConfig:
             raise ValueError("SupervisorConfig.overruns_to_fault must be at least 1")
         if not 0 < self.home_acceleration_fraction <= 1:
             raise ValueError("SupervisorConfig.home_acceleration_fraction must be in (0, 1]")
-        if len(self.max_reference) != 6 or min(self.max_reference) <= 0:
+        if len(self.max_reference) != NUM_CHANNELS or min(self.max_reference) <= 0:
             raise ValueError("SupervisorConfig.max_reference must be six positive values")
 
 
@@ -102,9 +102,10 @@ class Supervisor(LeafSystem):
         - joint_acceleration
         - health
 
-    Inputs: the robot's `state` [q, qd] (12), the MCA's `mca_command` (6, rad/s^2), the
-    `reference` the MCA cues (6), the receiver's `telemetry` (TELEMETRY_FIELDS) and the MCA's
-    `mca_statistics` (MCA_STATISTICS: its step time first). `joint_acceleration` (6) is the
+    Inputs: the robot's `state` [q, qd] (2n for n joints), the MCA's `mca_command` (n,
+    rad/s^2 or m/s^2), the `reference` the MCA cues (6), the receiver's `telemetry`
+    (TELEMETRY_FIELDS) and the MCA's `mca_statistics` (MCA_STATISTICS: its step time
+    first). `joint_acceleration` (n) is the
     supervised command (direct feedthrough of the command and the state); `health`
     (HEALTH_FIELDS) holds the state (0 ok, 1 degraded, 2 fault), the transitions, the time
     spent in each state (s) and the blend weight.
@@ -112,7 +113,7 @@ class Supervisor(LeafSystem):
     Args:
         config: thresholds and the wash-out.
         robot: the limits the command is clamped to.
-        home_position: the pose the wash-out returns to, rad (6,); default q = 0 (the MCA's
+        home_position: the pose the wash-out returns to, shape (n,); default q = 0 (the MCA's
             own home where it has one: the classical washout's is not zero).
         judge_offset_s: the judgement runs at t_k + this, s (in [0, time_step)). The live
             loop runs it after the command has gone out and the robot has stepped, so that
@@ -136,13 +137,17 @@ class Supervisor(LeafSystem):
         omega = 2 * math.pi * self._config.home_frequency_hz
         self._kp, self._kd = omega * omega, 2 * omega
         self._home_limit = self._config.home_acceleration_fraction * self._robot.qdd_max
-        self._home = np.zeros(NUM_JOINTS) if home_position is None else np.array(home_position)
-        if self._home.shape != (NUM_JOINTS,) or not np.all(np.isfinite(self._home)):
-            raise ValueError(f"home_position must be 6 finite angles (rad); got {home_position}")
+        n = self._joints = robot.num_joints
+        self._home = np.zeros(n) if home_position is None else np.array(home_position)
+        if self._home.shape != (n,) or not np.all(np.isfinite(self._home)):
+            raise ValueError(
+                f"home_position must be {n} finite joint positions for {robot.name}; "
+                f"got {home_position}"
+            )
         self._transitions: list[tuple[float, str, str, str]] = []
-        self._state_port = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
-        self._command_port = self.DeclareVectorInputPort("mca_command", NUM_JOINTS)
-        self._reference_port = self.DeclareVectorInputPort("reference", 6)
+        self._state_port = self.DeclareVectorInputPort("state", 2 * n)
+        self._command_port = self.DeclareVectorInputPort("mca_command", n)
+        self._reference_port = self.DeclareVectorInputPort("reference", NUM_CHANNELS)
         self._telemetry_port = self.DeclareVectorInputPort("telemetry", len(TELEMETRY_FIELDS))
         self._statistics_port = self.DeclareVectorInputPort("mca_statistics", 4)
         initial = np.zeros(8)
@@ -153,7 +158,7 @@ class Supervisor(LeafSystem):
         self.DeclarePeriodicUnrestrictedUpdateEvent(h, judge_offset_s, self._judge)
         self.DeclareVectorOutputPort(
             "joint_acceleration",
-            NUM_JOINTS,
+            n,
             self._calc_command,
             {self.xd_ticket(), self._state_port.ticket(), self._command_port.ticket()},
         )
@@ -172,8 +177,8 @@ class Supervisor(LeafSystem):
         return dict(zip(HEALTH_FIELDS, (float(v) for v in values), strict=True))
 
     def home_command(self, x: np.ndarray) -> np.ndarray:
-        """The wash-out's acceleration toward the home pose at state x (12), rad/s^2 (6)."""
-        q, qd = x[:NUM_JOINTS] - self._home, x[NUM_JOINTS:]
+        """The wash-out's acceleration toward the home pose at state x (2n), per s^2 (n)."""
+        q, qd = x[: self._joints] - self._home, x[self._joints :]
         u = -self._kp * q - self._kd * qd
         return np.clip(u, -self._home_limit, self._home_limit)
 

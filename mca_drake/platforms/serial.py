@@ -31,9 +31,9 @@ import numpy as np
 
 from mca_drake.platforms.urdf_chain import MOVING_KINDS, STRUCTURE_TOL, UrdfModel, read_urdf
 
-# The joint count of the code paths still sized for six-axis robots (the DPC's network and
-# training, the segment datasets, the live supervisor, the RSI driver); the DPC system
-# refuses a platform of another count (`check_joint_count`).
+# The joint count of the paper's six-axis models: the learned plant models of Table II
+# (`mca_drake.learning.state_models`, `output_models`) and their excitation data, which
+# are the KR500's alone; everything else takes the platform's joint count.
 NUM_JOINTS = 6
 # How level the head frame must be at home: |1 - (R_WH)_zz| below this.
 LEVEL_TOL = 1e-6

@@ -10,7 +10,9 @@ segments from its command socket (`rsi.motion.CommandSegment`, Unix datagrams), 
 `MotionFollower` (the exact trajectory, `delay_s` behind the loop, checked against the
 robot's limits, braking when the segments stop) and replies with the axis corrections: the
 commanded joint positions relative to the home pose, in degrees, with the axis signs of the
-robot (`RsiDriverConfig.axis_signs`).
+robot (`RsiDriverConfig.axis_signs`). A platform with more than six joints drives the extra
+ones, the axes that carry the robot (a rail), as the controller's external axes E1.. (in mm
+for a linear one; `mca_drake.live.rsi.axes`).
 
 Safety, in order: the driver refuses to start (sends nothing and exits) unless the robot
 reports the expected home pose within `home_tolerance_deg`; every correction it sends is a
@@ -49,7 +51,9 @@ from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.endpoints import parse_endpoint
 from mca_drake.live.realtime import request_realtime_priority
+from mca_drake.live.rsi.axes import ROBOT_AXES, RsiAxisMap
 from mca_drake.live.rsi.motion import (
+    MAX_SEGMENT_BYTES,
     BadSegment,
     CommandSegment,
     MotionFollower,
@@ -58,7 +62,6 @@ from mca_drake.live.rsi.motion import (
 )
 from mca_drake.live.rsi.xml import MAX_RSI_BYTES, BadRsiPacket, RsiTags, format_reply, parse_state
 from mca_drake.live.socket_stamps import arrival_time, enable_kernel_timestamps
-from mca_drake.platforms.serial import NUM_JOINTS
 from mca_drake.simulation.closed_loop import step_time_summary
 
 # Counters the driver reports, in this order.
@@ -123,13 +126,20 @@ class RsiDriverConfig:
     port: int = 49152
     # How the trajectory is played (cycle, delay behind the loop).
     motion: RsiMotionConfig = dataclasses.field(default_factory=RsiMotionConfig)
-    # The controller's axis positions A1..A6 (deg) at the MCA's home pose; None: the home
+    # The controller's axis positions A1..A6 (deg) at the MCA's home pose; empty: the home
     # pose's joint angles in degrees times axis_signs (the model's zero is the robot's).
     home_deg: list[float] = dataclasses.field(default_factory=list)
     # +1 or -1 per axis: the robot's axis direction against the model's joint.
-    axis_signs: list[float] = dataclasses.field(default_factory=lambda: [1.0] * NUM_JOINTS)
-    # The robot must report home_deg within this (deg) at the first cycle, or nothing moves.
+    axis_signs: list[float] = dataclasses.field(default_factory=lambda: [1.0] * ROBOT_AXES)
+    # The same for the external axes E1.. that move a platform's joints beyond the robot's
+    # six (a rail: E1, in mm for a linear axis): their positions at the home pose (mm or
+    # deg; empty: the home pose's in mm or deg times the sign) and signs (empty: all +1).
+    external_home: list[float] = dataclasses.field(default_factory=list)
+    external_signs: list[float] = dataclasses.field(default_factory=list)
+    # The robot must report its home within these at the first cycle, or nothing moves:
+    # deg for a rotary axis, mm for a linear one.
     home_tolerance_deg: float = 0.5
+    home_tolerance_mm: float = 1.0
     # No state packet for this long (s) after the first: the controller ended RSI; the
     # driver exits. Before the first it waits (until asked to stop).
     robot_silence_s: float = 0.5
@@ -170,13 +180,29 @@ class RsiDriverConfig:
             controller_address(self.controller)
         if not 0 <= self.port <= 65535:
             raise ValueError(f"RsiDriverConfig.port must be in [0, 65535]; got {self.port}")
-        if len(self.axis_signs) != NUM_JOINTS or any(s not in (1, -1) for s in self.axis_signs):
+        if len(self.axis_signs) != ROBOT_AXES or any(s not in (1, -1) for s in self.axis_signs):
             raise ValueError(
                 f"RsiDriverConfig.axis_signs must be six of +1 or -1; got {self.axis_signs}"
             )
-        if self.home_deg and len(self.home_deg) != NUM_JOINTS:
+        if self.home_deg and len(self.home_deg) != ROBOT_AXES:
             raise ValueError(f"RsiDriverConfig.home_deg must hold six angles; got {self.home_deg}")
-        positive = ("home_tolerance_deg", "robot_silence_s", "period_s", "connect_timeout_s")
+        if any(s not in (1, -1) for s in self.external_signs):
+            raise ValueError(
+                f"RsiDriverConfig.external_signs must be +1 or -1 each; got {self.external_signs}"
+            )
+        for name in ("external_home", "external_signs"):
+            if len(getattr(self, name)) > len(self.tags.external_axes):
+                raise ValueError(
+                    f"RsiDriverConfig.{name} holds more values than the "
+                    f"{len(self.tags.external_axes)} external axes RsiTags names"
+                )
+        positive = (
+            "home_tolerance_deg",
+            "home_tolerance_mm",
+            "robot_silence_s",
+            "period_s",
+            "connect_timeout_s",
+        )
         if not all(getattr(self, name) > 0 for name in positive):
             raise ValueError(f"RsiDriverConfig.{', '.join(positive)} must be positive")
         if not 0 <= self.realtime_priority <= 99:
@@ -194,14 +220,16 @@ class RsiDriverConfig:
         unknown = set(values) - known
         if unknown:
             raise ValueError(f"unknown RsiDriverConfig settings: {sorted(unknown)}")
-        if values.get("home_deg") is None:
-            values["home_deg"] = []
+        for name in ("home_deg", "external_home", "external_signs"):
+            if values.get(name) is None:
+                values[name] = []
         if isinstance(values.get("motion"), dict):
             values["motion"] = RsiMotionConfig(**values["motion"])
         if isinstance(values.get("tags"), dict):
             tags = dict(values["tags"])
-            if "axes" in tags:
-                tags["axes"] = list(tags["axes"])
+            for name in ("axes", "external_axes"):
+                if name in tags:
+                    tags[name] = list(tags[name])
             values["tags"] = RsiTags(**tags)
         return cls(**values)
 
@@ -229,28 +257,44 @@ class RsiDriver:
 
     Args:
         config: addresses, cycle and axis mapping (validated here).
-        limits: q_min, q_max (rad), qd_max (rad/s), qdd_max (rad/s^2), 6 values each.
-        home: the MCA's home pose, rad (6): the loop's first segment starts there.
+        limits: q_min, q_max (rad or m), qd_max (per s), qdd_max (per s^2), n values each.
+        home: the MCA's home pose (n): the loop's first segment starts there.
         commands: the socket the loop's segments arrive on (datagrams), or None.
+        joint_kinds: "revolute" or "prismatic" per joint (default: n revolute); the first
+            n - 6 joints are external axes (`rsi.axes`).
 
     Raises:
-        ValueError: a bad setting or home pose. OSError: the RSI address cannot be bound.
+        ValueError: a bad setting, home pose or joint count. OSError: the RSI address
+            cannot be bound.
     """
 
-    def __init__(self, config: RsiDriverConfig, limits, home, commands: socket.socket | None):
+    def __init__(
+        self,
+        config: RsiDriverConfig,
+        limits,
+        home,
+        commands: socket.socket | None,
+        joint_kinds=None,
+    ):
         config.validate()
         self.config = config
-        self.follower = MotionFollower(limits, home, config.motion)
+        kinds = list(joint_kinds or ["revolute"] * len(home))
+        tags = config.tags
+        self.axes = RsiAxisMap.build(
+            kinds,
+            home,
+            tags.axes,
+            tags.external_axes,
+            config.axis_signs,
+            config.external_signs,
+            config.home_deg,
+            config.external_home,
+        )
+        units = ["m" if kind == "prismatic" else "rad" for kind in kinds]
+        self.follower = MotionFollower(limits, home, config.motion, units)
         motion = config.motion
         capacity = math.ceil((motion.delay_s + 0.5) / config.period_s) + 8
         self.buffer = SegmentBuffer(config.period_s, capacity)
-        self._home = [float(v) for v in home]
-        self._signs = [float(s) for s in config.axis_signs]
-        self._home_deg = (
-            [float(v) for v in config.home_deg]
-            if config.home_deg
-            else [s * math.degrees(q) for s, q in zip(self._signs, self._home, strict=True)]
-        )
         self._rsi = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._rsi.bind((config.host, config.port))
         # short reads: a stop request is seen while no robot sends
@@ -322,7 +366,7 @@ class RsiDriver:
             last_packet = time.monotonic()
             arrival = arrival_time(ancillary)
             try:
-                state = parse_state(packet, tags)
+                state = parse_state(packet, tags, self.axes.external)
             except BadRsiPacket as error:
                 self.counters["bad_state"] += 1
                 self.follower.halt(f"malformed state packet: {error}")
@@ -332,11 +376,8 @@ class RsiDriver:
                 continue
             self._ipoc = state.ipoc
             q = self._commanded(state.ipoc, dt)
-            corrections = [
-                sign * math.degrees(value - home)
-                for sign, value, home in zip(self._signs, q, self._home, strict=True)
-            ]
-            self._rsi.sendto(format_reply(state.ipoc, corrections, tags), robot)
+            corrections, external = self.axes.corrections(q)
+            self._rsi.sendto(format_reply(state.ipoc, corrections, tags, external), robot)
             latency = time.perf_counter() - arrival
             self.latencies_s.append(latency)
             if self._timed:
@@ -365,7 +406,7 @@ class RsiDriver:
         first packets check the home pose and measure the IPOC's unit."""
         cycle_s = self.config.motion.cycle_s
         if self._ipoc is None:
-            self._check_home(state.axes_deg)
+            self._check_home(state)
             self._ipoc_check.append((state.ipoc, arrival))
             return cycle_s
         elapsed = state.ipoc - self._ipoc
@@ -462,14 +503,23 @@ class RsiDriver:
             "reply_s": np.asarray(self.latencies_s if self._timed else []),
         }
 
-    def _check_home(self, axes_deg) -> None:
-        worst = max(range(NUM_JOINTS), key=lambda j: abs(axes_deg[j] - self._home_deg[j]))
-        off = axes_deg[worst] - self._home_deg[worst]
-        if abs(off) > self.config.home_tolerance_deg:
+    def _check_home(self, state) -> None:
+        """Refuses a robot whose first state is not the home pose, naming the axis furthest
+        off by its tolerance."""
+        axes, config = self.axes, self.config
+        reads = axes.chain_order(state.axes_deg, state.external)
+        tolerance = {"deg": config.home_tolerance_deg, "mm": config.home_tolerance_mm}
+        off = [
+            abs(value - home) / tolerance[unit]
+            for value, home, unit in zip(reads, axes.home, axes.units, strict=True)
+        ]
+        worst = max(range(len(off)), key=off.__getitem__)
+        if off[worst] > 1.0:
+            unit = axes.units[worst]
             raise RsiRefused(
-                f"the robot is not at the home pose: {self.config.tags.axes[worst]} reads "
-                f"{axes_deg[worst]:.3f} deg, home is {self._home_deg[worst]:.3f} deg "
-                f"(tolerance {self.config.home_tolerance_deg} deg); nothing was sent"
+                f"the robot is not at the home pose: {axes.names[worst]} reads "
+                f"{reads[worst]:.3f} {unit}, home is {axes.home[worst]:.3f} {unit} "
+                f"(tolerance {tolerance[unit]} {unit}); nothing was sent"
             )
 
     def _note_lead(self, lead_s: float, ipoc: int) -> None:
@@ -496,13 +546,13 @@ class RsiDriver:
             return
         while True:
             try:
-                datagram = self._commands.recv(256)
+                datagram = self._commands.recv(MAX_SEGMENT_BYTES + 1)
             except BlockingIOError:
                 break
             except OSError:  # the loop's end of the socket is gone
                 break
             try:
-                segment = CommandSegment.unpack(datagram)
+                segment = CommandSegment.unpack(datagram, self.follower.joints)
             except BadSegment:
                 self.counters["bad_segments"] += 1
                 continue
@@ -538,7 +588,7 @@ def stop_with_parent(parent_pid: int, driver: RsiDriver) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--job", required=True, help="JSON: config, limits, home")
+    parser.add_argument("--job", required=True, help="JSON: config, limits, home, joint_kinds")
     parser.add_argument("--command-fd", type=int, help="the loop's segment socket (inherited)")
     parser.add_argument("--status", help="write the counters here (JSON) at the end")
     parser.add_argument(
@@ -548,7 +598,7 @@ def main(argv: list[str] | None = None) -> int:
     job = json.loads(Path(args.job).read_text())
     config = RsiDriverConfig.from_dict(job["config"])
     commands = socket.socket(fileno=args.command_fd) if args.command_fd is not None else None
-    driver = RsiDriver(config, job["limits"], job["home"], commands)
+    driver = RsiDriver(config, job["limits"], job["home"], commands, job.get("joint_kinds"))
     realtime = request_realtime_priority(config.realtime_priority)
     # a stop request of either kind brakes the robot to rest before the driver ends
     signal.signal(signal.SIGTERM, lambda *_: driver.request_stop())

@@ -1,27 +1,32 @@
 """A loopback RSI robot: the controller side of KUKA RSI, for tests and demos.
 
     python -m mca_drake.live.rsi.emulator --driver 127.0.0.1:49152 --duration 60
-        [--cycle-ms 4] [--report report.json] [--recording recording.npz]
+        [--cycle-ms 4] [--platform kr500] [--start-deg A1,..,A6] [--start-external E1,..]
+        [--report report.json] [--recording recording.npz]
 
 Every cycle (4 or 12 ms, on the monotonic clock) it sends the driver a state packet
 (`rsi.xml.format_state`: the axis positions, deg, and the IPOC, ms) and waits for the reply
 for a cycle. A reply with this cycle's IPOC that reaches its socket within a cycle of the
 state's leaving (both the kernel's stamps: a controller's cycle runs from when its state
-goes out; a stall of this process before it does is this process's own, as its
-oversleeping is: one of over a cycle is counted as a late send, a whole cycle overslept as
-an overrun, skipped) is on time, and its corrections (deg, relative to the start pose)
-become the axes' new positions; a reply for an earlier cycle is late and ignored; none by
-then is a missed cycle (the axes hold). Like a controller, it stops (and sends nothing
-more) when `max_missed` cycles in a row go without an on-time reply, and when a correction
-would take an axis beyond its limits: position, velocity (per-cycle difference) or
-acceleration (second difference), each with the real robot's values
-(`mca_drake.platforms.serial.SerialChain`, in degrees). After a missed cycle the differences
-are taken over the time since the last correction applied, as an interpolating controller
-moves its set point from one correction to the next.
+goes out; a stall of this process before it does is this process's own, as its oversleeping
+is: one of over a cycle is counted as a late send, a whole cycle overslept as an overrun,
+skipped) is on time, and its corrections (deg, relative to the start pose; mm for a linear
+external axis) become the axes' new positions; a reply for an earlier cycle is late and
+ignored; none by then is a missed cycle (the axes hold). Like a controller, it stops (and
+sends nothing more) when `max_missed` cycles in a row go without an on-time reply, and when
+a correction would take an axis beyond its limits: position, velocity (per-cycle
+difference) or acceleration (second difference), each with the real robot's values
+(`mca_drake.platforms.serial.SerialChain`, in degrees or, for a linear axis, mm). A
+platform of more than six joints is one controller with external axes: the joints that
+carry the robot (a rail) are E1.. (`mca_drake.live.rsi.axes`), whose positions the state
+carries in its EIPos element and whose corrections the reply must carry in EK, checked
+alike. After a missed cycle the differences are taken over the time since the last
+correction applied, as an interpolating controller moves its set point from one correction
+to the next.
 
 It records what it received, per cycle: IPOC, when the state packet left, the reply's
-latency from then (NaN: none on time), the corrections and the axis positions; and every late
-reply's IPOC and arrival.
+latency from then (NaN: none on time), the corrections and the axis positions (the external
+axes' apart); and every late reply's IPOC and arrival.
 """
 
 from __future__ import annotations
@@ -42,6 +47,7 @@ from mca_drake.atomic_io import atomic_write_json, atomic_write_npz
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.pacing import wait_until
 from mca_drake.live.realtime import request_realtime_priority
+from mca_drake.live.rsi.axes import ROBOT_AXES, RsiAxisMap
 from mca_drake.live.rsi.xml import (
     MAX_RSI_BYTES,
     RSI_RESOLUTION_DEG,
@@ -57,7 +63,7 @@ from mca_drake.live.socket_stamps import (
     enable_send_timestamps,
 )
 from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 from mca_drake.simulation.closed_loop import step_time_summary
 
 # Counters the emulator reports, in this order.
@@ -78,8 +84,11 @@ class RsiEmulatorConfig:
 
     # Interpolation cycle, s (RSI: 0.004 or 0.012).
     cycle_s: float = 0.004
-    # Axis positions at the start, deg (the driver checks it is its home pose).
-    start_deg: list[float] = dataclasses.field(default_factory=lambda: [0.0] * NUM_JOINTS)
+    # Axis positions A1..A6 at the start, deg (the driver checks it is its home pose).
+    start_deg: list[float] = dataclasses.field(default_factory=lambda: [0.0] * ROBOT_AXES)
+    # External axis positions E1.. at the start, mm or deg, one per platform joint beyond
+    # the robot's six (empty: the platform's home, the model's zero being the axis's).
+    start_external: list[float] = dataclasses.field(default_factory=list)
     # Stop after this many cycles in a row without an on-time reply.
     max_missed: int = 10
     # IPOC of the first cycle (a controller's counter does not start at 0).
@@ -89,8 +98,8 @@ class RsiEmulatorConfig:
     ipoc_unit: str = "ms"
     # Slack on the limit checks, relative (round-off of the driver's degrees, not room).
     relative_tolerance: float = 1e-6
-    # The robot the controller drives, whose axis limits it enforces: a packaged platform's
-    # name or a platform file (six axes).
+    # The platform the controller drives, whose axis limits it enforces: a packaged
+    # platform's name or a platform file (six joints, or more as external axes).
     platform: str = DEFAULT_PLATFORM
 
     def validate(self) -> None:
@@ -100,7 +109,7 @@ class RsiEmulatorConfig:
             raise ValueError(
                 f"RsiEmulatorConfig.cycle_s must be in [0.001, 0.1] s; got {self.cycle_s}"
             )
-        if len(self.start_deg) != NUM_JOINTS:
+        if len(self.start_deg) != ROBOT_AXES:
             raise ValueError(
                 f"RsiEmulatorConfig.start_deg must hold six angles; got {self.start_deg}"
             )
@@ -114,7 +123,8 @@ class RsiEmulatorConfig:
 
 @dataclasses.dataclass
 class AxisLimits:
-    """Axis limits in the controller's units: deg, deg/s, deg/s^2, 6 values each."""
+    """Axis limits in the controller's units (deg, deg/s, deg/s^2; mm, mm/s, mm/s^2 for a
+    linear axis), one value per axis in the messages' order: A1..A6, then E1.."""
 
     min_deg: list[float]
     max_deg: list[float]
@@ -122,14 +132,29 @@ class AxisLimits:
     acceleration_deg_s2: list[float]
 
     @classmethod
-    def of_robot(cls, robot: SerialChain, signs=(1.0,) * NUM_JOINTS) -> AxisLimits:
-        """The KR500's joint limits as the controller's axes see them (a sign of -1 swaps an
+    def of_robot(cls, robot: SerialChain, axes: RsiAxisMap | None = None) -> AxisLimits:
+        """A platform's joint limits as the controller's axes see them through `axes` (its
+        default: the model's zero is the controller's, every sign +1; a sign of -1 swaps an
         axis's position limits)."""
-        low, high = [], []
-        for sign, a, b in zip(signs, np.degrees(robot.q_min), np.degrees(robot.q_max), strict=True):
-            low.append(float(min(sign * a, sign * b)))
-            high.append(float(max(sign * a, sign * b)))
-        return cls(low, high, np.degrees(robot.qd_max).tolist(), np.degrees(robot.qdd_max).tolist())
+        axes = axes or default_axis_map(robot)
+        scale = np.asarray(axes.scales)
+        home, home_q = np.asarray(axes.home), np.asarray(axes.home_q)
+        a, b = home + scale * (robot.q_min - home_q), home + scale * (robot.q_max - home_q)
+        # the messages' order: the robot's axes, then the external ones
+        order = list(range(axes.external, robot.num_joints)) + list(range(axes.external))
+        return cls(
+            np.minimum(a, b)[order].tolist(),
+            np.maximum(a, b)[order].tolist(),
+            (np.abs(scale) * robot.qd_max)[order].tolist(),
+            (np.abs(scale) * robot.qdd_max)[order].tolist(),
+        )
+
+
+def default_axis_map(robot: SerialChain, tags: RsiTags | None = None) -> RsiAxisMap:
+    """The controller axes of `robot`'s joints with every sign +1 and the model's zero the
+    controller's (`RsiAxisMap.build`'s defaults)."""
+    tags = tags or RsiTags()
+    return RsiAxisMap.build(robot.joint_kinds, robot.home, tags.axes, tags.external_axes)
 
 
 class RsiEmulator:
@@ -137,8 +162,9 @@ class RsiEmulator:
 
     Args:
         driver: the driver's (host, port).
-        config: cycle, start pose, stop rule.
-        limits: the axes' limits (None: the KR500's).
+        config: cycle, start pose, stop rule, platform.
+        limits: the axes' limits, A1..A6 then E1.. (None: the configured platform's).
+        tags: the messages' XML names.
     """
 
     def __init__(
@@ -150,8 +176,25 @@ class RsiEmulator:
     ):
         self.config = config or RsiEmulatorConfig()
         self.config.validate()
-        self.limits = limits or AxisLimits.of_robot(load_platform(self.config.platform))
         self.tags = tags or RsiTags()
+        platform = load_platform(self.config.platform)
+        axes = default_axis_map(platform, self.tags)
+        self.external = axes.external
+        start = self.config.start_external
+        if start and len(start) != self.external:
+            raise ValueError(
+                f"RsiEmulatorConfig.start_external must hold {self.external} values for "
+                f"{platform.name} (its external axes); got {start}"
+            )
+        self._start_external = [float(v) for v in start] or list(axes.home[: self.external])
+        self.limits = limits or AxisLimits.of_robot(platform, axes)
+        if len(self.limits.min_deg) != ROBOT_AXES + self.external:
+            raise ValueError(
+                f"the axis limits hold {len(self.limits.min_deg)} axes; {platform.name} has "
+                f"{ROBOT_AXES + self.external}"
+            )
+        self._names = [*self.tags.axes, *self.tags.external_axes[: self.external]]
+        self._units = ["deg"] * ROBOT_AXES + [axes.units[j] for j in range(self.external)]
         self._driver = driver
         self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._socket.bind(("127.0.0.1", 0))
@@ -172,8 +215,9 @@ class RsiEmulator:
             "ipoc": array.array("q"),
             "sent_s": array.array("d"),
             "latency_s": array.array("d"),
-            "corrections_deg": array.array("d"),  # 6 a cycle
-            "axes_deg": array.array("d"),  # 6 a cycle
+            # the axes A1..A6 then E1.., a cycle (deg; mm for a linear external axis)
+            "corrections": array.array("d"),
+            "axes": array.array("d"),
         }
 
     def close(self) -> None:
@@ -185,8 +229,9 @@ class RsiEmulator:
         cfg = self.config
         cycle_ms = round(cfg.cycle_s * 1e3)
         cycle = cycle_ms * 1e-3
-        start = list(map(float, cfg.start_deg))
-        axes, velocity = list(start), [0.0] * NUM_JOINTS
+        start = [*map(float, cfg.start_deg), *self._start_external]
+        count = len(start)
+        axes, velocity = list(start), [0.0] * count
         last_applied, last_step = -1, cycle  # cycle of the last correction, time before it
         missed_in_a_row = 0
         t0 = time.perf_counter() + cycle
@@ -213,7 +258,7 @@ class RsiEmulator:
             self.counters["late_sends"] += sent - due > cycle
             # a reply is on time within a cycle of the state's leaving
             reply = self._reply_for(ipoc, sent + cycle)
-            corrections = [math.nan] * NUM_JOINTS
+            corrections = [math.nan] * count
             latency = math.nan
             if reply is None:
                 self.counters["missed"] += 1
@@ -253,30 +298,36 @@ class RsiEmulator:
     def recording(self) -> dict[str, np.ndarray]:
         """The recording: per cycle ipoc (n,), sent_s (n,) when its state packet left (the
         kernel's stamp where there is one; time.perf_counter(), s), latency_s (n,),
-        corrections_deg (n, 6), axes_deg (n, 6); per late reply late_ipoc (m,) and
-        late_arrival_s (m,) (perf_counter, s)."""
+        corrections_deg (n, 6) and axes_deg (n, 6) of A1..A6, external_corrections (n, e)
+        and external_axes (n, e) of E1.. (mm or deg; e = 0 without external axes); per
+        late reply late_ipoc (m,) and late_arrival_s (m,) (perf_counter, s)."""
         late = np.asarray(self.late_replies, float).reshape(-1, 2)
+        width = ROBOT_AXES + self.external
+        corrections = np.asarray(self.rows["corrections"], float).reshape(-1, width)
+        axes = np.asarray(self.rows["axes"], float).reshape(-1, width)
         return {
             "ipoc": np.asarray(self.rows["ipoc"], np.int64),
             "sent_s": np.asarray(self.rows["sent_s"], float),
             "late_ipoc": late[:, 0].astype(np.int64),
             "late_arrival_s": late[:, 1],
             "latency_s": np.asarray(self.rows["latency_s"], float),
-            "corrections_deg": np.asarray(self.rows["corrections_deg"], float).reshape(-1, 6),
-            "axes_deg": np.asarray(self.rows["axes_deg"], float).reshape(-1, 6),
+            "corrections_deg": corrections[:, :ROBOT_AXES],
+            "axes_deg": axes[:, :ROBOT_AXES],
+            "external_corrections": corrections[:, ROBOT_AXES:],
+            "external_axes": axes[:, ROBOT_AXES:],
         }
 
     def _state_packet(self, n: int, ipoc: int, axes: list[float]) -> bytes:
         """Cycle n's state message (a test's subclass may corrupt it)."""
-        return format_state(ipoc, axes, self.tags)
+        return format_state(ipoc, axes[:ROBOT_AXES], self.tags, axes[ROBOT_AXES:])
 
     def _record(self, ipoc, sent, latency, corrections, axes) -> None:
         rows = self.rows
         rows["ipoc"].append(ipoc)
         rows["sent_s"].append(sent)
         rows["latency_s"].append(latency)
-        rows["corrections_deg"].extend(corrections)
-        rows["axes_deg"].extend(axes)
+        rows["corrections"].extend(corrections)
+        rows["axes"].extend(axes)
 
     def _reply_for(self, ipoc: int, deadline: float) -> tuple[float, list[float]] | None:
         """(arrival time, corrections) of this cycle's reply if it reached the socket by
@@ -298,12 +349,12 @@ class RsiEmulator:
                 continue
             arrived = arrival_time(ancillary)
             try:
-                reply = parse_reply(datagram, self.tags)
+                reply = parse_reply(datagram, self.tags, self.external)
             except BadRsiPacket:
                 self.counters["bad_replies"] += 1
                 continue
             if reply.ipoc == ipoc and arrived <= deadline:
-                return arrived, list(reply.axes_deg)
+                return arrived, [*reply.axes_deg, *reply.external]
             self.counters["late"] += 1
             self.late_replies.append((reply.ipoc, arrived))
 
@@ -311,26 +362,26 @@ class RsiEmulator:
         """Why `new_axes`, `step` s after the last correction applied (`axes`, reached at
         `velocity` over `last_step` s), cannot be applied ("" if they can)."""
         lim, tol = self.limits, self.config.relative_tolerance
-        names = self.tags.axes
+        names, units = self._names, self._units
         # the replies' rounding to RSI_RESOLUTION_DEG shows in the differences: allowed
         position_slack = RSI_RESOLUTION_DEG
         velocity_slack = 2 * RSI_RESOLUTION_DEG / step
         mean_step = 0.5 * (step + last_step)
         acceleration_slack = 4 * RSI_RESOLUTION_DEG / (step * mean_step)
-        for j in range(NUM_JOINTS):
+        for j in range(len(new_axes)):
             low, high = lim.min_deg[j], lim.max_deg[j]
             if (
                 not low - tol * abs(low) - position_slack
                 <= new_axes[j]
                 <= high + tol * abs(high) + position_slack
             ):
-                return f"{names[j]} position {new_axes[j]:.4f} deg beyond its limits"
+                return f"{names[j]} position {new_axes[j]:.4f} {units[j]} beyond its limits"
             v = (new_axes[j] - axes[j]) / step
             if abs(v) > lim.velocity_deg_s[j] * (1 + tol) + velocity_slack:
-                return f"{names[j]} velocity {v:.3f} deg/s over its limit"
+                return f"{names[j]} velocity {v:.3f} {units[j]}/s over its limit"
             a = (v - velocity[j]) / mean_step
             if abs(a) > lim.acceleration_deg_s2[j] * (1 + tol) + acceleration_slack:
-                return f"{names[j]} acceleration {a:.2f} deg/s^2 over its limit"
+                return f"{names[j]} acceleration {a:.2f} {units[j]}/s^2 over its limit"
         return ""
 
 
@@ -385,6 +436,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=60.0, help="s")
     parser.add_argument("--cycle-ms", type=int, default=4, help="4 or 12")
     parser.add_argument("--start-deg", help="six comma-separated angles (default zeros)")
+    parser.add_argument(
+        "--platform", default=DEFAULT_PLATFORM, help="packaged platform name or platform file"
+    )
+    parser.add_argument(
+        "--start-external",
+        help="comma-separated external axis positions E1.. (mm or deg; default the home)",
+    )
     parser.add_argument("--report", help="write the counters here (JSON)")
     parser.add_argument("--recording", help="write the per-cycle recording here (npz)")
     parser.add_argument(
@@ -392,7 +450,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     host, _, port = args.driver.rpartition(":")
-    config = RsiEmulatorConfig(cycle_s=args.cycle_ms * 1e-3)
+    config = RsiEmulatorConfig(cycle_s=args.cycle_ms * 1e-3, platform=args.platform)
+    if args.start_external:
+        config.start_external = [float(v) for v in args.start_external.split(",")]
     if args.start_deg:
         config.start_deg = [float(v) for v in args.start_deg.split(",")]
     emulator = RsiEmulator((host, int(port)), config)

@@ -29,7 +29,7 @@ from pydrake.systems.framework import Context, EventStatus, LeafSystem
 from mca_drake.live.recorder import AFTER_COMMAND_S
 from mca_drake.live.rsi.driver import ROBOT_READY, RsiDriverConfig, read_lead_report
 from mca_drake.live.rsi.motion import CommandSegment
-from mca_drake.platforms.serial import NUM_JOINTS, SerialChain
+from mca_drake.platforms.serial import SerialChain
 
 
 def parse_robot_url(url: str) -> tuple[str, int]:
@@ -53,21 +53,23 @@ class RsiCommandSender(LeafSystem):
         - state
         - command
 
-    `state` (12): x_k = [q, qd] of the plant the MCA controls, as the MCA read it;
-    `command` (6): the joint acceleration the robot gets over the period (the supervisor's).
+    `state` (2n): x_k = [q, qd] of the plant the MCA controls, as the MCA read it;
+    `command` (n): the joint acceleration the robot gets over the period (the supervisor's).
 
     Args:
         commands: the loop's end of the segment socket pair (datagrams).
         period_s: the control period h, s.
+        joints: the platform's joint count n.
     """
 
-    def __init__(self, commands: socket.socket, period_s: float):
+    def __init__(self, commands: socket.socket, period_s: float, joints: int):
         super().__init__()
         self._commands = commands
         self._commands.setblocking(False)
         self._period = period_s
-        self._state = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
-        self._command = self.DeclareVectorInputPort("command", NUM_JOINTS)
+        self._joints = joints
+        self._state = self.DeclareVectorInputPort("state", 2 * joints)
+        self._command = self.DeclareVectorInputPort("command", joints)
         self.DeclarePeriodicPublishEvent(period_s, AFTER_COMMAND_S, self._send)
         self.sent = 0
         self.unsent = 0  # segments the socket would not take (the driver gone or stalled)
@@ -77,13 +79,14 @@ class RsiCommandSender(LeafSystem):
         brakes to rest from there."""
         x = self._state.Eval(context).tolist()
         k = round(context.get_time() / self._period)
-        self._emit(CommandSegment(k, x[:NUM_JOINTS], x[NUM_JOINTS:], [0.0] * NUM_JOINTS, True))
+        n = self._joints
+        self._emit(CommandSegment(k, x[:n], x[n:], [0.0] * n, True))
 
     def _send(self, context: Context) -> EventStatus:
         x = self._state.Eval(context).tolist()
         u = self._command.Eval(context).tolist()
         k = round(context.get_time() / self._period)
-        self._emit(CommandSegment(k, x[:NUM_JOINTS], x[NUM_JOINTS:], u))
+        self._emit(CommandSegment(k, x[: self._joints], x[self._joints :], u))
         return EventStatus.Succeeded()
 
     def _emit(self, segment: CommandSegment) -> None:
@@ -238,6 +241,7 @@ def start_rsi_driver(
         "config": config.to_dict(),
         "limits": [v.tolist() for v in (robot.q_min, robot.q_max, robot.qd_max, robot.qdd_max)],
         "home": [float(v) for v in home],
+        "joint_kinds": list(robot.joint_kinds),
     }
     (folder / "job.json").write_text(json.dumps(job))
     status = folder / "status.json"

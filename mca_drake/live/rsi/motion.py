@@ -27,18 +27,23 @@ Nothing here touches a socket: `mca_drake.live.rsi.driver` does, around a `Motio
 """
 
 import dataclasses
+import functools
 import math
 import struct
 from collections.abc import Sequence
 
 from mca_drake.input_checks import check_config_numbers
-from mca_drake.platforms.serial import NUM_JOINTS
 from mca_drake.safety import ViabilityClamp
 
 # A segment on the wire (Unix datagram from the live loop to the driver, one machine):
-# magic, flags, step index k, then q, qd, u (rad, rad/s, rad/s^2), little-endian.
+# magic, flags, step index k, then q, qd, u (n values each: rad or m, per s, per s^2),
+# little-endian doubles; the driver knows n (its platform's joints) and takes no other.
 SEGMENT_MAGIC = b"MCAS"
-SEGMENT_STRUCT = struct.Struct("<4sIq18d")
+SEGMENT_HEADER = struct.Struct("<4sIq")
+# The most joints a segment may carry (an RSI controller's 6 axes and 6 external ones).
+MAX_SEGMENT_JOINTS = 12
+# Bytes of the longest segment datagram (the driver's receive size).
+MAX_SEGMENT_BYTES = SEGMENT_HEADER.size + 3 * 8 * MAX_SEGMENT_JOINTS
 # flags: the loop ends here (brake to rest and hold).
 END_OF_RUN = 1
 
@@ -56,8 +61,9 @@ class CommandSegment:
 
     Attributes:
         k: the control step: the segment holds over simulated time [k h, (k + 1) h).
-        q, qd: the state the MCA read at k h, rad and rad/s, 6 floats each.
-        u: the joint acceleration commanded over the period, rad/s^2, 6 floats.
+        q, qd: the state the MCA read at k h, rad and rad/s (m and m/s for a prismatic
+            joint), n floats each (the platform's joints, 1 to MAX_SEGMENT_JOINTS).
+        u: the joint acceleration commanded over the period, rad/s^2 (m/s^2), n floats.
         end: the loop ends with this segment: the driver brakes to rest after it.
     """
 
@@ -68,38 +74,53 @@ class CommandSegment:
     end: bool = False
 
     def __post_init__(self) -> None:
+        n = len(self.q)
+        if not 1 <= n <= MAX_SEGMENT_JOINTS:
+            raise ValueError(f"segment q must hold 1 to {MAX_SEGMENT_JOINTS} joints; got {n}")
         for name in ("q", "qd", "u"):
             values = tuple(map(float, getattr(self, name)))
-            if len(values) != NUM_JOINTS or not all(map(math.isfinite, values)):
-                raise ValueError(
-                    f"segment {name} must hold {NUM_JOINTS} finite numbers; got {values}"
-                )
+            if len(values) != n or not all(map(math.isfinite, values)):
+                raise ValueError(f"segment {name} must hold {n} finite numbers; got {values}")
             object.__setattr__(self, name, values)
         if self.k < 0:
             raise ValueError(f"segment step k must be >= 0; got {self.k}")
 
     def pack(self) -> bytes:
-        """The segment as one datagram (`SEGMENT_STRUCT`)."""
+        """The segment as one datagram (`SEGMENT_HEADER`, then q, qd, u as doubles)."""
         flags = END_OF_RUN if self.end else 0
-        return SEGMENT_STRUCT.pack(SEGMENT_MAGIC, flags, self.k, *self.q, *self.qd, *self.u)
+        return _segment_struct(len(self.q)).pack(
+            SEGMENT_MAGIC, flags, self.k, *self.q, *self.qd, *self.u
+        )
 
     @classmethod
-    def unpack(cls, datagram: bytes) -> "CommandSegment":
-        """The segment in `datagram`; BadSegment for anything else."""
-        if len(datagram) != SEGMENT_STRUCT.size:
+    def unpack(cls, datagram: bytes, joints: int) -> "CommandSegment":
+        """The segment of `joints` joints in `datagram`; BadSegment for anything else (a
+        segment of another joint count included: the loop and the driver disagree on the
+        platform)."""
+        layout = _segment_struct(joints)
+        if len(datagram) != layout.size:
             raise BadSegment(
-                f"segment datagram of {len(datagram)} bytes; expected {SEGMENT_STRUCT.size}"
+                f"segment datagram of {len(datagram)} bytes; expected {layout.size} "
+                f"({joints} joints)"
             )
-        magic, flags, k, *values = SEGMENT_STRUCT.unpack(datagram)
+        magic, flags, k, *values = layout.unpack(datagram)
         if magic != SEGMENT_MAGIC:
             raise BadSegment(f"segment datagram starts {magic!r}, not {SEGMENT_MAGIC!r}")
         if flags & ~END_OF_RUN:
             raise BadSegment(f"segment datagram has unknown flags {flags:#x}")
-        n = NUM_JOINTS
+        n = joints
         try:
             return cls(k, values[:n], values[n : 2 * n], values[2 * n :], bool(flags))
         except ValueError as error:
             raise BadSegment(str(error)) from error
+
+
+@functools.cache
+def _segment_struct(joints: int) -> struct.Struct:
+    """The wire layout of a segment of `joints` joints."""
+    if not 1 <= joints <= MAX_SEGMENT_JOINTS:
+        raise ValueError(f"a segment holds 1 to {MAX_SEGMENT_JOINTS} joints; got {joints}")
+    return struct.Struct(SEGMENT_HEADER.format + f"{3 * joints}d")
 
 
 class SegmentBuffer:
@@ -185,18 +206,25 @@ class MotionFollower:
     """The commanded joint state, one robot cycle at a time (module docstring).
 
     Args:
-        limits: the robot's limits: q_min, q_max (rad), qd_max (rad/s), qdd_max (rad/s^2),
-            each 6 values (`mca_drake.platforms.serial.SerialChain` has them).
-        home: the pose the robot starts at and the loop's first segment starts from, rad (6).
+        limits: the platform's limits: q_min, q_max (rad or m), qd_max (per s), qdd_max
+            (per s^2), n values each (`mca_drake.platforms.serial.SerialChain` has them).
+        home: the pose the robot starts at and the loop's first segment starts from (n).
         config: cycle, delay and tolerance.
+        units: each joint's position unit in messages ("rad" or "m"; default all "rad").
 
     Attributes:
-        q, qd: the state commanded last, rad and rad/s (6 floats each).
+        q, qd: the state commanded last, rad and rad/s or m and m/s (n floats each).
         mode: one of MODES.
         reason: why the follower left "following" ("" while it has not).
     """
 
-    def __init__(self, limits, home: Sequence[float], config: RsiMotionConfig | None = None):
+    def __init__(
+        self,
+        limits,
+        home: Sequence[float],
+        config: RsiMotionConfig | None = None,
+        units: Sequence[str] = (),
+    ):
         self.config = config or RsiMotionConfig()
         self.config.validate()
         q_min, q_max, qd_max, qdd_max = (list(map(float, v)) for v in limits)
@@ -207,11 +235,15 @@ class MotionFollower:
         self._qd_max = [v * (1 + tol) for v in qd_max]
         self._qdd_max = [v * (1 + tol) for v in qdd_max]
         self.home = [float(v) for v in home]
-        if len(self.home) != NUM_JOINTS:
-            raise ValueError(f"home must hold {NUM_JOINTS} joint positions; got {self.home}")
-        if not self._clamp.is_viable(self.home + [0.0] * NUM_JOINTS):
+        n = self.joints = len(q_min)
+        if len(self.home) != n:
+            raise ValueError(f"home must hold {n} joint positions; got {self.home}")
+        self.units = list(units) or ["rad"] * n
+        if len(self.units) != n:
+            raise ValueError(f"units must name {n} joints' units; got {self.units}")
+        if not self._clamp.is_viable(self.home + [0.0] * n):
             raise ValueError(f"home pose {self.home} is not inside the robot's limits")
-        self.q, self.qd = list(self.home), [0.0] * NUM_JOINTS
+        self.q, self.qd = list(self.home), [0.0] * n
         # the positions sent the cycle before self.q and the cycle's length: the robot rested
         # at home before, so the first target is checked as a start from rest
         self._previous: tuple[list[float], float] = (list(self.home), self.config.cycle_s)
@@ -220,7 +252,7 @@ class MotionFollower:
 
     def step(self, s: float, dt: float, buffer: SegmentBuffer) -> list[float]:
         """Advances the commanded state by one cycle of dt seconds (the robot's clock) to the
-        trajectory at simulated time s; returns the commanded positions q (rad, 6)."""
+        trajectory at simulated time s; returns the commanded positions q (rad or m, n)."""
         sent_before = self.q  # what the controller holds now; _check differences against it
         if self.mode in ("waiting", "following"):
             target = buffer.state_at(s)
@@ -255,28 +287,30 @@ class MotionFollower:
         differences within qd_max dt and second differences (a triangle-weighted mean of its
         acceleration) within qdd_max, and a jump in the commands has not."""
         sent, sent_dt = self._previous
-        for j in range(NUM_JOINTS):
+        for j in range(self.joints):
+            unit = self.units[j]
             velocity = (q[j] - self.q[j]) / dt
             if abs(velocity) > self._qd_max[j]:
                 return (
-                    f"joint {j + 1} moves {velocity:.4f} rad/s in a cycle: a jump in the commands"
+                    f"joint {j + 1} moves {velocity:.4f} {unit}/s in a cycle: a jump in the "
+                    "commands"
                 )
             before = (self.q[j] - sent[j]) / sent_dt
             acceleration = (velocity - before) / (0.5 * (dt + sent_dt))
             if abs(acceleration) > self._qdd_max[j]:
                 return (
-                    f"joint {j + 1} acceleration {acceleration:.3f} rad/s^2 between cycles "
+                    f"joint {j + 1} acceleration {acceleration:.3f} {unit}/s^2 between cycles "
                     "over its limit: a jump in the commands"
                 )
             if not self._q_min[j] <= q[j] <= self._q_max[j]:
-                return f"joint {j + 1} position {q[j]:.4f} rad outside its limits"
+                return f"joint {j + 1} position {q[j]:.4f} {unit} outside its limits"
             if abs(qd[j]) > self._qd_max[j]:
-                return f"joint {j + 1} velocity {qd[j]:.4f} rad/s over its limit"
+                return f"joint {j + 1} velocity {qd[j]:.4f} {unit}/s over its limit"
             mean_acceleration = (qd[j] - self.qd[j]) / dt
             if abs(mean_acceleration) > self._qdd_max[j]:
                 return (
-                    f"joint {j + 1} acceleration {mean_acceleration:.3f} rad/s^2 over its limit: "
-                    "a jump in the commands"
+                    f"joint {j + 1} acceleration {mean_acceleration:.3f} {unit}/s^2 over its "
+                    "limit: a jump in the commands"
                 )
         if not self._clamp.is_viable(q + qd):
             return "the target leaves no room to brake inside the limits"
@@ -302,6 +336,6 @@ class MotionFollower:
             ]
             self.qd = [v + a * h for v, a in zip(self.qd, u, strict=True)]
             if all(abs(v) < 1e-12 for v in self.qd):
-                self.qd = [0.0] * NUM_JOINTS
+                self.qd = [0.0] * self.joints
                 self.mode = "stopped"
                 return
