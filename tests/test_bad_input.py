@@ -13,7 +13,12 @@ import numpy as np
 import pytest
 
 from mca_drake.app import cli
-from mca_drake.app.scenarios import ClosedLoopScenario, DatasetScenario, EvaluationScenario
+from mca_drake.app.scenarios import (
+    ClosedLoopScenario,
+    DatasetScenario,
+    EvaluationScenario,
+    SuiteCase,
+)
 from mca_drake.atomic_io import atomic_write_json, atomic_write_text, check_writable
 from mca_drake.cueing import DpcConfig, NmpcConfig, WashoutConfig
 from mca_drake.cueing.dpc import default_policy_path, load_policy_arrays
@@ -51,6 +56,14 @@ KR500 = load_platform("kr500")
         (DatasetScenario(workers=0), "workers must be >= 1"),
         (EvaluationScenario(mcas=[]), "mcas is empty"),
         (EvaluationScenario(duration_s=0.0), r"duration_s must be in \(0"),
+        (EvaluationScenario(cases=[]), "every case's seeds are empty"),
+        (
+            EvaluationScenario(
+                cases=[SuiteCase("A", "light", [1000]), SuiteCase("A", "jet", [2000])]
+            ),
+            "every case needs a name of its own",
+        ),
+        (EvaluationScenario(cases=[SuiteCase("F", "light", [100])]), "case F: flight seeds must"),
     ],
     ids=lambda v: v if isinstance(v, str) else type(v).__name__,
 )

@@ -84,8 +84,11 @@ SMOKE_OVERRIDES = {
     "PlantDemoScenario": "{duration_s: 0.2}",
     "ClosedLoopScenario": "{duration_s: 0.3, output_dir: OUT}",
     "EvaluationScenario": (
-        "{duration_s: 0.5, light_seeds: [1000], jet_seeds: [2000], unseen_seeds: [],"
-        " drive_seeds: [4000], route_seeds: [5000], mcas: [dpc, washout], output_dir: OUT}"
+        "{duration_s: 0.5, cases: [{name: A, vehicle: light, seeds: [1000]},"
+        " {name: B, vehicle: jet, seeds: [2000]},"
+        " {name: D, vehicles: [bmw-320i], manoeuvres: [lap], seeds: [4000]},"
+        " {name: E, vehicles: [light], pilot: route, seeds: [5000]}],"
+        " mcas: [dpc, washout], output_dir: OUT}"
     ),
     "DatasetScenario": (
         "{flight_seeds: [100], flight_duration_s: 3.0, horizon: 32, output_dir: OUT}"
@@ -374,8 +377,11 @@ def test_suite_cases_choose_exactly_their_flights(tmp_path, monkeypatch, capsys)
     argv = ["evaluate", "--suite", "--cases", "A,D", "--flights", "2", "--out-dir", str(out)]
     assert cli.main(argv) == 0
     (scenario,) = seen
-    assert scenario.light_seeds == [1000, 1001] and scenario.drive_seeds == [4000, 4001]
-    assert scenario.jet_seeds == scenario.unseen_seeds == scenario.route_seeds == []
+    assert [(c.name, c.seeds) for c in scenario.cases] == [
+        ("A", [1000, 1001]),
+        ("D", [4000, 4001]),
+    ]
+    assert scenario.cases[1].vehicles == ["bmw-320i", "ford-escort", "vw-vanagon"]
     monkeypatch.undo()
 
     base = ["evaluate", "--suite", "--cases", "A", "--flights", "1", "--duration", "2"]

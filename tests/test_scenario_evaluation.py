@@ -404,3 +404,27 @@ def test_case_d_drives_cars_through_its_manoeuvres(tmp_path):
         "drive_lap_ford-escort_B_0.1_0.37_0.55_4001_2s.csv",
         "drive_proving-ground_bmw-320i_B_0.1_0.37_0.55_4000_2s.csv",
     ]
+
+
+def test_a_scenario_spells_the_suites_cases_as_one_list(tmp_path):
+    """The packaged suite scenario's `cases` are the study's default cases A-E, field by
+    field; a scenario file of its own cases (one the suite does not have) gives those; the
+    old per-case fields are refused with the new spelling named."""
+    from mca_drake.app.scenarios import EvaluationScenario, load_scenario
+    from mca_drake.studies.evaluation_cases import EvaluationCase, default_cases
+
+    assert load_scenario("evaluation").to_config().cases == default_cases()
+    assert EvaluationScenario().to_config().cases == default_cases()
+    path = tmp_path / "mine.yaml"
+    path.write_text(
+        "scenario: !EvaluationScenario\n"
+        "  mcas: [washout]\n"
+        "  cases:\n"
+        "    - {name: F, vehicles: [f16, DHC6], seeds: [6000, 6001, 6002]}\n"
+        "    - {name: E, vehicle: jet, pilot: route, seeds: []}\n"
+    )
+    (case,) = load_scenario(path).to_config().cases  # the empty case is skipped
+    assert case == EvaluationCase("F", "", (6000, 6001, 6002), vehicles=("f16", "DHC6"))
+    assert [case.vehicle_of(s) for s in case.seeds] == ["f16", "DHC6", "f16"]
+    with pytest.raises(ValueError, match=r"unknown field 'jet_seeds'.*cases: \[\{name: A"):
+        load_scenario("evaluation", "{jet_seeds: [2000]}")

@@ -170,9 +170,47 @@ class ClosedLoopScenario:
         self.perception.validate()
 
 
-def _default_case(name: str):
-    """The default evaluation case called `name` (`studies.evaluation.default_cases`)."""
-    return {case.name: case for case in default_cases()}[name]
+@dataclasses.dataclass
+class SuiteCase:
+    """One case of an `EvaluationScenario`, as a scenario file spells it: the fields of
+    `mca_drake.studies.evaluation_cases.EvaluationCase` (which see), with lists, e.g.
+    `{name: C, seeds: [3000, 3001], vehicles: [t6texan2, T38]}`."""
+
+    # Label in the report ("A" ... "E", or your own).
+    name: str = ""
+    # The vehicle (an aircraft, or a car for drives) when `vehicles` is empty.
+    vehicle: str = ""
+    # Flight (or drive) seeds: evaluation seeds, from 1000 on.
+    seeds: list[int] = dataclasses.field(default_factory=list)
+    # Several vehicles, dealt to the seeds in turn (seed i: vehicles[i % len]).
+    vehicles: list[str] = dataclasses.field(default_factory=list)
+    # Who flies the flights (`mca_drake.references.flights.PILOTS`).
+    pilot: str = "scripted"
+    # Drives instead of flights: the manoeuvres, dealt to the seeds in turn.
+    manoeuvres: list[str] = dataclasses.field(default_factory=list)
+
+    @classmethod
+    def of(cls, case: EvaluationCase) -> "SuiteCase":
+        """The scenario's spelling of `case`."""
+        return cls(
+            case.name,
+            case.vehicle,
+            list(case.seeds),
+            list(case.vehicles),
+            case.pilot,
+            list(case.manoeuvres),
+        )
+
+    def to_case(self) -> EvaluationCase:
+        """The study's case."""
+        return EvaluationCase(
+            self.name,
+            self.vehicle,
+            tuple(self.seeds),
+            vehicles=tuple(self.vehicles),
+            pilot=self.pilot,
+            manoeuvres=tuple(self.manoeuvres),
+        )
 
 
 @dataclasses.dataclass
@@ -184,40 +222,10 @@ class EvaluationScenario:
     mcas: list[McaConfig] = dataclasses.field(
         default_factory=lambda: [mca_config_from_name(n) for n in DEFAULT_MCAS]
     )
-    # Case A flight seeds (light aircraft); empty: skip the case.
-    light_seeds: list[int] = dataclasses.field(
-        default_factory=lambda: list(_default_case("A").seeds)
-    )
-    # Case B flight seeds (jet); empty: skip the case.
-    jet_seeds: list[int] = dataclasses.field(default_factory=lambda: list(_default_case("B").seeds))
-    # Case C flight seeds (dealt to `unseen_vehicles` in turn); empty: skip the case.
-    unseen_seeds: list[int] = dataclasses.field(
-        default_factory=lambda: list(_default_case("C").seeds)
-    )
-    # Case C's aircraft.
-    unseen_vehicles: list[str] = dataclasses.field(
-        default_factory=lambda: list(_default_case("C").vehicles)
-    )
-    # Case D drive seeds (dealt to `drive_cars` and `drive_manoeuvres` in turn); empty:
-    # skip the case.
-    drive_seeds: list[int] = dataclasses.field(
-        default_factory=lambda: list(_default_case("D").seeds)
-    )
-    # Case D's cars (`mca_drake.references.driving.CARS`) and manoeuvres.
-    drive_cars: list[str] = dataclasses.field(
-        default_factory=lambda: list(_default_case("D").vehicles)
-    )
-    drive_manoeuvres: list[str] = dataclasses.field(
-        default_factory=lambda: list(_default_case("D").manoeuvres)
-    )
-    # Case E flight seeds, flown by the route pilot (dealt to `route_vehicles` in turn);
-    # empty: skip the case.
-    route_seeds: list[int] = dataclasses.field(
-        default_factory=lambda: list(_default_case("E").seeds)
-    )
-    # Case E's aircraft.
-    route_vehicles: list[str] = dataclasses.field(
-        default_factory=lambda: list(_default_case("E").vehicles)
+    # The cases, each a set of flights or drives (`SuiteCase`); default: the suite's A-E
+    # (`mca_drake.studies.evaluation_cases.default_cases`). A case with no seeds is skipped.
+    cases: list[SuiteCase] = dataclasses.field(
+        default_factory=lambda: [SuiteCase.of(c) for c in default_cases()]
     )
     # Simulated seconds per flight.
     duration_s: float = EvaluationConfig.duration_s
@@ -241,23 +249,11 @@ class EvaluationScenario:
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""
-        if not (
-            self.light_seeds
-            or self.jet_seeds
-            or self.unseen_seeds
-            or self.drive_seeds
-            or self.route_seeds
-        ):
-            raise ValueError(
-                "light_seeds, jet_seeds, unseen_seeds, drive_seeds and route_seeds are all "
-                "empty: nothing to evaluate"
-            )
-        if self.drive_seeds and not (self.drive_cars and self.drive_manoeuvres):
-            raise ValueError("drive_seeds given but drive_cars or drive_manoeuvres is empty")
-        if self.unseen_seeds and not self.unseen_vehicles:
-            raise ValueError("unseen_seeds given but unseen_vehicles is empty")
-        if self.route_seeds and not self.route_vehicles:
-            raise ValueError("route_seeds given but route_vehicles is empty")
+        names = [case.name for case in self.cases]
+        if not all(names) or len(set(names)) != len(names):
+            raise ValueError(f"every case needs a name of its own; got {names}")
+        if not any(case.seeds for case in self.cases):
+            raise ValueError("every case's seeds are empty: nothing to evaluate")
         if self.workers < 1:
             raise ValueError(f"workers must be >= 1; got {self.workers}")
         for mca in self.mcas:
@@ -266,37 +262,7 @@ class EvaluationScenario:
 
     def to_config(self) -> EvaluationConfig:
         """The `mca_drake.studies.evaluation.EvaluationConfig` of this scenario."""
-        cases = []
-        if self.light_seeds:
-            cases.append(EvaluationCase("A", "light", tuple(self.light_seeds)))
-        if self.jet_seeds:
-            cases.append(EvaluationCase("B", "jet", tuple(self.jet_seeds)))
-        if self.unseen_seeds:
-            cases.append(
-                EvaluationCase(
-                    "C", "", tuple(self.unseen_seeds), vehicles=tuple(self.unseen_vehicles)
-                )
-            )
-        if self.drive_seeds:
-            cases.append(
-                EvaluationCase(
-                    "D",
-                    "",
-                    tuple(self.drive_seeds),
-                    vehicles=tuple(self.drive_cars),
-                    manoeuvres=tuple(self.drive_manoeuvres),
-                )
-            )
-        if self.route_seeds:
-            cases.append(
-                EvaluationCase(
-                    "E",
-                    "",
-                    tuple(self.route_seeds),
-                    vehicles=tuple(self.route_vehicles),
-                    pilot="route",
-                )
-            )
+        cases = [case.to_case() for case in self.cases if case.seeds]
         return EvaluationConfig(
             mcas=tuple(self.mcas),
             cases=tuple(cases),
@@ -561,7 +527,7 @@ def _prepare(schema, raw, current, where: str):
     if unknown:
         raise ValueError(
             f"{_at(where)}unknown field {', '.join(map(repr, unknown))} of "
-            f"{schema.__name__}; valid: {', '.join(fields)}"
+            f"{schema.__name__}; valid: {', '.join(fields)}{_FIELD_HINTS.get(schema, '')}"
         )
     return {
         k: _prepare(
@@ -572,6 +538,16 @@ def _prepare(schema, raw, current, where: str):
         )
         for k, v in raw.items()
     }
+
+
+# Said with an unknown field of these classes: where their fields went.
+_FIELD_HINTS = {
+    EvaluationScenario: (
+        " (the suite's cases are one list, `cases: [{name: A, vehicle: light, seeds: "
+        "[1000, 1001]}, {name: C, vehicles: [t6texan2, T38], seeds: [3000]}, ...]`: "
+        "diagrams/evaluation.yaml)"
+    )
+}
 
 
 # The type an untagged mapping of a union field is, where nothing else says: a flight

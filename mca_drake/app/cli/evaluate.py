@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 
@@ -20,7 +21,7 @@ from mca_drake.app.cli.flags import (
 )
 from mca_drake.app.cli.report import format_pi
 from mca_drake.app.jobs import run_closed_loop_scenario, run_scenario
-from mca_drake.app.scenarios import ClosedLoopScenario, EvaluationScenario
+from mca_drake.app.scenarios import ClosedLoopScenario, EvaluationScenario, SuiteCase
 from mca_drake.cueing import DpcConfig, mca_config_from_name, mca_name
 from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.plotting import save_figure
@@ -35,14 +36,6 @@ from mca_drake.studies.evaluation import (
 
 # EvaluationScenario fields with a flag (the suite's), by flag name where it differs.
 SUITE_FLAGS = {"workers": "", "output_dir": "--out-dir"}
-# The EvaluationScenario field of each suite case's seeds (`--cases`).
-SUITE_CASE_SEEDS = {
-    "A": "light_seeds",
-    "B": "jet_seeds",
-    "C": "unseen_seeds",
-    "D": "drive_seeds",
-    "E": "route_seeds",
-}
 
 
 def add_parser(commands) -> None:
@@ -151,9 +144,11 @@ def run_suite(args: argparse.Namespace) -> int:
     unknown = [c for c in wanted if c not in cases]
     if unknown:
         raise ValueError(f"--cases: unknown case {unknown}; valid: {', '.join(cases)}")
-    for case, field in SUITE_CASE_SEEDS.items():
-        seeds = list(cases[case].seeds[: args.flights]) if case in wanted else []
-        setattr(scenario, field, seeds)
+    scenario.cases = [
+        SuiteCase.of(dataclasses.replace(cases[name], seeds=cases[name].seeds[: args.flights]))
+        for name in cases
+        if name in wanted
+    ]
     out = Path(scenario.output_dir).resolve()
     previous = None
     if args.keep_report:
