@@ -136,6 +136,19 @@ def test_a_seed_is_a_drive():
     assert np.abs(other.f - first.f).max() > 0.1
 
 
+def test_a_lap_drive_without_a_duration_lasts_one_lap():
+    """A lap's natural length is one lap: the closed course's length (its points' own
+    polyline, measured here) at its mean target speed, plus the standing start's 5 s."""
+    from mca_drake.references.driving.drive import draw_course, natural_duration_s
+
+    course = draw_course("lap", np.random.default_rng(0)).course
+    assert course.closed
+    lap_m = np.hypot(np.diff(course.x), np.diff(course.y)).sum()
+    expected = lap_m / course.speed.mean() + 5.0
+    assert natural_duration_s(course) == pytest.approx(expected, rel=0.01)
+    assert 20.0 < natural_duration_s(course) < 600.0
+
+
 def test_bad_drives_are_refused():
     with pytest.raises(ValueError, match="unknown manoeuvre"):
         drive("drift", 5.0, 0)
@@ -145,8 +158,6 @@ def test_bad_drives_are_refused():
         drive("braking", 5.0, 0, road_class="Z")
     with pytest.raises(ValueError, match="head_offset_m"):
         drive("braking", 5.0, 0, head_offset_m=(0.0, 1.0))
-    with pytest.raises(ValueError, match="lap drive needs a duration"):
-        drive("lap", None, 0)
     with pytest.raises(ValueError, match="duration_s"):
         drive("braking", -1.0, 0)
 

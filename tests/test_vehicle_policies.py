@@ -4,6 +4,8 @@ profile; references carry their vehicle to it, and training can keep one class's
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -17,6 +19,7 @@ from mca_drake.cueing.dpc import (
 )
 from mca_drake.learning.dpc_training import flights_of_vehicles
 from mca_drake.platforms.files import load_platform
+from mca_drake.references.driving import CARS
 from mca_drake.references.jsbsim import VEHICLES
 from mca_drake.references.recording import Recording
 from mca_drake.references.reference import Reference, reference_from_recording
@@ -35,7 +38,8 @@ AEROBATIC_FIGHTER = ("t6texan2", "T37", "T38", "f16", "f15", "A4", "F4N")
 def test_light_and_transport_aircraft_get_their_policy_and_the_rest_the_default():
     """Against the fleet's documented envelopes: the light single and the Twin Otter (the
     light envelope) fly the light policy; the CS/FAR 25 transports the transport policy;
-    the trainers and fighters, cars, unnamed and unknown vehicles the default policy."""
+    the trainers and fighters, unnamed and unknown vehicles the default policy; every car
+    `mca-drake drive` drives, and "car", the ground policy."""
     assert set(LIGHT) | set(TRANSPORT) | set(AEROBATIC_FIGHTER) == set(VEHICLES)
     assert set(ENVELOPE_POLICIES) <= set(ENVELOPES)
     assert set(ENVELOPE_POLICIES.values()) <= set(SHIPPED_POLICIES)
@@ -47,7 +51,15 @@ def test_light_and_transport_aircraft_get_their_policy_and_the_rest_the_default(
             assert VEHICLE_ENVELOPES[vehicle] == envelope
             assert vehicle_policy_name(vehicle) == policy, vehicle
             assert DpcConfig(vehicle=vehicle).policy_path("kr500") == shipped_policy_path(policy)
-    for vehicle in (*AEROBATIC_FIGHTER, "", "bmw-320i", "no-such-aircraft"):
+    for vehicle in (*CARS, "car"):
+        assert vehicle_policy_name(vehicle) == "ground_policy", vehicle
+        assert DpcConfig(vehicle=vehicle).policy_path("kr500") == shipped_policy_path(
+            "ground_policy"
+        )
+        assert DpcConfig(vehicle=vehicle).policy_path("kr500-rail").name == (
+            "kr500-rail_ground_policy.npz"
+        )
+    for vehicle in (*AEROBATIC_FIGHTER, "", "no-such-aircraft"):
         assert vehicle_policy_name(vehicle) == "default_policy", vehicle
         assert DpcConfig(vehicle=vehicle).policy_path("kr500") == default_policy_path()
     files = {shipped_policy_path(p).read_bytes() for p in ("light_policy", "transport_policy")}
@@ -140,9 +152,9 @@ def test_training_keeps_the_flights_of_the_vehicles_asked_for():
 
 
 def test_a_recording_names_no_vehicle_and_a_built_in_flight_its_own(tmp_path):
-    """A built-in flight's reference carries its vehicle; a recording's does not (its
-    spec's `vehicle` is only the field's default), so the DPC runs the default policy
-    unless its config names the vehicle."""
+    """A built-in flight's reference carries its vehicle; a recording whose header names
+    none has none (its spec's `vehicle` is only the field's default), so the DPC runs the
+    default policy unless its config names the vehicle."""
     from mca_drake.references.drives import motion_reference
     from mca_drake.references.flights import FlightSpec
 
@@ -153,3 +165,54 @@ def test_a_recording_names_no_vehicle_and_a_built_in_flight_its_own(tmp_path):
     assert recorded.vehicle == "" and FlightSpec(vehicle="DHC6").flown_by() == "DHC6"
     picked = for_vehicle(DpcConfig(), recorded.vehicle)
     assert picked.policy_path("kr500") == default_policy_path()
+
+
+def test_a_recording_that_names_its_car_is_cued_by_the_ground_policy_whole(tmp_path):
+    """A recording whose header names its car (`# vehicle: bmw-320i`, as `mca-drake drive`
+    writes it), cued with the default `--mca dpc` by `simulate` and `evaluate` without
+    `--duration`: the ground policy, and why, in the summary, over the whole 3 s file
+    (not the built-in flight's 60 s); the same file without the header: the default
+    policy."""
+    from mca_drake.app.cli import main
+
+    rows = [
+        f"{0.01 * k:.2f},0,0,{0.1 * np.sin(k / 50):.6f},{np.sin(k / 30):.6f},0,9.81"
+        for k in range(301)
+    ]  # 3 s: a gentle yaw and surge
+    header = "t,omega_x [rad/s],omega_y [rad/s],omega_z [rad/s],f_x,f_y,f_z\n"
+    body = header + "\n".join(rows) + "\n"
+    named, unnamed = tmp_path / "car.csv", tmp_path / "anything.csv"
+    named.write_text("# vehicle: bmw-320i\n" + body)
+    unnamed.write_text(body)
+    for command in ("simulate", "evaluate"):
+        for recording, policy in ((named, "ground_policy"), (unnamed, "default_policy")):
+            out = tmp_path / f"{command}_{recording.stem}.json"
+            args = [command, "--reference", str(recording), "--json", str(out), "--quiet"]
+            if command == "simulate":
+                args += ["--plant", "analytical", "--plots", ""]
+            assert main(args) == 0
+            summary = json.loads(out.read_text())
+            assert summary["policy_file"] == f"{policy}.npz", summary["policy_reason"]
+            assert summary["duration_s"] == pytest.approx(3.0)
+        assert (
+            "is a car: the ground policy"
+            in json.loads((tmp_path / f"{command}_car.json").read_text())["policy_reason"]
+        )
+
+
+@pytest.mark.parametrize(
+    ("protocol", "policy"),
+    [("beamng", "ground"), ("outsim", "ground"), ("f1", "ground"), ("csv", "default")],
+)
+def test_a_racing_simulators_stream_is_cued_by_the_ground_policy(protocol, policy):
+    """Live, the protocol says what it streams: BeamNG, Live for Speed's OutSim and the F1
+    games are cars, and the default DPC runs the ground policy for them (a CSV stream
+    names nothing: the default policy). No sender: the loop listens 0.3 s at home."""
+    from mca_drake.live.loop import make_decoder, run_live
+    from mca_drake.live.receiver import ReceiverConfig
+
+    summary = run_live(
+        make_decoder(protocol), "dpc", 0.3, receiver=ReceiverConfig(port=0), robot=KR500
+    )
+    assert summary["policy_file"] == f"{policy}_policy.npz"
+    assert summary["mca_config"]["vehicle"] == ("car" if policy == "ground" else "")

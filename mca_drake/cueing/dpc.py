@@ -20,6 +20,7 @@ from scipy.special import erf
 
 from mca_drake.atomic_io import load_npz_with_metadata
 from mca_drake.conventions import NUM_CHANNELS
+from mca_drake.references.driving.car import CARS
 from mca_drake.references.synthetic import VEHICLE_ENVELOPES
 from mca_drake.resources import (
     MOVED_POLICIES,
@@ -125,10 +126,11 @@ class DpcConfig:
     # The shipped profile (`mca_drake.cueing.profiles`: "ground" for cars) whose policy runs
     # when `policy` is empty, and which names the MCA ("dpc-ground"); "": the flight default.
     profile: str = ""
-    # The vehicle cued, as `FlightSpec.vehicle` names it. With `policy` and `profile` empty
-    # the shipped policy of its flight envelope runs (`vehicle_policy_name`); "", a car or a
-    # vehicle outside the fleet: the default policy. `run_closed_loop` fills it from the
-    # reference's `vehicle` when it is empty.
+    # The vehicle cued, as `FlightSpec.vehicle` or a recording's header names it. With
+    # `policy` and `profile` empty the shipped policy of its flight envelope runs, or for a
+    # car the ground policy (`vehicle_policy_name`); "" or a vehicle outside the fleet: the
+    # default policy. `run_closed_loop` fills it from the reference's `vehicle`, the live
+    # loop from its protocol's kind ("car" for the racing simulators) when it is empty.
     vehicle: str = ""
 
     def validate(self) -> None:
@@ -182,10 +184,33 @@ def platform_policy_name(platform: str, name: str) -> str:
 
 
 def vehicle_policy_name(vehicle: str) -> str:
-    """The shipped flight policy for `vehicle` (a fleet vehicle's name): that of its flight
-    envelope in `ENVELOPE_POLICIES`, else "default_policy" (also for "", cars and names
-    outside the fleet)."""
+    """The shipped policy for `vehicle`: "ground_policy" for a car (`GROUND_VEHICLES`), that
+    of a fleet aircraft's flight envelope in `ENVELOPE_POLICIES`, else "default_policy"
+    (also for "" and names outside the fleet)."""
+    if vehicle in GROUND_VEHICLES:
+        return "ground_policy"
     return ENVELOPE_POLICIES.get(VEHICLE_ENVELOPES.get(vehicle, ""), "default_policy")
+
+
+def policy_choice(config: DpcConfig, platform: str) -> tuple[Path, str]:
+    """The policy file `config` runs on `platform` (`DpcConfig.policy_path`) and why, in
+    words, for a summary: given as a file, a profile's, the vehicle's, or the default
+    because nothing named the vehicle."""
+    path = config.policy_path(platform)
+    if config.policy:
+        return path, "given as DpcConfig.policy"
+    if config.profile:
+        return path, f"the {config.profile} profile's"
+    if not config.vehicle:
+        return path, "no vehicle named: the default policy"
+    if config.vehicle in GROUND_VEHICLES:
+        return path, f"vehicle {config.vehicle!r} is a car: the ground policy"
+    envelope = VEHICLE_ENVELOPES.get(config.vehicle, "")
+    if envelope in ENVELOPE_POLICIES:
+        return path, f"vehicle {config.vehicle!r}: the {envelope} envelope's policy"
+    if envelope:
+        return path, f"vehicle {config.vehicle!r}: the {envelope} envelope flies the default"
+    return path, f"vehicle {config.vehicle!r} is not in the fleet: the default policy"
 
 
 def for_vehicle(config, vehicle: str):
@@ -206,6 +231,10 @@ def for_vehicle(config, vehicle: str):
 # validation flights better than the default (decision 0020). The aerobatic trainers and
 # the fighters fly the default policy.
 ENVELOPE_POLICIES = {"light": "light_policy", "transport": "transport_policy"}
+# Vehicles cued by the ground policy: the cars `mca-drake drive` drives (their names are in
+# its recordings' headers) and "car", what a racing simulator's stream or a recording of a
+# car of no known model says.
+GROUND_VEHICLES = frozenset({*CARS, "car"})
 
 
 def default_policy_path() -> Path:

@@ -132,6 +132,7 @@ class BeamNGDecoder(Decoder):
     """
 
     protocol = "beamng"
+    vehicle = "car"
     max_datagram_bytes = BEAMNG_SIZE
 
     def __init__(

@@ -171,6 +171,7 @@ class F1Decoder(Decoder):
     """
 
     protocol = "f1"
+    vehicle = "car"
     max_datagram_bytes = F1_MAX_DATAGRAM
 
     def __init__(

@@ -31,6 +31,7 @@ from pydrake.systems.framework import (
 )
 
 from mca_drake.cueing import McaConfig, as_mca_config
+from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_choice
 from mca_drake.live.decoders import PROTOCOLS, make_decoder
 from mca_drake.live.live_summary import (
     STALL_PERIODS,
@@ -345,7 +346,8 @@ def run_live(
     """
     if not 0 < duration_s <= 24 * 3600:
         raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
-    config = as_mca_config(mca)
+    # a DPC that names no vehicle cues the protocol's kind (a racing simulator's: a car)
+    config = for_vehicle(as_mca_config(mca), decoder.vehicle)
     lock = phase_lock or PhaseLockConfig()
     lock.validate()
     rc = receiver or ReceiverConfig()
@@ -384,6 +386,9 @@ def run_live(
     )
     summary = scored_summary(handles, config, plant, decoder, robot, h, run.wall_s)
     summary["live"] = live_block(handles, run, decoder, realtime_rate, h)
+    if isinstance(config, DpcConfig):
+        path, why = policy_choice(config, robot.name)
+        summary["policy_file"], summary["policy_reason"] = path.name, why
     if run.rsi_status is not None:
         summary["rsi"] = rsi_block(handles, run)
     return summary

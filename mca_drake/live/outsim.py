@@ -172,6 +172,7 @@ class OutSimDecoder(Decoder):
     """
 
     protocol = "outsim"
+    vehicle = "car"
     max_datagram_bytes = OUTSIM_MAX_SIZE
 
     def __init__(

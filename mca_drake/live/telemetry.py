@@ -226,6 +226,10 @@ class Decoder(abc.ABC):
 
     # The protocol's name as the live summary reports it.
     protocol: ClassVar[str]
+    # What kind of vehicle the protocol's senders are: "car" for a racing simulator's, ""
+    # where the protocol does not say (flight simulators fly many kinds). The DPC picks its
+    # policy by it (`mca_drake.cueing.dpc.vehicle_policy_name`).
+    vehicle: ClassVar[str] = ""
     # The largest datagram the protocol sends, bytes: a larger one is refused unread.
     max_datagram_bytes: ClassVar[int]
 

@@ -19,7 +19,7 @@ from mca_drake.references.driving.car import CARS, check_car
 from mca_drake.references.driving.courses import MANOEUVRES
 from mca_drake.references.driving.drive import DEFAULT_HEAD_OFFSET_M, drive
 from mca_drake.references.driving.road import ROAD_CLASSES
-from mca_drake.references.flights import FlightSpec, flight_recording
+from mca_drake.references.flights import FlightSpec, cued_vehicle, flight_recording
 from mca_drake.references.jsbsim import check_training_vehicle
 from mca_drake.references.recording import Recording, load_recording, save_recording
 from mca_drake.references.reference import Reference, ReferenceScaling, reference_from_recording
@@ -119,7 +119,7 @@ def motion_reference(
     """The motion-cueing reference of a flight or a drive spec (`reference_from_recording`
     with `scaling`, default s_w = s_f = 0.5), named by the spec, with its vehicle or car."""
     recording = motion_recording(spec, duration_s, cache_dir=cache_dir, progress=progress)
-    vehicle = spec.car if isinstance(spec, DriveSpec) else spec.flown_by()
+    vehicle = spec.car if isinstance(spec, DriveSpec) else cued_vehicle(spec, recording)
     return reference_from_recording(recording, scaling, name=spec.name(), vehicle=vehicle)
 
 

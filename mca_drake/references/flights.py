@@ -175,8 +175,16 @@ def flight_reference(
 ) -> Reference:
     """The motion-cueing reference of `flight` (`flight_recording`, then
     `reference_from_recording` with `scaling`, default s_w = s_f = 0.5), named by
-    `FlightSpec.name`, with the vehicle of a built-in flight (`FlightSpec.flown_by`)."""
+    `FlightSpec.name`, with the vehicle of a built-in flight (`FlightSpec.flown_by`) or the
+    one a recording's header names (`# vehicle: bmw-320i`, as `mca-drake drive` writes it;
+    "" where it names none)."""
     recording = flight_recording(flight, duration_s, cache_dir=cache_dir, progress=progress)
     return reference_from_recording(
-        recording, scaling, name=flight.name(), vehicle=flight.flown_by()
+        recording, scaling, name=flight.name(), vehicle=cued_vehicle(flight, recording)
     )
+
+
+def cued_vehicle(flight: FlightSpec, recording) -> str:
+    """The vehicle a flight's reference is cued as: a built-in flight's own, or the one
+    its recording's header names (`# vehicle: ...`; "" where it names none)."""
+    return flight.flown_by() or str(recording.metadata.get("vehicle", ""))

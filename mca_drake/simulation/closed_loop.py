@@ -27,7 +27,7 @@ from tqdm.auto import tqdm
 
 from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
-from mca_drake.cueing.dpc import DpcConfig, for_vehicle
+from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_choice
 from mca_drake.metrics import false_rotation, tracking_score
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.perception.scores import perceived_run
@@ -263,9 +263,8 @@ def run_closed_loop(
     if random_seed is not None:
         result.summary["random_seed"] = int(random_seed)
     if isinstance(config, DpcConfig):
-        result.summary["policy_file"] = config.policy_path(
-            robot.name
-        ).name  # the one the vehicle picked
+        path, why = policy_choice(config, robot.name)
+        result.summary["policy_file"], result.summary["policy_reason"] = path.name, why
     if json_path:
         atomic_write_json(json_path, result.summary)
     if plot_dir:

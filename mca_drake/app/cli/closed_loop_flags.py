@@ -8,6 +8,7 @@ import argparse
 from mca_drake.app.scenarios import ClosedLoopScenario
 from mca_drake.cueing import MCA_NAMES, DpcConfig, mca_config_from_name, mca_name
 from mca_drake.references.flights import FlightSpec
+from mca_drake.references.recording import load_recording
 from mca_drake.resources import PROFILES
 
 
@@ -34,13 +35,15 @@ def mca_from_flags(args: argparse.Namespace, default):
 
 
 def closed_loop_scenario_from_flags(args: argparse.Namespace, **fixed) -> ClosedLoopScenario:
-    """A ClosedLoopScenario: its defaults, overridden by the flags that were given."""
+    """A ClosedLoopScenario: its defaults, overridden by the flags that were given. A
+    recording (--reference) is cued whole unless --duration says otherwise."""
     scenario = ClosedLoopScenario(**fixed)
     if getattr(args, "platform", None) is not None:
         scenario.platform = args.platform
     scenario.mca = mca_from_flags(args, scenario.mca)
     if args.reference is not None:
         scenario.flight = FlightSpec(recording=args.reference)
+        scenario.duration_s = load_recording(args.reference).duration_s
     if args.duration_s is not None:
         scenario.duration_s = args.duration_s
     return scenario

@@ -25,7 +25,6 @@ from mca_drake.app.scenarios import ClosedLoopScenario, EvaluationScenario, Suit
 from mca_drake.cueing import DpcConfig, mca_config_from_name, mca_name
 from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.plotting import save_figure
-from mca_drake.references.recording import load_recording
 from mca_drake.simulation.plots import tracking_figure
 from mca_drake.studies.evaluation import (
     default_cases,
@@ -107,8 +106,6 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("give --reference flight.csv (one recording) or --suite (scenario set)")
     scenario = closed_loop_scenario_from_flags(args, plant="analytical")
     check_outputs(args.plot)
-    if args.duration_s is None:
-        scenario.duration_s = load_recording(args.reference).duration_s
     result = run_closed_loop_scenario(
         scenario, progress=not args.quiet, json_path=args.json or "", plot_dir=""
     )

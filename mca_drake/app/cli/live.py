@@ -128,6 +128,8 @@ def format_live_report(summary: dict) -> str:
         f"{_ms(live['wait_s'])}); health {live['health']}; {format_pi(summary)}; "
         f"violations {summary['violations']}"
     ]
+    if summary.get("policy_file"):
+        lines.append(f"policy {summary['policy_file']} ({summary.get('policy_reason', '')})")
     if "rsi" in summary:
         r = summary["rsi"]
         lines.append(

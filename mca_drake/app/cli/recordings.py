@@ -42,7 +42,7 @@ def add_parsers(commands) -> None:
     drive.add_argument(
         "--seconds",
         type=float,
-        help="drive length, s (default: the manoeuvre's course to its end; laps need it)",
+        help="drive length, s (default: the manoeuvre's course to its end; a lap: one lap)",
     )
     drive.add_argument("--car", default="bmw-320i", help=", ".join(CARS))
     drive.add_argument(

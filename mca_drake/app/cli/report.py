@@ -32,7 +32,10 @@ def format_closed_loop_report(result) -> str:
     def row(name: str, values) -> str:
         return f"{name:<18}" + "".join(f"{v:>{width}.3f}" for v in values)
 
-    policy = f" (policy {summary['policy_file']})" if summary.get("policy_file") else ""
+    policy = ""
+    if summary.get("policy_file"):
+        reason = summary.get("policy_reason", "")
+        policy = f" (policy {summary['policy_file']}{': ' + reason if reason else ''})"
     lines = [
         f"{summary['mca']}{policy} on the {summary['plant']} plant, {summary['reference']}, "
         f"{summary['duration_s']:g} s",

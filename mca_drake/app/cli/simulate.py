@@ -24,7 +24,12 @@ def add_parser(commands) -> None:
         help="the main job: closed-loop motion cueing (default: the shipped DPC policy) on a "
         "built-in flight or a recording; prints a result table, writes the summary and plots",
     )
-    add_config_flags(parser, defaults, {"duration_s": "--duration", "random_seed": "--seed"})
+    add_config_flags(
+        parser,
+        defaults,
+        {"duration_s": "--duration", "random_seed": "--seed"},
+        help_suffix={"duration_s": "a --reference recording: whole"},
+    )
     add_mca_flags(parser, defaults.mca)
     add_platform_flag(parser)
     parser.add_argument("--reference", help="recording CSV (default: the built-in flight)")

@@ -125,6 +125,13 @@ def random_track(rng: np.random.Generator) -> np.ndarray:
     return np.column_stack([r * np.cos(t) * rng.uniform(1.0, 1.4), r * np.sin(t)])
 
 
+def natural_duration_s(course) -> float:
+    """How long a drive of `course` lasts when no duration is given, s: its length (to its
+    end, or one lap of a closed one) at its mean target speed, plus 5 s for the standing
+    start, and at least 10 s."""
+    return max(course.length_m / max(float(course.speed.mean()), 1.0) + 5.0, 10.0)
+
+
 def drive(
     manoeuvre: str,
     duration_s: float | None,
@@ -137,7 +144,7 @@ def drive(
 ) -> Recording:
     """The recording of a drive: `manoeuvre` (`MANOEUVRES`) drawn from `seed`,
     `duration_s` s long (None: the manoeuvre's course to its end, at least 10 s; a lap
-    drive needs a duration), on a road of ISO 8608 class `road_class` ("" or None: smooth),
+    drive: one lap), on a road of ISO 8608 class `road_class` ("" or None: smooth),
     felt at `head_offset_m` (3, m, body frame) from the centre of gravity.
 
     Raises:
@@ -153,9 +160,7 @@ def drive(
     settings = draw_course(manoeuvre, rng, duration_s)
     course = settings.course
     if duration_s is None:
-        if course.closed:
-            raise ValueError("a lap drive needs a duration_s")
-        duration_s = max(course.length_m / max(float(course.speed.mean()), 1.0) + 5.0, 10.0)
+        duration_s = natural_duration_s(course)
     if not (math.isfinite(duration_s) and 0.0 < duration_s <= 7200.0):
         raise ValueError(f"duration_s must be in (0, 7200] s; got {duration_s}")
     samples = round(duration_s * SAMPLE_RATE_HZ) + 1
