@@ -124,6 +124,30 @@ def test_the_bound_holds_the_limits_and_improves_on_its_causal_start(robot):
     assert np.all(np.abs(bound.U) <= robot.qdd_max + 1e-9)
 
 
+def test_the_bound_stopped_at_any_iteration_holds_the_limits_as_summaries_count_them(robot):
+    """The solver keeps an iterate only if a run summary would count no violation in it
+    (`limit_violations`, each limit's own half-range as the scale): after 1, 2 or 4
+    iterations, unconverged, nothing is counted; and a start 0.8e-9 rad/s^2 beyond joint
+    4's acceleration limit (0.564 rad/s^2: within 1e-9 absolute, beyond 1e-9 of its
+    half-range) is no feasible start."""
+    from mca_drake.platforms.usage import limit_violations
+
+    T = 200
+    y = _reference(T, seed=5) * [1, 1, 1, 4, 4, 4]  # beyond what the robot can render
+    for iterations in (1, 2, 4):
+        ocp = OptimalCueing(T, OptimalConfig(max_iterations=iterations), robot)
+        bound = ocp.solve(y)
+        assert not bound.converged
+        q, qd = bound.states[:-1, :6], bound.states[:-1, 6:]
+        assert limit_violations(q, qd, bound.U, robot) == {"q": 0, "qd": 0, "qdd": 0}
+    start = np.zeros((T, 6))
+    start[0, 3] = robot.qdd_max[3] + 0.8e-9
+    assert robot.qdd_max[3] < 0.6
+    assert limit_violations(np.zeros((T, 6)), np.zeros((T, 6)), start, robot)["qdd"] == 1
+    with pytest.raises(ValueError, match="U_start leaves the robot's limits"):
+        OptimalCueing(T, OptimalConfig(max_iterations=1), robot).solve(y, U_start=start)
+
+
 def test_bad_input_is_refused(robot):
     ocp = OptimalCueing(5, None, robot)
     with pytest.raises(ValueError, match="reference must have shape"):

@@ -44,6 +44,7 @@ from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
 from mca_drake.platforms.serial import SerialChain
+from mca_drake.platforms.usage import limit_violations
 
 # Each QP's tolerance as a share of the last KKT residual (inexact SQP).
 QP_TOLERANCE_SHARE = 1e-3
@@ -305,14 +306,12 @@ class OptimalCueing:
         return self._feasible(self.states(x0, U), U, tol)
 
     def _feasible(self, x, U, tol: float = 1e-9) -> bool:
-        r = self.robot
+        """Whether states x (T + 1, 2n) and inputs U (T, n) keep every limit, judged as the
+        run summaries count violations (`platforms.usage.limit_violations`: `tol` of each
+        limit's half-range), so that no iterate the solver keeps, converged or not, is one a
+        summary would count."""
         q, qd = x[1:, : self.nu], x[1:, self.nu :]
-        return bool(
-            np.all(q >= r.q_min - tol)
-            and np.all(q <= r.q_max + tol)
-            and np.all(np.abs(qd) <= r.qd_max + tol)
-            and np.all(np.abs(U) <= r.qdd_max + tol)
-        )
+        return not any(limit_violations(q, qd, U, self.robot, tol).values())
 
     def _stage_terms(self, x, U, jac, residual, weights, w):
         """Per stage, the Gauss-Newton Hessian Q_k (T, m, m) and gradient b_k (T, m) of the
