@@ -69,9 +69,11 @@ class RsiAxisMap:
             home_q: the model's home pose, rad or m (n).
             robot_axes: the controller's robot axis names (six: A1..A6).
             external_axes: its external axis names, E1 first (the first n - 6 are used).
-            axis_signs, external_signs: +1 or -1 per robot / external axis (empty: all +1).
-            home_deg, external_home: the controller's reading of the robot / external axes
-                at the model's home (deg; deg or mm), empty: sign * scale * home_q.
+            axis_signs: +1 or -1 per robot axis (empty: all +1).
+            external_signs: +1 or -1 per external axis (empty: all +1).
+            home_deg: the controller's reading of the robot axes at the model's home, deg
+                (empty: sign * scale * home_q).
+            external_home: the same of the external axes, mm or deg (empty: likewise).
 
         Raises:
             ValueError: a joint count the controller cannot drive, or signs and homes of
