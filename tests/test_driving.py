@@ -173,6 +173,16 @@ def test_the_drive_command_writes_a_recording(tmp_path):
     recording = load_recording(out)
     assert recording.metadata["manoeuvre"] == "braking"
     assert recording.f[:, 0].min() < -3.0  # it braked
+    # its header names the car, so that the default DPC cues it as a car
+    from mca_drake.cueing.dpc import DpcConfig, for_vehicle
+    from mca_drake.references.flights import FlightSpec, flight_reference
+
+    assert recording.metadata["vehicle"] == "bmw-320i"
+    reference = flight_reference(FlightSpec(recording=str(out)), 2.0)
+    assert reference.vehicle == "bmw-320i"
+    assert for_vehicle(DpcConfig(), reference.vehicle).policy_path("kr500").name == (
+        "ground_policy.npz"
+    )
 
 
 def test_a_drive_spec_is_driven_once_and_cached(tmp_path):
