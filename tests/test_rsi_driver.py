@@ -77,15 +77,20 @@ def feed(commands, segments, stop_after: int | None = None) -> threading.Thread:
     return thread
 
 
-def best_offset_error(recording, segments, robot_start_deg) -> tuple[int, float]:
+def best_offset_error(
+    recording, segments, robot_start_deg, played=None, to_controller=None
+) -> tuple[int, float]:
     """The played trajectory against the integrated commands: for the time offset (whole
-    ms, IPOC's unit) that fits best, the largest difference (deg) between the emulated axes
-    and the exact trajectory, over the cycles that followed it."""
+    ms, IPOC's unit) that fits best, the largest difference between the emulated axes
+    (`played`, per cycle; default A1-A6 less `robot_start_deg`) and the exact trajectory in
+    the controller's units (`to_controller` per joint; default degrees), over the cycles
+    that followed it."""
     buffer = SegmentBuffer(H, capacity=len(segments) + 1)
     for segment in segments:
         buffer.add(segment)
     ipoc = recording["ipoc"] - recording["ipoc"][0]
-    axes = recording["axes_deg"] - robot_start_deg
+    axes = recording["axes_deg"] - robot_start_deg if played is None else played
+    scale = np.degrees(1.0) if to_controller is None else np.asarray(to_controller)
     best = (0, np.inf)
     for offset_ms in range(-200, 200):
         errors = []
@@ -93,7 +98,7 @@ def best_offset_error(recording, segments, robot_start_deg) -> tuple[int, float]
             s = (t_ms - offset_ms) * 1e-3
             held = buffer.state_at(s) if s >= 0 else None
             if held is not None:
-                errors.append(np.max(np.abs(np.degrees(held[0]) - axes[n])))
+                errors.append(np.max(np.abs(scale * np.asarray(held[0]) - axes[n])))
         if len(errors) > 100 and max(errors) < best[1]:
             best = (offset_ms, max(errors))
     return best
@@ -219,12 +224,13 @@ def test_a_malformed_state_packet_brakes_the_robot_to_rest(robot, moving_run):
     np.testing.assert_array_equal(axes[-1], axes[-20])
 
 
-def test_the_driver_refuses_a_robot_away_from_home(robot):
-    """Nothing is sent to a robot that does not report the home pose: it misses its replies
-    and stops, and the driver says why."""
+def refusal_at_start(robot, emulator_config) -> tuple[str, dict]:
+    """The driver for `robot` (in a thread here) against an emulator with `emulator_config`
+    for 1 s: the driver's refusal (RsiRefused's message; "" if none) and the emulator's
+    report."""
     config = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE), robot_silence_s=0.3)
-    driver = RsiDriver(config, limits_of(robot), np.zeros(6), commands=None)
-    outcome = {}
+    driver = RsiDriver(config, limits_of(robot), robot.home, None, robot.joint_kinds)
+    outcome = {"refused": ""}
 
     def run():
         try:
@@ -234,15 +240,22 @@ def test_the_driver_refuses_a_robot_away_from_home(robot):
 
     thread = threading.Thread(target=run, daemon=True)
     thread.start()
-    start = [0.0, 3.0, 0.0, 0.0, 0.0, 0.0]
-    emulator = RsiEmulator(driver.address, RsiEmulatorConfig(cycle_s=CYCLE, start_deg=start))
+    emulator = RsiEmulator(driver.address, emulator_config)
     try:
         report = emulator.run(1.0)
     finally:
         emulator.close()
         thread.join(timeout=5)
         driver.close()
-    assert "A2 reads 3.000 deg" in outcome["refused"]
+    return outcome["refused"], report
+
+
+def test_the_driver_refuses_a_robot_away_from_home(robot):
+    """Nothing is sent to a robot that does not report the home pose: it misses its replies
+    and stops, and the driver says why."""
+    start = [0.0, 3.0, 0.0, 0.0, 0.0, 0.0]
+    refused, report = refusal_at_start(robot, RsiEmulatorConfig(cycle_s=CYCLE, start_deg=start))
+    assert "A2 reads 3.000 deg" in refused
     assert report["on_time"] == 0 and "without an on-time reply" in report["stop_reason"]
 
 
@@ -278,24 +291,20 @@ def free_udp_port() -> int:
     return port
 
 
-def test_a_live_run_drives_the_emulated_robot_through_a_telemetry_stop(tmp_path):
-    """`run_live` with a robot: CSV telemetry with a 0.6 s stop and a NaN burst, the washout
-    MCA, the driver in its process and the emulator in another (started at the washout's
-    home pose, so the driver accepts it). The robot follows every period's segment, washes
-    out through the stop (the supervisor's), never meets a limit, and after the run the
-    driver brakes it to rest; only then do the replies end."""
-
+def live_run_with_emulator(tmp_path, sender, robot, emulator_args):
+    """`run_live` of the washout for 3 s on `robot` with a robot over RSI: telemetry from
+    `sender(address, 3.2)` in a thread, the driver in its process and the emulator
+    (`emulator_args` added to its command) in another, both started once the loop listens.
+    Returns the live summary, the emulator's report and its recording."""
     rsi = RsiDriverConfig(port=0, motion=RsiMotionConfig(cycle_s=CYCLE))
-    home_deg = np.degrees([0.0, 0.0, 0.5, 0.0, -0.5, 0.0])
     processes, threads = [], []
 
     def start(address):
-        threads.append(threading.Thread(target=stream, args=(address, 3.2), daemon=True))
+        threads.append(threading.Thread(target=sender, args=(address, 3.2), daemon=True))
         threads[0].start()
         command = [sys.executable, "-m", "mca_drake.live.rsi.emulator"]
         command += ["--driver", f"127.0.0.1:{rsi.port}", "--duration", "8"]  # its port now
-        command += ["--start-deg", ",".join(repr(float(v)) for v in home_deg)]
-        command += ["--report", str(tmp_path / "report.json")]
+        command += [*emulator_args, "--report", str(tmp_path / "report.json")]
         command += ["--recording", str(tmp_path / "recording.npz")]
         processes.append(subprocess.Popen(command, stdout=subprocess.DEVNULL))
 
@@ -306,12 +315,24 @@ def test_a_live_run_drives_the_emulated_robot_through_a_telemetry_stop(tmp_path)
         receiver=ReceiverConfig(port=0),
         on_listening=start,
         rsi=rsi,
-        robot=KR500,
+        robot=robot,
     )
     processes[0].wait(timeout=30)
     threads[0].join(timeout=5)
     report = json.loads((tmp_path / "report.json").read_text())
-    recording = np.load(tmp_path / "recording.npz")
+    return summary, report, np.load(tmp_path / "recording.npz")
+
+
+def test_a_live_run_drives_the_emulated_robot_through_a_telemetry_stop(tmp_path):
+    """`run_live` with a robot: CSV telemetry with a 0.6 s stop and a NaN burst, the washout
+    MCA, the driver in its process and the emulator in another (started at the washout's
+    home pose, so the driver accepts it). The robot follows every period's segment, washes
+    out through the stop (the supervisor's), never meets a limit, and after the run the
+    driver brakes it to rest; only then do the replies end."""
+
+    home_deg = np.degrees([0.0, 0.0, 0.5, 0.0, -0.5, 0.0])
+    emulator = ["--start-deg", ",".join(repr(float(v)) for v in home_deg)]
+    summary, report, recording = live_run_with_emulator(tmp_path, stream, KR500, emulator)
     driver = summary["rsi"]
     assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     assert driver["segments"] == driver["segments_sent"] >= 299 and driver["segments_unsent"] == 0
