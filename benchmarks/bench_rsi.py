@@ -177,6 +177,10 @@ def main() -> None:
             "cpu_load": live["cpu_load"],
             "violations": summary["violations"],
             "pi": summary["pi"],
+            # how far each external axis (a rail's E1, mm) travelled: it moved with the loop
+            "external_travel": np.ptp(recording["external_axes"], axis=0).tolist()
+            if recording["external_axes"].size
+            else [],
         }
         print(
             f"{label}: {args.duration:g} s; the robot's view: {robot['cycles']} cycles, "
@@ -193,7 +197,12 @@ def main() -> None:
             f"ended {driver['mode']} "
             f"({driver['reason']}); loop latency ms {in_ms(live['latency_s'])}, CPU load "
             f"{live['cpu_load']:.2f}; violations {summary['violations']}; PI "
-            f"{summary['pi']:.3f}",
+            f"{summary['pi']:.3f}"
+            + (
+                f"; external axes travelled {report['runs'][label]['external_travel']} (mm or deg)"
+                if report["runs"][label]["external_travel"]
+                else ""
+            ),
             flush=True,
         )
         worst = sorted(late for _, late in stalls)[-3:]

@@ -593,6 +593,37 @@ def _platforms(results_dir: Path, data: dict) -> list[str]:
     return lines
 
 
+def _platform_suites(results_dir: Path, data: dict) -> list[str]:
+    first = next(iter(data["platforms"].values()))
+    cases = list(first["cases"])
+    lines = [
+        f"The suite's cases with their first {data['flights_per_case']} flights each, "
+        f"{data['duration_s']:g} s, on every packaged platform: median PI per case and over "
+        "every flight, the median of the cases' perceived PIs, violations and safety "
+        "interventions summed.",
+        "",
+    ]
+    rows = []
+    for name, platform in data["platforms"].items():
+        for mca, overall in platform["all"].items():
+            entries = [platform["cases"][c]["mcas"].get(mca) for c in cases]
+            found = [e for e in entries if e]
+            rows.append(
+                [
+                    name,
+                    mca_label(mca),
+                    *(fmt_pi(e["pi_median"]) if e else "-" for e in entries),
+                    fmt_pi(overall["pi_median"]),
+                    fmt_pi(statistics.median(e["perceived_pi_median"] for e in found)),
+                    str(sum(e["violations"] for e in found)),
+                    str(sum(e["safety_interventions"] for e in found)),
+                ]
+            )
+    header = ["platform", "MCA", *(f"case {c}" for c in cases), "all flights"]
+    header += ["perceived (median of cases)", "violations", "interventions"]
+    return [*lines, *_table(header, rows), ""]
+
+
 def _paired_keys(entry: dict) -> list[str]:
     return [k for k in entry if k.startswith("paired_vs_")]
 
@@ -787,6 +818,18 @@ def _rsi(results_dir: Path, data: dict) -> list[str]:
         "its socket.",
         "",
     ]
+    platform = data.get("platform", {})
+    if platform.get("dof", 6) > 6:
+        travel = ", ".join(
+            f"{label}: {', '.join(f'{v:.0f}' for v in run.get('external_travel', []))}"
+            for label, run in data["runs"].items()
+        )
+        lines += [
+            f"Platform {platform['name']} ({platform['dof']} joints): the joints beyond the "
+            f"robot's six are the controller's external axes; travel of each (mm or deg) "
+            f"{travel}.",
+            "",
+        ]
     return [*lines, *_table(header, rows), ""]
 
 
@@ -848,6 +891,13 @@ SECTIONS = (
         "analytical plant's on the unseen aircraft's flights, and the station's real-time "
         "factor",
         _station,
+    ),
+    Section(
+        "Evaluation suite per platform",
+        "platform_suites.json",
+        "the suite's five cases, cut to two flights each, on every packaged platform with each "
+        "MCA as its name means there (`bench_platform_suites.py`)",
+        _platform_suites,
     ),
     Section(
         "Motion platforms",
@@ -916,6 +966,12 @@ SECTIONS = (
         "KUKA RSI driver",
         "rsi.json",
         "reply latency and late replies per RSI cycle time, live, against a loopback robot",
+        _rsi,
+    ),
+    Section(
+        "KUKA RSI driver, the KR500 on its rail",
+        "rsi-kr500-rail.json",
+        "the same with the rail as the controller's external axis E1 beside A1-A6",
         _rsi,
     ),
 )

@@ -139,3 +139,36 @@ def test_a_datagrams_age_counts_its_wait_in_the_socket():
     assert counters["packets"] == 2
     assert 0.03 <= counters["age_s"] < 1.0
     receiver.close()
+
+
+def test_a_stream_that_queued_while_the_loop_waited_is_followed():
+    """A sender whose first sample was polled, then streamed 3 s at 200 Hz while the loop
+    did not poll (as while it waits for a robot, or stalls): the socket's buffer fills and
+    the kernel drops the rest, a gap of over a second in the sender's time. The queued
+    samples keep their kernel receive stamps, older than a second, so the sender's clock
+    and the arrivals agree across the gap and no sample is taken for a jump ahead; the
+    newest sample, sent after the wait, is the one held. (Stamps older than a second taken
+    as the time they were read locked the stream out for good.)"""
+    import time
+
+    simulator, receiver, sender = rig()
+    start = time.perf_counter()
+    sender.sendto(encode_csv_sample(0.0, [0, 0, 0], [0.1, 0, 9.81]), receiver.address)
+    simulator.AdvanceTo(0.01)
+    k = 0
+    while (t := time.perf_counter() - start) < 3.0:  # 200 Hz, nobody polling
+        sender.sendto(encode_csv_sample(t, [0, 0, 0], [0.1, 0, 9.81]), receiver.address)
+        k += 1
+        time.sleep(max(0.0, start + k / 200 - time.perf_counter()))
+    step = 0.01
+    for _ in range(20):  # the loop runs: a fresh sample every period
+        t = time.perf_counter() - start
+        sender.sendto(encode_csv_sample(t, [0, 0, 0], [0.2, 0, 9.81]), receiver.address)
+        simulator.AdvanceTo(simulator.get_context().get_time() + step)
+        time.sleep(step)
+    reference, counters = outputs(simulator, receiver)
+    assert counters["kernel_dropped"] > 0  # the gap
+    assert counters["time_jumps"] == 0
+    assert counters["age_s"] < 0.5  # the held sample is a fresh one
+    assert reference[3] == pytest.approx(0.5 * 0.2)  # f_x of the fresh samples, scaled
+    receiver.close()

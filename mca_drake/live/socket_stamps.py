@@ -29,9 +29,15 @@ SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)
 _DROP_COUNTER = struct.Struct("I")
 
 
+# The oldest plausible stamp, s: a datagram waits in its socket as long as its process does
+# not read it, as while the live loop waits for a robot to connect (a minute at most) or
+# stalls. An older stamp, or one in the future, means the wall clock stepped.
+MAX_STAMP_AGE_S = 120.0
+
+
 def _perf_counter_time(stamp: bytes) -> float | None:
     """A timespec of CLOCK_REALTIME on the perf_counter clock; None for an implausible one
-    (more than 1 s old or 1 ms in the future: the clock stepped)."""
+    (older than MAX_STAMP_AGE_S or 1 ms in the future: the clock stepped)."""
     seconds, nanoseconds = _TIMESPEC.unpack_from(stamp)
     # the two clocks' offset, read between two perf_counter reads close together (a process
     # preempted between the reads would be off by the preemption)
@@ -42,7 +48,7 @@ def _perf_counter_time(stamp: bytes) -> float | None:
         if after - before < 20e-6:
             break
     ago = 1e-9 * (wall_ns - (seconds * 1_000_000_000 + nanoseconds))
-    return 0.5 * (before + after) - ago if -1e-3 <= ago < 1.0 else None
+    return 0.5 * (before + after) - ago if -1e-3 <= ago < MAX_STAMP_AGE_S else None
 
 
 def enable_kernel_timestamps(sock: socket.socket) -> bool:
