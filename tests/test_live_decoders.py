@@ -246,8 +246,11 @@ def test_fgnetfdm_without_time_uses_arrival(level_flight):
     sample = FgNetFdmDecoder().decode(bytes(packet), received_s=12.5)
     assert sample.t_s == 12.5
     assert sample.time_source == "arrival"
-    with pytest.raises(BadPacket, match="placeholder time"):
-        FgNetFdmDecoder(time_resolution_s=RESOLUTION_S).decode(bytes(packet))
+    # a decoder set for the time directive (the packaged live scenarios) still takes
+    # JSBSim's default stream, whose packets carry the placeholder: timed by arrival
+    timed = FgNetFdmDecoder(time_resolution_s=RESOLUTION_S).decode(bytes(packet), 7.25)
+    assert timed.t_s == 7.25 and timed.time_source == "arrival"
+    np.testing.assert_array_equal(timed.f, sample.f)
 
 
 def _patched(packet: bytes, field: str, code: str, value) -> bytes:

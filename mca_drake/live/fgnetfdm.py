@@ -250,9 +250,11 @@ class FgNetFdmDecoder(Decoder):
     Args:
         time_resolution_s: the unit of the packet's `cur_time`, s, as the JSBSim directive's
             `<time type="simulation" resolution="...">` sets it: the sample time is then the
-            sender's simulation time (up to one unit early: JSBSim truncates). None: the
-            packet has no usable time (JSBSim's placeholder, FlightGear's whole seconds),
-            the sample time is the arrival time.
+            sender's simulation time (up to one unit early: JSBSim truncates); a packet
+            with JSBSim's placeholder instead (its default output, without the directive)
+            is timed by its arrival, so that a scenario set for the directive still cues
+            JSBSim's default stream. None: the packet has no usable time (JSBSim's
+            placeholder, FlightGear's whole seconds), the sample time is the arrival time.
         lever_arm: where the head is relative to JSBSim's eye point (None: at it).
     """
 
@@ -280,13 +282,8 @@ class FgNetFdmDecoder(Decoder):
         p, q, r = body_rates_from_euler_rates(phi, theta, phidot, thetadot, psidot)
         omega = (p, -q, -r)
         f = (M_PER_FT * a_x, -M_PER_FT * a_y, -M_PER_FT * a_z)
-        if self.time_resolution_s is None:
+        if self.time_resolution_s is None or cur_time == JSBSIM_PLACEHOLDER_TIME:
+            # no sender time (JSBSim's default output sends its placeholder): the arrival's
             return TelemetrySample(received_s, omega, f, time_source="arrival")
-        if cur_time == JSBSIM_PLACEHOLDER_TIME:
-            raise BadPacket(
-                f"fgnetfdm packet has JSBSim's placeholder time {JSBSIM_PLACEHOLDER_TIME}: "
-                'add <time type="simulation" resolution="..."/> to the output directive, or '
-                "decode with time_resolution_s=None (arrival times)"
-            )
         t_s = cur_time * self.time_resolution_s
         return TelemetrySample(t_s, omega, f, time_source="sender")
