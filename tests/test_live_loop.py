@@ -290,3 +290,28 @@ def test_a_live_run_reads_only_its_sender_and_counts_an_intruder():
     assert summary["rmse"][0] < 0.05
     assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     assert live["health"]["ok_s"] > 0.8
+
+
+def garbage_stream(address, duration_s, rate_hz=100.0):
+    """Sends datagrams no CSV decoder reads (a flight simulator's binary frames on the wrong
+    --protocol) at `rate_hz` for `duration_s`; bounded, stops by itself."""
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    start, k = time.perf_counter(), 0
+    while time.perf_counter() - start < duration_s:
+        sender.sendto(b"\x00\x00\x00\x18" + bytes(404), address)
+        k += 1
+        time.sleep(max(0.0, start + k / rate_hz - time.perf_counter()))
+    sender.close()
+
+
+def test_a_run_whose_every_datagram_is_refused_says_so_within_a_second(capsys):
+    """Binary frames to a CSV loop: after its first second the loop tells the user (stderr
+    and the summary's `live.notices`) that every datagram was refused, with the decoder's
+    reason; a stream it reads raises no notice."""
+    summary = live_with_sender(garbage_stream, 1.6, "washout", 1.5)
+    notices = summary["live"]["notices"]
+    assert len(notices) == 1 and "datagrams so far were refused" in notices[0]
+    assert "not read as csv packets" in notices[0] and "csv" in notices[0].split("the last:")[1]
+    assert notices[0] in capsys.readouterr().err
+    clean = live_with_sender(stream, 1.6, "washout", 1.5)
+    assert clean["live"]["notices"] == [] and clean["live"]["packets"] > 50

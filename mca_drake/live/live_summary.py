@@ -40,6 +40,8 @@ class PacedRun:
     link: RsiLink | None
     servo: RobotClockServo | None
     rsi_status: dict | None
+    # what the loop told the user while it ran (`live.loop.first_look`)
+    notices: list[str] = dataclasses.field(default_factory=list)
 
 
 def scored_summary(
@@ -124,6 +126,8 @@ def live_block(
         "stalls": stalls(probe.instants_s, h, realtime_rate),
         # polls a datagram brought forward (phase lock's wake window)
         "early_polls": 0 if pacer is None else pacer.early_polls,
+        # what the loop told the user while it ran (every datagram refused, and why)
+        "notices": list(run.notices),
         "health": {
             "ok_s": float(health["ok_s"]),
             "degraded_s": float(health["degraded_s"]),

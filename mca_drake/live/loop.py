@@ -15,6 +15,7 @@ import dataclasses
 import gc
 import math
 import socket
+import sys
 import time
 from collections.abc import Callable
 
@@ -413,6 +414,7 @@ def _run_paced(
     source = handles["receiver"]
     loop_end, driver_end = sockets
     link = pacer = servo = None
+    notices: list[str] = []
     try:
         if rsi is not None:
             link = start_rsi_driver(rsi, robot, handles["home"], driver_end)
@@ -445,7 +447,7 @@ def _run_paced(
         if pacer is not None:
             pacer.start()
         shifts = _advance_phase_locked(
-            simulator, handles["probe"], duration_s, pacer, lock, h, link, servo
+            simulator, handles, duration_s, pacer, lock, h, link, servo, notices
         )
         wall_s = time.perf_counter() - start
         cpu_s = time.process_time() - cpu_start
@@ -459,7 +461,9 @@ def _run_paced(
         for end in sockets:
             if end is not None:
                 end.close()
-    return PacedRun(simulator.get_context(), wall_s, cpu_s, shifts, pacer, link, servo, rsi_status)
+    return PacedRun(
+        simulator.get_context(), wall_s, cpu_s, shifts, pacer, link, servo, rsi_status, notices
+    )
 
 
 def _check_driver(link) -> None:
@@ -470,7 +474,7 @@ def _check_driver(link) -> None:
 
 
 def _advance_phase_locked(
-    simulator, probe, duration_s, pacer, lock, period_s, link=None, servo=None
+    simulator, handles, duration_s, pacer, lock, period_s, link=None, servo=None, notices=None
 ):
     """Advances to `duration_s` in windows of `lock.window_s`; after a window measured at a
     steady phase, the phase lock's correction (`phase_correction` of the samples' waits for
@@ -478,9 +482,26 @@ def _advance_phase_locked(
     within the next window (measured only after that). Between windows the RSI driver of
     `link` (if any) is checked alive (`_check_driver`) and the loop's clock follows the
     robot's (`servo`). No pacer (as fast as possible) or no lock, and no driver: one
-    AdvanceTo. Returns the shifts."""
+    AdvanceTo past the first look and one to the end. After the loop's first
+    FIRST_LOOK_S, `first_look` tells the user (stderr, and `notices`) when every datagram
+    so far was refused. Returns the shifts."""
+    probe, source = handles["probe"], handles["receiver"]
+    notices = [] if notices is None else notices
+    looked = False
+
+    def look() -> None:
+        nonlocal looked
+        if not looked and simulator.get_context().get_time() >= FIRST_LOOK_S - 1e-9:
+            looked = True
+            notice = first_look(source, simulator.get_context())
+            if notice:
+                notices.append(notice)
+                print(f"mca-drake live: {notice}", file=sys.stderr, flush=True)
+
     locked = pacer is not None and lock.enabled
     if not locked and link is None:
+        simulator.AdvanceTo(min(duration_s, FIRST_LOOK_S))
+        look()
         simulator.AdvanceTo(duration_s)
         return []
     shifts, measured_from, shift = [], 0, 0.0
@@ -488,6 +509,7 @@ def _advance_phase_locked(
         _check_driver(link)
         if servo is not None:
             servo.update()
+        look()
         t = simulator.get_context().get_time()
         if not locked:
             simulator.AdvanceTo(min(duration_s, _window_end(t, lock.window_s, period_s)))
@@ -504,6 +526,26 @@ def _advance_phase_locked(
             pacer.target_phase_s += shift
         simulator.AdvanceTo(min(duration_s, _window_end(t, lock.window_s, period_s)))
     return shifts
+
+
+# After this much loop time (s), a run whose every datagram was refused is told why.
+FIRST_LOOK_S = 1.0
+
+
+def first_look(source: TelemetryReceiver, context) -> str:
+    """What to tell a user whose datagrams, all of them so far, the receiver `source`
+    refused (a protocol or format the decoder does not read, a sender not allowed, a clock
+    that jumps), with the last reason; "" when none came or one was taken."""
+    counters = source.counters(source.GetMyContextFromRoot(context))
+    if counters["packets"] == 0 or math.isfinite(counters["arrival_s"]):
+        return ""
+    return (
+        f"all {int(counters['packets'])} datagrams so far were refused "
+        f"({int(counters['bad'])} not read as {source.protocol} packets, "
+        f"{int(counters['foreign'])} from other senders, {int(counters['time_jumps'])} off "
+        f"the sender's clock); the last: {source.last_refusal}. Check --protocol and the "
+        "sender's output settings (docs: Live telemetry)"
+    )
 
 
 def _window_end(t: float, window_s: float, period_s: float) -> float:

@@ -206,6 +206,9 @@ class TelemetryReceiver(LeafSystem):
         enable_kernel_timestamps(self._socket)
         enable_drop_counter(self._socket)
         self._allowed = allowed_senders(self._config.allowed_senders)
+        # why the last datagram refused was refused (set only on the refusal paths), for
+        # the loop to tell a user whose every datagram is refused (`live.loop`)
+        self.last_refusal = ""
         initial = np.zeros(_STATE_SIZE)
         initial[_F] = (0.0, 0.0, 9.81)  # level flight until a sample arrives: y_ref = 0
         initial[
@@ -241,6 +244,11 @@ class TelemetryReceiver(LeafSystem):
         watches it to poll as soon as a datagram arrives (`mca_drake.live.pacing`)."""
         return self._socket.fileno()
 
+    @property
+    def protocol(self) -> str:
+        """The protocol its decoder reads (`Decoder.protocol`)."""
+        return self._decoder.protocol
+
     def close(self) -> None:
         """Closes the socket (a closed receiver counts every later period as stale)."""
         self._socket.close()
@@ -271,13 +279,21 @@ class TelemetryReceiver(LeafSystem):
                 x[_KERNEL_DROPPED] = max(x[_KERNEL_DROPPED], drops)
             if not self._from_allowed_sender(x, sender, arrival):
                 x[_FOREIGN] += 1
+                self.last_refusal = (
+                    f"datagrams from {sender[0]}:{sender[1]}, not a sender the scenario "
+                    "allows or the one locked in"
+                )
                 continue
             try:
                 sample = decode(packet, arrival)
-            except BadPacket:
+            except BadPacket as error:
                 x[_BAD] += 1
+                self.last_refusal = str(error)
                 continue
             if not self._on_the_senders_clock(x, sample.t_s, arrival):
+                self.last_refusal = (
+                    "samples ahead of, or older than, the sender's clock (max_time_jump_s)"
+                )
                 continue
             if sample.sequence is not None and math.isfinite(x[_SEQUENCE]):
                 x[_DROPPED] += max(0, sample.sequence - int(x[_SEQUENCE]) - 1)
