@@ -45,7 +45,6 @@ from mca_drake.live.beamng import BeamNGConfig
 from mca_drake.live.f1 import F1Config
 from mca_drake.live.outsim import OutSimConfig
 from mca_drake.live.receiver import allowed_senders
-from mca_drake.live.rsi.axes import RsiAxisMap
 from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.files import (
@@ -425,18 +424,9 @@ class LiveScenario:
         if self.robot:
             # the driver moves the robot's axes A1-A6 and, for joints beyond them, external
             # axes E1..: the platform must fit one controller, with the settings' lengths
-            robot, rsi = load_platform(self.platform), self.rsi
+            robot = load_platform(self.platform)
             try:
-                RsiAxisMap.build(
-                    robot.joint_kinds,
-                    robot.home,
-                    rsi.tags.axes,
-                    rsi.tags.external_axes,
-                    rsi.axis_signs,
-                    rsi.external_signs,
-                    rsi.home_deg,
-                    rsi.external_home,
-                )
+                self.rsi.axis_map(robot.joint_kinds, robot.home)
             except ValueError as err:
                 raise ValueError(f"platform {robot.name!r} over RSI: {err}") from None
         if getattr(self.mca, "preview_steps", 0):

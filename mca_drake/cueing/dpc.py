@@ -187,9 +187,21 @@ def vehicle_policy_name(vehicle: str) -> str:
     """The shipped policy for `vehicle`: "ground_policy" for a car (`GROUND_VEHICLES`), that
     of a fleet aircraft's flight envelope in `ENVELOPE_POLICIES`, else "default_policy"
     (also for "" and names outside the fleet)."""
+    return _vehicle_policy(vehicle)[0]
+
+
+def _vehicle_policy(vehicle: str) -> tuple[str, str]:
+    """(the shipped policy for `vehicle`, why, in words)."""
+    if not vehicle:
+        return "default_policy", "no vehicle named: the default policy"
     if vehicle in GROUND_VEHICLES:
-        return "ground_policy"
-    return ENVELOPE_POLICIES.get(VEHICLE_ENVELOPES.get(vehicle, ""), "default_policy")
+        return "ground_policy", f"vehicle {vehicle!r} is a car: the ground policy"
+    envelope = VEHICLE_ENVELOPES.get(vehicle, "")
+    if envelope in ENVELOPE_POLICIES:
+        return ENVELOPE_POLICIES[envelope], f"vehicle {vehicle!r}: the {envelope} envelope's"
+    if envelope:
+        return "default_policy", f"vehicle {vehicle!r}: the {envelope} envelope flies the default"
+    return "default_policy", f"vehicle {vehicle!r} is not in the fleet: the default policy"
 
 
 def policy_choice(config: DpcConfig, platform: str) -> tuple[Path, str]:
@@ -201,16 +213,7 @@ def policy_choice(config: DpcConfig, platform: str) -> tuple[Path, str]:
         return path, "given as DpcConfig.policy"
     if config.profile:
         return path, f"the {config.profile} profile's"
-    if not config.vehicle:
-        return path, "no vehicle named: the default policy"
-    if config.vehicle in GROUND_VEHICLES:
-        return path, f"vehicle {config.vehicle!r} is a car: the ground policy"
-    envelope = VEHICLE_ENVELOPES.get(config.vehicle, "")
-    if envelope in ENVELOPE_POLICIES:
-        return path, f"vehicle {config.vehicle!r}: the {envelope} envelope's policy"
-    if envelope:
-        return path, f"vehicle {config.vehicle!r}: the {envelope} envelope flies the default"
-    return path, f"vehicle {config.vehicle!r} is not in the fleet: the default policy"
+    return path, _vehicle_policy(config.vehicle)[1]
 
 
 def for_vehicle(config, vehicle: str):

@@ -92,6 +92,10 @@ _T_S, _ARRIVAL, _SEQUENCE, _PACKETS, _BAD, _OUT_OF_ORDER, _DROPPED, _STALE, _POL
 _STATE_SIZE = 25
 
 
+# The refusal of a sample off the sender's clock (`TelemetryReceiver.last_refusal`).
+_OFF_THE_CLOCK = object()
+
+
 @dataclasses.dataclass
 class ReceiverConfig:
     """Where to listen and how to judge the stream."""
@@ -206,9 +210,9 @@ class TelemetryReceiver(LeafSystem):
         enable_kernel_timestamps(self._socket)
         enable_drop_counter(self._socket)
         self._allowed = allowed_senders(self._config.allowed_senders)
-        # why the last datagram refused was refused (set only on the refusal paths), for
-        # the loop to tell a user whose every datagram is refused (`live.loop`)
-        self.last_refusal = ""
+        # why the last datagram refused was refused, as the refusal path left it (worded by
+        # `last_refusal` only when asked: a flood of refusals costs an assignment each)
+        self._refusal: object = ""
         initial = np.zeros(_STATE_SIZE)
         initial[_F] = (0.0, 0.0, 9.81)  # level flight until a sample arrives: y_ref = 0
         initial[
@@ -245,6 +249,21 @@ class TelemetryReceiver(LeafSystem):
         return self._socket.fileno()
 
     @property
+    def last_refusal(self) -> str:
+        """Why the last refused datagram was refused ("" if none was): the decoder's
+        message, a sender not allowed, or a sample off the sender's clock; for the loop to
+        tell a user whose every datagram is refused (`live.loop.first_look`)."""
+        why = self._refusal
+        if isinstance(why, tuple):  # (host, port) of a sender not allowed
+            return (
+                f"datagrams from {why[0]}:{why[1]}, not a sender the scenario allows or the "
+                "one locked in"
+            )
+        if why is _OFF_THE_CLOCK:
+            return "samples ahead of, or older than, the sender's clock (max_time_jump_s)"
+        return str(why)
+
+    @property
     def protocol(self) -> str:
         """The protocol its decoder reads (`Decoder.protocol`)."""
         return self._decoder.protocol
@@ -279,21 +298,16 @@ class TelemetryReceiver(LeafSystem):
                 x[_KERNEL_DROPPED] = max(x[_KERNEL_DROPPED], drops)
             if not self._from_allowed_sender(x, sender, arrival):
                 x[_FOREIGN] += 1
-                self.last_refusal = (
-                    f"datagrams from {sender[0]}:{sender[1]}, not a sender the scenario "
-                    "allows or the one locked in"
-                )
+                self._refusal = sender
                 continue
             try:
                 sample = decode(packet, arrival)
             except BadPacket as error:
                 x[_BAD] += 1
-                self.last_refusal = str(error)
+                self._refusal = str(error)  # not the exception: its traceback holds this frame
                 continue
             if not self._on_the_senders_clock(x, sample.t_s, arrival):
-                self.last_refusal = (
-                    "samples ahead of, or older than, the sender's clock (max_time_jump_s)"
-                )
+                self._refusal = _OFF_THE_CLOCK
                 continue
             if sample.sequence is not None and math.isfinite(x[_SEQUENCE]):
                 x[_DROPPED] += max(0, sample.sequence - int(x[_SEQUENCE]) - 1)

@@ -126,6 +126,11 @@ class RsiAxisMap:
         ones) in chain order (per joint)."""
         return [*external_values[: self.external], *robot_values]
 
+    def in_message_order(self, per_joint: Sequence) -> list:
+        """Values per joint (chain order) in the messages' order: A1..A6, then E1.. (the
+        inverse of `chain_order`)."""
+        return [*per_joint[self.external :], *per_joint[: self.external]]
+
 
 def _settings(name: str, values: Sequence[float], count: int, default) -> list:
     """`values` as floats, or `count` of `default` where none are given."""

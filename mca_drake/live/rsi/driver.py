@@ -208,6 +208,22 @@ class RsiDriverConfig:
         if not 0 <= self.realtime_priority <= 99:
             raise ValueError("RsiDriverConfig.realtime_priority must be in [0, 99]")
 
+    def axis_map(self, joint_kinds, home) -> RsiAxisMap:
+        """The controller axis of each joint of a platform with these joint kinds and home
+        pose, by these settings (`RsiAxisMap.build`); ValueError for a platform the
+        controller cannot drive or settings of the wrong length, naming them."""
+        tags = self.tags
+        return RsiAxisMap.build(
+            joint_kinds,
+            home,
+            tags.axes,
+            tags.external_axes,
+            self.axis_signs,
+            self.external_signs,
+            self.home_deg,
+            self.external_home,
+        )
+
     def to_dict(self) -> dict:
         """The settings as JSON-ready values (`from_dict` reads them back)."""
         return dataclasses.asdict(self)
@@ -279,17 +295,7 @@ class RsiDriver:
         config.validate()
         self.config = config
         kinds = list(joint_kinds or ["revolute"] * len(home))
-        tags = config.tags
-        self.axes = RsiAxisMap.build(
-            kinds,
-            home,
-            tags.axes,
-            tags.external_axes,
-            config.axis_signs,
-            config.external_signs,
-            config.home_deg,
-            config.external_home,
-        )
+        self.axes = config.axis_map(kinds, home)
         units = ["m" if kind == "prismatic" else "rad" for kind in kinds]
         self.follower = MotionFollower(limits, home, config.motion, units)
         motion = config.motion

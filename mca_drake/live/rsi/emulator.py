@@ -140,14 +140,16 @@ class AxisLimits:
         scale = np.asarray(axes.scales)
         home, home_q = np.asarray(axes.home), np.asarray(axes.home_q)
         a, b = home + scale * (robot.q_min - home_q), home + scale * (robot.q_max - home_q)
-        # the messages' order: the robot's axes, then the external ones
-        order = list(range(axes.external, robot.num_joints)) + list(range(axes.external))
-        return cls(
-            np.minimum(a, b)[order].tolist(),
-            np.maximum(a, b)[order].tolist(),
-            (np.abs(scale) * robot.qd_max)[order].tolist(),
-            (np.abs(scale) * robot.qdd_max)[order].tolist(),
-        )
+        ordered = [
+            axes.in_message_order(values.tolist())
+            for values in (
+                np.minimum(a, b),
+                np.maximum(a, b),
+                np.abs(scale) * robot.qd_max,
+                np.abs(scale) * robot.qdd_max,
+            )
+        ]
+        return cls(*ordered)
 
 
 def default_axis_map(robot: SerialChain, tags: RsiTags | None = None) -> RsiAxisMap:
@@ -193,8 +195,8 @@ class RsiEmulator:
                 f"the axis limits hold {len(self.limits.min_deg)} axes; {platform.name} has "
                 f"{ROBOT_AXES + self.external}"
             )
-        self._names = [*self.tags.axes, *self.tags.external_axes[: self.external]]
-        self._units = ["deg"] * ROBOT_AXES + [axes.units[j] for j in range(self.external)]
+        self._names = axes.in_message_order(axes.names)
+        self._units = axes.in_message_order(axes.units)
         self._driver = driver
         self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._socket.bind(("127.0.0.1", 0))
