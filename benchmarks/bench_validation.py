@@ -32,6 +32,7 @@ their provenance (date, command, calibration, machine) to `--json`, by default
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 
@@ -56,13 +57,21 @@ FIRST_VALIDATION_SEED = 700
 
 
 def run_flights(
-    mcas, flights, out_dir: Path, duration_s: float, cache_dir: Path, pilot: str = "scripted"
+    mcas,
+    flights,
+    out_dir: Path,
+    duration_s: float,
+    cache_dir: Path,
+    pilot: str = "scripted",
+    unnamed: bool = False,
 ) -> dict:
     """{label: {(vehicle, seed): summary}}, flying what is not in out_dir/runs yet (a DPC
-    run whose policy file has changed since is flown again)."""
+    run whose policy file has changed since is flown again). `unnamed`: each reference is
+    cued without its vehicle's name, as a recording that names none."""
     results: dict[str, dict] = {label: {} for label, _ in mcas}
-    # A pilot other than the scripted one gets its own run names: its flights differ.
-    tag = "" if pilot == "scripted" else f"_{pilot}"
+    # A pilot other than the scripted one gets its own run names: its flights differ; so
+    # do unnamed references (the DPC's policy is chosen otherwise).
+    tag = ("" if pilot == "scripted" else f"_{pilot}") + ("_unnamed" if unnamed else "")
     configs = {
         label: mca_config_from_name(config) if isinstance(config, str) else config
         for label, config in mcas
@@ -72,7 +81,8 @@ def run_flights(
         for label, config in mcas:
             path = out_dir / "runs" / f"{label}_{vehicle}_{seed}{tag}.json"
             # the DPC's policy is the vehicle's where its config names none
-            fingerprint = policy_fingerprint(for_vehicle(configs[label], vehicle))
+            named = configs[label] if unnamed else for_vehicle(configs[label], vehicle)
+            fingerprint = policy_fingerprint(named, KR500.name)
             if not _finished(path, fingerprint):
                 if reference is None:
                     spec = (
@@ -81,11 +91,14 @@ def run_flights(
                         else FlightSpec(vehicle=vehicle, seed=seed, pilot=pilot)
                     )
                     reference = motion_reference(spec, duration_s, cache_dir=cache_dir)
+                    if unnamed:
+                        reference = dataclasses.replace(reference, vehicle="")
                 result = run_closed_loop(
                     mca=config, reference=reference, progress=False, robot=KR500
                 )
-                keep = ("pi", "rmse", "cc", "safety_interventions", "violations", "step_time_s")
-                summary = {k: result.summary[k] for k in keep}
+                keep = ("pi", "pi_zero_motion", "rmse", "cc", "safety_interventions")
+                keep += ("violations", "step_time_s", "policy_file", "policy_changes")
+                summary = {k: result.summary[k] for k in keep if k in result.summary}
                 atomic_write_json(path, {**summary, "policy_sha256": fingerprint})
                 print(f"{label} {vehicle} {seed}: PI {result.summary['pi']:.3f}", flush=True)
             results[label][vehicle, seed] = json.loads(path.read_text())
@@ -188,6 +201,12 @@ def main() -> None:
         "seed, a check against pilots other than the scripted one; the route pilot flies "
         "evaluation flights only)",
     )
+    parser.add_argument(
+        "--unnamed",
+        action="store_true",
+        help="cue each flight without its vehicle's name, as a recording that names none (a "
+        "DPC that names no policy recognizes the vehicle: DpcConfig.unnamed)",
+    )
     parser.add_argument("--duration", type=float, default=300.0, help="s per flight")
     parser.add_argument("--out-dir", default="results/validation")
     parser.add_argument(
@@ -215,7 +234,13 @@ def main() -> None:
     flights = [(vehicle, seed) for vehicle in vehicles for seed in seeds]
     calibration = print_calibration()
     results = run_flights(
-        mcas, flights, out_dir, args.duration, out_dir / "flights", pilot=args.pilot
+        mcas,
+        flights,
+        out_dir,
+        args.duration,
+        out_dir / "flights",
+        pilot=args.pilot,
+        unnamed=args.unnamed,
     )
     figures = report(results, flights)
     json_path = args.json
@@ -223,6 +248,7 @@ def main() -> None:
         vehicles == list(VALIDATION_VEHICLES)
         and seeds.start == FIRST_VALIDATION_SEED
         and args.pilot == "scripted"
+        and not args.unnamed
     )
     if json_path is None and validation:
         json_path = default_result_path("validation.json")

@@ -327,6 +327,21 @@ def test_trained_policy_tracks_better_than_doing_nothing(trained, robot):
     assert result.summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
 
 
+def test_a_trained_policy_records_the_range_of_its_training_targets(trained):
+    """The guard for the unseen reads it (`cueing.reference_range`): almost every target of
+    the dataset it learned on lies inside (its training split by construction)."""
+    from mca_drake.cueing.reference_range import ReferenceRange, outside
+    from mca_drake.segments import SegmentDataset
+
+    _, policy_path, _ = trained
+    _, metadata = load_policy_arrays(policy_path)
+    ranges = ReferenceRange.from_record(metadata["reference_range"])
+    dataset = SegmentDataset.load(policy_path.parent / "data.npz")
+    targets = dataset.arrays["R"].reshape(-1, 6)
+    assert outside(targets, ranges).any(axis=1).mean() < 0.05
+    assert "data.npz" in ranges.source
+
+
 def test_rollout_on_exact_plant_is_the_plant(robot):
     """The rollout's states and outputs are the exact plant's for the commands it issued."""
     from mca_drake.platforms.kinematics import plant_output

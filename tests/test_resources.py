@@ -93,5 +93,7 @@ def test_the_wheel_carries_the_models_the_scenarios_the_policies_and_profiles(tm
     expected |= {f"mca_drake/data/diagrams/{p.name}" for p in (REPO / "diagrams").glob("*.yaml")}
     expected |= {f"mca_drake/data/{n}.npz" for n in SHIPPED_POLICIES}
     expected |= {f"mca_drake/data/profiles/{n}.yaml" for n in PROFILES}
+    # the shipped policies' training ranges (`cueing.reference_range`)
+    expected.add("mca_drake/data/policy_reference_ranges.json")
     assert data == expected
     assert "mca_drake/live/rsi/driver.py" in names and "mca_drake/app/cli/__main__.py" in names

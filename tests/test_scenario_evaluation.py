@@ -191,7 +191,8 @@ def test_dpc_runs_of_another_policy_are_run_again(tmp_path):
         == light
         != policy_fingerprint(DpcConfig(), "kr500")
     )
-    assert first["policy_sha256"] == policy_fingerprint(DpcConfig(), "kr500")
+    # the report records the default policy's (an unnamed reference's DPC starts with it)
+    assert first["policy_sha256"] == policy_fingerprint(DpcConfig(unnamed="default"), "kr500")
     # the other policy's evaluation re-runs the flight and records the other file's hash
     second = run_evaluation(
         EvaluationConfig(mcas=(DpcConfig(policy=str(other)),), cases=(case,), duration_s=2.0),

@@ -12,6 +12,7 @@ saturation to the limits.
 """
 
 import dataclasses
+import functools
 import math
 from pathlib import Path
 
@@ -20,6 +21,12 @@ from scipy.special import erf
 
 from mca_drake.atomic_io import load_npz_with_metadata
 from mca_drake.conventions import NUM_CHANNELS
+from mca_drake.cueing.recognition import RECOGNITION_REASONS, RECOGNIZED_POLICIES
+from mca_drake.cueing.reference_range import (
+    ReferenceRange,
+    policy_reference_range,
+    run_outside,
+)
 from mca_drake.references.driving.car import CARS
 from mca_drake.references.synthetic import VEHICLE_ENVELOPES
 from mca_drake.resources import (
@@ -132,11 +139,23 @@ class DpcConfig:
     # default policy. `run_closed_loop` fills it from the reference's `vehicle`, the live
     # loop from its protocol's kind ("car" for the racing simulators) when it is empty.
     vehicle: str = ""
+    # What runs when nothing names the policy, the profile or the vehicle (a recording of
+    # X-Plane or a logger, a flight simulator's stream): "recognize", the shipped policy of
+    # the vehicle recognized from the reference as it goes (`cueing.recognition`: the
+    # default policy, the transport policy while the reference stays inside the transport
+    # envelope, the ground policy once it shows a car), handed over smoothly; "default", the
+    # default policy throughout.
+    unnamed: str = "recognize"
 
     def validate(self) -> None:
-        """Raises ValueError for an unknown profile, FileNotFoundError when the policy file
-        does not exist."""
+        """Raises ValueError for an unknown profile or `unnamed`, FileNotFoundError when the
+        policy file does not exist."""
         check_profile(self.profile)
+        if self.unnamed not in UNNAMED_CHOICES:
+            raise ValueError(
+                f"DpcConfig.unnamed must be one of {', '.join(UNNAMED_CHOICES)}; got "
+                f"{self.unnamed!r}"
+            )
         if self.policy and not Path(self.policy).is_file():
             raise FileNotFoundError(f"DpcConfig.policy: policy file {self.policy!r} not found")
         if self.profile and not self.policy:
@@ -158,9 +177,32 @@ class DpcConfig:
             name = f"{check_profile(self.profile)}_policy"
         else:
             name = vehicle_policy_name(self.vehicle)
-        if platform == UNNAMED_POLICY_PLATFORM:
-            return default_policy_path() if name == "default_policy" else shipped_policy_path(name)
-        return shipped_policy_path(platform_policy_name(platform, name))
+        return _platform_policy_path(platform, name)
+
+    def recognizes(self) -> bool:
+        """Whether the policy is recognized from the reference: nothing names the policy, the
+        profile or the vehicle, and `unnamed` is "recognize"."""
+        return not (self.policy or self.profile or self.vehicle) and self.unnamed == "recognize"
+
+    def recognized_policy_paths(self, platform: str) -> tuple[Path, ...] | None:
+        """The shipped policies the recognizer chooses between on the platform named
+        `platform`, in the order of `cueing.recognition.RECOGNIZED_POLICIES` (the default
+        first); None where the config names what runs (`recognizes`)."""
+        if not self.recognizes():
+            return None
+        return tuple(_platform_policy_path(platform, name) for name in RECOGNIZED_POLICIES)
+
+
+def _platform_policy_path(platform: str, name: str) -> Path:
+    """The shipped policy that stands for the KR500's `name` on `platform`."""
+    if platform == UNNAMED_POLICY_PLATFORM:
+        return default_policy_path() if name == "default_policy" else shipped_policy_path(name)
+    return shipped_policy_path(platform_policy_name(platform, name))
+
+
+# "recognize": the policy of the vehicle recognized from the reference; "default": the
+# default policy (`DpcConfig.unnamed`).
+UNNAMED_CHOICES = ("recognize", "default")
 
 
 def platform_policy_name(platform: str, name: str) -> str:
@@ -214,6 +256,45 @@ def policy_choice(config: DpcConfig, platform: str) -> tuple[Path, str]:
     if config.profile:
         return path, f"the {config.profile} profile's"
     return path, _vehicle_policy(config.vehicle)[1]
+
+
+def policy_record(
+    config: DpcConfig, platform: str, changes=(), reference=None, time_step: float = 0.0
+) -> dict:
+    """A run's record of its policy, for its summary: `policy_file` (the name of the file
+    that ran last) and `policy_reason` (why, `policy_choice`); for a policy recognized from
+    the reference also `policy_changes`, one {t_s, policy_file, reason} per change of
+    policy (`changes`: (time s, index in `recognition.RECOGNIZED_POLICIES`) each, from the
+    DPC system's `policy_changes`). Given the run's `reference` (T, 6, one row per control
+    period of `time_step` s) also `out_of_distribution`: the share of the periods in which
+    it lay outside the range of the references the running policy was trained on, in all
+    and per channel (`reference_range.run_outside`); None for a policy without a range."""
+    paths = config.recognized_policy_paths(platform)
+    if paths is None:
+        path, why = policy_choice(config, platform)
+        record = {"policy_file": path.name, "policy_reason": why}
+        segments = [(0.0, path)]
+    else:
+        last = changes[-1][1] if changes else 0
+        record = {
+            "policy_file": paths[last].name,
+            "policy_reason": RECOGNITION_REASONS[last],
+            "policy_changes": [
+                {"t_s": round(t, 6), "policy_file": paths[i].name, "reason": RECOGNITION_REASONS[i]}
+                for t, i in changes
+            ],
+        }
+        segments = [(0.0, paths[0]), *((t, paths[i]) for t, i in changes)]
+    if reference is not None:
+        ranges = [(t, _policy_range(str(path))) for t, path in segments]
+        record["out_of_distribution"] = run_outside(np.asarray(reference), ranges, time_step)
+    return record
+
+
+@functools.lru_cache(maxsize=32)
+def _policy_range(path: str) -> ReferenceRange | None:
+    """The reference range of the policy file at `path` (`policy_reference_range`)."""
+    return policy_reference_range(path, load_policy_arrays(path)[1])
 
 
 def for_vehicle(config, vehicle: str):

@@ -54,6 +54,7 @@ from mca_drake.cueing.dpc import (
     policy_platform,
     preview_offsets,
 )
+from mca_drake.cueing.reference_range import reference_range
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
 from mca_drake.learning.configs import DpcTrainingConfig
 from mca_drake.learning.output_models import PAPER_PLATFORM, MixedAnalyticalOutput
@@ -693,6 +694,12 @@ def train_policy(
         "tracking_channel_weights": None if channel_weights is None else channel_weights.tolist(),
         # the platform whose joints the policy commands (`cueing.dpc.check_policy_platform`)
         "platform": plant.robot.summary(),
+        # the targets it learned on, for the run summaries' out-of-distribution share
+        "reference_range": reference_range(
+            [np.asarray(train_targets).reshape(-1, 6)],
+            mirrored=config.mirror_fraction > 0,
+            source=f"the training split of {dataset}",
+        ).record(),
     }
     names = ("X", "Y", "U") + (("R",) if config.targets == "reference" else ())
     if config.achievable_cost_floor > 0:

@@ -32,7 +32,7 @@ from pydrake.systems.framework import (
 )
 
 from mca_drake.cueing import McaConfig, as_mca_config
-from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_choice
+from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_record
 from mca_drake.live.decoders import PROTOCOLS, make_decoder
 from mca_drake.live.live_summary import (
     STALL_PERIODS,
@@ -388,8 +388,10 @@ def run_live(
     summary = scored_summary(handles, config, plant, decoder, robot, h, run.wall_s)
     summary["live"] = live_block(handles, run, decoder, realtime_rate, h)
     if isinstance(config, DpcConfig):
-        path, why = policy_choice(config, robot.name)
-        summary["policy_file"], summary["policy_reason"] = path.name, why
+        mca = handles["mca"]
+        changes = mca.policy_changes(mca.GetMyContextFromRoot(run.context))
+        reference = handles["recorder"].rows("reference")
+        summary |= policy_record(config, robot.name, changes, reference, h)
     if run.rsi_status is not None:
         summary["rsi"] = rsi_block(handles, run)
     return summary

@@ -102,7 +102,14 @@ def AddMca(
     if isinstance(config, DpcConfig):
         config.validate()
         return builder.AddNamedSystem(
-            "mca", DpcPolicy(str(config.policy_path(robot.name)), robot, time_step, update_event)
+            "mca",
+            DpcPolicy(
+                str(config.policy_path(robot.name)),
+                robot,
+                time_step,
+                update_event,
+                recognized=config.recognized_policy_paths(robot.name),
+            ),
         )
     if isinstance(config, WashoutConfig):
         return builder.AddNamedSystem(

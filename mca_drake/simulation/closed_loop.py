@@ -27,7 +27,7 @@ from tqdm.auto import tqdm
 
 from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
-from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_choice
+from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_record
 from mca_drake.metrics import false_rotation, tracking_score
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.perception.scores import perceived_run
@@ -263,8 +263,11 @@ def run_closed_loop(
     if random_seed is not None:
         result.summary["random_seed"] = int(random_seed)
     if isinstance(config, DpcConfig):
-        path, why = policy_choice(config, robot.name)
-        result.summary["policy_file"], result.summary["policy_reason"] = path.name, why
+        mca = handles["mca"]
+        changes = mca.policy_changes(mca.GetMyContextFromRoot(context))
+        result.summary |= policy_record(
+            config, robot.name, changes, result.reference, reference.time_step
+        )
     if json_path:
         atomic_write_json(json_path, result.summary)
     if plot_dir:

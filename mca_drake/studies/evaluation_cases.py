@@ -174,9 +174,15 @@ def run_path(out: Path, case: str, mca: str, seed: int) -> Path:
 
 def policy_fingerprint(config, platform: str) -> str:
     """SHA-256 of a DpcConfig's policy file on the platform named `platform` (recorded in
-    every DPC run so that a resumed evaluation never mixes runs of two policies); "" for
-    other MCAs."""
-    return file_sha256(config.policy_path(platform)) if isinstance(config, DpcConfig) else ""
+    every DPC run so that a resumed evaluation never mixes runs of two policies), those of
+    the policies it recognizes between joined by "+" (`DpcConfig.recognized_policy_paths`);
+    "" for other MCAs."""
+    if not isinstance(config, DpcConfig):
+        return ""
+    recognized = config.recognized_policy_paths(platform)
+    if recognized is not None:
+        return "+".join(file_sha256(path) for path in recognized)
+    return file_sha256(config.policy_path(platform))
 
 
 def run_platform(summary: dict) -> str:

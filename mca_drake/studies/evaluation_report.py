@@ -10,6 +10,7 @@ markdown and JSON (`write_report`).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -64,8 +65,10 @@ def write_report(config: EvaluationConfig, out: Path, previous: dict | None = No
     report = {
         "duration_s": config.duration_s,
         "platform": robot.summary(),
+        # the default policy's (an unnamed reference's DPC starts with it)
         "policy_sha256": next(
-            filter(None, (policy_fingerprint(m, robot.name) for m in config.mcas)), ""
+            filter(None, (policy_fingerprint(_unrecognized(m), robot.name) for m in config.mcas)),
+            "",
         ),
         "envelope_policies_sha256": {
             envelope: file_sha256(shipped_policy_path(name))
@@ -524,3 +527,11 @@ def evaluation_markdown(report: dict) -> str:
             ]
         lines.append("")
     return "\n".join(lines)
+
+
+def _unrecognized(config):
+    """A DpcConfig that runs the default policy where `config` would recognize the vehicle;
+    any other config as it is."""
+    if isinstance(config, DpcConfig) and config.recognizes():
+        return dataclasses.replace(config, unnamed="default")
+    return config

@@ -17,6 +17,14 @@ from mca_drake.cueing.dpc import (
     policy_preview_steps,
     preview_offsets,
 )
+from mca_drake.cueing.recognition import (
+    RECOGNIZED_POLICIES,
+    RecognitionConfig,
+    initial_recognition_state,
+    policy_changes,
+    policy_weights,
+    recognition_step,
+)
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
@@ -55,6 +63,12 @@ class DpcPolicy(LeafSystem):
             "unrestricted" offline, "discrete" in the live loop (after its telemetry poll).
         preview_steps: the reference preview of a policy given as arrays (a file says its
             own).
+        recognized: the policies the recognizer chooses between
+            (`cueing.recognition.RECOGNIZED_POLICIES`, files or arrays in its order, the
+            default first; `policy` is then not read): the vehicle of an unnamed reference
+            is recognized from the reference as it goes and each change of policy handed
+            over smoothly (`recognition.policy_weights`). None: `policy` throughout.
+        recognition: the recognizer's settings (default `RecognitionConfig()`).
     """
 
     def __init__(
@@ -64,21 +78,28 @@ class DpcPolicy(LeafSystem):
         time_step: float = CONTROL_PERIOD_S,
         update_event: str = "unrestricted",
         preview_steps: int = 0,
+        recognized: tuple | None = None,
+        recognition: RecognitionConfig | None = None,
     ):
         super().__init__()
-        if isinstance(policy, str | Path):
-            arrays, metadata = load_policy_arrays(policy)
-            check_policy_platform(policy, metadata, robot.name)
-            preview_steps = policy_preview_steps(metadata)
-        else:
-            arrays, preview_steps = policy, int(preview_steps)
         self._robot = robot
-        self._inference = PolicyInference(arrays)
-        if self._inference.joints != robot.num_joints:
-            raise ValueError(
-                f"the DPC policy commands {self._inference.joints} joints, platform "
-                f"'{robot.name}' has {robot.num_joints}"
-            )
+        self._time_step = time_step
+        if recognized is None:
+            self._inference, preview_steps = _inference(policy, robot, preview_steps)
+            self._inferences = None
+        else:
+            if len(recognized) != len(RECOGNIZED_POLICIES):
+                raise ValueError(
+                    f"recognized: {len(RECOGNIZED_POLICIES)} policies "
+                    f"({', '.join(RECOGNIZED_POLICIES)}); got {len(recognized)}"
+                )
+            loaded = [_inference(p, robot, preview_steps) for p in recognized]
+            if len({steps for _, steps in loaded}) > 1:
+                raise ValueError("the recognized policies must share one reference preview")
+            self._inferences = [inference for inference, _ in loaded]
+            self._inference, preview_steps = loaded[0]
+            self._recognition = recognition or RecognitionConfig()
+            self._recognition.validate()
         n = robot.num_joints
         # a policy with a preview reads the reference at its offsets ahead, from a preview
         # of offsets[-1] + 1 samples (the current one first)
@@ -94,6 +115,11 @@ class DpcPolicy(LeafSystem):
         self._output_port = self.DeclareVectorInputPort("inertial_output", 6)
         self._command_index = self.DeclareDiscreteState(n)
         self._statistics_index = self.DeclareDiscreteState(len(MCA_STATISTICS))
+        self._recognition_index = None
+        if self._inferences is not None:
+            self._recognition_index = self.DeclareDiscreteState(
+                np.array(initial_recognition_state())
+            )
         DeclareMcaUpdate(self, time_step, self._update, update_event)
         self.DeclareStateOutputPort("joint_acceleration", self._command_index)
         self.DeclareStateOutputPort("statistics", self._statistics_index)
@@ -108,6 +134,36 @@ class DpcPolicy(LeafSystem):
         values = context.get_discrete_state(self._statistics_index).value()
         return dict(zip(MCA_STATISTICS, (float(v) for v in values), strict=True))
 
+    def policy_changes(self, context: Context) -> list[tuple[float, int]]:
+        """The changes of policy so far, (time s, index in RECOGNIZED_POLICIES) each
+        (`recognition.policy_changes`); [] for a DPC that runs one policy."""
+        if self._recognition_index is None:
+            return []
+        return policy_changes(context.get_discrete_state(self._recognition_index).value())
+
+    def _recognize(self, discrete, reference) -> tuple[int, int, float] | None:
+        """Steps the recognizer on the reference sample; its `policy_weights` (None for a DPC
+        that runs one policy)."""
+        if self._inferences is None:
+            return None
+        state = discrete.get_value(self._recognition_index).tolist()
+        recognition_step(state, reference.tolist(), self._time_step, self._recognition)
+        discrete.set_value(self._recognition_index, np.array(state))
+        return policy_weights(state, self._recognition)
+
+    def _command(self, weights, y, x, reference, preview) -> list[float]:
+        """The command for these inputs: the one policy's, or (with the recognizer's
+        `weights`) the recognized one's, blended with the one it takes over from while the
+        hand-over lasts."""
+        if weights is None:
+            return self._inference.command(y, x, reference, preview)
+        policy, previous, weight = weights
+        u = self._inferences[policy].command(y, x, reference, preview)
+        if previous < 0:
+            return u
+        old = self._inferences[previous].command(y, x, reference, preview)
+        return [a + weight * (b - a) for a, b in zip(old, u, strict=True)]
+
     def _update(self, context: Context, discrete: DiscreteValues) -> None:
         x = self._state_port.Eval(context)
         y = self._output_port.Eval(context)
@@ -119,7 +175,8 @@ class DpcPolicy(LeafSystem):
         # Timed from here: evaluating the inputs computes upstream systems (the plant's
         # output), which is simulation, not this MCA's work.
         start = time.perf_counter()
-        u = self._inference.command(y, x, reference, preview)
+        weights = self._recognize(discrete, reference)
+        u = self._command(weights, y, x, reference, preview)
         # NaN from the network says an input is not finite (or it overflowed): only then are
         # the inputs checked one by one
         if not math.isfinite(u[0]):
@@ -129,7 +186,7 @@ class DpcPolicy(LeafSystem):
                 )
             if not np.all(np.isfinite(y)):
                 # a dropped IMU sample: the policy still sees state and target
-                u = self._inference.command(np.zeros(6), x, reference, preview)
+                u = self._command(weights, np.zeros(6), x, reference, preview)
             # else the network overflowed on huge inputs: the clamp brakes on NaN
         command, intervened = self._clamp(x, u)
         # from `discrete`, which holds the current values on entry (DeclareMcaUpdate): one
@@ -141,6 +198,24 @@ class DpcPolicy(LeafSystem):
             self._statistics_index,
             np.array((time.perf_counter() - start, 0.0, stats[2] + intervened, 0.0)),
         )
+
+
+def _inference(policy, robot: SerialChain, preview_steps: int) -> tuple[PolicyInference, int]:
+    """(the inference, its reference preview in periods) of a policy file (checked against
+    `robot`) or arrays (whose preview is `preview_steps`)."""
+    if isinstance(policy, str | Path):
+        arrays, metadata = load_policy_arrays(policy)
+        check_policy_platform(policy, metadata, robot.name)
+        preview_steps = policy_preview_steps(metadata)
+    else:
+        arrays, preview_steps = policy, int(preview_steps)
+    inference = PolicyInference(arrays)
+    if inference.joints != robot.num_joints:
+        raise ValueError(
+            f"the DPC policy commands {inference.joints} joints, platform '{robot.name}' has "
+            f"{robot.num_joints}"
+        )
+    return inference, preview_steps
 
 
 __all__ = ["DpcPolicy"]

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from mca_drake.app.cli.closed_loop_flags import add_mca_flags
 from mca_drake.app.cli.flags import add_config_flags, given_fields
-from mca_drake.app.cli.report import format_pi, hold_meshcat
+from mca_drake.app.cli.report import format_pi, hold_meshcat, policy_lines
 from mca_drake.app.jobs import run_live_scenario, start_meshcat
 from mca_drake.app.scenarios import LiveScenario
 from mca_drake.cueing import mca_config_from_name
@@ -128,8 +128,7 @@ def format_live_report(summary: dict) -> str:
         f"{_ms(live['wait_s'])}); health {live['health']}; {format_pi(summary)}; "
         f"violations {summary['violations']}"
     ]
-    if summary.get("policy_file"):
-        lines.append(f"policy {summary['policy_file']} ({summary.get('policy_reason', '')})")
+    lines += policy_lines(summary)
     if "rsi" in summary:
         r = summary["rsi"]
         lines.append(

@@ -32,13 +32,10 @@ def format_closed_loop_report(result) -> str:
     def row(name: str, values) -> str:
         return f"{name:<18}" + "".join(f"{v:>{width}.3f}" for v in values)
 
-    policy = ""
-    if summary.get("policy_file"):
-        reason = summary.get("policy_reason", "")
-        policy = f" (policy {summary['policy_file']}{': ' + reason if reason else ''})"
     lines = [
-        f"{summary['mca']}{policy} on the {summary['plant']} plant, {summary['reference']}, "
+        f"{summary['mca']} on the {summary['plant']} plant, {summary['reference']}, "
         f"{summary['duration_s']:g} s",
+        *policy_lines(summary),
         "",
         header,
         row("RMSE", summary["rmse"]),
@@ -55,6 +52,42 @@ def format_closed_loop_report(result) -> str:
         f"{summary['safety_interventions']}, solver failures {summary['solver_failures']}",
     ]
     return "\n".join(lines)
+
+
+# Above this share of the time outside its policy's training range a DPC run says to
+# compare the NMPC: a policy is trusted where it was trained.
+OUT_OF_RANGE_NOTICE = 0.05
+
+
+def policy_lines(summary: dict) -> list[str]:
+    """The DPC's policy in words, for a report: which file and why, its changes of policy
+    (a vehicle recognized from the reference) and the share of the time the reference lay
+    outside the policy's training range; [] for other MCAs."""
+    if not summary.get("policy_file"):
+        return []
+    reason = summary.get("policy_reason", "")
+    lines = [f"policy {summary['policy_file']}{': ' + reason if reason else ''}"]
+    changes = summary.get("policy_changes") or []
+    if changes:
+        lines.append(
+            "policy changes: "
+            + ", ".join(f"{c['t_s']:.1f} s {c['policy_file']}" for c in changes)
+            + " (each handed over smoothly)"
+        )
+    outside = summary.get("out_of_distribution")
+    if outside is not None:
+        channels = sorted(outside["channels"].items(), key=lambda item: -item[1])
+        most = ", ".join(f"{c} {v:.1%}" for c, v in channels[:2] if v > 0)
+        line = (
+            f"reference outside the policy's training range {outside['share']:.1%} of the "
+            f"time" + (f" (most: {most})" if most else "")
+        )
+        if outside["share"] > OUT_OF_RANGE_NOTICE:
+            line += "; the policy was not trained on such motion: compare --mca nmpc-rti"
+        lines.append(line)
+    elif "out_of_distribution" in summary:
+        lines.append("the policy records no training range (trained before ranges were kept)")
+    return lines
 
 
 def _timing_row(summary: dict) -> str:

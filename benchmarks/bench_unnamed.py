@@ -1,0 +1,169 @@
+"""The default DPC on references that name no vehicle: every suite case's flights cued as a
+recording that names none would be, against the NMPC-rti on the same flights.
+
+    python benchmarks/bench_unnamed.py [--cases A,B,C,D,E] [--flights 10] [--duration 300]
+        [--runs-dir results/unnamed] [--suite benchmarks/results/evaluation/evaluation.json]
+        [--json benchmarks/results/unnamed.json]
+
+Flies the suite's cases (`mca_drake.studies.evaluation_cases.default_cases`: the light
+aircraft, the jet, aircraft neither trained nor tuned on, drives, the route pilot's
+flights), their first `--flights` seeds, and cues each reference with its vehicle's name
+taken away through `DpcConfig()` (the vehicle recognized from the reference,
+`DpcConfig.unnamed = "recognize"`) and through `DpcConfig(unnamed="default")` (the default
+policy throughout, what an unnamed reference got before). The NMPC-rti's PI on each flight
+is the suite's (`--suite`, its runs of the same flights and duration; the NMPC does not
+read the vehicle's name, and for the drives also the ground profile's `nmpc-rti-ground`).
+Runs are resumable (`--runs-dir`, one JSON per flight and DPC). Prints and writes per case:
+the median PI of each DPC and of the NMPC-rti, the paired difference DPC - NMPC-rti
+(median, worst flight), flights better than zero motion, and which policy each flight
+ended with; with the date, command, machine and calibration, to `--json` (default
+`benchmarks/results/unnamed.json`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+from common import default_result_path, print_calibration, result_header
+
+from mca_drake.atomic_io import atomic_write_json
+from mca_drake.cueing.dpc import DpcConfig
+from mca_drake.cueing.recognition import RecognitionConfig
+from mca_drake.platforms.files import load_platform
+from mca_drake.references.drives import motion_reference
+from mca_drake.simulation.closed_loop import run_closed_loop
+from mca_drake.studies.evaluation_cases import default_cases, policy_fingerprint
+
+# The DPCs compared, by label: the vehicle recognized from the reference, and the default
+# policy throughout.
+DPCS = {"recognized": DpcConfig(), "default": DpcConfig(unnamed="default")}
+# The suite's MCAs each flight is compared with (those a case's report holds).
+NMPCS = ("nmpc-rti", "nmpc-rti-ground")
+# The recognizer's settings the runs were made with.
+RECOGNITION = json.loads(json.dumps(dataclasses.asdict(RecognitionConfig())))
+KEPT = ("pi", "pi_zero_motion", "violations", "safety_interventions", "policy_file")
+
+
+def run_case(case, seeds, duration_s: float, runs_dir: Path, robot) -> dict:
+    """{label: {seed: summary}} of the case's flights, cued unnamed by each of DPCS (runs on
+    disk made with the same policies are kept)."""
+    results: dict[str, dict[int, dict]] = {label: {} for label in DPCS}
+    for seed in seeds:
+        reference = None
+        for label, config in DPCS.items():
+            path = runs_dir / f"{case.name}_{label}_{seed}.json"
+            # the policies, and how the vehicle is recognized: a run of other settings is
+            # flown again
+            fingerprint = policy_fingerprint(config, robot.name)
+            made = {"policy_sha256": fingerprint, "duration_s": duration_s}
+            if config.recognizes():
+                made["recognition"] = RECOGNITION
+            run = json.loads(path.read_text()) if path.is_file() else {}
+            if any(run.get(k) != v for k, v in made.items()):
+                if reference is None:
+                    spec = case.spec_of(seed)
+                    named = motion_reference(spec, duration_s, cache_dir=runs_dir / "flights")
+                    reference = dataclasses.replace(named, vehicle="")  # as a recording
+                result = run_closed_loop(
+                    mca=config, reference=reference, robot=robot, progress=False
+                )
+                run = {k: result.summary[k] for k in KEPT}
+                run["policy_changes"] = result.summary.get("policy_changes", [])
+                run |= made
+                atomic_write_json(path, run)
+                print(f"{case.name} {seed} {label}: PI {run['pi']:.3f}", flush=True)
+            results[label][seed] = run
+    return results
+
+
+def case_figures(results: dict, suite_case: dict | None, seeds) -> dict:
+    """The figures of one case: per DPC the median PI, flights better than zero motion,
+    violations and the policies the flights ended with; against each NMPC of the suite on
+    the same seeds the paired difference (median, worst flight)."""
+    figures: dict = {}
+    for label, runs in results.items():
+        pis = np.array([runs[s]["pi"] for s in seeds])
+        zero = np.array([runs[s]["pi_zero_motion"] for s in seeds])
+        entry = {
+            "pi_median": float(np.median(pis)),
+            "better_than_zero_motion": int(np.sum(pis < zero)),
+            "worst_against_zero_motion": float(np.max(pis - zero)),
+            "violations": int(sum(sum(runs[s]["violations"].values()) for s in seeds)),
+            "ended_with": dict(Counter(runs[s]["policy_file"] for s in seeds)),
+        }
+        for nmpc in NMPCS:
+            other = (suite_case or {}).get("mcas", {}).get(nmpc)
+            if other is None:
+                continue
+            by_seed = dict(zip(other["seeds"], other["pi"], strict=True))
+            if not all(s in by_seed for s in seeds):
+                continue
+            diff = pis - np.array([by_seed[s] for s in seeds])
+            worst = int(np.argmax(diff))
+            entry[f"vs_{nmpc}"] = {
+                "nmpc_pi_median": float(np.median([by_seed[s] for s in seeds])),
+                "median_difference": float(np.median(diff)),
+                "worst_difference": float(diff[worst]),
+                "worst_seed": int(seeds[worst]),
+                "behind_by_more_than_0.2": int(np.sum(diff > 0.2)),
+            }
+        figures[label] = entry
+    return figures
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--cases", default="A,B,C,D,E", help="suite cases (default all)")
+    parser.add_argument("--flights", type=int, default=10, help="seeds per case (default 10)")
+    parser.add_argument("--duration", type=float, default=300.0, help="s per flight")
+    parser.add_argument("--runs-dir", default="results/unnamed")
+    parser.add_argument(
+        "--suite",
+        default=str(default_result_path("evaluation/evaluation.json")),
+        help="the suite's report whose NMPC-rti runs of the same flights are compared",
+    )
+    parser.add_argument("--json", help="default benchmarks/results/unnamed.json")
+    args = parser.parse_args()
+    calibration = print_calibration()
+    suite = json.loads(Path(args.suite).read_text())
+    if abs(suite["duration_s"] - args.duration) > 1e-9:
+        raise SystemExit(
+            f"--suite {args.suite} flew {suite['duration_s']} s flights, not {args.duration}"
+        )
+    robot = load_platform("kr500")
+    runs_dir = Path(args.runs_dir)
+    runs_dir.mkdir(parents=True, exist_ok=True)
+    wanted = args.cases.split(",")
+    figures: dict = {}
+    for case in default_cases():
+        if case.name not in wanted:
+            continue
+        seeds = list(case.seeds[: args.flights])
+        results = run_case(case, seeds, args.duration, runs_dir, robot)
+        figures[case.name] = {
+            "vehicle": case.label(),
+            "seeds": seeds,
+            "dpcs": case_figures(results, suite["cases"].get(case.name), seeds),
+        }
+        for label, entry in figures[case.name]["dpcs"].items():
+            versus = entry.get("vs_nmpc-rti", {})
+            print(
+                f"case {case.name} {label:10s} median PI {entry['pi_median']:.3f}; against the "
+                f"NMPC-rti median {versus.get('median_difference', float('nan')):+.3f}, worst "
+                f"{versus.get('worst_difference', float('nan')):+.3f}; better than zero motion "
+                f"on {entry['better_than_zero_motion']}/{len(seeds)}; ended with "
+                f"{entry['ended_with']}"
+            )
+    out = args.json or default_result_path("unnamed.json")
+    header = result_header(calibration)
+    header["suite"] = {"file": args.suite, "date": suite["provenance"]["date"]}
+    atomic_write_json(out, {"provenance": header, "duration_s": args.duration, "cases": figures})
+
+
+if __name__ == "__main__":
+    main()

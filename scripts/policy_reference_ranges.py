@@ -1,0 +1,87 @@
+"""Writes the shipped DPC policies' reference ranges (mca_drake/data/policy_reference_ranges.json).
+
+    .venv/bin/python scripts/policy_reference_ranges.py [--cache-dir results/training_flights]
+
+Each shipped policy was last trained on a dataset of the training guide (its metadata's
+`dataset`), on the flights of the vehicles its `dpc_config.vehicles` names (all where it
+names none). This flies or drives those flights again (the dataset's seeds, the scripted
+pilot, 5 minutes each: `references.drives.training_spec`, as `mca-drake dataset
+closed-loop` does; of the drives, the first six) and writes each policy's `ReferenceRange`
+(mirrored, as training mirrored half its windows). Flights are cached (`--cache-dir`): a
+killed run resumes. A drive takes minutes, a flight seconds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+from pathlib import Path
+
+from mca_drake.atomic_io import atomic_write_json
+from mca_drake.cueing.dpc import load_policy_arrays, shipped_policy_path
+from mca_drake.cueing.reference_range import SHIPPED_RANGES_FILE, reference_range
+from mca_drake.references.drives import motion_reference, training_spec
+from mca_drake.resources import data_dir
+from mca_drake.studies.closed_loop_dataset import ClosedLoopDatasetConfig
+
+# The flights of each dataset the shipped policies were trained on (docs/guides/training.md:
+# `mca-drake dataset closed-loop` with these vehicles and seeds, joined).
+DATASET_FLIGHTS = {
+    "datasets/mixed_t37/dataset.npz": (
+        (("light", "jet", "f16", "DHC6", "A320", "787-8"), range(100, 118)),
+        (("light",), range(130, 138)),
+        (("T37",), range(150, 156)),
+    ),
+    # the first six of its 18 drives, two per car (lap and proving ground each): a drive
+    # takes minutes to simulate, and every drive runs the same two courses
+    "datasets/drives/dataset.npz": ((("bmw-320i", "ford-escort", "vw-vanagon"), range(200, 206)),),
+}
+# The policies whose ranges are written (a platform's moved policies read the KR500's).
+POLICIES = ("default_policy", "light_policy", "transport_policy", "ground_policy")
+DURATION_S = 300.0
+
+
+def dataset_flights(dataset: str) -> list[tuple[str, int]]:
+    """(vehicle, seed) of every flight of `dataset`, as `ClosedLoopDatasetConfig` deals them."""
+    flights = []
+    for vehicles, seeds in DATASET_FLIGHTS[dataset]:
+        config = ClosedLoopDatasetConfig(vehicles=vehicles, flight_seeds=tuple(seeds))
+        flights += config.flights()
+    return flights
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--cache-dir", default="results/training_flights")
+    args = parser.parse_args()
+    cache = Path(args.cache_dir)
+    records = {}
+    for name in POLICIES:
+        _, metadata = load_policy_arrays(shipped_policy_path(name))
+        dataset = metadata["dataset"]
+        vehicles = metadata.get("dpc_config", {}).get("vehicles") or ()
+        flights = [(v, s) for v, s in dataset_flights(dataset) if not vehicles or v in vehicles]
+        references = []
+        for vehicle, seed in flights:
+            spec = training_spec(vehicle, seed)
+            references.append(motion_reference(spec, DURATION_S, cache_dir=cache).y)
+            print(f"{name}: {vehicle} {seed}", flush=True)
+        kinds = ", ".join(sorted({v for v, _ in flights}))
+        drives = dataset.endswith("drives/dataset.npz")
+        which = "the first " if drives else ""
+        what = "drives" if drives else "flights"
+        source = f"{which}{len(flights)} training {what} of {dataset} ({kinds}), mirrored"
+        records[name] = reference_range(references, mirrored=True, source=source).record()
+    atomic_write_json(
+        data_dir() / SHIPPED_RANGES_FILE,
+        {
+            "command": "python scripts/policy_reference_ranges.py",
+            "date": datetime.date.today().isoformat(),
+            "duration_s": DURATION_S,
+            "policies": records,
+        },
+    )
+
+
+if __name__ == "__main__":
+    main()
