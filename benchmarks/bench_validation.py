@@ -196,10 +196,10 @@ def main() -> None:
     parser.add_argument(
         "--pilot",
         default="scripted",
-        choices=("scripted", "random-style"),
+        choices=("scripted", "random-style", "human"),
         help="who flies the aircraft (default scripted; random-style: a style drawn from each "
-        "seed, a check against pilots other than the scripted one; the route pilot flies "
-        "evaluation flights only)",
+        "seed, a check against pilots other than the scripted one; human: the human-operator "
+        "pilot no training flies; the route pilot flies evaluation flights only)",
     )
     parser.add_argument(
         "--unnamed",

@@ -15,15 +15,21 @@ import numpy as np
 from mca_drake.conventions import FIRST_EVALUATION_SEED
 from mca_drake.references.jsbsim import FlightConfig, FlightError, check_vehicle, fly
 from mca_drake.references.jsbsim.route import EVALUATION_ONLY
-from mca_drake.references.jsbsim.style import PilotStyle, sample_pilot_style
+from mca_drake.references.jsbsim.style import (
+    PilotStyle,
+    sample_human_operator,
+    sample_pilot_style,
+)
 from mca_drake.references.recording import Recording, load_recording, save_recording
 from mca_drake.references.reference import Reference, ReferenceScaling, reference_from_recording
 from mca_drake.references.synthetic import VEHICLE_ENVELOPES, SyntheticConfig, synthetic_recording
 
 # Who flies a built-in flight: the scripted pilot, a pilot whose style is drawn from the
-# flight's seed (`jsbsim.style.sample_pilot_style`), or the independent route pilot
-# (`jsbsim.route`), which flies evaluation flights only.
-PILOTS = ("scripted", "random-style", "route")
+# flight's seed (`jsbsim.style.sample_pilot_style`), the independent route pilot
+# (`jsbsim.route`), which flies evaluation flights only, or a human operator drawn from the
+# seed (`jsbsim.style.sample_human_operator`: McRuer's crossover model, with reaction delay,
+# neuromuscular lag and remnant), which no training flies: the validation pilot.
+PILOTS = ("scripted", "random-style", "route", "human")
 # The random pilot's style comes from its own stream of the seed, so the flight's own draws
 # (turbulence, heading, plan) are those of the scripted pilot's flight of that seed.
 STYLE_STREAM = 1
@@ -46,8 +52,9 @@ class FlightSpec:
     vehicle: str = "light"
     # Seed of the built-in flight's pilot (training used 100-104; evaluation 1000 on).
     seed: int = 1000
-    # Who flies it (`PILOTS`): "scripted", "random-style" (a style drawn from the seed) or
-    # "route" (the independent route pilot; evaluation seeds only).
+    # Who flies it (`PILOTS`): "scripted", "random-style" (a style drawn from the seed),
+    # "route" (the independent route pilot; evaluation seeds only) or "human" (a human
+    # operator drawn from the seed; no training flies it).
     pilot: str = "scripted"
 
     def validate(self) -> None:
@@ -107,13 +114,25 @@ def pilot_style(seed: int, draw: int = 0) -> PilotStyle:
     return sample_pilot_style(np.random.default_rng([seed, STYLE_STREAM, draw]))
 
 
-def _fly_random_style(vehicle: str, duration_s: float, seed: int, progress: bool) -> Recording:
-    """The flight of `seed` flown by its random-style pilot: the first of the seed's styles
-    (`pilot_style`) whose flight stays in the airframe's envelope; the style in the
-    metadata (`pilot_style`, JSON)."""
+def human_operator(seed: int, draw: int = 0) -> PilotStyle:
+    """The human-operator pilot's style for a flight seed: draw `draw` of its own stream."""
+    return sample_human_operator(seed, np.random.default_rng([seed, HUMAN_STREAM, draw]))
+
+
+# The human operator's style comes from a stream of the seed of its own.
+HUMAN_STREAM = 3
+
+
+def _fly_drawn_style(
+    vehicle: str, duration_s: float, seed: int, progress: bool, pilot: str
+) -> Recording:
+    """The flight of `seed` flown by its random-style pilot (`pilot_style`) or its human
+    operator (`human_operator`): the first of the seed's draws whose flight stays in the
+    airframe's envelope; the style in the metadata (`pilot_style`, JSON)."""
+    draw_style = pilot_style if pilot == "random-style" else human_operator
     errors = []
     for draw in range(MAX_STYLE_DRAWS):
-        style = pilot_style(seed, draw)
+        style = draw_style(seed, draw)
         try:
             recording = fly(
                 vehicle, duration_s, seed, config=FlightConfig(style=style), progress=progress
@@ -121,11 +140,11 @@ def _fly_random_style(vehicle: str, duration_s: float, seed: int, progress: bool
         except FlightError as error:
             errors.append(str(error))
             continue
-        recording.metadata["pilot"] = "random-style"
+        recording.metadata["pilot"] = pilot
         recording.metadata["pilot_style"] = json.dumps(dataclasses.asdict(style))
         return recording
     raise FlightError(
-        f"{vehicle} seed {seed}: none of {MAX_STYLE_DRAWS} random pilot styles flew "
+        f"{vehicle} seed {seed}: none of {MAX_STYLE_DRAWS} {pilot} pilot styles flew "
         f"{duration_s:g} s; the last: {errors[-1]}"
     )
 
@@ -155,8 +174,10 @@ def flight_recording(
         cached = Path(cache_dir) / f"{flight.vehicle}_{pilot}{flight.seed}_{duration_s:g}s.csv"
         if cached.is_file():
             return load_recording(cached)
-    if flight.pilot == "random-style":
-        recording = _fly_random_style(flight.vehicle, duration_s, flight.seed, progress)
+    if flight.pilot in ("random-style", "human"):
+        recording = _fly_drawn_style(
+            flight.vehicle, duration_s, flight.seed, progress, flight.pilot
+        )
     else:
         pilot = "route" if flight.pilot == "route" else "scripted"
         recording = fly(flight.vehicle, duration_s, flight.seed, progress=progress, pilot=pilot)

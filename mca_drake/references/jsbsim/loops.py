@@ -18,6 +18,8 @@ import dataclasses
 import math
 from collections import deque
 
+import numpy as np
+
 from mca_drake.references.jsbsim.aircraft import STEP_S, Airframe, G
 from mca_drake.references.jsbsim.config import FlightConfig
 from mca_drake.references.jsbsim.model import AircraftState, Controls
@@ -120,6 +122,50 @@ class SpeedAxis:
     brake: float = 0.0
 
 
+class Hand:
+    """The pilot's hand between the decision and the controls: a first-order lag of
+    `lag_s` (the neuromuscular system) on each of aileron, elevator and rudder, with
+    remnant noise added before it (white, scaled so that its RMS after the lag is
+    `remnant`; `PilotStyle.neuromuscular_lag_s`, `remnant`). Without a lag it passes the
+    commands through.
+
+    Args:
+        lag_s: the lag's time constant, s (0: none).
+        remnant: RMS of the remnant at the controls, normalised deflection (needs a lag).
+        seed: the remnant's random stream.
+    """
+
+    def __init__(self, lag_s: float, remnant: float, seed: int) -> None:
+        # exact discretisation of dy/dt = (u - y) / lag_s with u held over a step
+        self._alpha = 1.0 - math.exp(-STEP_S / lag_s) if lag_s > 0 else 1.0
+        # white noise of variance s^2 through y += alpha (n - y) has variance
+        # s^2 alpha / (2 - alpha)
+        a = self._alpha
+        self._noise = remnant * math.sqrt((2.0 - a) / a) if remnant > 0 else 0.0
+        self._rng = np.random.default_rng([seed, REMNANT_STREAM]) if self._noise else None
+        self._position: list[float] | None = None
+
+    def move(self, commands: tuple[float, float, float]) -> tuple[float, float, float]:
+        """The controls (3) after one step toward `commands` (3); the first call starts
+        at `commands` (the trim, not a bump)."""
+        if self._alpha == 1.0:
+            return commands
+        targets = list(commands)
+        if self._rng is not None:
+            noise = self._rng.standard_normal(3) * self._noise
+            targets = [c + n for c, n in zip(targets, noise.tolist(), strict=True)]
+        if self._position is None:
+            self._position = list(commands)
+        a = self._alpha
+        self._position = [p + a * (t - p) for p, t in zip(self._position, targets, strict=True)]
+        # a hand holds the stick inside its travel
+        return tuple(clip(p, -1.0, 1.0) for p in self._position)
+
+
+# The remnant's stream of a flight's seed (apart from the plan's and the style's draws).
+REMNANT_STREAM = 4
+
+
 class Loops:
     """The pilot's four loops, reading `state` and writing `controls` once per step.
 
@@ -153,6 +199,7 @@ class Loops:
         # (the first command is held until the delay has passed: the trim, not a bump)
         self._delay = round(style.reaction_delay_s / STEP_S)
         self._delayed: deque[tuple[float, float, float]] = deque()
+        self._hand = Hand(style.neuromuscular_lag_s, style.remnant, style.remnant_seed)
         self.state = state
         self.controls = controls
         self.roll = RollAxis(mode=ROLL_HEADING, rate_max=air.roll_rate_max)
@@ -196,6 +243,7 @@ class Loops:
                 aileron, elevator, rudder = self._delayed.popleft()
             else:
                 aileron, elevator, rudder = self._delayed[0]
+        aileron, elevator, rudder = self._hand.move((aileron, elevator, rudder))
         self.controls.write(aileron, elevator, rudder, throttle, self.speed.brake)
 
     def _aileron(self, sched: float, airborne: bool) -> float:

@@ -69,6 +69,14 @@ class PilotStyle:
     # None: the vehicle's default.
     turbulence_severity: int | None = None
     turbulence_patch_severity: int | None = None
+    # The hand's neuromuscular lag: a first-order lag of this time constant between the
+    # (delayed) decision and the controls, s (0: none; a human's is about 0.1 s).
+    neuromuscular_lag_s: float = 0.0
+    # Remnant: noise the pilot adds to every control, uncorrelated with the task, RMS at the
+    # controls in normalised deflection (0: none); it passes the neuromuscular lag, which
+    # shapes its spectrum, so it needs one. Drawn from `remnant_seed`.
+    remnant: float = 0.0
+    remnant_seed: int = 0
 
     def validate(self) -> None:
         """Raises ValueError for a style the pilot cannot fly."""
@@ -81,6 +89,15 @@ class PilotStyle:
             raise ValueError(
                 f"PilotStyle.reaction_delay_s must be in [0, 0.5] s; got {self.reaction_delay_s}"
             )
+        if not (np.isfinite(self.neuromuscular_lag_s) and 0.0 <= self.neuromuscular_lag_s <= 0.3):
+            raise ValueError(
+                f"PilotStyle.neuromuscular_lag_s must be in [0, 0.3] s; got "
+                f"{self.neuromuscular_lag_s}"
+            )
+        if not (np.isfinite(self.remnant) and 0.0 <= self.remnant <= 0.1):
+            raise ValueError(f"PilotStyle.remnant must be in [0, 0.1]; got {self.remnant}")
+        if self.remnant > 0 and self.neuromuscular_lag_s == 0:
+            raise ValueError("PilotStyle.remnant needs a neuromuscular_lag_s to shape it")
         weights = self.maneuver_weights
         if weights is not None:
             w = np.asarray(weights, dtype=float)
@@ -195,4 +212,54 @@ def sample_pilot_style(
         reaction_delay_s=delay,
         turbulence_severity=background,
         turbulence_patch_severity=patches,
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class HumanOperatorRanges:
+    """The human-operator pilot's distribution (`sample_human_operator`): McRuer's
+    crossover model of a human in a control loop, on the scripted pilot's tasks.
+
+    A human closes the loop around the aircraft with an effective time delay tau_e (reaction
+    and neuromuscular, 0.2 to 0.4 s in McRuer and Krendel's measurements), a neuromuscular
+    lag of about 0.1 s, and remnant, control activity uncorrelated with the task. The
+    crossover model (the pilot adapts so that pilot and aircraft together look like
+    omega_c e^(-tau_e s) / s near crossover) keeps a phase margin of pi / 2 - omega_c tau_e:
+    a later pilot crosses over lower. The loops' gains are therefore the scripted pilot's
+    times tau_0 / (tau_0 + tau_e) (`CROSSOVER_DELAY_S` for tau_0: the delay the scripted
+    pilot's own loops tolerate at full gain), and the manoeuvre mix is the scripted
+    pilot's: the same tasks, flown as a human would.
+    """
+
+    reaction_delay_s: tuple[float, float] = (0.15, 0.25)
+    neuromuscular_lag_s: tuple[float, float] = (0.08, 0.15)
+    # Remnant RMS at the controls, normalised deflection.
+    remnant: tuple[float, float] = (0.005, 0.02)
+    # How hard the human flies (rate limits, the hand's speed), as the random styles'.
+    aggressiveness: tuple[float, float] = (0.7, 1.0)
+
+
+# The effective delay tau_0 at which the crossover model halves the scripted pilot's loop
+# gains (`HumanOperatorRanges`), s: the 0.1 s of added delay at full gain that the random
+# styles fly safely, plus the hand's lag.
+CROSSOVER_DELAY_S = 0.25
+
+
+def sample_human_operator(seed: int, rng: np.random.Generator, ranges=None) -> PilotStyle:
+    """A human operator's style drawn from `ranges` (default HumanOperatorRanges()): delay
+    (whole 0.01 s steps), neuromuscular lag and remnant uniform, aggressiveness
+    log-uniform, the loop gains the crossover model's (`HumanOperatorRanges`); its
+    remnant drawn from `seed`'s own stream."""
+    ranges = ranges or HumanOperatorRanges()
+    delay = round(float(rng.uniform(*ranges.reaction_delay_s)), 2)
+    lag = float(rng.uniform(*ranges.neuromuscular_lag_s))
+    gain = CROSSOVER_DELAY_S / (CROSSOVER_DELAY_S + delay + lag)
+    return PilotStyle(
+        outer_gain=max(gain, 0.2),
+        inner_gain=max(gain, 0.2),
+        aggressiveness=float(np.exp(rng.uniform(*np.log(ranges.aggressiveness)))),
+        reaction_delay_s=delay,
+        neuromuscular_lag_s=lag,
+        remnant=float(rng.uniform(*ranges.remnant)),
+        remnant_seed=int(seed),
     )
