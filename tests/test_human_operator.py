@@ -25,6 +25,7 @@ from mca_drake.references.jsbsim.aircraft import STEP_S
 from mca_drake.references.jsbsim.loops import Hand
 from mca_drake.references.jsbsim.style import (
     CROSSOVER_DELAY_S,
+    CROSSOVER_INNER_S,
     HumanOperatorRanges,
     PilotStyle,
 )
@@ -84,8 +85,9 @@ def test_a_human_operator_is_drawn_from_its_seed_with_the_crossover_models_gains
         assert ranges.neuromuscular_lag_s[0] <= lag <= ranges.neuromuscular_lag_s[1]
         assert ranges.remnant[0] <= style.remnant <= ranges.remnant[1]
         tau_e = style.reaction_delay_s + lag
-        gain = CROSSOVER_DELAY_S / (CROSSOVER_DELAY_S + tau_e)
-        assert style.inner_gain == pytest.approx(gain) and style.outer_gain == pytest.approx(gain)
+        assert style.outer_gain == pytest.approx(CROSSOVER_DELAY_S / (CROSSOVER_DELAY_S + tau_e))
+        # the inner loops cross over as 1 / tau_e (within the style's allowed gains)
+        assert style.inner_gain == pytest.approx(min(max(CROSSOVER_INNER_S / tau_e, 0.2), 1.0))
         assert style.maneuver_weights is None  # the scripted pilot's tasks
     assert human_operator(700) != human_operator(701)
 

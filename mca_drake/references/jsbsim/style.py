@@ -221,27 +221,32 @@ class HumanOperatorRanges:
     crossover model of a human in a control loop, on the scripted pilot's tasks.
 
     A human closes the loop around the aircraft with an effective time delay tau_e (reaction
-    and neuromuscular, 0.2 to 0.4 s in McRuer and Krendel's measurements), a neuromuscular
-    lag of about 0.1 s, and remnant, control activity uncorrelated with the task. The
-    crossover model (the pilot adapts so that pilot and aircraft together look like
-    omega_c e^(-tau_e s) / s near crossover) keeps a phase margin of pi / 2 - omega_c tau_e:
-    a later pilot crosses over lower. The loops' gains are therefore the scripted pilot's
-    times tau_0 / (tau_0 + tau_e) (`CROSSOVER_DELAY_S` for tau_0: the delay the scripted
-    pilot's own loops tolerate at full gain), and the manoeuvre mix is the scripted
-    pilot's: the same tasks, flown as a human would.
+    and neuromuscular, 0.2 to 0.4 s in McRuer and Krendel's measurements; a trained pilot's
+    at the low end), a neuromuscular lag of about 0.1 s, and remnant, control activity
+    uncorrelated with the task. The crossover model (the pilot adapts so that pilot and
+    aircraft together look like omega_c e^(-tau_e s) / s near crossover) keeps a phase
+    margin of pi / 2 - omega_c tau_e: a later pilot crosses over lower, omega_c falling as
+    1 / tau_e. The inner loops (rate -> surface), the fastest, take that as their gain:
+    the scripted pilot's times `CROSSOVER_INNER_S` / tau_e; the outer loops, slower, the
+    scripted pilot's times `CROSSOVER_DELAY_S` / (`CROSSOVER_DELAY_S` + tau_e). The
+    manoeuvre mix is the scripted pilot's: the same tasks, flown as a human would.
     """
 
-    reaction_delay_s: tuple[float, float] = (0.15, 0.25)
-    neuromuscular_lag_s: tuple[float, float] = (0.08, 0.15)
+    reaction_delay_s: tuple[float, float] = (0.10, 0.15)
+    neuromuscular_lag_s: tuple[float, float] = (0.08, 0.12)
     # Remnant RMS at the controls, normalised deflection.
     remnant: tuple[float, float] = (0.005, 0.02)
     # How hard the human flies (rate limits, the hand's speed), as the random styles'.
     aggressiveness: tuple[float, float] = (0.7, 1.0)
 
 
-# The effective delay tau_0 at which the crossover model halves the scripted pilot's loop
-# gains (`HumanOperatorRanges`), s: the 0.1 s of added delay at full gain that the random
-# styles fly safely, plus the hand's lag.
+# The crossover model's delays for the human operator's gains (`HumanOperatorRanges`), s:
+# the effective delay at which the scripted pilot's inner loops (gain CROSSOVER_INNER_S /
+# tau_e) keep their phase margin, set where the light aircraft's pitch loop stops
+# oscillating (gain 0.3 at a delay of 0.1 s and a lag of 0.08 s, 0.2 at 0.15 and 0.1);
+# and the one at which the outer loops' gain halves (the 0.1 s of added delay at full
+# gain the random styles fly safely, plus a hand's lag).
+CROSSOVER_INNER_S = 0.055
 CROSSOVER_DELAY_S = 0.25
 
 
@@ -253,10 +258,10 @@ def sample_human_operator(seed: int, rng: np.random.Generator, ranges=None) -> P
     ranges = ranges or HumanOperatorRanges()
     delay = round(float(rng.uniform(*ranges.reaction_delay_s)), 2)
     lag = float(rng.uniform(*ranges.neuromuscular_lag_s))
-    gain = CROSSOVER_DELAY_S / (CROSSOVER_DELAY_S + delay + lag)
+    tau_e = delay + lag
     return PilotStyle(
-        outer_gain=max(gain, 0.2),
-        inner_gain=max(gain, 0.2),
+        outer_gain=CROSSOVER_DELAY_S / (CROSSOVER_DELAY_S + tau_e),
+        inner_gain=min(max(CROSSOVER_INNER_S / tau_e, 0.2), 1.0),
         aggressiveness=float(np.exp(rng.uniform(*np.log(ranges.aggressiveness)))),
         reaction_delay_s=delay,
         neuromuscular_lag_s=lag,
