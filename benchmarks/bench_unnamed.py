@@ -32,7 +32,8 @@ import numpy as np
 from common import default_result_path, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
-from mca_drake.cueing.dpc import DpcConfig
+from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.cueing.dpc import DpcConfig, policy_record
 from mca_drake.cueing.recognition import RecognitionConfig
 from mca_drake.platforms.files import load_platform
 from mca_drake.references.drives import motion_reference
@@ -47,6 +48,7 @@ NMPCS = ("nmpc-rti", "nmpc-rti-ground")
 # The recognizer's settings the runs were made with.
 RECOGNITION = json.loads(json.dumps(dataclasses.asdict(RecognitionConfig())))
 KEPT = ("pi", "pi_zero_motion", "violations", "safety_interventions", "policy_file")
+KEPT += ("out_of_distribution",)
 
 
 def run_case(case, seeds, duration_s: float, runs_dir: Path, robot) -> dict:
@@ -77,8 +79,23 @@ def run_case(case, seeds, duration_s: float, runs_dir: Path, robot) -> dict:
                 run |= made
                 atomic_write_json(path, run)
                 print(f"{case.name} {seed} {label}: PI {run['pi']:.3f}", flush=True)
+            if "out_of_distribution" not in run:  # a run from before the summary had it
+                spec = case.spec_of(seed)
+                y = motion_reference(spec, duration_s, cache_dir=runs_dir / "flights").y
+                run["out_of_distribution"] = out_of_distribution(config, run, y, robot)
+                atomic_write_json(path, run)
             results[label][seed] = run
     return results
+
+
+def out_of_distribution(config: DpcConfig, run: dict, y: np.ndarray, robot) -> dict | None:
+    """The run's out-of-distribution record (`cueing.dpc.policy_record`) from its
+    reference `y` and its recorded changes of policy."""
+    names = [Path(p).name for p in config.recognized_policy_paths(robot.name) or ()]
+    changes = [(c["t_s"], names.index(c["policy_file"])) for c in run["policy_changes"]]
+    n = round(run["duration_s"] / CONTROL_PERIOD_S)
+    record = policy_record(config, robot.name, changes, y[:n], CONTROL_PERIOD_S)
+    return record["out_of_distribution"]
 
 
 def case_figures(results: dict, suite_case: dict | None, seeds) -> dict:
@@ -89,12 +106,17 @@ def case_figures(results: dict, suite_case: dict | None, seeds) -> dict:
     for label, runs in results.items():
         pis = np.array([runs[s]["pi"] for s in seeds])
         zero = np.array([runs[s]["pi_zero_motion"] for s in seeds])
+        shares = [(runs[s]["out_of_distribution"] or {"share": np.nan})["share"] for s in seeds]
         entry = {
             "pi_median": float(np.median(pis)),
             "better_than_zero_motion": int(np.sum(pis < zero)),
             "worst_against_zero_motion": float(np.max(pis - zero)),
             "violations": int(sum(sum(runs[s]["violations"].values()) for s in seeds)),
             "ended_with": dict(Counter(runs[s]["policy_file"] for s in seeds)),
+            # share of the time the reference lay outside the running policy's training
+            # range (`out_of_distribution`), median and largest over the flights
+            "out_of_distribution_median": float(np.median(shares)),
+            "out_of_distribution_max": float(np.max(shares)),
         }
         for nmpc in NMPCS:
             other = (suite_case or {}).get("mcas", {}).get(nmpc)
@@ -156,12 +178,16 @@ def main() -> None:
                 f"case {case.name} {label:10s} median PI {entry['pi_median']:.3f}; against the "
                 f"NMPC-rti median {versus.get('median_difference', float('nan')):+.3f}, worst "
                 f"{versus.get('worst_difference', float('nan')):+.3f}; better than zero motion "
-                f"on {entry['better_than_zero_motion']}/{len(seeds)}; ended with "
+                f"on {entry['better_than_zero_motion']}/{len(seeds)}; outside the training "
+                f"range {entry['out_of_distribution_median']:.1%} (median); ended with "
                 f"{entry['ended_with']}"
             )
     out = args.json or default_result_path("unnamed.json")
     header = result_header(calibration)
-    header["suite"] = {"file": args.suite, "date": suite["provenance"]["date"]}
+    suite_file = Path(args.suite).resolve()
+    root = Path(__file__).resolve().parent.parent
+    named = suite_file.relative_to(root) if suite_file.is_relative_to(root) else suite_file
+    header["suite"] = {"file": str(named), "date": suite["provenance"]["date"]}
     atomic_write_json(out, {"provenance": header, "duration_s": args.duration, "cases": figures})
 
 

@@ -593,6 +593,46 @@ def _platforms(results_dir: Path, data: dict) -> list[str]:
     return lines
 
 
+def _unnamed(results_dir: Path, data: dict) -> list[str]:
+    lines = [
+        f"The suite's flights ({data['duration_s']:g} s) cued as recordings that name no "
+        "vehicle: the DPC recognizing the vehicle from the reference, and the default policy "
+        "throughout, against the suite's NMPC-rti on the same flights (for the drives also "
+        "its ground profile). Difference: DPC - NMPC-rti, median and worst flight (lower is "
+        "better); flights better than zero motion; the share of the time the reference lay "
+        "outside the running policy's training range; the policy each flight ended with.",
+        "",
+    ]
+    rows = []
+    for name, case in data["cases"].items():
+        for label, entry in case["dpcs"].items():
+            versus = entry.get("vs_nmpc-rti", {})
+            ground = entry.get("vs_nmpc-rti-ground")
+            ended = ", ".join(
+                f"{file.removesuffix('.npz')} {count}"
+                for file, count in entry["ended_with"].items()
+            )
+            rows.append(
+                [
+                    f"{name} ({case['vehicle']})",
+                    label,
+                    fmt_pi(entry["pi_median"]),
+                    fmt_pi(versus["nmpc_pi_median"]) if versus else "-",
+                    f"{versus['median_difference']:+.3f}" if versus else "-",
+                    f"{versus['worst_difference']:+.3f}" if versus else "-",
+                    f"{ground['median_difference']:+.3f}" if ground else "-",
+                    f"{entry['better_than_zero_motion']}/{len(case['seeds'])}",
+                    f"{entry['out_of_distribution_median']:.1%} "
+                    f"({entry['out_of_distribution_max']:.1%})",
+                    ended,
+                ]
+            )
+    header = ["case", "DPC", "median PI", "NMPC-rti", "difference", "worst"]
+    header += ["vs NMPC-rti ground", "better than zero motion"]
+    header += ["outside the training range, median (largest)", "ended with"]
+    return [*lines, *_table(header, rows), ""]
+
+
 def _platform_suites(results_dir: Path, data: dict) -> list[str]:
     first = next(iter(data["platforms"].values()))
     cases = list(first["cases"])
@@ -907,6 +947,13 @@ SECTIONS = (
         "joint use and step time, the station's real-time factor, how each policy was "
         "trained, and what the rail adds per channel (`bench_platforms.py`)",
         _platforms,
+    ),
+    Section(
+        "References that name no vehicle",
+        "unnamed.json",
+        "the suite's flights cued without their vehicle's name, the DPC recognizing it from "
+        "the reference (`bench_unnamed.py`)",
+        _unnamed,
     ),
     Section(
         "Validation flights",

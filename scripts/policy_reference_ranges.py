@@ -4,7 +4,8 @@
 
 Each shipped policy was last trained on a dataset of the training guide (its metadata's
 `dataset`), on the flights of the vehicles its `dpc_config.vehicles` names (all where it
-names none). This flies or drives those flights again (the dataset's seeds, the scripted
+names none), from initial weights that learned every flight of the flight dataset: its
+range covers both. This flies or drives those flights again (the dataset's seeds, the scripted
 pilot, 5 minutes each: `references.drives.training_spec`, as `mca-drake dataset
 closed-loop` does; of the drives, the first six) and writes each policy's `ReferenceRange`
 (mirrored, as training mirrored half its windows). Flights are cached (`--cache-dir`): a
@@ -36,6 +37,8 @@ DATASET_FLIGHTS = {
     # takes minutes to simulate, and every drive runs the same two courses
     "datasets/drives/dataset.npz": ((("bmw-320i", "ford-escort", "vw-vanagon"), range(200, 206)),),
 }
+# The dataset every shipped policy's initial weights learned (the recipe's step 1 on it).
+INITIAL_DATASET = "datasets/mixed_t37/dataset.npz"
 # The policies whose ranges are written (a platform's moved policies read the KR500's).
 POLICIES = ("default_policy", "light_policy", "transport_policy", "ground_policy")
 DURATION_S = 300.0
@@ -61,6 +64,10 @@ def main() -> None:
         dataset = metadata["dataset"]
         vehicles = metadata.get("dpc_config", {}).get("vehicles") or ()
         flights = [(v, s) for v, s in dataset_flights(dataset) if not vehicles or v in vehicles]
+        if metadata.get("dpc_config", {}).get("initial_policy"):
+            # fine-tuned from weights that learned every flight of the flight dataset (the
+            # recipe's step 1 or 2, or the default policy): those flights are its too
+            flights += [f for f in dataset_flights(INITIAL_DATASET) if f not in flights]
         references = []
         for vehicle, seed in flights:
             spec = training_spec(vehicle, seed)
@@ -68,9 +75,9 @@ def main() -> None:
             print(f"{name}: {vehicle} {seed}", flush=True)
         kinds = ", ".join(sorted({v for v, _ in flights}))
         drives = dataset.endswith("drives/dataset.npz")
-        which = "the first " if drives else ""
-        what = "drives" if drives else "flights"
-        source = f"{which}{len(flights)} training {what} of {dataset} ({kinds}), mirrored"
+        source = f"{len(flights)} training flights and drives ({kinds}), mirrored"
+        if drives:
+            source += f"; of {dataset}'s drives the first six"
         records[name] = reference_range(references, mirrored=True, source=source).record()
     atomic_write_json(
         data_dir() / SHIPPED_RANGES_FILE,

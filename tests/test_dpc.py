@@ -483,6 +483,11 @@ def test_training_can_start_from_a_policy_file(trained, tmp_path):
     assert meta["training_wall_s_total"] == pytest.approx(
         meta["training_wall_s"] + first["training_wall_s"]
     )
+    # what it learned covers what its initial policy had learned (the hull of both)
+    learned, initial = meta["reference_range"], first["reference_range"]
+    assert all(a <= b for a, b in zip(learned["low"], initial["low"], strict=True))
+    assert all(a >= b for a, b in zip(learned["high"], initial["high"], strict=True))
+    assert "initial policy" in learned["source"]
     with pytest.raises(ValueError, match="initial_policy file not found"):
         DpcTrainingConfig(initial_policy=str(tmp_path / "missing.npz")).validate()
 

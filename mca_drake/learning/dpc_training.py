@@ -54,7 +54,11 @@ from mca_drake.cueing.dpc import (
     policy_platform,
     preview_offsets,
 )
-from mca_drake.cueing.reference_range import reference_range
+from mca_drake.cueing.reference_range import (
+    ReferenceRange,
+    policy_reference_range,
+    reference_range,
+)
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
 from mca_drake.learning.configs import DpcTrainingConfig
 from mca_drake.learning.output_models import PAPER_PLATFORM, MixedAnalyticalOutput
@@ -379,6 +383,28 @@ def check_base_yaw_invariance(plant: RolloutPlant) -> None:
         )
 
 
+def _learned_range(config: DpcTrainingConfig, dataset, train_targets) -> ReferenceRange:
+    """The range of the references a policy trained now has learned: its training split's
+    targets, and what its initial policy had learned where that records it (the hull)."""
+    own = reference_range(
+        [np.asarray(train_targets).reshape(-1, 6)],
+        mirrored=config.mirror_fraction > 0,
+        source=f"the training split of {dataset}",
+    )
+    if not config.initial_policy:
+        return own
+    initial = policy_reference_range(
+        config.initial_policy, load_policy_arrays(config.initial_policy)[1]
+    )
+    if initial is None:
+        return own
+    return ReferenceRange(
+        tuple(np.minimum(own.low, initial.low).tolist()),
+        tuple(np.maximum(own.high, initial.high).tolist()),
+        f"{own.source}, and its initial policy's: {initial.source}",
+    )
+
+
 def target_array(config: DpcTrainingConfig) -> str:
     """The dataset array the policy tracks: "Y" (NMPC-achieved outputs) or "R" (references)."""
     return "Y" if config.targets == "achieved" else "R"
@@ -695,11 +721,7 @@ def train_policy(
         # the platform whose joints the policy commands (`cueing.dpc.check_policy_platform`)
         "platform": plant.robot.summary(),
         # the targets it learned on, for the run summaries' out-of-distribution share
-        "reference_range": reference_range(
-            [np.asarray(train_targets).reshape(-1, 6)],
-            mirrored=config.mirror_fraction > 0,
-            source=f"the training split of {dataset}",
-        ).record(),
+        "reference_range": _learned_range(config, dataset, train_targets).record(),
     }
     names = ("X", "Y", "U") + (("R",) if config.targets == "reference" else ())
     if config.achievable_cost_floor > 0:
