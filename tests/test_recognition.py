@@ -27,6 +27,7 @@ from mca_drake.cueing.recognition import (
     initial_recognition_state,
     policy_changes,
     policy_weights,
+    recognition_final,
     recognition_step,
     recognized_policy,
 )
@@ -200,6 +201,26 @@ def test_the_hand_back_to_the_default_takes_its_own_shorter_time():
         assert weights[k][:2] == (0, TRANSPORT)
         assert weights[k][2] == pytest.approx(3 * share**2 - 2 * share**3, abs=1e-9)
     assert weights[change + 10] == (0, -1, 1.0)
+
+
+def test_decisions_become_final_and_stay_so():
+    roll = np.zeros((400, 6))
+    roll[:, 0] = 2.0 * CONFIG.light_roll_rate  # a fighter's roll: no transport, no light
+    pull = np.zeros((200, 6))
+    pull[:, 5] = 3.0  # a pull no road gives: no car
+    state, chosen = _run(np.vstack((roll, pull)))
+    assert recognition_final(state, CONFIG) and set(chosen) == {0}
+    for sample in (np.zeros(6), np.array([0.0, 0.0, 0.15, 0.0, 2.0, 0.0])):
+        for _ in range(500):  # a transport's calm, a car's bend: nothing changes now
+            recognition_step(state, sample, DT, CONFIG)
+    assert recognized_policy(state) == 0 and policy_changes(state) == []
+    # a car's decision is final once handed over; a transport's never
+    bend = np.zeros((600, 6))
+    bend[:, 4], bend[:, 2] = 2.0, 0.15
+    state, _ = _run(bend)
+    assert recognized_policy(state) == GROUND and recognition_final(state, CONFIG)
+    state, _ = _run(np.zeros((2500, 6)))
+    assert recognized_policy(state) == TRANSPORT and not recognition_final(state, CONFIG)
 
 
 def test_settings_that_are_not_positive_are_refused():

@@ -288,6 +288,20 @@ def policy_weights(state, config: RecognitionConfig) -> tuple[int, int, float]:
     return policy, previous, share * share * (3.0 - 2.0 * share)
 
 
+def recognition_final(state, config: RecognitionConfig) -> bool:
+    """Whether nothing can change any more: the ground policy runs, or the default with
+    every other kind ruled out, and its hand-over is over. Stepping such a state changes
+    only its clock, so the DPC stops stepping it (a few microseconds a step)."""
+    policy = int(state[_POLICY])
+    if policy == DEFAULT:
+        ruled_out = state[_NOT_TRANSPORT] and state[_NOT_GROUND]
+        if not (ruled_out and (state[_NOT_LIGHT] or not config.recognize_light)):
+            return False
+    elif policy != GROUND:
+        return False
+    return policy_weights(state, config)[1] < 0
+
+
 def recognized_policy(state) -> int:
     """The index in RECOGNIZED_POLICIES of the policy `state` has chosen."""
     return int(state[_POLICY])
@@ -309,6 +323,7 @@ __all__ = [
     "initial_recognition_state",
     "policy_changes",
     "policy_weights",
+    "recognition_final",
     "recognition_step",
     "recognized_policy",
 ]

@@ -23,7 +23,9 @@ from mca_drake.cueing.recognition import (
     initial_recognition_state,
     policy_changes,
     policy_weights,
+    recognition_final,
     recognition_step,
+    recognized_policy,
 )
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.safety import ViabilityClamp
@@ -147,6 +149,8 @@ class DpcPolicy(LeafSystem):
         if self._inferences is None:
             return None
         state = discrete.get_value(self._recognition_index).tolist()
+        if recognition_final(state, self._recognition):
+            return recognized_policy(state), -1, 1.0
         recognition_step(state, reference.tolist(), self._time_step, self._recognition)
         discrete.set_value(self._recognition_index, np.array(state))
         return policy_weights(state, self._recognition)
