@@ -32,9 +32,7 @@ import numpy as np
 from common import default_result_path, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
-from mca_drake.conventions import CONTROL_PERIOD_S
-from mca_drake.cueing.dpc import DpcConfig, policy_record
-from mca_drake.cueing.recognition import RecognitionConfig
+from mca_drake.cueing.dpc import DpcConfig
 from mca_drake.platforms.files import load_platform
 from mca_drake.references.drives import motion_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
@@ -45,8 +43,6 @@ from mca_drake.studies.evaluation_cases import default_cases, policy_fingerprint
 DPCS = {"recognized": DpcConfig(), "default": DpcConfig(unnamed="default")}
 # The suite's MCAs each flight is compared with (those a case's report holds).
 NMPCS = ("nmpc-rti", "nmpc-rti-ground")
-# The recognizer's settings the runs were made with.
-RECOGNITION = json.loads(json.dumps(dataclasses.asdict(RecognitionConfig())))
 KEPT = ("pi", "pi_zero_motion", "violations", "safety_interventions", "policy_file")
 KEPT += ("out_of_distribution",)
 
@@ -59,12 +55,9 @@ def run_case(case, seeds, duration_s: float, runs_dir: Path, robot) -> dict:
         reference = None
         for label, config in DPCS.items():
             path = runs_dir / f"{case.name}_{label}_{seed}.json"
-            # the policies, and how the vehicle is recognized: a run of other settings is
-            # flown again
+            # the policies and the recognizer's settings: a run of others is flown again
             fingerprint = policy_fingerprint(config, robot.name)
             made = {"policy_sha256": fingerprint, "duration_s": duration_s}
-            if config.recognizes():
-                made["recognition"] = RECOGNITION
             run = json.loads(path.read_text()) if path.is_file() else {}
             if any(run.get(k) != v for k, v in made.items()):
                 if reference is None:
@@ -79,23 +72,8 @@ def run_case(case, seeds, duration_s: float, runs_dir: Path, robot) -> dict:
                 run |= made
                 atomic_write_json(path, run)
                 print(f"{case.name} {seed} {label}: PI {run['pi']:.3f}", flush=True)
-            if "out_of_distribution" not in run:  # a run from before the summary had it
-                spec = case.spec_of(seed)
-                y = motion_reference(spec, duration_s, cache_dir=runs_dir / "flights").y
-                run["out_of_distribution"] = out_of_distribution(config, run, y, robot)
-                atomic_write_json(path, run)
             results[label][seed] = run
     return results
-
-
-def out_of_distribution(config: DpcConfig, run: dict, y: np.ndarray, robot) -> dict | None:
-    """The run's out-of-distribution record (`cueing.dpc.policy_record`) from its
-    reference `y` and its recorded changes of policy."""
-    names = [Path(p).name for p in config.recognized_policy_paths(robot.name) or ()]
-    changes = [(c["t_s"], names.index(c["policy_file"])) for c in run["policy_changes"]]
-    n = round(run["duration_s"] / CONTROL_PERIOD_S)
-    record = policy_record(config, robot.name, changes, y[:n], CONTROL_PERIOD_S)
-    return record["out_of_distribution"]
 
 
 def case_figures(results: dict, suite_case: dict | None, seeds) -> dict:

@@ -141,10 +141,9 @@ class DpcConfig:
     vehicle: str = ""
     # What runs when nothing names the policy, the profile or the vehicle (a recording of
     # X-Plane or a logger, a flight simulator's stream): "recognize", the shipped policy of
-    # the vehicle recognized from the reference as it goes (`cueing.recognition`: the
-    # default policy, the transport policy while the reference stays inside the transport
-    # envelope, the ground policy once it shows a car), handed over smoothly; "default", the
-    # default policy throughout.
+    # the vehicle recognized from the reference as it goes (`cueing.recognition`: a
+    # transport, a light aircraft, a car, else the default policy), handed over smoothly;
+    # "default", the default policy throughout.
     unnamed: str = "recognize"
 
     def validate(self) -> None:

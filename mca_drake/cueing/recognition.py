@@ -56,8 +56,8 @@ DEFAULT, TRANSPORT, LIGHT, GROUND = range(len(RECOGNIZED_POLICIES))
 RECOGNITION_REASONS = (
     "no vehicle named: the default policy (nothing recognized)",
     "no vehicle named: recognized as a transport (rotation rates inside the transport envelope)",
-    "no vehicle named: recognized as a light aircraft (beyond the transport's rates, inside "
-    "a light aircraft's roll, yaw and surge)",
+    "no vehicle named: recognized as a light aircraft (slow pulls, inside a light "
+    "aircraft's roll, yaw, surge and sideslip)",
     "no vehicle named: recognized as a car (lateral force without roll, level)",
 )
 
@@ -146,41 +146,23 @@ class RecognitionConfig:
 
     def validate(self) -> None:
         """Raises ValueError for a non-positive or non-finite setting."""
-        values = {
-            "smoothing_s": self.smoothing_s,
-            "settle_s": self.settle_s,
-            "transport_surge": self.transport_surge,
-            "transport_vertical": self.transport_vertical,
-            "light_lateral": self.light_lateral,
-            "pull_pitch_rate": self.pull_pitch_rate,
-            "pull_vertical": self.pull_vertical,
-            "light_pull_speed": self.light_pull_speed,
-            "light_pull_s": self.light_pull_s,
-            "light_pull_ratio": self.light_pull_ratio,
-            "light_roll_rate": self.light_roll_rate,
-            "light_yaw_rate": self.light_yaw_rate,
-            "light_surge": self.light_surge,
-            "ground_lateral": self.ground_lateral,
-            "ground_roll_rate": self.ground_roll_rate,
-            "ground_vertical": self.ground_vertical,
-            "ground_hold_s": self.ground_hold_s,
-            "aircraft_vertical": self.aircraft_vertical,
-            "handover_s": self.handover_s,
-            "handback_s": self.handback_s,
-        }
         if len(self.transport_rates) != 3:
             raise ValueError(f"transport_rates must be 3 values; got {self.transport_rates}")
-        for i, rate in enumerate(self.transport_rates):
-            values[f"transport_rates[{i}]"] = rate
-        bad = [k for k, v in values.items() if not (math.isfinite(v) and v > 0)]
+        bad = []
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            if isinstance(value, bool):
+                continue
+            values = value if isinstance(value, tuple) else (value,)
+            if not all(math.isfinite(v) and v > 0 for v in values):
+                bad.append(field.name)
         if bad:
             raise ValueError(f"RecognitionConfig: {', '.join(bad)} must be positive and finite")
 
 
 # The recognizer's state, one vector of floats (the DPC keeps it in its discrete state, so
 # that a simulation re-run from a context starts over): the smoothed magnitudes of the six
-# channels, then the scalars below.
-_SMOOTHED = slice(0, 6)
+# channels (0-5), then the scalars below.
 _TIME, _GROUND_HELD, _NOT_TRANSPORT, _NOT_GROUND, _POLICY, _PREVIOUS, _SINCE, _NOT_LIGHT = range(
     6, 14
 )
@@ -261,7 +243,7 @@ def recognition_step(
         chosen = DEFAULT
     if chosen != policy:
         state[_PREVIOUS], state[_POLICY], state[_SINCE] = policy, chosen, now
-        # the first free slot: the transitions allow no fourth change
+        # the first free slot (MAX_CHANGES is the most the transitions allow)
         times = state[_FIRST_CHANGE::2]
         slot = _FIRST_CHANGE + 2 * next(k for k, t in enumerate(times) if not math.isfinite(t))
         state[slot], state[slot + 1] = now, chosen

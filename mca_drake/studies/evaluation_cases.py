@@ -9,6 +9,7 @@ that a resumed suite keeps: made with the same MCA config, duration, policy and 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 from pathlib import Path
 
@@ -26,6 +27,7 @@ from mca_drake.cueing import (
 )
 from mca_drake.cueing.dpc import for_vehicle
 from mca_drake.cueing.optimal import OptimalConfig
+from mca_drake.cueing.recognition import RecognitionConfig
 from mca_drake.input_checks import MAX_DURATION_S, check_range
 from mca_drake.platforms.files import DEFAULT_PLATFORM, SerialRobot, load_platform, packaged_name
 from mca_drake.references.drives import DriveSpec
@@ -174,15 +176,19 @@ def run_path(out: Path, case: str, mca: str, seed: int) -> Path:
 
 def policy_fingerprint(config, platform: str) -> str:
     """SHA-256 of a DpcConfig's policy file on the platform named `platform` (recorded in
-    every DPC run so that a resumed evaluation never mixes runs of two policies), those of
-    the policies it recognizes between joined by "+" (`DpcConfig.recognized_policy_paths`);
+    every DPC run so that a resumed evaluation never mixes runs of two policies); for a DPC
+    that recognizes the vehicle, those of the policies it chooses between
+    (`DpcConfig.recognized_policy_paths`) and of the recognizer's settings, joined by "+";
     "" for other MCAs."""
     if not isinstance(config, DpcConfig):
         return ""
     recognized = config.recognized_policy_paths(platform)
-    if recognized is not None:
-        return "+".join(file_sha256(path) for path in recognized)
-    return file_sha256(config.policy_path(platform))
+    if recognized is None:
+        return file_sha256(config.policy_path(platform))
+    settings = json.dumps(dataclasses.asdict(RecognitionConfig()), sort_keys=True)
+    return "+".join(
+        [*(file_sha256(path) for path in recognized), hashlib.sha256(settings.encode()).hexdigest()]
+    )
 
 
 def run_platform(summary: dict) -> str:
