@@ -4,6 +4,12 @@ recording that names none would be, against the NMPC-rti on the same flights.
     python benchmarks/bench_unnamed.py [--cases A,B,C,D,E] [--flights 10] [--duration 300]
         [--runs-dir results/unnamed] [--suite benchmarks/results/evaluation/evaluation.json]
         [--json benchmarks/results/unnamed.json]
+    python benchmarks/bench_unnamed.py --pilot human --cases A,B,C --flights 4
+
+`--pilot human` flies the flight cases' aircraft and seeds with the human-operator pilot
+that no training flies (`FlightSpec(pilot="human")`) instead, and cues each with the
+NMPC-rti too (the suite has no such runs); its figures go to
+`benchmarks/results/unnamed_human.json`.
 
 Flies the suite's cases (`mca_drake.studies.evaluation_cases.default_cases`: the light
 aircraft, the jet, aircraft neither trained nor tuned on, drives, the route pilot's
@@ -32,6 +38,7 @@ import numpy as np
 from common import default_result_path, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
+from mca_drake.cueing.configs import mca_config_from_name
 from mca_drake.cueing.dpc import DpcConfig
 from mca_drake.platforms.files import load_platform
 from mca_drake.references.drives import motion_reference
@@ -47,14 +54,19 @@ KEPT = ("pi", "pi_zero_motion", "violations", "safety_interventions", "policy_fi
 KEPT += ("out_of_distribution",)
 
 
-def run_case(case, seeds, duration_s: float, runs_dir: Path, robot) -> dict:
-    """{label: {seed: summary}} of the case's flights, cued unnamed by each of DPCS (runs on
-    disk made with the same policies are kept)."""
-    results: dict[str, dict[int, dict]] = {label: {} for label in DPCS}
+def run_case(
+    case, seeds, duration_s: float, runs_dir: Path, robot, pilot: str = "", mcas=None
+) -> dict:
+    """{label: {seed: summary}} of the case's flights, cued unnamed by each of `mcas`
+    (default DPCS; runs on disk made with the same policies are kept); `pilot`: flown by
+    this pilot instead of the case's."""
+    mcas = DPCS if mcas is None else mcas
+    results: dict[str, dict[int, dict]] = {label: {} for label in mcas}
+    tag = f"_{pilot}" if pilot else ""
     for seed in seeds:
         reference = None
-        for label, config in DPCS.items():
-            path = runs_dir / f"{case.name}_{label}_{seed}.json"
+        for label, config in mcas.items():
+            path = runs_dir / f"{case.name}_{label}_{seed}{tag}.json"
             # the policies and the recognizer's settings: a run of others is flown again
             fingerprint = policy_fingerprint(config, robot.name)
             made = {"policy_sha256": fingerprint, "duration_s": duration_s}
@@ -62,12 +74,14 @@ def run_case(case, seeds, duration_s: float, runs_dir: Path, robot) -> dict:
             if any(run.get(k) != v for k, v in made.items()):
                 if reference is None:
                     spec = case.spec_of(seed)
+                    if pilot:
+                        spec = dataclasses.replace(spec, pilot=pilot)
                     named = motion_reference(spec, duration_s, cache_dir=runs_dir / "flights")
                     reference = dataclasses.replace(named, vehicle="")  # as a recording
                 result = run_closed_loop(
                     mca=config, reference=reference, robot=robot, progress=False
                 )
-                run = {k: result.summary[k] for k in KEPT}
+                run = {k: result.summary.get(k) for k in KEPT}
                 run["policy_changes"] = result.summary.get("policy_changes", [])
                 run |= made
                 atomic_write_json(path, run)
@@ -116,6 +130,20 @@ def case_figures(results: dict, suite_case: dict | None, seeds) -> dict:
     return figures
 
 
+def print_case(name: str, dpcs: dict, flights: int) -> None:
+    """One line per DPC of a case's figures."""
+    for label, entry in dpcs.items():
+        versus = entry.get("vs_nmpc-rti", {})
+        print(
+            f"case {name} {label:10s} median PI {entry['pi_median']:.3f}; against the "
+            f"NMPC-rti median {versus.get('median_difference', float('nan')):+.3f}, worst "
+            f"{versus.get('worst_difference', float('nan')):+.3f}; better than zero motion "
+            f"on {entry['better_than_zero_motion']}/{flights}; outside the training "
+            f"range {entry['out_of_distribution_median']:.1%} (median); ended with "
+            f"{entry['ended_with']}"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cases", default="A,B,C,D,E", help="suite cases (default all)")
@@ -127,7 +155,16 @@ def main() -> None:
         default=str(default_result_path("evaluation/evaluation.json")),
         help="the suite's report whose NMPC-rti runs of the same flights are compared",
     )
-    parser.add_argument("--json", help="default benchmarks/results/unnamed.json")
+    parser.add_argument(
+        "--pilot",
+        choices=("", "human"),
+        default="",
+        help="'human': the flight cases flown by the human-operator pilot, each also cued by "
+        "the NMPC-rti (default: the suite's own flights, against the suite's NMPC-rti)",
+    )
+    parser.add_argument(
+        "--json", help="default benchmarks/results/unnamed.json (unnamed_human.json)"
+    )
     args = parser.parse_args()
     calibration = print_calibration()
     suite = json.loads(Path(args.suite).read_text())
@@ -135,6 +172,8 @@ def main() -> None:
         raise SystemExit(
             f"--suite {args.suite} flew {suite['duration_s']} s flights, not {args.duration}"
         )
+    if args.pilot:
+        return main_other_pilot(args, calibration)
     robot = load_platform("kr500")
     runs_dir = Path(args.runs_dir)
     runs_dir.mkdir(parents=True, exist_ok=True)
@@ -150,22 +189,40 @@ def main() -> None:
             "seeds": seeds,
             "dpcs": case_figures(results, suite["cases"].get(case.name), seeds),
         }
-        for label, entry in figures[case.name]["dpcs"].items():
-            versus = entry.get("vs_nmpc-rti", {})
-            print(
-                f"case {case.name} {label:10s} median PI {entry['pi_median']:.3f}; against the "
-                f"NMPC-rti median {versus.get('median_difference', float('nan')):+.3f}, worst "
-                f"{versus.get('worst_difference', float('nan')):+.3f}; better than zero motion "
-                f"on {entry['better_than_zero_motion']}/{len(seeds)}; outside the training "
-                f"range {entry['out_of_distribution_median']:.1%} (median); ended with "
-                f"{entry['ended_with']}"
-            )
+        print_case(case.name, figures[case.name]["dpcs"], len(seeds))
     out = args.json or default_result_path("unnamed.json")
     header = result_header(calibration)
     suite_file = Path(args.suite).resolve()
     root = Path(__file__).resolve().parent.parent
     named = suite_file.relative_to(root) if suite_file.is_relative_to(root) else suite_file
     header["suite"] = {"file": str(named), "date": suite["provenance"]["date"]}
+    atomic_write_json(out, {"provenance": header, "duration_s": args.duration, "cases": figures})
+
+
+def main_other_pilot(args, calibration) -> None:
+    """`--pilot`: the flight cases flown by that pilot, the DPCs against the NMPC-rti run on
+    the same flights here."""
+    robot = load_platform("kr500")
+    runs_dir = Path(args.runs_dir)
+    runs_dir.mkdir(parents=True, exist_ok=True)
+    mcas = {**DPCS, "nmpc-rti": mca_config_from_name("nmpc-rti")}
+    figures: dict = {}
+    for case in default_cases():
+        # the scripted pilot's flight cases: the drives have no pilot, case E its own
+        if case.name not in args.cases.split(",") or case.manoeuvres or case.pilot != "scripted":
+            continue
+        seeds = list(case.seeds[: args.flights])
+        results = run_case(case, seeds, args.duration, runs_dir, robot, args.pilot, mcas)
+        nmpc = results.pop("nmpc-rti")
+        own = {"mcas": {"nmpc-rti": {"seeds": seeds, "pi": [nmpc[s]["pi"] for s in seeds]}}}
+        figures[case.name] = {
+            "vehicle": case.label(),
+            "seeds": seeds,
+            "dpcs": case_figures(results, own, seeds),
+        }
+        print_case(case.name, figures[case.name]["dpcs"], len(seeds))
+    out = args.json or default_result_path(f"unnamed_{args.pilot}.json")
+    header = result_header(calibration) | {"pilot": args.pilot}
     atomic_write_json(out, {"provenance": header, "duration_s": args.duration, "cases": figures})
 
 

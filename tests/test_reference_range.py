@@ -111,3 +111,77 @@ def test_a_run_says_how_much_of_its_reference_its_policy_never_saw(tmp_path):
         mca=DpcConfig(profile="ground"), reference=_cornering(3.0), robot=KR500, progress=False
     )
     assert ground.summary["out_of_distribution"]["channels"]["f_y"] == 0.0
+
+
+def _policy_file(tmp_path, ranges: ReferenceRange):
+    """A random policy saved with `ranges` in its metadata, and the torch network itself."""
+    torch = pytest.importorskip("torch")
+    from mca_drake.learning.policy_network import PolicyNetwork, save_policy
+
+    torch.manual_seed(3)
+    policy = PolicyNetwork(KR500)
+    path = tmp_path / "ranged.npz"
+    save_policy(path, policy, {"reference_range": ranges.record()})
+    return path, policy
+
+
+def test_a_clipping_dpc_reads_the_reference_at_the_edge_of_its_range(tmp_path, rng):
+    """Oracle: the torch network evaluated on the reference clipped by hand, then the
+    viability clamp; and the same DPC without clipping reads the reference as it is."""
+    import torch
+    from pydrake.systems.analysis import Simulator
+
+    from mca_drake.safety import ViabilityClamp
+    from mca_drake.systems.dpc import DpcPolicy
+
+    ranges = ReferenceRange((-0.1, -0.1, -0.1, -1.0, -0.5, -2.0), (0.1, 0.1, 0.1, 2.0, 0.5, 3.0))
+    path, policy = _policy_file(tmp_path, ranges)
+    clamp = ViabilityClamp.for_robot(KR500, 0.01)
+
+    def command(system, x, y, r):
+        context = system.CreateDefaultContext()
+        for port, value in (("state", x), ("inertial_output", y), ("reference", r)):
+            system.GetInputPort(port).FixValue(context, value)
+        Simulator(system, context).AdvanceTo(0.005)  # the update at t = 0
+        return system.GetOutputPort("joint_acceleration").Eval(context)
+
+    def torch_command(x, y, r):
+        with torch.no_grad():
+            u = policy(*(torch.tensor(v, dtype=torch.float32)[None] for v in (y, x, r)))[0]
+        return clamp(x, u[0].double().numpy())[0]
+
+    clipping, plain = DpcPolicy(path, KR500, range_clip=True), DpcPolicy(path, KR500)
+    differences = []
+    for _ in range(5):
+        x = np.r_[rng.uniform(KR500.q_min, KR500.q_max) * 0.5, np.zeros(6)]
+        y = rng.normal(size=6) * 0.1
+        r = rng.normal(size=6) * 3.0  # mostly beyond the range
+        clipped = np.clip(r, ranges.low, ranges.high)
+        expected = torch_command(x, y, clipped)
+        np.testing.assert_allclose(command(clipping, x, y, r), expected, atol=1e-5)
+        np.testing.assert_allclose(command(plain, x, y, r), torch_command(x, y, r), atol=1e-5)
+        differences.append(np.abs(command(clipping, x, y, r) - command(plain, x, y, r)).max())
+    assert max(differences) > 1e-3  # the clip changed what the network read
+
+
+def test_the_clip_leaves_a_reference_inside_the_range_and_a_non_finite_one_refused(tmp_path):
+    ranges = ReferenceRange((-1.0,) * 6, (1.0,) * 6)
+    path, _ = _policy_file(tmp_path, ranges)
+    arrays, _ = load_policy_arrays(path)
+    from mca_drake.cueing.dpc import PolicyInference
+
+    clipping, plain = PolicyInference(arrays, ranges), PolicyInference(arrays)
+    x, y, r = np.zeros(12), np.full(6, 0.2), np.linspace(-0.9, 0.9, 6)
+    assert clipping.command(y, x, r) == plain.command(y, x, r)
+    assert clipping.command(y, x, 5 * r) == plain.command(y, x, np.clip(5 * r, -1.0, 1.0))
+    assert all(np.isnan(clipping.command(y, x, np.r_[np.nan, r[1:]])))
+
+
+def test_the_reference_is_clipped_where_the_policy_is_recognized_unless_told_otherwise():
+    assert DpcConfig().clips_reference()
+    assert not DpcConfig(vehicle="light").clips_reference()
+    assert not DpcConfig(unnamed="default").clips_reference()
+    assert DpcConfig(vehicle="light", range_clip="always").clips_reference()
+    assert not DpcConfig(range_clip="never").clips_reference()
+    with pytest.raises(ValueError, match="range_clip"):
+        DpcConfig(range_clip="sometimes").validate()

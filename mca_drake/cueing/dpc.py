@@ -145,6 +145,14 @@ class DpcConfig:
     # transport, a light aircraft, a car, else the default policy), handed over smoothly;
     # "default", the default policy throughout.
     unnamed: str = "recognize"
+    # When the network reads the reference clipped, channel by channel, into the range of
+    # the references its policy was trained on (`reference_range`; a policy without a range
+    # reads it as it is): "unnamed" where the policy is recognized (`recognizes`: a
+    # recording or stream that may be any vehicle), "always", or "never". A network beyond
+    # its training extrapolates: a car's 0.5 g of lateral force made the flight policy
+    # throw the cabin before the car was recognized; clipped, it reads the strongest
+    # lateral force it knows (decision 0025).
+    range_clip: str = "unnamed"
 
     def validate(self) -> None:
         """Raises ValueError for an unknown profile or `unnamed`, FileNotFoundError when the
@@ -154,6 +162,11 @@ class DpcConfig:
             raise ValueError(
                 f"DpcConfig.unnamed must be one of {', '.join(UNNAMED_CHOICES)}; got "
                 f"{self.unnamed!r}"
+            )
+        if self.range_clip not in RANGE_CLIP_CHOICES:
+            raise ValueError(
+                f"DpcConfig.range_clip must be one of {', '.join(RANGE_CLIP_CHOICES)}; got "
+                f"{self.range_clip!r}"
             )
         if self.policy and not Path(self.policy).is_file():
             raise FileNotFoundError(f"DpcConfig.policy: policy file {self.policy!r} not found")
@@ -183,6 +196,11 @@ class DpcConfig:
         profile or the vehicle, and `unnamed` is "recognize"."""
         return not (self.policy or self.profile or self.vehicle) and self.unnamed == "recognize"
 
+    def clips_reference(self) -> bool:
+        """Whether the network reads the reference clipped into its policy's training range
+        (`range_clip`)."""
+        return self.range_clip == "always" or (self.range_clip == "unnamed" and self.recognizes())
+
     def recognized_policy_paths(self, platform: str) -> tuple[Path, ...] | None:
         """The shipped policies the recognizer chooses between on the platform named
         `platform`, in the order of `cueing.recognition.RECOGNIZED_POLICIES` (the default
@@ -202,6 +220,9 @@ def _platform_policy_path(platform: str, name: str) -> Path:
 # "recognize": the policy of the vehicle recognized from the reference; "default": the
 # default policy (`DpcConfig.unnamed`).
 UNNAMED_CHOICES = ("recognize", "default")
+# DpcConfig.range_clip: clip the reference into the policy's training range where the policy
+# is recognized, always, or never.
+RANGE_CLIP_CHOICES = ("unnamed", "always", "never")
 
 
 def platform_policy_name(platform: str, name: str) -> str:
@@ -410,9 +431,14 @@ class PolicyInference:
         arrays: W1 (hidden, 12 + 2n), W2 (3n, hidden), input_scale (12 + 2n), lower, upper
             (3n) for a platform of n joints, as written by
             `mca_drake.learning.policy_network.save_policy` (see `load_policy_arrays`).
+        reference_range: where given, the target (and each preview sample) is clipped,
+            channel by channel, into this range of the policy's training references before
+            the network reads it (`DpcConfig.range_clip`); None: read as it is.
     """
 
-    def __init__(self, arrays: dict[str, np.ndarray]):
+    def __init__(
+        self, arrays: dict[str, np.ndarray], reference_range: ReferenceRange | None = None
+    ):
         # Fold the input scaling and GELU's 1/sqrt(2) into the first layer and GELU's
         # 1/2 and sqrt(2) into the second: with b = W1 v / sqrt(2),
         # W2 gelu(W1 v) = W2 (1/2) sqrt(2) b (1 + erf(b)) = (W2 / sqrt(2)) (b + b erf(b)):
@@ -424,13 +450,27 @@ class PolicyInference:
         # u's rows and bounds alone, for `command`
         self._W2_u = np.ascontiguousarray(self._W2[:n])
         self._u_bounds = list(zip(self._lower[:n].tolist(), self._upper[:n].tolist(), strict=True))
+        self.reference_range = reference_range
+        self._low = self._high = None
+        if reference_range is not None:
+            self._low, self._high = np.array(reference_range.low), np.array(reference_range.high)
+
+    def _features(self, y, x, target, preview) -> np.ndarray:
+        """The network's input: y, x, the target and the preview, the last two clipped into
+        the reference range where there is one (NaN passes the clip: `command` sees it)."""
+        if self._low is not None:
+            target = np.minimum(np.maximum(target, self._low), self._high)
+            if len(preview):
+                rows = np.reshape(preview, (-1, 6))
+                preview = np.minimum(np.maximum(rows, self._low), self._high).reshape(-1)
+        return np.concatenate((y, x, target, preview))
 
     def __call__(self, y, x, target, preview=()) -> tuple[np.ndarray, np.ndarray]:
         """(u (n), x_hat (2n)) for y (6), x (2n), target (6) and, for a policy with a
         preview, the reference at its `preview_offsets` (24); 1-D numpy arrays."""
         # A new feature vector per call (0.1 us), not a buffer on self: one inference object
         # may serve several contexts at once.
-        b = self._W1 @ np.concatenate((y, x, target, preview))
+        b = self._W1 @ self._features(y, x, target, preview)
         z = np.minimum(np.maximum(self._W2 @ (b + b * erf(b)), self._lower), self._upper)
         return z[: self.joints], z[self.joints :]
 
@@ -439,7 +479,7 @@ class PolicyInference:
         (fewer numpy calls, and none to bound u). NaN in all where an input is not finite
         (their sum is not: one call instead of a check per input) or the network overflows,
         which the bounds would otherwise hide."""
-        features = np.concatenate((y, x, target, preview))
+        features = self._features(y, x, target, preview)
         if not math.isfinite(features.sum()):
             return [math.nan] * self.joints
         b = self._W1 @ features

@@ -109,6 +109,7 @@ def AddMca(
                 time_step,
                 update_event,
                 recognized=config.recognized_policy_paths(robot.name),
+                range_clip=config.clips_reference(),
             ),
         )
     if isinstance(config, WashoutConfig):

@@ -179,15 +179,24 @@ def policy_fingerprint(config, platform: str) -> str:
     every DPC run so that a resumed evaluation never mixes runs of two policies); for a DPC
     that recognizes the vehicle, those of the policies it chooses between
     (`DpcConfig.recognized_policy_paths`) and of the recognizer's settings, joined by "+";
-    "" for other MCAs."""
+    "+clip" appended where the network reads the reference clipped into its range
+    (`DpcConfig.clips_reference`); "" for other MCAs."""
     if not isinstance(config, DpcConfig):
         return ""
     recognized = config.recognized_policy_paths(platform)
+    # a clipped reference changes the commands: a run of either kind is not the other's
+    clip = "+clip" if config.clips_reference() else ""
     if recognized is None:
-        return file_sha256(config.policy_path(platform))
+        return file_sha256(config.policy_path(platform)) + clip
     settings = json.dumps(dataclasses.asdict(RecognitionConfig()), sort_keys=True)
-    return "+".join(
-        [*(file_sha256(path) for path in recognized), hashlib.sha256(settings.encode()).hexdigest()]
+    return (
+        "+".join(
+            [
+                *(file_sha256(path) for path in recognized),
+                hashlib.sha256(settings.encode()).hexdigest(),
+            ]
+        )
+        + clip
     )
 
 

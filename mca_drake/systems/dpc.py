@@ -27,6 +27,7 @@ from mca_drake.cueing.recognition import (
     recognition_step,
     recognized_policy,
 )
+from mca_drake.cueing.reference_range import policy_reference_range
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
@@ -71,6 +72,10 @@ class DpcPolicy(LeafSystem):
             is recognized from the reference as it goes and each change of policy handed
             over smoothly (`recognition.policy_weights`). None: `policy` throughout.
         recognition: the recognizer's settings (default `RecognitionConfig()`).
+        range_clip: each policy file's network reads the reference clipped into the range
+            of the references it was trained on (`cueing.reference_range`;
+            `DpcConfig.range_clip`); a policy given as arrays, or without a range, reads it
+            as it is.
     """
 
     def __init__(
@@ -82,12 +87,13 @@ class DpcPolicy(LeafSystem):
         preview_steps: int = 0,
         recognized: tuple | None = None,
         recognition: RecognitionConfig | None = None,
+        range_clip: bool = False,
     ):
         super().__init__()
         self._robot = robot
         self._time_step = time_step
         if recognized is None:
-            self._inference, preview_steps = _inference(policy, robot, preview_steps)
+            self._inference, preview_steps = _inference(policy, robot, preview_steps, range_clip)
             self._inferences = None
         else:
             if len(recognized) != len(RECOGNIZED_POLICIES):
@@ -95,7 +101,7 @@ class DpcPolicy(LeafSystem):
                     f"recognized: {len(RECOGNIZED_POLICIES)} policies "
                     f"({', '.join(RECOGNIZED_POLICIES)}); got {len(recognized)}"
                 )
-            loaded = [_inference(p, robot, preview_steps) for p in recognized]
+            loaded = [_inference(p, robot, preview_steps, range_clip) for p in recognized]
             if len({steps for _, steps in loaded}) > 1:
                 raise ValueError("the recognized policies must share one reference preview")
             self._inferences = [inference for inference, _ in loaded]
@@ -204,16 +210,22 @@ class DpcPolicy(LeafSystem):
         )
 
 
-def _inference(policy, robot: SerialChain, preview_steps: int) -> tuple[PolicyInference, int]:
+def _inference(
+    policy, robot: SerialChain, preview_steps: int, range_clip: bool = False
+) -> tuple[PolicyInference, int]:
     """(the inference, its reference preview in periods) of a policy file (checked against
-    `robot`) or arrays (whose preview is `preview_steps`)."""
+    `robot`; with `range_clip`, reading the reference clipped into its range) or arrays
+    (whose preview is `preview_steps`)."""
+    ranges = None
     if isinstance(policy, str | Path):
         arrays, metadata = load_policy_arrays(policy)
         check_policy_platform(policy, metadata, robot.name)
         preview_steps = policy_preview_steps(metadata)
+        if range_clip:
+            ranges = policy_reference_range(policy, metadata)
     else:
         arrays, preview_steps = policy, int(preview_steps)
-    inference = PolicyInference(arrays)
+    inference = PolicyInference(arrays, ranges)
     if inference.joints != robot.num_joints:
         raise ValueError(
             f"the DPC policy commands {inference.joints} joints, platform '{robot.name}' has "
