@@ -160,6 +160,7 @@ def run_closed_loop_scenario(
         json_path=json_path,
         plot_dir=plot_dir,
         perception=scenario.perception,
+        plausibility=scenario.plausibility,
     )
 
 
@@ -258,6 +259,7 @@ def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None
         plant=scenario.plant,
         meshcat=meshcat,
         rsi=rsi,
+        plausibility=scenario.plausibility,
     )
     if scenario.output_json:
         atomic_write_json(scenario.output_json, summary)

@@ -32,6 +32,7 @@ from mca_drake.cueing import (
 )
 from mca_drake.cueing.dpc import load_policy_arrays, policy_preview_steps
 from mca_drake.cueing.optimal import OptimalConfig
+from mca_drake.cueing.plausibility import PlausibilityConfig
 from mca_drake.cueing.profiles import profile_config
 from mca_drake.input_checks import (
     MAX_DURATION_S,
@@ -139,6 +140,9 @@ class ClosedLoopScenario:
     # The vestibular model and thresholds of the summary's perceived figures
     # (`mca_drake.perception`).
     perception: PerceptionConfig = dataclasses.field(default_factory=PerceptionConfig)
+    # The input plausibility guard in front of the MCA (`mca_drake.cueing.plausibility`:
+    # spikes, step bounds, frozen streams); `{enabled: false}` reads the reference as it is.
+    plausibility: PlausibilityConfig = dataclasses.field(default_factory=PlausibilityConfig)
     # Folder for summary.json, tracking.png (Fig. 4), perceived.png and joint_usage.png
     # (Fig. 5).
     output_dir: str = "results/closed_loop"
@@ -167,6 +171,7 @@ class ClosedLoopScenario:
         self.flight.validate()
         self.station.validate()
         self.perception.validate()
+        self.plausibility.validate()
 
 
 @dataclasses.dataclass
@@ -381,6 +386,9 @@ class LiveScenario:
     # Pace of the loop against the wall clock: 1 is real time (live telemetry, a robot); 0
     # steps as fast as it can (a replayed stream); at most 10 (MAX_LIVE_REALTIME_RATE).
     realtime_rate: float = 1.0
+    # The input plausibility guard in front of the MCA (`mca_drake.cueing.plausibility`:
+    # spikes, step bounds, a paused game's frozen stream faded out and back).
+    plausibility: PlausibilityConfig = dataclasses.field(default_factory=PlausibilityConfig)
     # The result summary with its live (and rsi) block; "": none.
     output_json: str = "results/live/summary.json"
     # The motion platform cued: a packaged name (`mca-drake platforms`), a platform file,
@@ -410,6 +418,7 @@ class LiveScenario:
             self.rsi.validate()
         except ValueError as err:
             raise ValueError(f"LiveScenario.rsi: {err}") from None
+        self.plausibility.validate()
         for name in ("beamng", "outsim", "f1"):
             try:
                 getattr(self, name).validate()

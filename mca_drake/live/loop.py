@@ -33,6 +33,7 @@ from pydrake.systems.framework import (
 
 from mca_drake.cueing import McaConfig, as_mca_config
 from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_record
+from mca_drake.cueing.plausibility import PlausibilityConfig
 from mca_drake.live.decoders import PROTOCOLS, make_decoder
 from mca_drake.live.live_summary import (
     STALL_PERIODS,
@@ -57,7 +58,12 @@ from mca_drake.live.supervisor import Supervisor, SupervisorConfig
 from mca_drake.live.telemetry import Decoder
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import ReferenceScaling
-from mca_drake.simulation.builders import AddMca, AddMeshcatDrawing, default_visualization
+from mca_drake.simulation.builders import (
+    AddMca,
+    AddMeshcatDrawing,
+    AddReferenceGuard,
+    default_visualization,
+)
 from mca_drake.simulation.closed_loop import (
     PLANTS,
 )
@@ -201,11 +207,16 @@ def _ConnectMcaToSupervisor(
     controller,
     guard: Supervisor,
     robot_ports: _LiveRobotPorts,
-) -> None:
-    """Wires the receiver's reference and the robot's state into the MCA, and the MCA's
-    command, statistics and the telemetry into the supervisor that judges them."""
+    time_step: float,
+    plausibility: PlausibilityConfig | None = None,
+):
+    """Wires the receiver's reference (through the reference guard, `AddReferenceGuard`)
+    and the robot's state into the MCA, and the MCA's command, statistics and the telemetry
+    into the supervisor that judges them (the supervisor reads the reference as received:
+    its NaN and stale checks are its own); returns the reference guard (None: disabled)."""
     reference = source.GetOutputPort("reference")
-    builder.Connect(reference, controller.GetInputPort("reference"))
+    guarded, reference_guard = AddReferenceGuard(builder, reference, plausibility, time_step)
+    builder.Connect(guarded, controller.GetInputPort("reference"))
     builder.Connect(robot_ports.state, controller.GetInputPort("state"))
     if controller.HasInputPort("inertial_output"):
         builder.Connect(robot_ports.inertial_output, controller.GetInputPort("inertial_output"))
@@ -216,6 +227,7 @@ def _ConnectMcaToSupervisor(
     builder.Connect(reference, guard.GetInputPort("reference"))
     builder.Connect(source.GetOutputPort("telemetry"), guard.GetInputPort("telemetry"))
     builder.Connect(controller.GetOutputPort("statistics"), guard.GetInputPort("mca_statistics"))
+    return reference_guard
 
 
 def MakeLiveClosedLoop(
@@ -230,10 +242,11 @@ def MakeLiveClosedLoop(
     station: StationConfig | None = None,
     meshcat=None,
     rsi_commands: socket.socket | None = None,
+    plausibility: PlausibilityConfig | None = None,
 ) -> tuple[Diagram, dict]:
-    """TelemetryReceiver -> MCA -> Supervisor -> robot, with logs and a LatencyProbe; the
-    robot is the analytical plant or the platform's station (multibody, optionally drawn
-    in `meshcat`). The control period is `receiver.time_step`.
+    """TelemetryReceiver -> ReferenceGuard -> MCA -> Supervisor -> robot, with logs and a
+    LatencyProbe; the robot is the analytical plant or the platform's station (multibody,
+    optionally drawn in `meshcat`). The control period is `receiver.time_step`.
 
     Returns:
         (diagram, handles): the systems `receiver`, `mca`, `supervisor`, `probe`,
@@ -281,7 +294,9 @@ def MakeLiveClosedLoop(
     probe = builder.AddNamedSystem("probe", LatencyProbe(h, n))
     handles["probe"] = probe
     reference = source.GetOutputPort("reference")
-    _ConnectMcaToSupervisor(builder, source, controller, guard, robot_ports)
+    handles["reference_guard"] = _ConnectMcaToSupervisor(
+        builder, source, controller, guard, robot_ports, h, plausibility
+    )
     command = guard.GetOutputPort("joint_acceleration")
     builder.Connect(command, robot_ports.joint_acceleration)
     builder.Connect(source.GetOutputPort("telemetry"), probe.GetInputPort("telemetry"))
@@ -326,6 +341,7 @@ def run_live(
     meshcat=None,
     phase_lock: PhaseLockConfig | None = None,
     rsi: RsiDriverConfig | None = None,
+    plausibility: PlausibilityConfig | None = None,
 ) -> dict:
     """Runs the live loop for `duration_s` (s of simulated time, at `realtime_rate`) and
     returns its summary with the `live` block.
@@ -344,6 +360,8 @@ def run_live(
             free port, written back into `rsi.port` before `on_listening`) and brakes the
             robot to rest after it; its counters are the summary's `rsi` block. The driver refuses
             (and the run ends with RuntimeError) if the robot is not at the MCA's home pose.
+        plausibility: the reference guard in front of the MCA (`cueing.plausibility`;
+            default on); its counts are the summary's `plausibility` block.
     """
     if not 0 < duration_s <= 24 * 3600:
         raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
@@ -371,6 +389,7 @@ def run_live(
         station=station,
         meshcat=meshcat,
         rsi_commands=loop_end,
+        plausibility=plausibility,
     )
     run = _run_paced(
         diagram,
@@ -387,6 +406,11 @@ def run_live(
     )
     summary = scored_summary(handles, config, plant, decoder, robot, h, run.wall_s)
     summary["live"] = live_block(handles, run, decoder, realtime_rate, h)
+    reference_guard = handles["reference_guard"]
+    if reference_guard is not None:
+        summary["plausibility"] = reference_guard.summary(
+            reference_guard.GetMyContextFromRoot(run.context)
+        )
     if isinstance(config, DpcConfig):
         mca = handles["mca"]
         changes = mca.policy_changes(mca.GetMyContextFromRoot(run.context))

@@ -1,8 +1,10 @@
 """Diagram builders (Make*/Add*): the plant demo and the closed loops on both plants.
 
 `AddMca` adds any MCA from its typed config (`mca_drake.cueing.McaConfig`);
-`MakeAnalyticalClosedLoop` wires ReferenceSource -> MCA -> MotionCueingPlant and
-`MakeMultibodyClosedLoop` ReferenceSource -> MCA -> SerialChain station, each with 100 Hz logs.
+`MakeAnalyticalClosedLoop` wires ReferenceSource -> ReferenceGuard -> MCA -> MotionCueingPlant
+and `MakeMultibodyClosedLoop` ReferenceSource -> ReferenceGuard -> MCA -> SerialChain station,
+each with 100 Hz logs (`AddReferenceGuard`: the input plausibility guard every MCA reads
+through).
 `mca_drake.simulation.closed_loop.run_closed_loop` simulates either and summarises it.
 """
 
@@ -15,6 +17,7 @@ from pydrake.visualization import VisualizationConfig
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import DpcConfig, McaConfig, NmpcConfig, WashoutConfig, as_mca_config
+from mca_drake.cueing.plausibility import PlausibilityConfig
 from mca_drake.platforms.demo_motion import demo_joint_motion
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import Reference
@@ -22,6 +25,7 @@ from mca_drake.systems import MotionCueingPlant, ReferenceSource
 from mca_drake.systems.dpc import DpcPolicy
 from mca_drake.systems.meshcat_traces import MeshcatOutputTraces
 from mca_drake.systems.nmpc import NmpcController
+from mca_drake.systems.plausibility import ReferenceGuard
 from mca_drake.systems.station import AddStation, StationConfig
 from mca_drake.systems.washout import ClassicalWashout
 
@@ -122,21 +126,38 @@ def AddMca(
     raise TypeError(f"not an MCA config: {type(config).__name__}")
 
 
-def _add_source_and_mca(builder, reference, mca, robot):
-    """ReferenceSource and the MCA, wired together; returns (source, mca, initial_state):
-    the robot starts at rest at the MCA's home pose (q = 0 unless the MCA has one)."""
+def AddReferenceGuard(builder, reference_port, plausibility, time_step: float):
+    """The output port an MCA reads its reference from: `reference_port` through a
+    ReferenceGuard named "reference_guard" (`mca_drake.cueing.plausibility`), or
+    `reference_port` itself where `plausibility` is disabled; and the guard (None where
+    disabled). `plausibility` None: the default PlausibilityConfig()."""
+    config = plausibility if plausibility is not None else PlausibilityConfig()
+    if not config.enabled:
+        return reference_port, None
+    guard = builder.AddNamedSystem("reference_guard", ReferenceGuard(config, time_step))
+    builder.Connect(reference_port, guard.GetInputPort("reference"))
+    return guard.GetOutputPort("guarded_reference"), guard
+
+
+def _add_source_and_mca(builder, reference, mca, robot, plausibility=None):
+    """ReferenceSource and the MCA, wired together through the reference guard; returns
+    (source, mca, initial_state, guard): the robot starts at rest at the MCA's home pose
+    (q = 0 unless the MCA has one); guard None where `plausibility` disables it."""
     controller = AddMca(builder, mca, robot, reference.time_step)
     preview = controller.preview_samples if hasattr(controller, "preview_samples") else 0
     source = builder.AddNamedSystem(
         "reference_source", ReferenceSource(reference, preview_samples=max(preview, 1))
     )
-    builder.Connect(source.GetOutputPort("reference"), controller.GetInputPort("reference"))
+    guarded, guard = AddReferenceGuard(
+        builder, source.GetOutputPort("reference"), plausibility, reference.time_step
+    )
+    builder.Connect(guarded, controller.GetInputPort("reference"))
     if preview:  # a known future: the MCA reads it (the NMPC at its grid's nodes)
         builder.Connect(
             source.GetOutputPort("reference_preview"), controller.GetInputPort("reference_preview")
         )
     home = getattr(controller, "home_position", robot.home)
-    return source, controller, np.concatenate([home, np.zeros_like(home)])
+    return source, controller, np.concatenate([home, np.zeros_like(home)]), guard
 
 
 def _connect_mca(builder, controller, state, inertial_output, joint_acceleration) -> None:
@@ -163,8 +184,10 @@ def MakeAnalyticalClosedLoop(
     reference: Reference,
     mca: McaConfig | str,
     robot: SerialChain,
+    plausibility: PlausibilityConfig | None = None,
 ) -> tuple[Diagram, dict]:
-    """ReferenceSource -> MCA -> MotionCueingPlant, the MCA fed the plant state, with logs.
+    """ReferenceSource -> ReferenceGuard -> MCA -> MotionCueingPlant, the MCA fed the plant
+    state, with logs.
 
     The control period is the reference's time step. Logs (VectorLogSinks at the control
     period): `reference_log`, `state_log` (x_n at t_n), `command_log` and `statistics_log`.
@@ -175,13 +198,19 @@ def MakeAnalyticalClosedLoop(
         reference: the target outputs.
         mca: an MCA config or name (`mca_drake.cueing`).
         robot: the platform the plant moves.
+        plausibility: the reference guard's settings (default PlausibilityConfig();
+            `enabled: false` leaves it out).
 
     Returns:
-        (diagram, handles) with the systems `source`, `mca`, `plant` and the logs.
+        (diagram, handles) with the systems `source`, `guard` (None without one), `mca`,
+        `plant` and the logs. The `reference_log` is the reference itself, unguarded: runs
+        are scored against what the vehicle did.
     """
     time_step = reference.time_step
     builder = DiagramBuilder()
-    source, controller, initial_state = _add_source_and_mca(builder, reference, mca, robot)
+    source, controller, initial_state, guard = _add_source_and_mca(
+        builder, reference, mca, robot, plausibility
+    )
     plant = builder.AddNamedSystem(
         "plant", MotionCueingPlant(robot=robot, time_step=time_step, initial_state=initial_state)
     )
@@ -192,7 +221,7 @@ def MakeAnalyticalClosedLoop(
         plant.GetOutputPort("inertial_output"),
         plant.GetInputPort("joint_acceleration"),
     )
-    handles = dict(source=source, mca=controller, plant=plant)
+    handles = dict(source=source, guard=guard, mca=controller, plant=plant)
     ports = {
         "reference_log": source.GetOutputPort("reference"),
         "state_log": plant.GetOutputPort("state"),
@@ -211,9 +240,11 @@ def MakeMultibodyClosedLoop(
     station: StationConfig | None = None,
     meshcat=None,
     visualization: VisualizationConfig | None = None,
+    plausibility: PlausibilityConfig | None = None,
 ) -> tuple[Diagram, dict]:
-    """ReferenceSource -> MCA -> SerialChain station (MultibodyPlant, inverse dynamics, head IMU),
-    the MCA fed the station's measured state (and measured y where it reads one).
+    """ReferenceSource -> ReferenceGuard -> MCA -> SerialChain station (MultibodyPlant,
+    inverse dynamics, head IMU), the MCA fed the station's measured state (and measured y
+    where it reads one).
 
     Logs (at the control period, the reference's time step): `reference_log`,
     `command_log` (the MCA's joint accelerations), `desired_state_log` ([q_d, qd_d] the
@@ -230,15 +261,20 @@ def MakeMultibodyClosedLoop(
             strip charts in; None for none.
         visualization: Drake's VisualizationConfig of the Meshcat drawing (publish period,
             illustration/proximity/inertia layers); default: illustration only at 30 Hz.
+        plausibility: the reference guard's settings (default PlausibilityConfig();
+            `enabled: false` leaves it out).
 
     Returns:
-        (diagram, handles): handles has `source`, `mca`, `station` (StationHandles) and the
-        logs; call `handles["station"].SetInitialState(root_context)` before simulating
-        (the robot starts at rest at the MCA's home pose).
+        (diagram, handles): handles has `source`, `guard` (None without one), `mca`,
+        `station` (StationHandles) and the logs; call
+        `handles["station"].SetInitialState(root_context)` before simulating (the robot
+        starts at rest at the MCA's home pose).
     """
     time_step = reference.time_step
     builder = DiagramBuilder()
-    source, controller, initial_state = _add_source_and_mca(builder, reference, mca, robot)
+    source, controller, initial_state, guard = _add_source_and_mca(
+        builder, reference, mca, robot, plausibility
+    )
     station_handles = AddStation(
         builder,
         robot,
@@ -254,7 +290,7 @@ def MakeMultibodyClosedLoop(
         station_handles.measured_output,
         station_handles.joint_acceleration,
     )
-    handles = dict(source=source, mca=controller, station=station_handles)
+    handles = dict(source=source, guard=guard, mca=controller, station=station_handles)
     ports = {
         "reference_log": source.GetOutputPort("reference"),
         "command_log": controller.GetOutputPort("joint_acceleration"),

@@ -28,6 +28,7 @@ from tqdm.auto import tqdm
 from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
 from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_record
+from mca_drake.cueing.plausibility import PlausibilityConfig
 from mca_drake.metrics import false_rotation, tracking_score
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.perception.scores import perceived_run
@@ -190,6 +191,7 @@ def run_closed_loop(
     json_path: str | Path | None = None,
     plot_dir: str | Path | None = None,
     perception: PerceptionConfig | None = None,
+    plausibility: PlausibilityConfig | None = None,
 ) -> ClosedLoopResult:
     """Runs the closed loop of an MCA over `reference` on the analytical or multibody plant.
 
@@ -216,6 +218,9 @@ def run_closed_loop(
             `joint_usage.png` (Fig. 5).
         perception: the vestibular model and thresholds of the summary's perceived figures
             (default PerceptionConfig()).
+        plausibility: the reference guard in front of the MCA (`cueing.plausibility`;
+            default PlausibilityConfig()); its counts are the summary's `plausibility`
+            block (absent where `enabled` is false).
 
     Raises:
         ValueError: an unknown plant or MCA, a bad duration, or settings the plant cannot
@@ -235,11 +240,17 @@ def run_closed_loop(
     if plant == "analytical":
         if meshcat is not None or station is not None or visualization is not None:
             raise ValueError("meshcat, visualization and station need plant 'multibody'")
-        diagram, handles = MakeAnalyticalClosedLoop(reference, config, robot)
+        diagram, handles = MakeAnalyticalClosedLoop(reference, config, robot, plausibility)
     else:
         station = station if station is not None else StationConfig()
         diagram, handles = MakeMultibodyClosedLoop(
-            reference, config, robot, station, meshcat=meshcat, visualization=visualization
+            reference,
+            config,
+            robot,
+            station,
+            meshcat=meshcat,
+            visualization=visualization,
+            plausibility=plausibility,
         )
     simulator = Simulator(diagram)
     if simulator_config is not None:
@@ -262,6 +273,9 @@ def run_closed_loop(
     )
     if random_seed is not None:
         result.summary["random_seed"] = int(random_seed)
+    guard = handles.get("guard")
+    if guard is not None:
+        result.summary["plausibility"] = guard.summary(guard.GetMyContextFromRoot(context))
     if isinstance(config, DpcConfig):
         mca = handles["mca"]
         changes = mca.policy_changes(mca.GetMyContextFromRoot(context))

@@ -1,0 +1,74 @@
+"""ReferenceGuard: the input plausibility guard in front of every MCA, as a Drake system."""
+
+from __future__ import annotations
+
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+
+from mca_drake.conventions import CONTROL_PERIOD_S, NUM_CHANNELS
+from mca_drake.cueing.plausibility import (
+    STATE_SIZE,
+    PlausibilityConfig,
+    guard_step,
+    initial_state,
+    summary_block,
+)
+
+
+class ReferenceGuard(LeafSystem):
+    """The reference as an MCA may read it (`mca_drake.cueing.plausibility`): spikes held,
+    every channel's change per period bounded, a frozen stream faded out to zero and back.
+
+    .. pydrake_system::
+
+        name: ReferenceGuard
+        input_ports:
+        - reference
+        output_ports:
+        - guarded_reference
+
+    `guarded_reference` at t_k is the guard's step on the reference sample at t_k from the
+    guard's state after t_(k-1) (direct feedthrough: the MCA's update at t_k reads the
+    sample of t_k, as it would read the reference itself); a periodic update at every t_k
+    commits that step to the state. The counts go into the run's summary
+    (`summary_block`).
+
+    Args:
+        config: the guard's settings (default `PlausibilityConfig()`); validated here.
+        time_step: the control period, s (the reference's sample period).
+    """
+
+    def __init__(
+        self, config: PlausibilityConfig | None = None, time_step: float = CONTROL_PERIOD_S
+    ):
+        super().__init__()
+        self._config = config or PlausibilityConfig()
+        self._config.validate()
+        self._time_step = float(time_step)
+        self._input = self.DeclareVectorInputPort("reference", NUM_CHANNELS)
+        self._state_index = self.DeclareDiscreteState(initial_state())
+        self.DeclarePeriodicDiscreteUpdateEvent(self._time_step, 0.0, self._update)
+        self.DeclareVectorOutputPort(
+            "guarded_reference",
+            NUM_CHANNELS,
+            self._calc_output,
+            prerequisites_of_calc={self.xd_ticket(), self._input.ticket()},
+        )
+
+    def _calc_output(self, context: Context, output: BasicVector) -> None:
+        state = context.get_discrete_state(self._state_index).value().tolist()
+        output.SetFromVector(
+            guard_step(state, self._input.Eval(context), self._time_step, self._config)
+        )
+
+    def _update(self, context: Context, discrete: DiscreteValues) -> None:
+        state = context.get_discrete_state(self._state_index).value().tolist()
+        guard_step(state, self._input.Eval(context), self._time_step, self._config)
+        discrete.set_value(self._state_index, state)
+
+    def summary(self, context: Context) -> dict:
+        """The `plausibility` block of the run's summary so far (`summary_block`)."""
+        state = context.get_discrete_state(self._state_index).value().tolist()
+        return summary_block(state, self._time_step)
+
+
+__all__ = ["STATE_SIZE", "ReferenceGuard"]
