@@ -241,3 +241,31 @@ def test_a_long_file_is_read_only_as_far_as_asked(tmp_path):
     short = load_recording(path, max_duration_s=3.0)
     assert 3.0 <= short.duration_s <= 3.0 + 0.5 + 0.01
     np.testing.assert_allclose(short.f[:, 0], 0.3 * np.sin(short.t), atol=1e-9)
+
+
+def test_an_isolated_glitch_is_kept_and_a_corrupt_column_refused(motion, tmp_path):
+    """A 22 g one-sample ground contact loads (the plausibility guard holds it); the same
+    value over many samples, or any value beyond 100 g, is a corrupt column."""
+    glitch = motion.f.copy()
+    glitch[65, 2] = 22 * GRAVITY  # at 0.65 s
+    path = _write(tmp_path, recording_to_csv(Recording(motion.t, motion.omega, glitch)))
+    loaded = load_recording(path)
+    assert loaded.f[65, 2] == pytest.approx(22 * GRAVITY)
+    spread = motion.f.copy()
+    spread[100:110, 2] = 22 * GRAVITY  # ten samples in a row: not a glitch
+    path = _write(tmp_path, recording_to_csv(Recording(motion.t, motion.omega, spread)))
+    with pytest.raises(RecordingError, match="beyond any vehicle"):
+        load_recording(path)
+
+
+def test_a_recording_that_is_not_mostly_level_loads_once_its_header_says_so(motion, tmp_path):
+    """A parabolic flight's specific force: median f_z near 0. Refused with the way out in
+    the message; loaded with `# level: false`."""
+    parabola = Recording(motion.t, motion.omega, motion.f - [0, 0, GRAVITY])
+    text = recording_to_csv(parabola)
+    with pytest.raises(RecordingError, match="'# level: false'"):
+        load_recording(_write(tmp_path, text, "parabola.csv"))
+    lines = text.splitlines()
+    lines.insert(1, "# level: false")
+    loaded = load_recording(_write(tmp_path, "\n".join(lines), "parabola_level.csv"))
+    np.testing.assert_allclose(loaded.f, parabola.f)

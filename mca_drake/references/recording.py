@@ -20,9 +20,11 @@ the file, the line and the column, and says how to fix it. What it checks:
 - time base: increasing, at least `MIN_RATE_HZ` (a time column in ms reads as 0.1 Hz), no
   gap longer than `MAX_GAP_S` (it would be interpolated into motion that never happened);
   absolute time stamps (Unix epoch) are shifted to start at 0, the start kept in metadata;
-- units and axes (`check_units`): specific force in m/s^2 with gravity, z up, every value
-  below `MAX_SPECIFIC_FORCE` (20 g), angular velocity in rad/s (a deg/s file is caught by
-  its peak above 8 rad/s). A header may name units in brackets, `omega_x [deg/s]`,
+- units and axes (`check_units`): specific force in m/s^2 with gravity, z up (a mostly
+  level vehicle: median f_z near +9.81, unless the header says `# level: false`), every
+  value below `MAX_SPECIFIC_FORCE` (20 g) but for isolated glitches (a touchdown's
+  ground contact: kept for the input plausibility guard), angular velocity in rad/s (a
+  deg/s file is caught by its peak above 8 rad/s). A header may name units in brackets, `omega_x [deg/s]`,
   `f_z [g]`, `t [ms]`: they are converted to SI. A file whose angular velocity peaks where
   both readings are plausible (below 0.14, or from 2 to 8) must name its unit; this module
   always writes the units.
@@ -63,6 +65,15 @@ ANTI_ALIAS_ORDER = 4
 ANTI_ALIAS_CUTOFF_SHARE = 0.4
 # Largest plausible specific force, m/s^2 (20 g: beyond any crewed vehicle).
 MAX_SPECIFIC_FORCE = 20 * GRAVITY
+# Samples beyond MAX_SPECIFIC_FORCE that a recording may hold as isolated glitches (a
+# touchdown's ground contact, a physics hiccup): runs of at most this many samples...
+GLITCH_MAX_SAMPLES = 3
+# ...together at most this share of the samples, and none beyond this (100 g), m/s^2.
+GLITCH_MAX_SHARE = 0.001
+GLITCH_MAX_FORCE = 100 * GRAVITY
+# Header values of `level` that say the vehicle is not mostly level (a parabolic or
+# ballistic flight): the gravity check of `check_units` is skipped.
+NOT_LEVEL = ("false", "no", "0")
 # Unit plausibility thresholds (see `check_units`).
 _MAX_PLAUSIBLE_RATE = 8.0  # rad/s; beyond aerobatic roll rates, typical of a file in deg/s
 _G_FILE_RANGE = (0.5, 2.0)  # median |f| in this range, with f_z about +1: the file is in g
@@ -174,7 +185,11 @@ def check_units(recording: Recording, where: str = "recording") -> None:
     - median f_z near -9.81: z-down (aircraft body) axes, not z-up head axes;
     - median |f| far from 9.81, or median f_z far from +9.81: not a specific force with
       gravity (gravity removed?), or the wrong units;
-    - any |f| component above MAX_SPECIFIC_FORCE: a corrupt or mis-scaled value;
+    - |f| components above MAX_SPECIFIC_FORCE beyond an isolated glitch: a corrupt or
+      mis-scaled column (runs of at most `GLITCH_MAX_SAMPLES` samples, together at most
+      `GLITCH_MAX_SHARE` of the file and below `GLITCH_MAX_FORCE`, are glitches, such as a
+      landing gear's ground contact: kept, and handled by the input plausibility guard,
+      `mca_drake.cueing.plausibility`);
     - |omega| above 8 rad/s: angular velocity in deg/s, not rad/s. A deg/s file whose rates
       stay below 8 deg/s is not told apart from data alone (the specific force of a vehicle
       in coordinated motion does not show its rotation); name the units in the header
@@ -185,7 +200,10 @@ def check_units(recording: Recording, where: str = "recording") -> None:
     """
     f = recording.f
     worst = np.unravel_index(np.argmax(np.abs(f)), f.shape)
-    if abs(f[worst]) > MAX_SPECIFIC_FORCE:
+    if abs(f[worst]) > MAX_SPECIFIC_FORCE and (
+        abs(f[worst]) > GLITCH_MAX_FORCE
+        or not _isolated_glitches(np.any(np.abs(f) > MAX_SPECIFIC_FORCE, axis=1))
+    ):
         raise RecordingError(
             f"{where}: column {COLUMNS[4 + worst[1]]} at t = {recording.t[worst[0]]:.6g} s is "
             f"{f[worst]:.3g} m/s^2, beyond any vehicle ({MAX_SPECIFIC_FORCE:.0f} m/s^2 = 20 g): "
@@ -204,7 +222,8 @@ def check_units(recording: Recording, where: str = "recording") -> None:
             "(aircraft body axes); the format is x forward, y left, z up, so negate y and z "
             "of both omega and f"
         )
-    if not (
+    level = recording.metadata.get("level", "true").strip().lower() not in NOT_LEVEL
+    if level and not (
         _SI_F_RANGE[0] <= f_norm <= _SI_F_RANGE[1] and _SI_FZ_RANGE[0] <= fz <= _SI_FZ_RANGE[1]
     ):
         hint = (
@@ -215,7 +234,9 @@ def check_units(recording: Recording, where: str = "recording") -> None:
         raise RecordingError(
             f"{where}: columns f_x, f_y, f_z have median |f| = {f_norm:.3g} and median f_z = "
             f"{fz:.3g} m/s^2; a specific force of a mostly level vehicle has about +9.81 on "
-            f"z (gravity included): {hint}"
+            f"z (gravity included): {hint}. If the values are right and the vehicle is not "
+            "mostly level (a parabolic or ballistic flight), say so in the header: "
+            "'# level: false'"
         )
     peak = np.max(np.abs(recording.omega), axis=0)
     if np.any(peak > _MAX_PLAUSIBLE_RATE):
@@ -224,6 +245,17 @@ def check_units(recording: Recording, where: str = "recording") -> None:
             f"{where}: column {column} reaches {peak.max():.3g}, implausible in rad/s; the"
             " file looks like deg/s: multiply by pi/180"
         )
+
+
+def _isolated_glitches(beyond: np.ndarray) -> bool:
+    """Whether the samples marked in `beyond` (T booleans) are isolated glitches: runs of at
+    most GLITCH_MAX_SAMPLES, together at most GLITCH_MAX_SHARE of the samples."""
+    count = int(beyond.sum())
+    if count > max(GLITCH_MAX_SAMPLES, GLITCH_MAX_SHARE * beyond.size):
+        return False
+    edges = np.diff(np.r_[0, beyond.astype(int), 0])
+    runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
+    return bool(np.all(runs <= GLITCH_MAX_SAMPLES))
 
 
 def recording_to_csv(recording: Recording) -> str:
