@@ -171,3 +171,31 @@ def test_a_spike_leaves_the_cue_as_the_clean_runs():
     guarded_gap = np.abs(runs["spiky"] - runs["clean"]).max()
     # the held sample differs from the clean one by one period's change (< 0.01 here)
     assert guarded_gap < 0.02 * spiked_gap
+
+
+def test_a_reset_cross_fades_from_where_the_output_was_to_the_stream():
+    config = PlausibilityConfig(fade_s=0.5)
+    y = _smooth(4.0, seed=5)
+    k = 200
+    jumped = y.copy()
+    jumped[k:] += [0.1, -0.1, 0.1, 1.5, -1.2, 2.0]  # every channel at once: a reset
+    out, state = _guarded(jumped, config)
+    np.testing.assert_array_equal(out[:k], y[:k])
+    total = round(config.fade_s / DT)
+    for j in range(total):
+        share = (j + 1) / total
+        weight = share * share * (3 - 2 * share)
+        expected = out[k - 1] + weight * (jumped[k + j] - out[k - 1])
+        np.testing.assert_allclose(out[k + j], expected, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(out[k + total :], jumped[k + total :])
+    assert counts(state)["resets"] == 1
+
+
+def test_one_channel_jumping_alone_is_no_reset():
+    """An afterburner lit: the surge alone steps by 5.5 on the reference, within the step
+    bound and below the spike threshold; it passes unchanged."""
+    y = _smooth(4.0, seed=6)
+    y[200:, 3] += 5.5
+    out, state = _guarded(y)
+    np.testing.assert_array_equal(out, y)
+    assert counts(state)["resets"] == 0

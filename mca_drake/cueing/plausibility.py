@@ -58,13 +58,23 @@ class PlausibilityConfig:
     )
     # All channels unchanged this long (after a moving stream): frozen, s. 0: never.
     frozen_s: float = 0.5
-    # Fade out on a freeze and back in after it, s.
+    # Fade out on a freeze and back in after it, and cross-fade over a reset, s.
     fade_s: float = 1.0
+    # A reset or teleport: at least `reset_channels` channels jump at once, each by more
+    # than `reset_factor` times its recent RMS change per period (over about 1 s) and more
+    # than its `reset_floors` entry. The output then cross-fades from where it was to the
+    # stream over `fade_s`. 0 channels: never. On the training flights and drives no period
+    # comes near: a single channel's jump (an afterburner lit, a touchdown) is no reset.
+    reset_channels: int = 3
+    reset_factor: float = 20.0
+    reset_floors: list[float] = dataclasses.field(
+        default_factory=lambda: [0.02, 0.02, 0.02, 0.3, 0.3, 0.3]
+    )
 
     def validate(self) -> None:
         """Raises ValueError for a setting outside its range."""
         check_config_numbers(self)
-        for name in ("spike_thresholds", "max_steps"):
+        for name in ("spike_thresholds", "max_steps", "reset_floors"):
             values = getattr(self, name)
             if len(values) != NUM_CHANNELS or min(values) <= 0:
                 raise ValueError(
@@ -73,6 +83,11 @@ class PlausibilityConfig:
         if self.spike_samples < 0:
             raise ValueError(
                 f"PlausibilityConfig.spike_samples must be >= 0; got {self.spike_samples}"
+            )
+        if not 0 <= self.reset_channels <= NUM_CHANNELS or self.reset_factor <= 0:
+            raise ValueError(
+                f"PlausibilityConfig: reset_channels in [0, {NUM_CHANNELS}] and reset_factor > "
+                f"0; got {self.reset_channels}, {self.reset_factor}"
             )
         if self.frozen_s < 0 or self.fade_s <= 0:
             raise ValueError(
@@ -83,9 +98,10 @@ class PlausibilityConfig:
 
 # Layout of the guard's state (a flat list of floats, `initial_state`):
 #   [0:6] the last output (before the fade), [6:12] each channel's held periods,
-#   [12:18] the last raw sample, then the scalars below.
-_OUT, _HELD, _RAW = 0, NUM_CHANNELS, 2 * NUM_CHANNELS
-_SCALARS = 3 * NUM_CHANNELS
+#   [12:18] the last raw sample, [18:24] each channel's recent mean square change per
+#   period, [24:30] the output a reset cross-fades from, then the scalars below.
+_OUT, _HELD, _RAW, _MS, _FROM = (k * NUM_CHANNELS for k in range(5))
+_SCALARS = 5 * NUM_CHANNELS
 (
     _STARTED,  # 0 before the first sample
     _UNCHANGED,  # periods every channel has repeated exactly
@@ -98,8 +114,12 @@ _SCALARS = 3 * NUM_CHANNELS
     _FROZEN_PERIODS,  # periods frozen
     _NON_FINITE,  # periods with a channel not finite
     _MOVING,  # the activity when the current run of unchanged periods began
-) = range(_SCALARS, _SCALARS + 11)
-STATE_SIZE = _SCALARS + 11
+    _CROSS,  # periods left of a reset's cross-fade
+    _RESETS,  # resets seen
+) = range(_SCALARS, _SCALARS + 13)
+STATE_SIZE = _SCALARS + 13
+# The time constant of each channel's recent mean square change, s.
+_CHANGE_WINDOW_S = 1.0
 
 # The counts of a run, by name, for the summary's `plausibility` block (in periods; the
 # summary converts the durations to seconds).
@@ -109,6 +129,7 @@ COUNTS = (
     "frozen_events",
     "frozen_periods",
     "non_finite_periods",
+    "resets",
 )
 
 
@@ -161,9 +182,25 @@ def guard_step(
     state[_ACTIVITY] += ((0.0 if unchanged else 1.0) - state[_ACTIVITY]) / window
     if state[_FROZEN]:
         state[_FROZEN_PERIODS] += 1
+    # a reset: several channels jump at once, far beyond their recent changes
+    alpha = min(time_step / _CHANGE_WINDOW_S, 1.0)
+    jumped = 0
     for i in range(n):
-        if finite[i]:
-            state[_RAW + i] = raw[i]
+        if not finite[i]:
+            continue
+        change = raw[i] - state[_RAW + i]
+        bound = max(config.reset_factor * math.sqrt(state[_MS + i]), config.reset_floors[i])
+        if abs(change) > bound:
+            jumped += 1
+        else:  # a jump does not raise the bound for the next one
+            state[_MS + i] += alpha * (change * change - state[_MS + i])
+        state[_RAW + i] = raw[i]
+    if config.reset_channels and jumped >= config.reset_channels and not state[_FROZEN]:
+        state[_CROSS] = max(round(config.fade_s / time_step), 1)
+        state[_FROM : _FROM + n] = state[_OUT : _OUT + n]
+        state[_RESETS] += 1
+    if state[_CROSS]:
+        return _cross_fade(state, raw, finite, time_step, config)
     # spikes and the step bound, channel by channel
     spiked = stepped = False
     for i in range(n):
@@ -189,19 +226,37 @@ def guard_step(
         state[_OUT + i] = target
     state[_SPIKES] += spiked
     state[_STEPPED] += stepped
-    # the fade: out while frozen, back in after
+    return _faded(state, time_step, config)
+
+
+def _faded(state: list[float], time_step: float, config: PlausibilityConfig) -> list[float]:
+    """The output after the freeze's fade: out while frozen, back in after."""
     rate = time_step / config.fade_s
     if state[_FROZEN]:
         state[_FADE] = max(state[_FADE] - rate, 0.0)
     else:
         state[_FADE] = min(state[_FADE] + rate, 1.0)
     weight = _smoothstep(state[_FADE])
-    return [weight * v for v in state[_OUT : _OUT + n]]
+    return [weight * v for v in state[_OUT : _OUT + NUM_CHANNELS]]
+
+
+def _cross_fade(state, raw, finite, time_step: float, config: PlausibilityConfig) -> list[float]:
+    """One period of a reset's cross-fade from where the output was to the stream (a
+    channel that is not finite holds)."""
+    total = max(round(config.fade_s / time_step), 1)
+    weight = _smoothstep((total - state[_CROSS] + 1) / total)
+    state[_CROSS] -= 1
+    for i in range(NUM_CHANNELS):
+        state[_HELD + i] = 0.0
+        if finite[i]:
+            start = state[_FROM + i]
+            state[_OUT + i] = start + weight * (raw[i] - start)
+    return _faded(state, time_step, config)
 
 
 def counts(state: list[float]) -> dict[str, int]:
     """The guard's counts so far (`COUNTS`), in control periods and events."""
-    values = (_SPIKES, _STEPPED, _FROZEN_EVENTS, _FROZEN_PERIODS, _NON_FINITE)
+    values = (_SPIKES, _STEPPED, _FROZEN_EVENTS, _FROZEN_PERIODS, _NON_FINITE, _RESETS)
     return {name: int(state[i]) for name, i in zip(COUNTS, values, strict=True)}
 
 
@@ -220,6 +275,7 @@ def summary_block(state: list[float], time_step: float) -> dict:
         "frozen_events": c["frozen_events"],
         "frozen_s": round(c["frozen_periods"] * time_step, 6),
         "non_finite_periods": c["non_finite_periods"],
+        "resets": c["resets"],
     }
 
 

@@ -24,10 +24,10 @@ the file, the line and the column, and says how to fix it. What it checks:
   level vehicle: median f_z near +9.81, unless the header says `# level: false`), every
   value below `MAX_SPECIFIC_FORCE` (20 g) but for isolated glitches (a touchdown's
   ground contact: kept for the input plausibility guard), angular velocity in rad/s (a
-  deg/s file is caught by its peak above 8 rad/s). A header may name units in brackets, `omega_x [deg/s]`,
-  `f_z [g]`, `t [ms]`: they are converted to SI. A file whose angular velocity peaks where
-  both readings are plausible (below 0.14, or from 2 to 8) must name its unit; this module
-  always writes the units.
+  deg/s file is caught by its peak above 8 rad/s). A header may name units in brackets,
+  `omega_x [deg/s]`, `f_z [g]`, `t [ms]`: they are converted to SI. A file whose angular
+  velocity peaks where both readings are plausible (below 0.14, or from 2 to 8) must name
+  its unit; this module always writes the units.
 """
 
 from __future__ import annotations
