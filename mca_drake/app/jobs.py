@@ -34,6 +34,7 @@ from mca_drake.simulation.closed_loop import (
     run_closed_loop,
     simulate_with_progress,
 )
+from mca_drake.simulation.trajectory import write_trajectory
 from mca_drake.studies.closed_loop_dataset import generate_closed_loop_dataset
 from mca_drake.studies.evaluation import run_evaluation
 
@@ -134,6 +135,9 @@ def run_closed_loop_scenario(
         json_path: the result summary (default `output_dir/summary.json`; "" for none).
         plot_dir: folder of tracking.png, perceived.png and joint_usage.png (default
             `output_dir`; "" for none).
+
+    The scenario's `trajectory` (a CSV path) gets the run's time series
+    (`simulation.trajectory`).
     """
     scenario.validate()
     json_path, plot_dir = closed_loop_outputs(scenario, json_path, plot_dir)
@@ -141,15 +145,18 @@ def run_closed_loop_scenario(
         check_writable(json_path)
     if plot_dir:
         check_writable(plot_dir, folder=True)
+    if scenario.trajectory:
+        check_writable(scenario.trajectory)
     reference = motion_reference(scenario.flight, scenario.duration_s)
     multibody = scenario.plant == "multibody"
     if multibody and scenario.visualization is not None and meshcat is None:
         meshcat = start_meshcat()
-    return run_closed_loop(
+    robot = load_platform(scenario.platform)
+    result = run_closed_loop(
         mca=on_platform(scenario.mca, packaged_name(scenario.platform)),
         reference=reference,
         plant=scenario.plant,
-        robot=load_platform(scenario.platform),
+        robot=robot,
         duration_s=min(scenario.duration_s, reference.duration_s),
         station=scenario.station if multibody else None,
         meshcat=meshcat if multibody else None,
@@ -162,6 +169,9 @@ def run_closed_loop_scenario(
         perception=scenario.perception,
         plausibility=scenario.plausibility,
     )
+    if scenario.trajectory:
+        write_trajectory(scenario.trajectory, result, robot)
+    return result
 
 
 def run_scenario(

@@ -146,6 +146,9 @@ class ClosedLoopScenario:
     # Folder for summary.json, tracking.png (Fig. 4), perceived.png and joint_usage.png
     # (Fig. 5).
     output_dir: str = "results/closed_loop"
+    # The run's time series as CSV, one row per control period
+    # (`mca_drake.simulation.trajectory`); "": none.
+    trajectory: str = ""
 
     def __post_init__(self) -> None:
         self.mca = as_mca_config(self.mca, packaged_name(self.platform))

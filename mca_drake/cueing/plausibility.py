@@ -116,8 +116,13 @@ _SCALARS = 5 * NUM_CHANNELS
     _MOVING,  # the activity when the current run of unchanged periods began
     _CROSS,  # periods left of a reset's cross-fade
     _RESETS,  # resets seen
-) = range(_SCALARS, _SCALARS + 13)
-STATE_SIZE = _SCALARS + 13
+    _REACTION,  # the reaction of the last period (index in REACTIONS)
+) = range(_SCALARS, _SCALARS + 14)
+STATE_SIZE = _SCALARS + 14
+# What the guard did in a period, by index (a trajectory's `plausibility` column): nothing,
+# a channel held as a spike, the step bound, the fade of a freeze (out, held out or back
+# in), a reset's cross-fade; the first that applies in this order: reset, frozen, spike, step.
+REACTIONS = ("none", "spike", "step", "fade", "reset")
 # The time constant of each channel's recent mean square change, s.
 _CHANGE_WINDOW_S = 1.0
 
@@ -200,6 +205,7 @@ def guard_step(
         state[_FROM : _FROM + n] = state[_OUT : _OUT + n]
         state[_RESETS] += 1
     if state[_CROSS]:
+        state[_REACTION] = REACTIONS.index("reset")
         return _cross_fade(state, raw, finite, time_step, config)
     # spikes and the step bound, channel by channel
     spiked = stepped = False
@@ -226,6 +232,10 @@ def guard_step(
         state[_OUT + i] = target
     state[_SPIKES] += spiked
     state[_STEPPED] += stepped
+    reaction = "spike" if spiked else "step" if stepped else "none"
+    if state[_FROZEN] or state[_FADE] < 1.0:
+        reaction = "fade"
+    state[_REACTION] = REACTIONS.index(reaction)
     return _faded(state, time_step, config)
 
 
@@ -260,6 +270,11 @@ def counts(state: list[float]) -> dict[str, int]:
     return {name: int(state[i]) for name, i in zip(COUNTS, values, strict=True)}
 
 
+def reaction(state: list[float]) -> str:
+    """What the guard did in its last period (`REACTIONS`)."""
+    return REACTIONS[int(state[_REACTION])]
+
+
 def frozen(state: list[float]) -> bool:
     """Whether the stream counts as frozen now."""
     return bool(state[_FROZEN])
@@ -281,11 +296,13 @@ def summary_block(state: list[float], time_step: float) -> dict:
 
 __all__ = [
     "COUNTS",
+    "REACTIONS",
     "STATE_SIZE",
     "PlausibilityConfig",
     "counts",
     "frozen",
     "guard_step",
     "initial_state",
+    "reaction",
     "summary_block",
 ]

@@ -227,6 +227,8 @@ def MakeAnalyticalClosedLoop(
         "state_log": plant.GetOutputPort("state"),
         "command_log": controller.GetOutputPort("joint_acceleration"),
     }
+    if guard is not None:
+        ports["reaction_log"] = guard.GetOutputPort("reaction")
     handles |= _add_logs(builder, ports, controller, time_step)
     diagram = builder.Build()
     diagram.set_name("analytical_closed_loop")
@@ -298,6 +300,8 @@ def MakeMultibodyClosedLoop(
         "measured_state_log": station_handles.true_state,
         "measured_output_log": station_handles.true_output,
     }
+    if guard is not None:
+        ports["reaction_log"] = guard.GetOutputPort("reaction")
     handles |= _add_logs(builder, ports, controller, time_step)
     if meshcat is not None:
         handles["traces"] = AddMeshcatDrawing(

@@ -59,6 +59,9 @@ class ClosedLoopResult:
     summary: dict
     # (T, 12), [q_d, qd_d] the station's controller tracks at t_n; None on the analytical plant.
     desired_states: np.ndarray | None = None
+    # (T,), what the input plausibility guard did in each period (index in
+    # `cueing.plausibility.REACTIONS`); None without the guard.
+    reactions: np.ndarray | None = None
 
 
 def simulate_with_progress(simulator: Simulator, duration_s: float, progress: bool) -> float:
@@ -352,6 +355,7 @@ def _collect_result(
         step_times_s=step_times,
         summary=summary,
         desired_states=desired,
+        reactions=log("reaction_log")[1 : n + 1, 0] if "reaction_log" in handles else None,
     )
 
 

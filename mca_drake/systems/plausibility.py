@@ -6,10 +6,12 @@ from pydrake.systems.framework import BasicVector, Context, DiscreteValues, Leaf
 
 from mca_drake.conventions import CONTROL_PERIOD_S, NUM_CHANNELS
 from mca_drake.cueing.plausibility import (
+    REACTIONS,
     STATE_SIZE,
     PlausibilityConfig,
     guard_step,
     initial_state,
+    reaction,
     summary_block,
 )
 
@@ -25,12 +27,14 @@ class ReferenceGuard(LeafSystem):
         - reference
         output_ports:
         - guarded_reference
+        - reaction
 
     `guarded_reference` at t_k is the guard's step on the reference sample at t_k from the
     guard's state after t_(k-1) (direct feedthrough: the MCA's update at t_k reads the
     sample of t_k, as it would read the reference itself); a periodic update at every t_k
-    commits that step to the state. The counts go into the run's summary
-    (`summary_block`).
+    commits that step to the state. `reaction` (1) is the index in
+    `cueing.plausibility.REACTIONS` of what the last committed step did. The counts go into
+    the run's summary (`summary_block`).
 
     Args:
         config: the guard's settings (default `PlausibilityConfig()`); validated here.
@@ -53,6 +57,13 @@ class ReferenceGuard(LeafSystem):
             self._calc_output,
             prerequisites_of_calc={self.xd_ticket(), self._input.ticket()},
         )
+        self.DeclareVectorOutputPort(
+            "reaction", 1, self._calc_reaction, prerequisites_of_calc={self.xd_ticket()}
+        )
+
+    def _calc_reaction(self, context: Context, output: BasicVector) -> None:
+        state = context.get_discrete_state(self._state_index).value().tolist()
+        output.SetFromVector([REACTIONS.index(reaction(state))])
 
     def _calc_output(self, context: Context, output: BasicVector) -> None:
         state = context.get_discrete_state(self._state_index).value().tolist()

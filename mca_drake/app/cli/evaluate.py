@@ -16,6 +16,7 @@ from mca_drake.app.cli.flags import (
     add_config_flags,
     add_platform_flag,
     add_quiet,
+    add_trajectory_flag,
     check_outputs,
     given_fields,
 )
@@ -92,6 +93,7 @@ def add_parser(commands) -> None:
     )
     parser.add_argument("--json", help="write the result summary here")
     parser.add_argument("--plot", help="PNG of target versus achieved outputs")
+    add_trajectory_flag(parser)
     add_quiet(parser)
     parser.set_defaults(func=run)
 
@@ -105,6 +107,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.reference:
         raise ValueError("give --reference flight.csv (one recording) or --suite (scenario set)")
     scenario = closed_loop_scenario_from_flags(args, plant="analytical")
+    if args.trajectory is not None:
+        scenario.trajectory = args.trajectory
     check_outputs(args.plot)
     result = run_closed_loop_scenario(
         scenario, progress=not args.quiet, json_path=args.json or "", plot_dir=""

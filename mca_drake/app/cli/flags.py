@@ -163,3 +163,13 @@ def add_platform_flag(parser: argparse.ArgumentParser) -> None:
         help="the motion platform: a packaged name (mca-drake platforms) or a platform file "
         f"(default {DEFAULT_PLATFORM})",
     )
+
+
+def add_trajectory_flag(parser: argparse.ArgumentParser) -> None:
+    """--trajectory FILE.csv: the run's time series, one row per control period."""
+    parser.add_argument(
+        "--trajectory",
+        help="write the run's time series to this CSV, one row per control period: t, "
+        "ref_<ch> and cue_<ch> per channel, each joint's q, qd and qdd, what the input "
+        "plausibility guard did (docs: concepts/metrics.md)",
+    )

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from mca_drake.app.cli.flags import add_quiet
+from mca_drake.app.cli.flags import add_quiet, add_trajectory_flag
 from mca_drake.app.jobs import run_scenario
 from mca_drake.app.scenarios import load_scenario
 from mca_drake.resources import packaged_scenarios
@@ -29,6 +29,7 @@ def add_parser(commands) -> None:
         "'{mca: !NmpcConfig {mode: rti, washout_weight: 0.3}}'",
     )
     parser.add_argument("--json", help="write the result summary to this JSON file")
+    add_trajectory_flag(parser)
     add_quiet(parser)
     parser.set_defaults(func=run)
 
@@ -36,6 +37,12 @@ def add_parser(commands) -> None:
 def run(args: argparse.Namespace) -> int:
     """Loads the scenario with its overrides, runs it and prints its summary."""
     scenario = load_scenario(args.scenario, args.set)
+    if args.trajectory is not None:
+        if not hasattr(scenario, "trajectory"):
+            raise ValueError(
+                f"--trajectory: a {type(scenario).__name__} has no single run's time series"
+            )
+        scenario.trajectory = args.trajectory
     summary = run_scenario(scenario, progress=not args.quiet, json_path=args.json)
     print(json.dumps(summary, indent=2, default=str))
     return 0

@@ -8,7 +8,12 @@ from mca_drake.app.cli.closed_loop_flags import (
     add_mca_flags,
     closed_loop_scenario_from_flags,
 )
-from mca_drake.app.cli.flags import add_config_flags, add_platform_flag, add_quiet
+from mca_drake.app.cli.flags import (
+    add_config_flags,
+    add_platform_flag,
+    add_quiet,
+    add_trajectory_flag,
+)
 from mca_drake.app.cli.report import format_closed_loop_report, hold_meshcat
 from mca_drake.app.jobs import closed_loop_outputs, run_closed_loop_scenario, start_meshcat
 from mca_drake.app.scenarios import ClosedLoopScenario
@@ -51,6 +56,7 @@ def add_parser(commands) -> None:
         help="folder for tracking.png (Fig. 4), perceived.png and joint_usage.png (Fig. 5) "
         f"(default: the scenario's output_dir, {defaults.output_dir}); '' for none",
     )
+    add_trajectory_flag(parser)
     add_quiet(parser)
     parser.set_defaults(func=run)
 
@@ -66,6 +72,8 @@ def run(args: argparse.Namespace) -> int:
         scenario.simulator_config.target_realtime_rate = 1.0
     if args.random_seed is not None:
         scenario.random_seed = args.random_seed
+    if args.trajectory is not None:
+        scenario.trajectory = args.trajectory
     scenario.validate()
     meshcat = start_meshcat() if scenario.visualization is not None else None
     result = run_closed_loop_scenario(
@@ -82,5 +90,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"summary (the full MCA config, every figure): {summary}")
     if plots:
         print(f"plots: {plots}/tracking.png, {plots}/perceived.png, {plots}/joint_usage.png")
+    if scenario.trajectory:
+        print(f"time series: {scenario.trajectory}")
     hold_meshcat(meshcat)
     return 0
