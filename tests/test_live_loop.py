@@ -114,6 +114,8 @@ def test_the_live_command_listens_cues_and_reports(tmp_path):
     out = tmp_path / "live.json"
     command = [sys.executable, "-m", "mca_drake.app.cli", "live", "--protocol", "csv"]
     command += ["--port", "0", "--duration", "2", "--mca", "washout", "--json", str(out)]
+    trajectory = tmp_path / "live.csv"
+    command += ["--trajectory", str(trajectory)]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = process.stdout.readline()  # blocks until the socket is bound
@@ -127,6 +129,15 @@ def test_the_live_command_listens_cues_and_reports(tmp_path):
     assert summary["live"]["protocol"] == "csv" and summary["live"]["packets"] > 100
     assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     assert summary["mca"] == "washout"
+    # the time series: a row per period scored, with the health and the guard's reaction
+    import csv
+
+    with open(trajectory, newline="") as file:
+        rows = list(csv.DictReader(file))
+    assert len(rows) == round(summary["duration_s"] / CONTROL_PERIOD_S)
+    assert {row["health"] for row in rows} <= {"ok", "degraded", "fault"}
+    assert {row["plausibility"] for row in rows} <= {"none", "spike", "step", "fade", "reset"}
+    assert list(rows[0])[-2:] == ["plausibility", "health"]
 
 
 def test_an_unknown_protocol_is_one_clear_error():

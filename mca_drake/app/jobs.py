@@ -243,6 +243,8 @@ def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None
     scenario.validate()
     if scenario.output_json:
         check_writable(scenario.output_json)
+    if scenario.trajectory:
+        check_writable(scenario.trajectory)
     decoder = make_decoder(
         scenario.protocol,
         xplane_version=scenario.xplane_version or None,
@@ -270,6 +272,7 @@ def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None
         meshcat=meshcat,
         rsi=rsi,
         plausibility=scenario.plausibility,
+        trajectory=scenario.trajectory or None,
     )
     if scenario.output_json:
         atomic_write_json(scenario.output_json, summary)

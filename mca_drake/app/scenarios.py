@@ -394,6 +394,9 @@ class LiveScenario:
     plausibility: PlausibilityConfig = dataclasses.field(default_factory=PlausibilityConfig)
     # The result summary with its live (and rsi) block; "": none.
     output_json: str = "results/live/summary.json"
+    # The run's time series as CSV, one row per control period, with the supervisor's
+    # health (`mca_drake.simulation.trajectory`); "": none.
+    trajectory: str = ""
     # The motion platform cued: a packaged name (`mca-drake platforms`), a platform file,
     # or an inline !SerialRobot {...}.
     platform: Union[str, SerialRobot] = DEFAULT_PLATFORM  # noqa: UP007 (YAML loader)

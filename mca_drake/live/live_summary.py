@@ -13,6 +13,7 @@ from mca_drake.cueing import McaConfig, mca_config_record, mca_name
 from mca_drake.live.pacing import RealTimePacer
 from mca_drake.live.receiver import TelemetryReceiver
 from mca_drake.live.rsi.link import RobotClockServo, RsiLink
+from mca_drake.live.supervisor import HEALTH_STATES
 from mca_drake.live.telemetry import Decoder
 from mca_drake.platforms.kinematics import plant_output
 from mca_drake.platforms.serial import SerialChain
@@ -22,6 +23,7 @@ from mca_drake.simulation.closed_loop import (
     station_signals,
     step_time_summary,
 )
+from mca_drake.simulation.trajectory import trajectory_csv
 
 # A control interval over this many periods on the wall clock counts as a stall in the
 # summary: the loop (or the machine) held up for half the supervisor's default stale time.
@@ -56,20 +58,8 @@ def scored_summary(
     """The closed-loop summary of the recorded run, scored as `run_closed_loop` scores."""
     source = handles["receiver"]
     rows = handles["recorder"].rows
-    commands, reference = rows("command"), rows("reference")  # period k: rows 0..N-1
-    n = commands.shape[0]
-    if plant == "analytical":
-        states = rows("state")  # x_k before each poll: rows 0..N
-        # the plant integrated exactly the recorded commands (it steps after the recorder)
-        check_alignment(states[: n + 1], commands, h)
-        states = states[:n]
-        accelerations = commands
-        n_joints = robot.num_joints
-        outputs = plant_output(states[:, :n_joints], states[:, n_joints:], commands, robot)
-    else:  # what the occupant felt (the IMU without its delay), as run_closed_loop scores it
-        states, accelerations, outputs = station_signals(
-            rows("true_state"), rows("measured_output"), n, h
-        )
+    reference, outputs, states, accelerations = live_signals(handles, plant, robot, h)
+    n = reference.shape[0]
     summary, _ = closed_loop_summary(
         mca=mca_name(config),
         mca_config=mca_config_record(config),
@@ -86,6 +76,42 @@ def scored_summary(
         time_step=h,
     )
     return summary
+
+
+def live_signals(handles: dict, plant: str, robot: SerialChain, h: float):
+    """(reference, outputs, states, accelerations) of the recorded run, one row per control
+    period, as `run_closed_loop` aligns them: the reference received, what the cabin did
+    (the analytical plant's output, or the station's IMU without its delay), [q, qd] and
+    the joint accelerations over each period."""
+    rows = handles["recorder"].rows
+    commands, reference = rows("command"), rows("reference")  # period k: rows 0..N-1
+    n = commands.shape[0]
+    if plant == "analytical":
+        states = rows("state")  # x_k before each poll: rows 0..N
+        # the plant integrated exactly the recorded commands (it steps after the recorder)
+        check_alignment(states[: n + 1], commands, h)
+        states = states[:n]
+        n_joints = robot.num_joints
+        outputs = plant_output(states[:, :n_joints], states[:, n_joints:], commands, robot)
+        return reference, outputs, states, commands
+    # what the occupant felt (the IMU without its delay), as run_closed_loop scores it
+    states, accelerations, outputs = station_signals(
+        rows("true_state"), rows("measured_output"), n, h
+    )
+    return reference, outputs, states, accelerations
+
+
+def live_trajectory(handles: dict, plant: str, robot: SerialChain, h: float) -> str:
+    """The recorded run's time series as trajectory CSV text (`simulation.trajectory`), with
+    the supervisor's health in each period."""
+    reference, outputs, states, accelerations = live_signals(handles, plant, robot, h)
+    rows = handles["recorder"].rows
+    n = reference.shape[0]
+    health = [HEALTH_STATES[int(v)] for v in rows("health")[:n, 0]]
+    reactions = rows("reaction")[:n, 0] if handles.get("reference_guard") is not None else None
+    return trajectory_csv(
+        robot, np.arange(n) * h, reference, outputs, states, accelerations, reactions, health
+    )
 
 
 def live_block(

@@ -31,6 +31,7 @@ from pydrake.systems.framework import (
     OutputPort,
 )
 
+from mca_drake.atomic_io import atomic_write_text
 from mca_drake.cueing import McaConfig, as_mca_config
 from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_record
 from mca_drake.cueing.plausibility import PlausibilityConfig
@@ -39,6 +40,7 @@ from mca_drake.live.live_summary import (
     STALL_PERIODS,
     PacedRun,
     live_block,
+    live_trajectory,
     rsi_block,
     scored_summary,
 )
@@ -315,6 +317,8 @@ def MakeLiveClosedLoop(
         "health": guard.GetOutputPort("health"),
     }
     after_command = {"reference": reference, "command": command}
+    if handles["reference_guard"] is not None:  # what the guard did in the period
+        after_command["reaction"] = handles["reference_guard"].GetOutputPort("reaction")
     handles["recorder"] = _AddLiveRecorder(builder, before_poll, after_command, h)
     if meshcat is not None:
         handles["traces"] = AddMeshcatDrawing(
@@ -342,6 +346,7 @@ def run_live(
     phase_lock: PhaseLockConfig | None = None,
     rsi: RsiDriverConfig | None = None,
     plausibility: PlausibilityConfig | None = None,
+    trajectory: str | None = None,
 ) -> dict:
     """Runs the live loop for `duration_s` (s of simulated time, at `realtime_rate`) and
     returns its summary with the `live` block.
@@ -362,6 +367,8 @@ def run_live(
             (and the run ends with RuntimeError) if the robot is not at the MCA's home pose.
         plausibility: the reference guard in front of the MCA (`cueing.plausibility`;
             default on); its counts are the summary's `plausibility` block.
+        trajectory: a CSV path for the run's time series (`simulation.trajectory`, with the
+            supervisor's health per period), written atomically after the run.
     """
     if not 0 < duration_s <= 24 * 3600:
         raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
@@ -418,6 +425,8 @@ def run_live(
         summary |= policy_record(config, robot.name, changes, reference, h)
     if run.rsi_status is not None:
         summary["rsi"] = rsi_block(handles, run)
+    if trajectory:
+        atomic_write_text(trajectory, live_trajectory(handles, plant, robot, h))
     return summary
 
 

@@ -171,5 +171,6 @@ def add_trajectory_flag(parser: argparse.ArgumentParser) -> None:
         "--trajectory",
         help="write the run's time series to this CSV, one row per control period: t, "
         "ref_<ch> and cue_<ch> per channel, each joint's q, qd and qdd, what the input "
-        "plausibility guard did (docs: concepts/metrics.md)",
+        "plausibility guard did (live: and the supervisor's health) (docs: "
+        "concepts/metrics.md)",
     )

@@ -8,7 +8,7 @@ import tempfile
 from pathlib import Path
 
 from mca_drake.app.cli.closed_loop_flags import add_mca_flags
-from mca_drake.app.cli.flags import add_config_flags, given_fields
+from mca_drake.app.cli.flags import add_config_flags, add_trajectory_flag, given_fields
 from mca_drake.app.cli.report import format_pi, hold_meshcat, policy_lines
 from mca_drake.app.jobs import run_live_scenario, start_meshcat
 from mca_drake.app.scenarios import LiveScenario
@@ -49,6 +49,7 @@ def add_parser(commands) -> None:
     )
     parser.add_argument("--meshcat", action="store_true", help="draw the station in Meshcat")
     parser.add_argument("--json", help="result summary with its live block")
+    add_trajectory_flag(parser)
     parser.add_argument(
         "--robot",
         help="rsi://HOST:PORT: drive a KUKA robot over RSI (the driver listens there for the "
@@ -78,6 +79,7 @@ def _scenario_from_flags(args: argparse.Namespace) -> LiveScenario:
         **({"mca": mca_config_from_name(args.mca)} if args.mca is not None else {}),
         robot=args.robot or "",
         output_json=args.json or "",
+        trajectory=args.trajectory or "",
         **given_fields(args, LIVE_FLAGS),
     )
     if args.demo:
