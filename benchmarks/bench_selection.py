@@ -6,14 +6,15 @@ scripted pilot and by the human-operator pilot that nothing trains on.
         recognizer] [--seeds 2] [--nmpc] [--out-dir results/selection]
         [--json benchmarks/results/selection.json]
 
-A selection (`SELECTIONS`) names the shipped policy, the alternatives it was chosen over (the
+A selection (`selections`) names the shipped policy, the alternatives it was chosen over (the
 training recipe's earlier steps kept in tests/data, the policy that ran before it on that
 envelope) and the validation vehicles of its envelope; `recognizer` compares the DPC that
 recognizes an unnamed reference's vehicle (`DpcConfig()`) with the default policy throughout
 and with the recognizer reading the reference unclipped (`range_clip: never`), on unnamed
-flights of every envelope. Each flies seeds 700 on (`--seeds` per vehicle and pilot; never
-training or evaluation seeds), 300 s on the analytical plant, with the scripted pilot and
-the human-operator pilot (drives have no pilot: once), through
+flights of every envelope (one per aircraft and pilot: its choice was made on 36
+validation flights, decision 0024). Each flies seeds 700 on (`--seeds` per vehicle and
+pilot; never training or evaluation seeds), 300 s on the analytical plant, with the
+scripted pilot and the human-operator pilot (drives have no pilot: once), through
 `bench_validation.run_flights` (one JSON per run under --out-dir/runs, resumable; the
 flights are cached with bench_validation's). `--nmpc` adds the NMPC-rti (the ground profile's
 on drives) for scale. Prints and writes per selection and pilot the medians, each
@@ -50,6 +51,9 @@ class Selection:
     nmpc: str = "nmpc-rti"
     # cued as recordings that name no vehicle (the recognizer's selection)
     unnamed: bool = False
+    # flights per vehicle and pilot at most (None: --seeds): the recognizer's eight aircraft
+    # fly one each, its choice having been made on 36 validation flights (decision 0024)
+    most_seeds: int | None = None
 
 
 def _policy(path: Path) -> DpcConfig:
@@ -104,6 +108,7 @@ def selections() -> dict[str, Selection]:
                 ("unclipped", DpcConfig(range_clip="never")),
             ),
             unnamed=True,
+            most_seeds=1,
         ),
     }
 
@@ -112,7 +117,8 @@ def run_selection(selection: Selection, pilot: str, args) -> dict:
     """The figures of one selection with one pilot (`report` of bench_validation, plus
     whether the shipped policy holds its place)."""
     mcas = list(selection.mcas) + ([(selection.nmpc, selection.nmpc)] if args.nmpc else [])
-    seeds = range(FIRST_VALIDATION_SEED, FIRST_VALIDATION_SEED + args.seeds)
+    count = min(args.seeds, selection.most_seeds or args.seeds)
+    seeds = range(FIRST_VALIDATION_SEED, FIRST_VALIDATION_SEED + count)
     flights = [(vehicle, seed) for vehicle in selection.vehicles for seed in seeds]
     out_dir = Path(args.out_dir)
     results = run_flights(
