@@ -1,15 +1,17 @@
 """Live loop figures on JSBSim's own telemetry: latency, jitter and CPU load.
 
     python benchmarks/bench_live.py [--duration 600] [--mcas dpc,nmpc-rti]
-        [--plant analytical] [--phase-lock on|off|both] [--protocol fgnetfdm|beamng]
-        [--json results/live.json]
+        [--plant analytical] [--phase-lock on|off|both] [--guard on|off|both]
+        [--protocol fgnetfdm|beamng] [--json results/live.json]
 
 For each MCA, `mca-drake live --demo`'s set-up without Meshcat: a JSBSim process flies the
 light aircraft (a training seed) in real time and streams its FGNetFDM packets over
 loopback at 100 Hz, or (`--protocol beamng`, written to live_driving.json by default) a
 process streams a car's training drive as BeamNG MotionSim packets at 100 Hz
 (`mca_drake.live.drive_demo`); the loop cues them at real-time rate 1 for `--duration` s, with the
-phase lock (`mca_drake.live.phase_lock`) on, off or both one after the other. Prints the
+phase lock (`mca_drake.live.phase_lock`) on, off or both one after the other, and the
+input plausibility guard (`mca_drake.cueing.plausibility`) on, off or both (what it costs
+in latency, measured in the same run). Prints the
 latency from a sample's arrival to the command computed from it (median, p99, max), the
 part of it the sample waited in the socket for its poll, the
 loop's jitter (|period - 10 ms| of its control instants on the wall clock), the loop
@@ -29,6 +31,7 @@ from common import default_result_path, in_ms, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import mca_config_from_name
+from mca_drake.cueing.plausibility import PlausibilityConfig
 from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S, start_demo_sender
 from mca_drake.live.drive_demo import DEMO_CAR, demo_drive, start_drive_sender
 from mca_drake.live.drive_demo import DEMO_SEED as DRIVE_SEED
@@ -52,6 +55,7 @@ def main() -> None:
     parser.add_argument("--mcas", default="dpc,nmpc-rti")
     parser.add_argument("--plant", default="analytical")
     parser.add_argument("--phase-lock", choices=("on", "off", "both"), default="on")
+    parser.add_argument("--guard", choices=("on", "off", "both"), default="on")
     parser.add_argument("--protocol", choices=("fgnetfdm", "beamng"), default="fgnetfdm")
     parser.add_argument("--json", help="write the figures here (default: by the protocol)")
     args = parser.parse_args()
@@ -69,7 +73,9 @@ def main() -> None:
         )
     else:
         report["sender"] = "JSBSim's FGNetFDM packets of the light aircraft, seed 7"
-    for name, lock in ((n, lock) for n in args.mcas.split(",") for lock in locks):
+    guards = {"on": (True,), "off": (False,), "both": (False, True)}[args.guard]
+    runs = [(n, lock, g) for n in args.mcas.split(",") for lock in locks for g in guards]
+    for name, lock, guard in runs:
         senders = []
 
         def start(address, senders=senders):
@@ -93,6 +99,7 @@ def main() -> None:
             plant=args.plant,
             phase_lock=PhaseLockConfig(enabled=lock),
             robot=KR500,
+            plausibility=PlausibilityConfig(enabled=guard),
         )
         for process in senders:
             process.terminate()
@@ -100,6 +107,8 @@ def main() -> None:
         live = summary["live"]
         live["sender_cpu_load"] = (children_cpu_s() - cpu0) / max(summary["wall_time_s"], 1e-9)
         label = f"{name}, phase lock {'on' if lock else 'off'}"
+        if args.guard != "on":
+            label += f", guard {'on' if guard else 'off'}"
         report["runs"][label] = {
             "live": live,
             "pi": summary["pi"],
