@@ -594,11 +594,23 @@ def _platforms(results_dir: Path, data: dict) -> list[str]:
 
 
 def _unnamed(results_dir: Path, data: dict) -> list[str]:
+    pilot = data["provenance"].get("pilot", "")
+    if pilot:
+        flights = (
+            f"The flight cases' aircraft and first seeds ({data['duration_s']:g} s) flown by "
+            f"the {pilot}-operator pilot that no training flies, cued as recordings that name "
+            "no vehicle: the DPC recognizing the vehicle from the reference, and the default "
+            "policy throughout, against the NMPC-rti on the same flights."
+        )
+    else:
+        flights = (
+            f"The suite's flights ({data['duration_s']:g} s) cued as recordings that name no "
+            "vehicle: the DPC recognizing the vehicle from the reference, and the default "
+            "policy throughout, against the suite's NMPC-rti on the same flights (for the "
+            "drives also its ground profile)."
+        )
     lines = [
-        f"The suite's flights ({data['duration_s']:g} s) cued as recordings that name no "
-        "vehicle: the DPC recognizing the vehicle from the reference, and the default policy "
-        "throughout, against the suite's NMPC-rti on the same flights (for the drives also "
-        "its ground profile). Difference: DPC - NMPC-rti, median and worst flight (lower is "
+        f"{flights} Difference: DPC - NMPC-rti, median and worst flight (lower is "
         "better); flights better than zero motion; the share of the time the reference lay "
         "outside the running policy's training range; the policy each flight ended with.",
         "",
@@ -630,6 +642,71 @@ def _unnamed(results_dir: Path, data: dict) -> list[str]:
     header = ["case", "DPC", "median PI", "NMPC-rti", "difference", "worst"]
     header += ["vs NMPC-rti ground", "better than zero motion"]
     header += ["outside the training range, median (largest)", "ended with"]
+    return [*lines, *_table(header, rows), ""]
+
+
+def _selection(results_dir: Path, data: dict) -> list[str]:
+    seeds = data["provenance"].get("seeds_per_vehicle", "")
+    lines = [
+        f"Each shipped DPC policy against what it was chosen over, on {data['duration_s']:g} s "
+        f"validation flights ({seeds} per vehicle and pilot, seeds from 700) of its envelope, "
+        "flown by the scripted pilot and by the human-operator pilot that nothing trains on. "
+        "Difference: the alternative - the shipped policy, median over the flights (positive: "
+        "the shipped policy is better), and on how many flights the alternative is better; "
+        "holds: no alternative better by median.",
+        "",
+    ]
+    rows = []
+    for name, selection in data["selections"].items():
+        for pilot, entry in selection["pilots"].items():
+            shipped = entry["shipped"]
+            for label, figures in entry["mcas"].items():
+                paired = figures.get(f"paired_vs_{shipped}")
+                rows.append(
+                    [
+                        name,
+                        pilot,
+                        label,
+                        fmt_pi(figures["all"]),
+                        f"{paired['median_difference']:+.3f}" if paired else "shipped",
+                        f"{paired['better_on']}/{paired['flights']}" if paired else "-",
+                        "yes" if entry["holds"] else f"no ({', '.join(entry['beaten_by'])})",
+                    ]
+                )
+    header = ["selection", "pilot", "policy", "median PI", "difference", "better on", "holds"]
+    return [*lines, *_table(header, rows), ""]
+
+
+def _hazards(results_dir: Path, data: dict) -> list[str]:
+    provenance = data["provenance"]
+    lines = [
+        f"A validation flight ({provenance.get('flight', '')}, {data['duration_s']:g} s) cued "
+        f"clean and with each hazard injected at {provenance.get('hazard_at_s', 0):g} s, with "
+        "the input plausibility guard and without: the largest change of the cabin's specific "
+        "force in one control period (m/s², beside the clean flight's largest), the largest "
+        "departure from the clean run's cue, when the cue was back within 0.05 of it (a reset "
+        "does not come back to the clean flight), violations.",
+        "",
+    ]
+    rows = []
+    for name, entry in data["mcas"].items():
+        clean = entry["clean"]["largest_force_change_per_period"]
+        for hazard, runs in entry["hazards"].items():
+            for label, row in runs.items():
+                recovered = row["recovered_after_s"]
+                rows.append(
+                    [
+                        name,
+                        hazard,
+                        label,
+                        f"{row['largest_force_change_per_period']:.3f} ({clean:.3f})",
+                        f"{row['largest_departure_from_clean']:.3f}",
+                        "-" if recovered is None else f"{recovered:.2f} s",
+                        str(row["violations"]),
+                    ]
+                )
+    header = ["MCA", "hazard", "guard", "force change (clean)", "departure", "recovered"]
+    header += ["violations"]
     return [*lines, *_table(header, rows), ""]
 
 
@@ -954,6 +1031,27 @@ SECTIONS = (
         "the suite's flights cued without their vehicle's name, the DPC recognizing it from "
         "the reference (`bench_unnamed.py`)",
         _unnamed,
+    ),
+    Section(
+        "References that name no vehicle, flown by the human-operator pilot",
+        "unnamed_human.json",
+        "the flight cases' aircraft flown by the human-operator pilot no training flies, "
+        "cued without their vehicle's name (`bench_unnamed.py --pilot human`)",
+        _unnamed,
+    ),
+    Section(
+        "Hazards in the reference",
+        "hazards.json",
+        "a flight cued with a spike, a frozen stream and a reset injected, with the input "
+        "plausibility guard and without (`bench_hazards.py`)",
+        _hazards,
+    ),
+    Section(
+        "How each shipped policy was selected",
+        "selection.json",
+        "every shipped DPC policy against the alternatives it was chosen over, on validation "
+        "flights of the scripted and the human-operator pilot (`bench_selection.py`)",
+        _selection,
     ),
     Section(
         "Validation flights",
