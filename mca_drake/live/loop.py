@@ -217,7 +217,10 @@ def _ConnectMcaToSupervisor(
     into the supervisor that judges them (the supervisor reads the reference as received:
     its NaN and stale checks are its own); returns the reference guard (None: disabled)."""
     reference = source.GetOutputPort("reference")
-    guarded, reference_guard = AddReferenceGuard(builder, reference, plausibility, time_step)
+    # the guard's step is committed with the supervisor's judgement, after the command
+    guarded, reference_guard = AddReferenceGuard(
+        builder, reference, plausibility, time_step, JUDGE_DELAY_S
+    )
     builder.Connect(guarded, controller.GetInputPort("reference"))
     builder.Connect(robot_ports.state, controller.GetInputPort("state"))
     if controller.HasInputPort("inertial_output"):

@@ -126,15 +126,20 @@ def AddMca(
     raise TypeError(f"not an MCA config: {type(config).__name__}")
 
 
-def AddReferenceGuard(builder, reference_port, plausibility, time_step: float):
+def AddReferenceGuard(
+    builder, reference_port, plausibility, time_step: float, update_offset_s: float = 0.0
+):
     """The output port an MCA reads its reference from: `reference_port` through a
-    ReferenceGuard named "reference_guard" (`mca_drake.cueing.plausibility`), or
-    `reference_port` itself where `plausibility` is disabled; and the guard (None where
-    disabled). `plausibility` None: the default PlausibilityConfig()."""
+    ReferenceGuard named "reference_guard" (`mca_drake.cueing.plausibility`; its step
+    committed `update_offset_s` after each control instant), or `reference_port` itself
+    where `plausibility` is disabled; and the guard (None where disabled). `plausibility`
+    None: the default PlausibilityConfig()."""
     config = plausibility if plausibility is not None else PlausibilityConfig()
     if not config.enabled:
         return reference_port, None
-    guard = builder.AddNamedSystem("reference_guard", ReferenceGuard(config, time_step))
+    guard = builder.AddNamedSystem(
+        "reference_guard", ReferenceGuard(config, time_step, update_offset_s)
+    )
     builder.Connect(reference_port, guard.GetInputPort("reference"))
     return guard.GetOutputPort("guarded_reference"), guard
 

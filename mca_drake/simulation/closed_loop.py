@@ -355,7 +355,8 @@ def _collect_result(
         step_times_s=step_times,
         summary=summary,
         desired_states=desired,
-        reactions=log("reaction_log")[1 : n + 1, 0] if "reaction_log" in handles else None,
+        # the reaction port shows the step on the sample of t_n: logged at t_n
+        reactions=log("reaction_log")[:n, 0] if "reaction_log" in handles else None,
     )
 
 
