@@ -141,6 +141,35 @@ def false_rotation(target, achieved) -> FalseRotation:
 
 
 @dataclasses.dataclass(frozen=True)
+class Jolts:
+    """How hard the cabin's motion changed from one control period to the next."""
+
+    # largest |(f_x, f_y, a_z)_(k+1) - (f_x, f_y, a_z)_k| over the run, m/s^2 per period
+    peak_force_change_m_s2: float
+    # the same over the period: the head's peak jerk, m/s^3
+    peak_jerk_m_s3: float
+    # largest |w_(k+1) - w_k| over the period: the head's peak angular acceleration, rad/s^2
+    peak_angular_acceleration_rad_s2: float
+
+
+def jolts(achieved, time_step: float) -> Jolts:
+    """The `Jolts` of the platform's outputs `achieved` (T, 6, channels as in the module
+    docstring) sampled every `time_step` s: the largest change, as a vector norm, of the
+    specific force (f_x, f_y, a_z) and of the angular velocity between two samples. A
+    hazard in the reference (a spike, a reset) shows here as a jolt the clean run does not
+    have (`mca_drake.cueing.plausibility`)."""
+    achieved = as_float_array("achieved", achieved, last_dim=len(CHANNELS))
+    if not time_step > 0:
+        raise ValueError(f"time_step must be positive; got {time_step}")
+    if achieved.shape[0] < 2:
+        return Jolts(0.0, 0.0, 0.0)
+    change = np.diff(achieved, axis=0)
+    force = float(np.linalg.norm(change[:, 3:], axis=1).max())
+    rate = float(np.linalg.norm(change[:, :3], axis=1).max())
+    return Jolts(force, force / time_step, rate / time_step)
+
+
+@dataclasses.dataclass(frozen=True)
 class RankSumResult:
     """Wilcoxon rank-sum test: z statistic, two-sided p-value, medians of both samples."""
 

@@ -185,3 +185,24 @@ def test_false_rotation_on_hand_computable_cases():
     assert metrics.false_rotation(np.zeros((10, 6)), both).share_felt == 1.0
     with pytest.raises(ValueError, match="channels"):
         metrics.false_rotation(np.zeros((10, 3)), np.zeros((10, 3)))
+
+
+def test_jolts_are_the_largest_changes_between_two_samples():
+    """Closed form: a surge ramp of 2 m/s^3 and one lateral step of 0.3 m/s^2 at 100 Hz; a
+    roll rate ramp of 0.5 rad/s^2."""
+    from mca_drake.metrics import jolts
+
+    h = 0.01
+    t = np.arange(200) * h
+    y = np.zeros((200, 6))
+    y[:, 3] = 2.0 * t
+    y[120:, 4] = 0.3
+    y[:, 0] = 0.5 * t
+    found = jolts(y, h)
+    step = np.hypot(0.3, 2.0 * h)  # the lateral step, in the period the ramp also moves
+    assert found.peak_force_change_m_s2 == pytest.approx(step)
+    assert found.peak_jerk_m_s3 == pytest.approx(step / h)
+    assert found.peak_angular_acceleration_rad_s2 == pytest.approx(0.5)
+    assert jolts(y[:1], h).peak_jerk_m_s3 == 0.0
+    with pytest.raises(ValueError, match="time_step"):
+        jolts(y, 0.0)

@@ -29,7 +29,7 @@ from mca_drake.atomic_io import atomic_write_json, check_writable
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
 from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_record
 from mca_drake.cueing.plausibility import PlausibilityConfig
-from mca_drake.metrics import false_rotation, tracking_score
+from mca_drake.metrics import false_rotation, jolts, tracking_score
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.perception.scores import perceived_run
 from mca_drake.platforms.kinematics import head_pose, plant_output
@@ -165,6 +165,8 @@ def closed_loop_summary(
         "cc": score.cc.tolist(),
         # rotation felt that the vehicle did not make (metrics.false_rotation)
         "false_rotation": dataclasses.asdict(false_rotation(reference, outputs)),
+        # how hard the cabin's motion changed between two periods (metrics.jolts)
+        "jolts": dataclasses.asdict(jolts(outputs, time_step)),
         # what the occupant perceives (vestibular models), scored the same way
         "perceived": perceived.summary(),
         "step_time_s": None if offline else step_time_summary(step_times),
