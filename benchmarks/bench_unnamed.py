@@ -167,62 +167,51 @@ def main() -> None:
     )
     args = parser.parse_args()
     calibration = print_calibration()
-    suite = json.loads(Path(args.suite).read_text())
-    if abs(suite["duration_s"] - args.duration) > 1e-9:
-        raise SystemExit(
-            f"--suite {args.suite} flew {suite['duration_s']} s flights, not {args.duration}"
-        )
-    if args.pilot:
-        return main_other_pilot(args, calibration)
+    suite = None
+    if not args.pilot:  # the suite's own NMPC-rti runs of the same flights
+        suite = json.loads(Path(args.suite).read_text())
+        if abs(suite["duration_s"] - args.duration) > 1e-9:
+            raise SystemExit(
+                f"--suite {args.suite} flew {suite['duration_s']} s flights, not {args.duration}"
+            )
     robot = load_platform("kr500")
     runs_dir = Path(args.runs_dir)
     runs_dir.mkdir(parents=True, exist_ok=True)
-    wanted = args.cases.split(",")
+    # another pilot's flights have no suite runs: the NMPC-rti is flown on them here
+    mcas = {**DPCS, "nmpc-rti": mca_config_from_name("nmpc-rti")} if args.pilot else DPCS
     figures: dict = {}
     for case in default_cases():
-        if case.name not in wanted:
+        if case.name not in args.cases.split(","):
             continue
-        seeds = list(case.seeds[: args.flights])
-        results = run_case(case, seeds, args.duration, runs_dir, robot)
-        figures[case.name] = {
-            "vehicle": case.label(),
-            "seeds": seeds,
-            "dpcs": case_figures(results, suite["cases"].get(case.name), seeds),
-        }
-        print_case(case.name, figures[case.name]["dpcs"], len(seeds))
-    out = args.json or default_result_path("unnamed.json")
-    header = result_header(calibration)
-    suite_file = Path(args.suite).resolve()
-    root = Path(__file__).resolve().parent.parent
-    named = suite_file.relative_to(root) if suite_file.is_relative_to(root) else suite_file
-    header["suite"] = {"file": str(named), "date": suite["provenance"]["date"]}
-    atomic_write_json(out, {"provenance": header, "duration_s": args.duration, "cases": figures})
-
-
-def main_other_pilot(args, calibration) -> None:
-    """`--pilot`: the flight cases flown by that pilot, the DPCs against the NMPC-rti run on
-    the same flights here."""
-    robot = load_platform("kr500")
-    runs_dir = Path(args.runs_dir)
-    runs_dir.mkdir(parents=True, exist_ok=True)
-    mcas = {**DPCS, "nmpc-rti": mca_config_from_name("nmpc-rti")}
-    figures: dict = {}
-    for case in default_cases():
-        # the scripted pilot's flight cases: the drives have no pilot, case E its own
-        if case.name not in args.cases.split(",") or case.manoeuvres or case.pilot != "scripted":
+        # another pilot flies the scripted pilot's flight cases: drives have no pilot, case
+        # E its own
+        if args.pilot and (case.manoeuvres or case.pilot != "scripted"):
             continue
         seeds = list(case.seeds[: args.flights])
         results = run_case(case, seeds, args.duration, runs_dir, robot, args.pilot, mcas)
-        nmpc = results.pop("nmpc-rti")
-        own = {"mcas": {"nmpc-rti": {"seeds": seeds, "pi": [nmpc[s]["pi"] for s in seeds]}}}
+        if args.pilot:
+            nmpc = results.pop("nmpc-rti")
+            compared = {
+                "mcas": {"nmpc-rti": {"seeds": seeds, "pi": [nmpc[s]["pi"] for s in seeds]}}
+            }
+        else:
+            compared = suite["cases"].get(case.name)
         figures[case.name] = {
             "vehicle": case.label(),
             "seeds": seeds,
-            "dpcs": case_figures(results, own, seeds),
+            "dpcs": case_figures(results, compared, seeds),
         }
         print_case(case.name, figures[case.name]["dpcs"], len(seeds))
-    out = args.json or default_result_path(f"unnamed_{args.pilot}.json")
-    header = result_header(calibration) | {"pilot": args.pilot}
+    header = result_header(calibration)
+    if args.pilot:
+        header["pilot"] = args.pilot
+    else:
+        suite_file = Path(args.suite).resolve()
+        root = Path(__file__).resolve().parent.parent
+        named = suite_file.relative_to(root) if suite_file.is_relative_to(root) else suite_file
+        header["suite"] = {"file": str(named), "date": suite["provenance"]["date"]}
+    name = f"unnamed_{args.pilot}.json" if args.pilot else "unnamed.json"
+    out = args.json or default_result_path(name)
     atomic_write_json(out, {"provenance": header, "duration_s": args.duration, "cases": figures})
 
 
