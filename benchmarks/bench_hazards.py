@@ -16,9 +16,9 @@ at a time, at `HAZARD_AT_S` into its reference:
 (NaN and inf never reach a recording's reference; live, the decoders drop such packets and
 the guard holds a channel that is not finite: `tests/test_plausibility.py`.) Each MCA cues
 the clean flight and each hazard with the guard and without it (`enabled: false`). Per hazard
-and MCA: the largest change of the cabin's specific force in one control period (f_x, f_y,
-a_z of the plant output, m/s^2) against the clean run's largest over the whole flight, the
-head's peak jerk (m/s^3, the same change over the period), the largest departure from the
+and MCA: the run's jolts (`mca_drake.metrics.jolts`: the largest change of the cabin's
+specific force (f_x, f_y, a_z) between two periods, m/s^2, as peak jerk, m/s^3, and the peak
+angular acceleration) against the clean run's, the largest departure from the
 clean run's cue and the time until the cue is back within 0.05 of it for good (s),
 violations, and the guard's counts. Written with the date, command and calibration.
 """
@@ -66,13 +66,12 @@ def injected(y: np.ndarray, hazard: str, h: float) -> np.ndarray:
 def figures(run, clean, h: float, recovers: bool = True) -> dict:
     """The hazard's figures of one run against the clean run of the same MCA (a reset does
     not come back to the clean flight: `recovers` False, no recovery time)."""
-    f_change = np.abs(np.diff(run.outputs[:, 3:], axis=0)).max(axis=0)
     departure = np.abs(run.outputs - clean.outputs).max(axis=1)
     k = round(HAZARD_AT_S / h)
     off = np.flatnonzero(departure[k:] > RECOVERED)
     return {
-        "largest_force_change_per_period": float(f_change.max()),
-        "peak_head_jerk_m_s3": float(f_change.max() / h),
+        # the summary's jolts (metrics.jolts): the largest change of (f_x, f_y, a_z)
+        "jolts": run.summary["jolts"],
         "largest_departure_from_clean": float(departure.max()),
         "recovered_after_s": (float((off[-1] + 1) * h) if off.size else 0.0) if recovers else None,
         "violations": int(sum(run.summary["violations"].values())),
@@ -101,8 +100,8 @@ def main() -> None:
         mca = mca_config_from_name(name)
         clean_reference = dataclasses.replace(full, y=full.y[:n])
         clean = run_closed_loop(mca=mca, reference=clean_reference, robot=robot, progress=False)
-        clean_change = float(np.abs(np.diff(clean.outputs[:, 3:], axis=0)).max())
-        entry = {"clean": {"largest_force_change_per_period": clean_change}, "hazards": {}}
+        clean_change = clean.summary["jolts"]["peak_force_change_m_s2"]
+        entry = {"clean": {"jolts": clean.summary["jolts"]}, "hazards": {}}
         for hazard in HAZARDS:
             y = injected(full.y, hazard, h)[:n]
             rows = {}
@@ -121,7 +120,7 @@ def main() -> None:
             for label, row in rows.items():
                 print(
                     f"{name:8s} {hazard:10s} {label:9s} force change "
-                    f"{row['largest_force_change_per_period']:.3f} (clean {clean_change:.3f}) "
+                    f"{row['jolts']['peak_force_change_m_s2']:.3f} (clean {clean_change:.3f}) "
                     f"departure {row['largest_departure_from_clean']:.3f} recovered after "
                     f"{row['recovered_after_s']} s violations {row['violations']}",
                     flush=True,

@@ -683,14 +683,15 @@ def _hazards(results_dir: Path, data: dict) -> list[str]:
         f"A validation flight ({provenance.get('flight', '')}, {data['duration_s']:g} s) cued "
         f"clean and with each hazard injected at {provenance.get('hazard_at_s', 0):g} s, with "
         "the input plausibility guard and without: the largest change of the cabin's specific "
-        "force in one control period (m/s², beside the clean flight's largest), the largest "
+        "force (f_x, f_y, a_z, a vector norm) in one control period (m/s², beside the clean "
+        "flight's largest), the largest "
         "departure from the clean run's cue, when the cue was back within 0.05 of it (a reset "
         "does not come back to the clean flight), violations.",
         "",
     ]
     rows = []
     for name, entry in data["mcas"].items():
-        clean = entry["clean"]["largest_force_change_per_period"]
+        clean = entry["clean"]["jolts"]["peak_force_change_m_s2"]
         for hazard, runs in entry["hazards"].items():
             for label, row in runs.items():
                 recovered = row["recovered_after_s"]
@@ -699,7 +700,7 @@ def _hazards(results_dir: Path, data: dict) -> list[str]:
                         name,
                         hazard,
                         label,
-                        f"{row['largest_force_change_per_period']:.3f} ({clean:.3f})",
+                        f"{row['jolts']['peak_force_change_m_s2']:.3f} ({clean:.3f})",
                         f"{row['largest_departure_from_clean']:.3f}",
                         "-" if recovered is None else f"{recovered:.2f} s",
                         str(row["violations"]),
