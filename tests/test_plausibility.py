@@ -199,3 +199,29 @@ def test_one_channel_jumping_alone_is_no_reset():
     out, state = _guarded(y)
     np.testing.assert_array_equal(out, y)
     assert counts(state)["resets"] == 0
+
+
+def test_the_drake_system_steps_as_the_guard_does():
+    """ReferenceGuard in a diagram (its output logged at each period) against guard_step on
+    the same samples: a freeze and a reset included, equal to the last bit."""
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import LogVectorOutput
+
+    from mca_drake.systems import ReferenceSource
+    from mca_drake.systems.plausibility import ReferenceGuard
+
+    y = _smooth(8.0, seed=7)
+    y[300:600] = y[299]  # frozen 3 s
+    y[700:] += [0.1, -0.1, 0.1, 1.5, -1.2, 2.0]  # a reset
+    builder = DiagramBuilder()
+    source = builder.AddSystem(ReferenceSource(Reference(y, DT)))
+    guard = builder.AddSystem(ReferenceGuard(PlausibilityConfig(), DT))
+    builder.Connect(source.GetOutputPort("reference"), guard.GetInputPort("reference"))
+    log = LogVectorOutput(guard.GetOutputPort("guarded_reference"), builder, DT)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo((len(y) - 1) * DT + 1e-9)
+    logged = log.FindLog(simulator.get_context()).data().T
+    expected, state = _guarded(y)
+    np.testing.assert_array_equal(logged, expected)
+    assert counts(state)["frozen_events"] == 1 and counts(state)["resets"] >= 1

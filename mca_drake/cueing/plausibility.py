@@ -126,16 +126,17 @@ REACTIONS = ("none", "spike", "step", "fade", "reset")
 # The time constant of each channel's recent mean square change, s.
 _CHANGE_WINDOW_S = 1.0
 
-# The counts of a run, by name, for the summary's `plausibility` block (in periods; the
-# summary converts the durations to seconds).
-COUNTS = (
-    "spike_periods",
-    "step_bounded_periods",
-    "frozen_events",
-    "frozen_periods",
-    "non_finite_periods",
-    "resets",
-)
+# The counts of a run, by name, for the summary's `plausibility` block, each with its slot
+# in the state (in periods or events; the summary converts the frozen periods to seconds).
+_COUNTED = {
+    "spike_periods": _SPIKES,
+    "step_bounded_periods": _STEPPED,
+    "frozen_events": _FROZEN_EVENTS,
+    "frozen_periods": _FROZEN_PERIODS,
+    "non_finite_periods": _NON_FINITE,
+    "resets": _RESETS,
+}
+COUNTS = tuple(_COUNTED)
 
 
 def initial_state() -> list[float]:
@@ -266,8 +267,7 @@ def _cross_fade(state, raw, finite, time_step: float, config: PlausibilityConfig
 
 def counts(state: list[float]) -> dict[str, int]:
     """The guard's counts so far (`COUNTS`), in control periods and events."""
-    values = (_SPIKES, _STEPPED, _FROZEN_EVENTS, _FROZEN_PERIODS, _NON_FINITE, _RESETS)
-    return {name: int(state[i]) for name, i in zip(COUNTS, values, strict=True)}
+    return {name: int(state[i]) for name, i in _COUNTED.items()}
 
 
 def reaction(state: list[float]) -> str:
@@ -281,17 +281,11 @@ def frozen(state: list[float]) -> bool:
 
 
 def summary_block(state: list[float], time_step: float) -> dict:
-    """The summary's `plausibility` block: spikes held (periods), periods the step bound
-    acted in, freezes and the time frozen (s), periods with a non-finite channel."""
-    c = counts(state)
-    return {
-        "spike_periods": c["spike_periods"],
-        "step_bounded_periods": c["step_bounded_periods"],
-        "frozen_events": c["frozen_events"],
-        "frozen_s": round(c["frozen_periods"] * time_step, 6),
-        "non_finite_periods": c["non_finite_periods"],
-        "resets": c["resets"],
-    }
+    """The summary's `plausibility` block: `counts`, with the time frozen in seconds
+    (`frozen_s`) in place of its periods."""
+    block = counts(state)
+    block["frozen_s"] = round(block.pop("frozen_periods") * time_step, 6)
+    return block
 
 
 __all__ = [

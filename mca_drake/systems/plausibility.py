@@ -14,7 +14,6 @@ from pydrake.systems.framework import (
 from mca_drake.conventions import CONTROL_PERIOD_S, NUM_CHANNELS
 from mca_drake.cueing.plausibility import (
     REACTIONS,
-    STATE_SIZE,
     PlausibilityConfig,
     guard_step,
     initial_state,
@@ -106,4 +105,4 @@ class ReferenceGuard(LeafSystem):
         return summary_block(state, self._time_step)
 
 
-__all__ = ["STATE_SIZE", "ReferenceGuard"]
+__all__ = ["ReferenceGuard"]
