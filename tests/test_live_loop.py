@@ -137,7 +137,7 @@ def test_the_live_command_listens_cues_and_reports(tmp_path):
     assert len(rows) == round(summary["duration_s"] / CONTROL_PERIOD_S)
     assert {row["health"] for row in rows} <= {"ok", "degraded", "fault"}
     assert {row["plausibility"] for row in rows} <= {"none", "spike", "step", "fade", "reset"}
-    assert list(rows[0])[-2:] == ["plausibility", "health"]
+    assert list(rows[0])[-4:] == ["plausibility", "health", "mode", "intensity"]
 
 
 def test_an_unknown_protocol_is_one_clear_error():

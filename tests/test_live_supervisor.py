@@ -36,10 +36,21 @@ def telemetry(fresh: bool):
     return values
 
 
-def run(command, fresh, step_time=lambda t: 1e-3, reference=lambda t: np.zeros(6), t_end=12.0):
-    """Closes the loop plant -> supervisor; returns (supervisor, context, states, commands)."""
+def run(
+    command,
+    fresh,
+    step_time=lambda t: 1e-3,
+    reference=lambda t: np.zeros(6),
+    t_end=12.0,
+    operator=None,
+    initial_state=None,
+):
+    """Closes the loop plant -> supervisor (with the operator's mode `operator(t)`, if
+    given); returns (supervisor, context, states, commands)."""
     builder = DiagramBuilder()
-    plant = builder.AddSystem(MotionCueingPlant(load_platform("kr500")))
+    plant = builder.AddSystem(
+        MotionCueingPlant(load_platform("kr500"), initial_state=initial_state)
+    )
     supervisor = builder.AddSystem(Supervisor(SupervisorConfig(), robot=KR500))
     sources = {
         "mca_command": Scripted(6, command),
@@ -47,6 +58,8 @@ def run(command, fresh, step_time=lambda t: 1e-3, reference=lambda t: np.zeros(6
         "telemetry": Scripted(len(TELEMETRY_FIELDS), lambda t: telemetry(fresh(t))),
         "mca_statistics": Scripted(4, lambda t: [step_time(t), 0, 0, 0]),
     }
+    if operator is not None:
+        sources["operator"] = Scripted(1, lambda t: [operator(t)])
     for name, source in sources.items():
         builder.Connect(builder.AddSystem(source).get_output_port(), supervisor.GetInputPort(name))
     builder.Connect(plant.GetOutputPort("state"), supervisor.GetInputPort("state"))

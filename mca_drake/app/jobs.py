@@ -225,7 +225,9 @@ def _print_listening(address) -> None:
     print(f"listening on udp://{address[0]}:{address[1]}", flush=True)
 
 
-def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None) -> dict:
+def run_live_scenario(
+    scenario: LiveScenario, *, on_listening=None, meshcat=None, keyboard_fd: int | None = None
+) -> dict:
     """Runs a LiveScenario: cues the telemetry arriving on its port in real time (and
     drives its robot over RSI, if it has one); returns the summary with its live block,
     also written to `output_json` unless that is "".
@@ -233,7 +235,9 @@ def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None
     Args:
         on_listening: called with the bound (host, port) once the socket listens (the CLI
             prints `listening on udp://HOST:PORT`; the demo starts its sender).
-        meshcat: a Meshcat to draw the station in (plant multibody).
+        meshcat: a Meshcat to draw the station in (plant multibody), with the operator page.
+        keyboard_fd: a terminal whose keys control the run (the CLI's stdin), when the
+            scenario's controls allow the keyboard.
     """
     # the live layer (sockets, the live diagram, the RSI driver) only for live jobs
     from mca_drake.live.loop import make_decoder, run_live
@@ -273,6 +277,8 @@ def run_live_scenario(scenario: LiveScenario, *, on_listening=None, meshcat=None
         rsi=rsi,
         plausibility=scenario.plausibility,
         trajectory=scenario.trajectory or None,
+        controls=scenario.controls,
+        keyboard_fd=keyboard_fd,
     )
     if scenario.output_json:
         atomic_write_json(scenario.output_json, summary)

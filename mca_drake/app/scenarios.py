@@ -43,6 +43,7 @@ from mca_drake.input_checks import (
     quoted,
 )
 from mca_drake.live.beamng import BeamNGConfig
+from mca_drake.live.controls import ControlsConfig
 from mca_drake.live.f1 import F1Config
 from mca_drake.live.outsim import OutSimConfig
 from mca_drake.live.receiver import allowed_senders
@@ -392,6 +393,10 @@ class LiveScenario:
     # The input plausibility guard in front of the MCA (`mca_drake.cueing.plausibility`:
     # spikes, step bounds, a paused game's frozen stream faded out and back).
     plausibility: PlausibilityConfig = dataclasses.field(default_factory=PlausibilityConfig)
+    # The operator's controls while the run goes on (`mca_drake.live.controls`): the first
+    # intensity and gains, the ramp every change follows, the UDP control port and who may
+    # use it, the keyboard and the operator page in Meshcat.
+    controls: ControlsConfig = dataclasses.field(default_factory=ControlsConfig)
     # The result summary with its live (and rsi) block; "": none.
     output_json: str = "results/live/summary.json"
     # The run's time series as CSV, one row per control period, with the supervisor's
@@ -425,7 +430,7 @@ class LiveScenario:
         except ValueError as err:
             raise ValueError(f"LiveScenario.rsi: {err}") from None
         self.plausibility.validate()
-        for name in ("beamng", "outsim", "f1"):
+        for name in ("beamng", "outsim", "f1", "controls"):
             try:
                 getattr(self, name).validate()
             except ValueError as err:

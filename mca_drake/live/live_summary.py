@@ -10,6 +10,7 @@ import numpy as np
 from pydrake.systems.framework import Context
 
 from mca_drake.cueing import McaConfig, mca_config_record, mca_name
+from mca_drake.live.controls import MODES
 from mca_drake.live.pacing import RealTimePacer
 from mca_drake.live.receiver import TelemetryReceiver
 from mca_drake.live.rsi.link import RobotClockServo, RsiLink
@@ -103,14 +104,21 @@ def live_signals(handles: dict, plant: str, robot: SerialChain, h: float):
 
 def live_trajectory(handles: dict, plant: str, robot: SerialChain, h: float) -> str:
     """The recorded run's time series as trajectory CSV text (`simulation.trajectory`), with
-    the supervisor's health in each period."""
+    the supervisor's health, the operator's mode and the intensity in effect in each
+    period (`LIVE_COLUMNS`)."""
     reference, outputs, states, accelerations = live_signals(handles, plant, robot, h)
     rows = handles["recorder"].rows
     n = reference.shape[0]
-    health = [HEALTH_STATES[int(v)] for v in rows("health")[:n, 0]]
+    live = {"health": [HEALTH_STATES[int(v)] for v in rows("health")[:n, 0]]}
+    if handles.get("operator") is not None:
+        settings = rows("settings")[:n]
+        live["mode"] = [MODES[int(v)] for v in rows("mode")[:n, 0]]
+        live["intensity"] = [repr(float(v)) for v in settings[:, 0] * settings[:, -1]]
+    else:
+        live["mode"], live["intensity"] = ["run"] * n, ["1.0"] * n
     reactions = rows("reaction")[:n, 0] if handles.get("reference_guard") is not None else None
     return trajectory_csv(
-        robot, np.arange(n) * h, reference, outputs, states, accelerations, reactions, health
+        robot, np.arange(n) * h, reference, outputs, states, accelerations, reactions, live
     )
 
 

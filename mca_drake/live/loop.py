@@ -35,6 +35,8 @@ from mca_drake.atomic_io import atomic_write_text
 from mca_drake.cueing import McaConfig, as_mca_config
 from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_record
 from mca_drake.cueing.plausibility import PlausibilityConfig
+from mca_drake.live.control_inputs import control_inputs
+from mca_drake.live.controls import ControlsConfig
 from mca_drake.live.decoders import PROTOCOLS, make_decoder
 from mca_drake.live.live_summary import (
     STALL_PERIODS,
@@ -44,6 +46,7 @@ from mca_drake.live.live_summary import (
     rsi_block,
     scored_summary,
 )
+from mca_drake.live.operator import OperatorConsole
 from mca_drake.live.pacing import RealTimePacer
 from mca_drake.live.phase_lock import PhaseLockConfig, phase_correction
 from mca_drake.live.receiver import TELEMETRY_FIELDS, ReceiverConfig, TelemetryReceiver
@@ -211,16 +214,22 @@ def _ConnectMcaToSupervisor(
     robot_ports: _LiveRobotPorts,
     time_step: float,
     plausibility: PlausibilityConfig | None = None,
+    console: OperatorConsole | None = None,
 ):
-    """Wires the receiver's reference (through the reference guard, `AddReferenceGuard`)
-    and the robot's state into the MCA, and the MCA's command, statistics and the telemetry
-    into the supervisor that judges them (the supervisor reads the reference as received:
-    its NaN and stale checks are its own); returns the reference guard (None: disabled)."""
+    """Wires the receiver's reference (through the reference guard, `AddReferenceGuard`,
+    and the operator's `console`, if any) and the robot's state into the MCA, and the MCA's
+    command, statistics, the telemetry and the operator's mode into the supervisor that
+    judges them (the supervisor reads the reference as received: its NaN and stale checks
+    are its own); returns the reference guard (None: disabled)."""
     reference = source.GetOutputPort("reference")
     # the guard's step is committed with the supervisor's judgement, after the command
     guarded, reference_guard = AddReferenceGuard(
         builder, reference, plausibility, time_step, JUDGE_DELAY_S
     )
+    if console is not None:
+        builder.Connect(guarded, console.GetInputPort("reference"))
+        guarded = console.GetOutputPort("scaled_reference")
+        builder.Connect(console.GetOutputPort("mode"), guard.GetInputPort("operator"))
     builder.Connect(guarded, controller.GetInputPort("reference"))
     builder.Connect(robot_ports.state, controller.GetInputPort("state"))
     if controller.HasInputPort("inertial_output"):
@@ -248,10 +257,12 @@ def MakeLiveClosedLoop(
     meshcat=None,
     rsi_commands: socket.socket | None = None,
     plausibility: PlausibilityConfig | None = None,
+    controls: ControlsConfig | None = None,
+    control_sources: list | None = None,
 ) -> tuple[Diagram, dict]:
-    """TelemetryReceiver -> ReferenceGuard -> MCA -> Supervisor -> robot, with logs and a
-    LatencyProbe; the robot is the analytical plant or the platform's station (multibody,
-    optionally drawn in `meshcat`). The control period is `receiver.time_step`.
+    """TelemetryReceiver -> ReferenceGuard -> OperatorConsole -> MCA -> Supervisor -> robot,
+    with logs and a LatencyProbe; the robot is the analytical plant or the platform's
+    station (multibody, optionally drawn in `meshcat`). The control period is `receiver.time_step`.
 
     Returns:
         (diagram, handles): the systems `receiver`, `mca`, `supervisor`, `probe`,
@@ -263,7 +274,9 @@ def MakeLiveClosedLoop(
         With `rsi_commands` (the loop's end of `live.rsi.link.segment_socket_pair`; the
         analytical plant only: its trajectory is the one a real robot follows), an
         `RsiCommandSender` `rsi` sends every period's command segment there; `home` is the
-        MCA's home pose (rad), where the robot must start.
+        MCA's home pose (rad), where the robot must start. `console` is the
+        OperatorConsole of `controls` (the run's first settings) reading `control_sources`
+        (`live.control_inputs`); with neither, the MCA reads the guarded reference as it is.
     """
     if plant not in PLANTS:
         raise ValueError(f"unknown plant '{plant}'; valid: {', '.join(PLANTS)}")
@@ -299,8 +312,15 @@ def MakeLiveClosedLoop(
     probe = builder.AddNamedSystem("probe", LatencyProbe(h, n))
     handles["probe"] = probe
     reference = source.GetOutputPort("reference")
+    console = None
+    if controls is not None or control_sources:
+        console = builder.AddNamedSystem(
+            "operator",
+            OperatorConsole(controls, control_sources or [], h, update_offset_s=JUDGE_DELAY_S),
+        )
+    handles["operator"] = console
     handles["reference_guard"] = _ConnectMcaToSupervisor(
-        builder, source, controller, guard, robot_ports, h, plausibility
+        builder, source, controller, guard, robot_ports, h, plausibility, console
     )
     command = guard.GetOutputPort("joint_acceleration")
     builder.Connect(command, robot_ports.joint_acceleration)
@@ -322,6 +342,9 @@ def MakeLiveClosedLoop(
     after_command = {"reference": reference, "command": command}
     if handles["reference_guard"] is not None:  # what the guard did in the period
         after_command["reaction"] = handles["reference_guard"].GetOutputPort("reaction")
+    if console is not None:  # the operator's settings and mode in the period
+        after_command["settings"] = console.GetOutputPort("settings")
+        after_command["mode"] = console.GetOutputPort("mode")
     handles["recorder"] = _AddLiveRecorder(builder, before_poll, after_command, h)
     if meshcat is not None:
         handles["traces"] = AddMeshcatDrawing(
@@ -350,6 +373,8 @@ def run_live(
     rsi: RsiDriverConfig | None = None,
     plausibility: PlausibilityConfig | None = None,
     trajectory: str | None = None,
+    controls: ControlsConfig | None = None,
+    keyboard_fd: int | None = None,
 ) -> dict:
     """Runs the live loop for `duration_s` (s of simulated time, at `realtime_rate`) and
     returns its summary with the `live` block.
@@ -360,7 +385,8 @@ def run_live(
         realtime_rate: Drake's target real-time rate (1: live; 0: as fast as possible).
         robot: the platform cued (its limits are the supervisor's and the clamp's).
         plant: "analytical" or "multibody" (the platform's station; `station` its settings,
-            `meshcat` a pydrake Meshcat to draw it in).
+            `meshcat` a pydrake Meshcat to draw it in). `meshcat` also carries the operator
+            page (`controls`), on either plant.
         phase_lock: how the loop follows a periodic sender's phase (`live.phase_lock`;
             default on), so that samples wait little for their poll; at real-time rates only.
         rsi: drive a KUKA robot over RSI (`live.rsi.driver`; analytical plant, real time):
@@ -372,6 +398,11 @@ def run_live(
             default on); its counts are the summary's `plausibility` block.
         trajectory: a CSV path for the run's time series (`simulation.trajectory`, with the
             supervisor's health per period), written atomically after the run.
+        controls: the operator's controls (`live.controls`; default: the run's settings at
+            1, no UDP port): intensity, gains, pause, wash-out and emergency stop from the
+            UDP control port, the keyboard of `keyboard_fd` (a terminal; the CLI passes its
+            stdin) and the operator page in `meshcat`; its log is the summary's `controls`
+            block.
     """
     if not 0 < duration_s <= 24 * 3600:
         raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
@@ -388,32 +419,38 @@ def run_live(
         rsi.period_s = h
         rsi.validate()
         loop_end, driver_end = segment_socket_pair()
-    diagram, handles = MakeLiveClosedLoop(
-        decoder,
-        config,
-        plant=plant,
-        receiver=receiver,
-        supervisor=supervisor,
-        scaling=scaling,
-        robot=robot,
-        station=station,
-        meshcat=meshcat,
-        rsi_commands=loop_end,
-        plausibility=plausibility,
-    )
-    run = _run_paced(
-        diagram,
-        handles,
-        duration_s=duration_s,
-        realtime_rate=realtime_rate,
-        lock=lock,
-        h=h,
-        plant=plant,
-        on_listening=on_listening,
-        rsi=rsi,
-        robot=robot,
-        sockets=(loop_end, driver_end),
-    )
+    controls = controls or ControlsConfig()
+    controls.validate()
+    with control_inputs(controls, meshcat, keyboard_fd) as sources:
+        diagram, handles = MakeLiveClosedLoop(
+            decoder,
+            config,
+            plant=plant,
+            receiver=receiver,
+            supervisor=supervisor,
+            scaling=scaling,
+            robot=robot,
+            station=station,
+            # the station is drawn; on the analytical plant the page has the controls only
+            meshcat=meshcat if plant == "multibody" else None,
+            rsi_commands=loop_end,
+            plausibility=plausibility,
+            controls=controls,
+            control_sources=sources,
+        )
+        run = _run_paced(
+            diagram,
+            handles,
+            duration_s=duration_s,
+            realtime_rate=realtime_rate,
+            lock=lock,
+            h=h,
+            plant=plant,
+            on_listening=on_listening,
+            rsi=rsi,
+            robot=robot,
+            sockets=(loop_end, driver_end),
+        )
     summary = scored_summary(handles, config, plant, decoder, robot, h, run.wall_s)
     summary["live"] = live_block(handles, run, decoder, realtime_rate, h)
     reference_guard = handles["reference_guard"]
@@ -426,6 +463,11 @@ def run_live(
         changes = mca.policy_changes(mca.GetMyContextFromRoot(run.context))
         reference = handles["recorder"].rows("reference")
         summary |= policy_record(config, robot.name, changes, reference, h)
+    console = handles["operator"]
+    guard = handles["supervisor"]
+    _, rest_at = guard.estop_times(guard.GetMyContextFromRoot(run.context))
+    to_rest = rest_at - console.estop["t_s"] if console.estop is not None else math.nan
+    summary["controls"] = console.summary(console.GetMyContextFromRoot(run.context), to_rest)
     if run.rsi_status is not None:
         summary["rsi"] = rsi_block(handles, run)
     if trajectory:

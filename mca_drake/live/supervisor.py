@@ -16,8 +16,20 @@ neither leaving nor rejoining the MCA jumps in acceleration:
 
 (critically damped return to the home pose, q = 0 or the MCA's own, at most
 `home_acceleration_fraction` of each joint's acceleration limit). A non-finite MCA command
-sets w = 0 at once. Whatever the blend, the command passes the exact viability clamp of
-`mca_drake.safety`, so the robot stays inside its limits. Every transition is counted and
+sets w = 0 at once.
+
+The operator (`live.operator.OperatorConsole`, its `mode` on the optional `operator` input)
+can ask for the same wash-out (mode washout: w moves toward 0 while the health state stays
+what it is) or an emergency stop (mode estop): from the next command on, every joint brakes
+to rest at `estop_acceleration_fraction` of its acceleration limit,
+
+    u = sat(-qd / h),
+
+and stays there for the rest of the run; the time it came to rest (every |qd| below
+`REST_SPEED`) is kept (`estop_times`).
+
+Whatever the blend, the command passes the exact viability clamp of `mca_drake.safety`, so
+the robot stays inside its limits. Every transition is counted and
 logged (`Supervisor.transitions`).
 """
 
@@ -31,6 +43,7 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
 from mca_drake.conventions import CONTROL_PERIOD_S, NUM_CHANNELS
 from mca_drake.input_checks import check_config_numbers
+from mca_drake.live.controls import ESTOP, RUN, WASHOUT
 from mca_drake.live.receiver import TELEMETRY_FIELDS
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.safety import ViabilityClamp
@@ -39,6 +52,9 @@ HEALTH_STATES = ("ok", "degraded", "fault")
 # The `health` output port, in this order.
 HEALTH_FIELDS = ("state", "transitions", "ok_s", "degraded_s", "fault_s", "weight")
 _STATE, _TRANSITIONS, _OK_S, _DEGRADED_S, _FAULT_S, _WEIGHT, _CLEAR_S, _OVERRUNS = range(8)
+_ESTOP_AT, _REST_AT = 8, 9  # loop time of the emergency stop and of rest after it (nan: none)
+# The robot is at rest when every joint is slower than this (rad/s or m/s).
+REST_SPEED = 1e-3
 _AGE, _FRESH = TELEMETRY_FIELDS.index("age_s"), TELEMETRY_FIELDS.index("fresh")
 
 
@@ -59,6 +75,8 @@ class SupervisorConfig:
     # joint's acceleration limit it may use.
     home_frequency_hz: float = 0.3
     home_acceleration_fraction: float = 0.5
+    # The fraction of each joint's acceleration limit an emergency stop brakes with.
+    estop_acceleration_fraction: float = 1.0
     # Largest sane |y_ref| per channel (rad/s, m/s^2): beyond is a fault (a unit error).
     max_reference: tuple[float, ...] = (5.0, 5.0, 5.0, 50.0, 50.0, 50.0)
     # Control period, s.
@@ -80,8 +98,9 @@ class SupervisorConfig:
                 raise ValueError(f"SupervisorConfig.{name} must be positive")
         if self.overruns_to_fault < 1:
             raise ValueError("SupervisorConfig.overruns_to_fault must be at least 1")
-        if not 0 < self.home_acceleration_fraction <= 1:
-            raise ValueError("SupervisorConfig.home_acceleration_fraction must be in (0, 1]")
+        for name in ("home_acceleration_fraction", "estop_acceleration_fraction"):
+            if not 0 < getattr(self, name) <= 1:
+                raise ValueError(f"SupervisorConfig.{name} must be in (0, 1]")
         if len(self.max_reference) != NUM_CHANNELS or min(self.max_reference) <= 0:
             raise ValueError("SupervisorConfig.max_reference must be six positive values")
 
@@ -98,14 +117,16 @@ class Supervisor(LeafSystem):
         - reference
         - telemetry
         - mca_statistics
+        - operator
         output_ports:
         - joint_acceleration
         - health
 
     Inputs: the robot's `state` [q, qd] (2n for n joints), the MCA's `mca_command` (n,
     rad/s^2 or m/s^2), the `reference` the MCA cues (6), the receiver's `telemetry`
-    (TELEMETRY_FIELDS) and the MCA's `mca_statistics` (MCA_STATISTICS: its step time
-    first). `joint_acceleration` (n) is the
+    (TELEMETRY_FIELDS), the MCA's `mca_statistics` (MCA_STATISTICS: its step time
+    first) and, optionally, the operator's `mode` (`operator`, 1: index in
+    `live.controls.MODES`; unconnected: run). `joint_acceleration` (n) is the
     supervised command (direct feedthrough of the command and the state); `health`
     (HEALTH_FIELDS) holds the state (0 ok, 1 degraded, 2 fault), the transitions, the time
     spent in each state (s) and the blend weight.
@@ -137,6 +158,7 @@ class Supervisor(LeafSystem):
         omega = 2 * math.pi * self._config.home_frequency_hz
         self._kp, self._kd = omega * omega, 2 * omega
         self._home_limit = self._config.home_acceleration_fraction * self._robot.qdd_max
+        self._brake_limit = self._config.estop_acceleration_fraction * self._robot.qdd_max
         n = self._joints = robot.num_joints
         self._home = np.zeros(n) if home_position is None else np.array(home_position)
         if self._home.shape != (n,) or not np.all(np.isfinite(self._home)):
@@ -150,8 +172,10 @@ class Supervisor(LeafSystem):
         self._reference_port = self.DeclareVectorInputPort("reference", NUM_CHANNELS)
         self._telemetry_port = self.DeclareVectorInputPort("telemetry", len(TELEMETRY_FIELDS))
         self._statistics_port = self.DeclareVectorInputPort("mca_statistics", 4)
-        initial = np.zeros(8)
+        self._operator_port = self.DeclareVectorInputPort("operator", 1)
+        initial = np.zeros(10)
         initial[_WEIGHT] = 1.0
+        initial[[_ESTOP_AT, _REST_AT]] = math.nan
         self._index = self.DeclareDiscreteState(initial)
         if not 0 <= judge_offset_s < h:
             raise ValueError(f"judge_offset_s must be in [0, time_step); got {judge_offset_s}")
@@ -160,7 +184,12 @@ class Supervisor(LeafSystem):
             "joint_acceleration",
             n,
             self._calc_command,
-            {self.xd_ticket(), self._state_port.ticket(), self._command_port.ticket()},
+            {
+                self.xd_ticket(),
+                self._state_port.ticket(),
+                self._command_port.ticket(),
+                self._operator_port.ticket(),
+            },
         )
         self.DeclareVectorOutputPort(
             "health", len(HEALTH_FIELDS), self._calc_health, {self.xd_ticket()}
@@ -175,6 +204,24 @@ class Supervisor(LeafSystem):
         """The `health` output in `context`, by name."""
         values = context.get_discrete_state(self._index).value()[: len(HEALTH_FIELDS)]
         return dict(zip(HEALTH_FIELDS, (float(v) for v in values), strict=True))
+
+    def estop_times(self, context: Context) -> tuple[float, float]:
+        """(loop time the supervisor first judged under the emergency stop, loop time the
+        robot was at rest after it), s; nan where none."""
+        s = context.get_discrete_state(self._index).value()
+        return float(s[_ESTOP_AT]), float(s[_REST_AT])
+
+    def _operator_mode(self, context: Context) -> int:
+        """The operator's mode (MODES index); run when no console is connected."""
+        if not self._operator_port.HasValue(context):
+            return RUN
+        return int(self._operator_port.Eval(context)[0])
+
+    def brake_command(self, x: np.ndarray) -> np.ndarray:
+        """The emergency stop's deceleration at state x (2n): every joint's velocity to zero
+        in one period where its limit allows, per s^2 (n)."""
+        u = -x[self._joints :] / self._config.time_step
+        return np.clip(u, -self._brake_limit, self._brake_limit)
 
     def home_command(self, x: np.ndarray) -> np.ndarray:
         """The wash-out's acceleration toward the home pose at state x (2n), per s^2 (n)."""
@@ -223,9 +270,18 @@ class Supervisor(LeafSystem):
         s[_STATE] = new
         s[[_OK_S, _DEGRADED_S, _FAULT_S][new]] += h
         target = 0.0 if new == 2 else 1.0
+        mode = self._operator_mode(context)
+        if mode == ESTOP and math.isnan(s[_ESTOP_AT]):
+            s[_ESTOP_AT] = context.get_time()
+        if mode == WASHOUT or mode == ESTOP:
+            target = 0.0  # (the stop brakes whatever the weight; it holds the wash-out after)
         s[_WEIGHT] = float(
             np.clip(target, s[_WEIGHT] - h / cfg.blend_s, s[_WEIGHT] + h / cfg.blend_s)
         )
+        if not math.isnan(s[_ESTOP_AT]) and math.isnan(s[_REST_AT]):
+            qd = self._state_port.Eval(context)[self._joints :]
+            if np.max(np.abs(qd)) < REST_SPEED:
+                s[_REST_AT] = context.get_time()
         state.get_mutable_discrete_state().set_value(self._index, s)
 
     def _calc_health(self, context: Context, output: BasicVector) -> None:
@@ -233,6 +289,9 @@ class Supervisor(LeafSystem):
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
         x = self._state_port.Eval(context)
+        if self._operator_mode(context) == ESTOP:
+            output.SetFromVector(self._clamp(x, self.brake_command(x))[0])
+            return
         u_mca = self._command_port.Eval(context).tolist()
         w = float(context.get_discrete_state(self._index).value()[_WEIGHT])
         if not all(map(math.isfinite, u_mca)):

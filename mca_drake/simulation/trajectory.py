@@ -6,7 +6,10 @@ Columns: `t` (s); `ref_<ch>` and `cue_<ch>` for the channels of `conventions.CHA
 the platform's output y); `q_<joint>` (rad or m), `qd_<joint>`, `qdd_<joint>` per joint of
 the platform, by its joint names; `plausibility`, what the guard did in that period
 (`cueing.plausibility.REACTIONS`; "off" without a guard); and for live runs `health`, the
-supervisor's state in that period. Floats are written with repr, so the file round-trips.
+supervisor's state in that period, `mode`, the operator's (`live.controls.MODES`), and
+`intensity`, the share of the reference cued (the operator's intensity times the fade of
+a pause; the channels' gains are the summary's `controls` block). Floats are written with
+repr, so the file round-trips.
 """
 
 import csv
@@ -20,14 +23,18 @@ from mca_drake.conventions import CHANNELS
 from mca_drake.cueing.plausibility import REACTIONS
 from mca_drake.platforms.serial import SerialChain
 
+# The columns a live run's trajectory adds (module docstring).
+LIVE_COLUMNS = ("health", "mode", "intensity")
 
-def trajectory_header(robot: SerialChain, live: bool = False) -> list[str]:
-    """The column names of a trajectory of a run on `robot` (with `health` for a live run)."""
+
+def trajectory_header(robot: SerialChain, extra: tuple[str, ...] = ()) -> list[str]:
+    """The column names of a trajectory of a run on `robot`, with the `extra` columns after
+    `plausibility` (a live run's: LIVE_COLUMNS)."""
     joints = list(robot.joint_names)
     columns = ["t", *(f"ref_{c}" for c in CHANNELS), *(f"cue_{c}" for c in CHANNELS)]
     for prefix in ("q", "qd", "qdd"):
         columns += [f"{prefix}_{name}" for name in joints]
-    return columns + ["plausibility"] + (["health"] if live else [])
+    return [*columns, "plausibility", *extra]
 
 
 def trajectory_csv(
@@ -38,11 +45,12 @@ def trajectory_csv(
     states: np.ndarray,
     accelerations: np.ndarray,
     reactions: np.ndarray | None = None,
-    health: list[str] | None = None,
+    extra: dict[str, list] | None = None,
 ) -> str:
     """The CSV text of a trajectory: `times` (T), `reference` and `outputs` (T, 6), `states`
     (T, 2n) = [q, qd], `accelerations` (T, n), `reactions` (T, indices in REACTIONS; None:
-    no guard) and, for a live run, `health` (T names).
+    no guard) and, for a live run, the `extra` columns by name (T values each:
+    LIVE_COLUMNS).
 
     Raises:
         ValueError: arrays whose lengths or widths disagree.
@@ -62,16 +70,18 @@ def trajectory_csv(
             )
     if reactions is not None and len(reactions) != rows:
         raise ValueError(f"trajectory: {len(reactions)} reactions for {rows} periods")
-    if health is not None and len(health) != rows:
-        raise ValueError(f"trajectory: {len(health)} health states for {rows} periods")
+    extra = extra or {}
+    for name, values in extra.items():
+        if len(values) != rows:
+            raise ValueError(f"trajectory: {len(values)} values of {name} for {rows} periods")
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(trajectory_header(robot, live=health is not None))
+    writer.writerow(trajectory_header(robot, tuple(extra)))
+    columns = list(zip(*extra.values(), strict=True)) if extra else [()] * rows
     numbers = np.column_stack([times, reference, outputs, states, accelerations])
     for k, row in enumerate(numbers.tolist()):
         reaction = "off" if reactions is None else REACTIONS[int(reactions[k])]
-        extra = [reaction] + ([health[k]] if health is not None else [])
-        writer.writerow([repr(v) for v in row] + extra)
+        writer.writerow([repr(v) for v in row] + [reaction] + [str(v) for v in columns[k]])
     return buffer.getvalue()
 
 
@@ -90,4 +100,4 @@ def write_trajectory(path, result, robot: SerialChain) -> Path:
     return atomic_write_text(path, text)
 
 
-__all__ = ["trajectory_csv", "trajectory_header", "write_trajectory"]
+__all__ = ["LIVE_COLUMNS", "trajectory_csv", "trajectory_header", "write_trajectory"]

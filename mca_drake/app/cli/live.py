@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
+import sys
 import tempfile
 from pathlib import Path
 
@@ -50,6 +52,21 @@ def add_parser(commands) -> None:
     parser.add_argument("--meshcat", action="store_true", help="draw the station in Meshcat")
     parser.add_argument("--json", help="result summary with its live block")
     add_trajectory_flag(parser)
+    parser.add_argument(
+        "--control-port",
+        help="HOST:PORT: a UDP port for the operator's commands while the run goes on "
+        "(intensity V, gain CH V, pause, resume, washout, estop, status; from loopback "
+        "unless the scenario allows others)",
+    )
+    parser.add_argument(
+        "--intensity", type=float, help="the master intensity the run starts with, in [0, 1]"
+    )
+    parser.add_argument(
+        "--no-keyboard",
+        action="store_true",
+        help="ignore the terminal's keys (by default + and - intensity, space pause/resume, "
+        "h wash out, x or Esc emergency stop)",
+    )
     parser.add_argument(
         "--robot",
         help="rsi://HOST:PORT: drive a KUKA robot over RSI (the driver listens there for the "
@@ -107,6 +124,12 @@ def _scenario_from_flags(args: argparse.Namespace) -> LiveScenario:
             scenario.f1.packet_format = args.f1_format
     scenario.plant = args.plant or "analytical"
     scenario.duration_s = args.duration
+    if args.control_port:
+        scenario.controls.udp = args.control_port
+    if args.intensity is not None:
+        scenario.controls.intensity = args.intensity
+    if args.no_keyboard:
+        scenario.controls.keyboard = False
     if args.meshcat and scenario.plant != "multibody":
         raise ValueError("--meshcat draws the KR500 station: add --plant multibody")
     scenario.validate()
@@ -131,6 +154,7 @@ def format_live_report(summary: dict) -> str:
         f"violations {summary['violations']}"
     ]
     lines += policy_lines(summary)
+    lines += controls_lines(summary.get("controls"))
     if "rsi" in summary:
         r = summary["rsi"]
         lines.append(
@@ -140,6 +164,36 @@ def format_live_report(summary: dict) -> str:
             f"{r.get('mode')} ({r.get('reason')})"
         )
     return "\n".join(lines)
+
+
+def controls_lines(controls: dict | None) -> list[str]:
+    """The operator's part of a live report: the commands taken and the emergency stop."""
+    if not controls or not (controls["commands"] or controls["estop"]):
+        return []
+    final = controls["final"]
+    lines = [
+        f"operator: {controls['commands']} commands ({controls['refused']} refused) from "
+        f"{', '.join(controls['sources'])}; at the end {final['mode']}, intensity "
+        f"{final['intensity']:.2f}"
+    ]
+    estop = controls["estop"]
+    if estop:
+        rest = estop["time_to_rest_s"]
+        rest_text = "not at rest by the end" if rest is None else f"at rest after {rest:.3f} s"
+        lines.append(f"emergency stop at {estop['t_s']:.2f} s from {estop['source']}: {rest_text}")
+    return lines
+
+
+def controls_hint(scenario: LiveScenario, keyboard: bool, meshcat: bool) -> str:
+    """Where the operator's commands are read, for the terminal ("" when nowhere)."""
+    places = []
+    if scenario.controls.udp:
+        places.append(f"udp://{scenario.controls.udp} (intensity V, gain CH V, pause, ...)")
+    if keyboard and scenario.controls.keyboard:
+        places.append("keys: + - intensity, space pause/resume, h wash out, x or Esc STOP")
+    if meshcat and scenario.controls.meshcat:
+        places.append("the Meshcat page's sliders and buttons")
+    return "operator controls: " + "; ".join(places) if places else ""
 
 
 def _demo_sender(protocol: str, duration_s: float, tmp: Path):
@@ -159,6 +213,15 @@ def _demo_sender(protocol: str, duration_s: float, tmp: Path):
     return lambda port: start_demo_sender(port, duration_s)
 
 
+def _terminal() -> int | None:
+    """The file descriptor of stdin when it is a terminal (its keys control the run)."""
+    try:
+        fd = sys.stdin.fileno()
+    except (AttributeError, OSError, ValueError):
+        return None
+    return fd if os.isatty(fd) else None
+
+
 def _stop_on_sigterm(*_) -> None:
     # SIGTERM ends the run as Ctrl-C does: through the loop's clean-up, which brakes a
     # driven robot to rest and stops its driver, instead of killing the process outright
@@ -176,13 +239,20 @@ def run(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         start_sender = _demo_sender(scenario.protocol, stream_s, Path(tmp)) if args.demo else None
 
+        keyboard = _terminal()
+        hint = controls_hint(scenario, keyboard is not None, meshcat is not None)
+
         def listening(address):
             print(f"listening on udp://{address[0]}:{address[1]}", flush=True)
+            if hint:
+                print(hint, flush=True)
             if start_sender is not None:
                 sender.append(start_sender(address[1]))
 
         try:
-            summary = run_live_scenario(scenario, on_listening=listening, meshcat=meshcat)
+            summary = run_live_scenario(
+                scenario, on_listening=listening, meshcat=meshcat, keyboard_fd=keyboard
+            )
         finally:
             for process in sender:
                 process.terminate()
