@@ -2,7 +2,7 @@
 
     python benchmarks/bench_live.py [--duration 600] [--mcas dpc,nmpc-rti]
         [--plant analytical] [--phase-lock on|off|both] [--guard on|off|both]
-        [--protocol fgnetfdm|beamng] [--json results/live.json]
+        [--controls on|off|both] [--protocol fgnetfdm|beamng] [--json results/live.json]
 
 For each MCA, `mca-drake live --demo`'s set-up without Meshcat: a JSBSim process flies the
 light aircraft (a training seed) in real time and streams its FGNetFDM packets over
@@ -10,8 +10,10 @@ loopback at 100 Hz, or (`--protocol beamng`, written to live_driving.json by def
 process streams a car's training drive as BeamNG MotionSim packets at 100 Hz
 (`mca_drake.live.drive_demo`); the loop cues them at real-time rate 1 for `--duration` s, with the
 phase lock (`mca_drake.live.phase_lock`) on, off or both one after the other, and the
-input plausibility guard (`mca_drake.cueing.plausibility`) on, off or both (what it costs
-in latency, measured in the same run). Prints the
+input plausibility guard (`mca_drake.cueing.plausibility`) on, off or both, and the
+operator's controls (`mca_drake.live.controls`: the console in the loop, polling a UDP
+control port and the Meshcat page's sliders and buttons every period) on, off or both
+(what they cost in latency, measured in the same run). Prints the
 latency from a sample's arrival to the command computed from it (median, p99, max), the
 part of it the sample waited in the socket for its poll, the
 loop's jitter (|period - 10 ms| of its control instants on the wall clock), the loop
@@ -24,14 +26,17 @@ from __future__ import annotations
 
 import argparse
 import resource
+import socket
 import tempfile
 from pathlib import Path
 
 from common import default_result_path, in_ms, print_calibration, result_header
+from pydrake.geometry import Meshcat, MeshcatParams
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import mca_config_from_name
 from mca_drake.cueing.plausibility import PlausibilityConfig
+from mca_drake.live.controls import ControlsConfig
 from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S, start_demo_sender
 from mca_drake.live.drive_demo import DEMO_CAR, demo_drive, start_drive_sender
 from mca_drake.live.drive_demo import DEMO_SEED as DRIVE_SEED
@@ -49,6 +54,13 @@ def children_cpu_s() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
+def free_udp_port() -> int:
+    """A UDP port free on loopback now (the control port's)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=600.0, help="s per MCA")
@@ -56,6 +68,7 @@ def main() -> None:
     parser.add_argument("--plant", default="analytical")
     parser.add_argument("--phase-lock", choices=("on", "off", "both"), default="on")
     parser.add_argument("--guard", choices=("on", "off", "both"), default="on")
+    parser.add_argument("--controls", choices=("on", "off", "both"), default="on")
     parser.add_argument("--protocol", choices=("fgnetfdm", "beamng"), default="fgnetfdm")
     parser.add_argument("--json", help="write the figures here (default: by the protocol)")
     args = parser.parse_args()
@@ -73,9 +86,17 @@ def main() -> None:
         )
     else:
         report["sender"] = "JSBSim's FGNetFDM packets of the light aircraft, seed 7"
-    guards = {"on": (True,), "off": (False,), "both": (False, True)}[args.guard]
-    runs = [(n, lock, g) for n in args.mcas.split(",") for lock in locks for g in guards]
-    for name, lock, guard in runs:
+    choices = {"on": (True,), "off": (False,), "both": (False, True)}
+    guards, consoles = choices[args.guard], choices[args.controls]
+    runs = [
+        (n, lock, g, c)
+        for n in args.mcas.split(",")
+        for lock in locks
+        for g in guards
+        for c in consoles
+    ]
+    meshcat = Meshcat(MeshcatParams(host="localhost")) if True in consoles else None
+    for name, lock, guard, console in runs:
         senders = []
 
         def start(address, senders=senders):
@@ -100,6 +121,8 @@ def main() -> None:
             phase_lock=PhaseLockConfig(enabled=lock),
             robot=KR500,
             plausibility=PlausibilityConfig(enabled=guard),
+            controls=ControlsConfig(enabled=console, udp=f"127.0.0.1:{free_udp_port()}"),
+            meshcat=meshcat,
         )
         for process in senders:
             process.terminate()
@@ -109,6 +132,8 @@ def main() -> None:
         label = f"{name}, phase lock {'on' if lock else 'off'}"
         if args.guard != "on":
             label += f", guard {'on' if guard else 'off'}"
+        if args.controls != "on":
+            label += f", controls {'on' if console else 'off'}"
         report["runs"][label] = {
             "live": live,
             "pi": summary["pi"],

@@ -391,3 +391,27 @@ def test_an_emergency_stop_from_each_input_brings_the_live_robot_to_rest(where, 
     assert after.sum() > 20 and np.all(np.abs(qd[after]) < 1e-3)  # at rest, and it stays
     assert np.any(np.abs(qd[rows["t"] < estop["t_s"]]) > 1e-3)  # it moved before
     assert set(rows["mode"][after]) == {"estop"}
+
+
+def test_a_scenario_and_the_live_flags_set_the_controls(tmp_path):
+    from mca_drake.app.cli import build_parser
+    from mca_drake.app.cli.live import _scenario_from_flags
+    from mca_drake.app.scenarios import load_scenario
+
+    path = tmp_path / "live.yaml"
+    path.write_text(
+        "scenario: !LiveScenario\n  protocol: csv\n  duration_s: 5\n  controls:\n"
+        "    intensity: 0.5\n    gains: {f_x-: 0.7}\n    udp: 127.0.0.1:5601\n"
+    )
+    scenario = load_scenario(path)
+    scenario.validate()
+    assert initial_settings(scenario.controls) == [0.5, 1, 1, 1, 1, 0.7, 1, 1]
+    with pytest.raises(ValueError, match=r"LiveScenario\.controls: ControlsConfig: no channel"):
+        load_scenario(path, "scenario: {controls: {gains: {f_z: 1.0}}}").validate()
+    argv = ["live", "--protocol", "csv", "--duration", "5", "--control-port", "127.0.0.1:5602"]
+    args = build_parser().parse_args([*argv, "--intensity", "0.3", "--no-keyboard"])
+    controls = _scenario_from_flags(args).controls
+    assert (controls.udp, controls.intensity, controls.keyboard) == ("127.0.0.1:5602", 0.3, False)
+    args = build_parser().parse_args([*argv, "--intensity", "1.3"])
+    with pytest.raises(ValueError, match="intensity must be a number in"):
+        _scenario_from_flags(args)

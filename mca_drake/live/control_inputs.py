@@ -220,12 +220,15 @@ class MeshcatControls:
 
 @contextlib.contextmanager
 def control_inputs(config: ControlsConfig, meshcat=None, keyboard_fd: int | None = None):
-    """The sources `config` asks for, open for the `with` block and closed after it
-    (the terminal given back): the UDP port (`udp`), the keyboard (`keyboard`, when
-    `keyboard_fd` is a terminal) and the operator page (`meshcat`, when a Meshcat is
-    given)."""
+    """The sources `config` asks for (none when it is not `enabled`), open for the `with`
+    block and closed after it (the terminal given back): the UDP port (`udp`), the
+    keyboard (`keyboard`, when `keyboard_fd` is a terminal) and the operator page
+    (`meshcat`, when a Meshcat is given)."""
     with contextlib.ExitStack() as stack:
         sources = []
+        if not config.enabled:
+            yield sources
+            return
 
         def opened(source):
             stack.callback(source.close)

@@ -28,8 +28,6 @@ keyboard and the operator page send):
 Every command gets an answer (`apply_command`): what it changed, or why it was refused.
 """
 
-from __future__ import annotations
-
 import dataclasses
 import math
 
@@ -49,6 +47,9 @@ _GAIN_NAMES = {"w_x", "w_y", "w_z", "f_x", "f_x+", "f_x-", "f_y", "a_z"}
 class ControlsConfig:
     """The operator's controls of a live run and where they come from."""
 
+    # False: no console in the loop (the MCA cues the guarded reference as it is; the
+    # supervisor's own wash-out and the hardware stop remain).
+    enabled: bool = True
     # Time (s) a setting takes to move by 1.0 (intensity 1 -> 0, a gain 1 -> 2), and the
     # fade of pause/resume from 1 to 0: every change is a ramp this steep, never a step.
     ramp_s: float = 1.0

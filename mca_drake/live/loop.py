@@ -435,7 +435,7 @@ def run_live(
             meshcat=meshcat if plant == "multibody" else None,
             rsi_commands=loop_end,
             plausibility=plausibility,
-            controls=controls,
+            controls=controls if controls.enabled else None,
             control_sources=sources,
         )
         run = _run_paced(
@@ -464,10 +464,12 @@ def run_live(
         reference = handles["recorder"].rows("reference")
         summary |= policy_record(config, robot.name, changes, reference, h)
     console = handles["operator"]
-    guard = handles["supervisor"]
-    _, rest_at = guard.estop_times(guard.GetMyContextFromRoot(run.context))
-    to_rest = rest_at - console.estop["t_s"] if console.estop is not None else math.nan
-    summary["controls"] = console.summary(console.GetMyContextFromRoot(run.context), to_rest)
+    if console is not None:
+        guard = handles["supervisor"]
+        _, rest_at = guard.estop_times(guard.GetMyContextFromRoot(run.context))
+        to_rest = rest_at - console.estop["t_s"] if console.estop is not None else math.nan
+        context = console.GetMyContextFromRoot(run.context)
+        summary["controls"] = console.summary(context, to_rest)
     if run.rsi_status is not None:
         summary["rsi"] = rsi_block(handles, run)
     if trajectory:
