@@ -251,6 +251,15 @@ def test_fgnetfdm_without_time_uses_arrival(level_flight):
     timed = FgNetFdmDecoder(time_resolution_s=RESOLUTION_S).decode(bytes(packet), 7.25)
     assert timed.t_s == 7.25 and timed.time_source == "arrival"
     np.testing.assert_array_equal(timed.f, sample.f)
+    # and FlightGear's native-fdm output, whose cur_time is Unix time in whole seconds
+    # (2026-11-30 12:00 UTC): not 20 days of simulation at 1 ms, timed by arrival too
+    flightgear = _patched(bytes(packet), "cur_time", "I", 1_796_040_000)
+    timed = FgNetFdmDecoder(time_resolution_s=RESOLUTION_S).decode(flightgear, 3.5)
+    assert timed.t_s == 3.5 and timed.time_source == "arrival"
+    # a long flight's own simulation time (10 h at 1 ms) is still the sender's
+    long_flight = _patched(bytes(packet), "cur_time", "I", 36_000_000)
+    timed = FgNetFdmDecoder(time_resolution_s=RESOLUTION_S).decode(long_flight, 3.5)
+    assert timed.t_s == pytest.approx(36_000.0) and timed.time_source == "sender"
 
 
 def _patched(packet: bytes, field: str, code: str, value) -> bytes:

@@ -23,7 +23,10 @@ one). The layout is JSBSim's `src/input_output/net_fdm.hxx` (FlightGear's `FGNet
   x forward, y right, z down: level flight reads (0, 0, -g);
 - `cur_time`: the simulation time in units of the directive's `<time type="simulation"
   resolution="...">` (truncated to an integer, so up to one unit early), else the constant
-  1234567890 (`JSBSIM_PLACEHOLDER_TIME`).
+  1234567890 (`JSBSIM_PLACEHOLDER_TIME`). A value that would be more than
+  `MAX_SIMULATION_TIME_S` of simulation is not one (JSBSim's placeholder, FlightGear's Unix
+  time): such a packet is timed by its arrival, so a decoder set for the directive also
+  reads JSBSim's and FlightGear's default streams.
 
 Head axes (x forward, y left, z up) flip y and z of JSBSim's body axes, exactly as
 `mca_drake.references.jsbsim` builds its recordings: omega = (p, -q, -r) and
@@ -47,6 +50,8 @@ FGNETFDM_VERSION = 24
 FGNETFDM_SIZE = 408
 # JSBSim's `cur_time` when the directive asks for no simulation time.
 JSBSIM_PLACEHOLDER_TIME = 1234567890
+# A `cur_time` beyond this much simulation (s, 11.6 days) is a wall clock or a placeholder.
+MAX_SIMULATION_TIME_S = 1e6
 # Metres per (international) foot, exact.
 M_PER_FT = 0.3048
 
@@ -253,8 +258,9 @@ class FgNetFdmDecoder(Decoder):
             sender's simulation time (up to one unit early: JSBSim truncates); a packet
             with JSBSim's placeholder instead (its default output, without the directive)
             is timed by its arrival, so that a scenario set for the directive still cues
-            JSBSim's default stream. None: the packet has no usable time (JSBSim's
-            placeholder, FlightGear's whole seconds), the sample time is the arrival time.
+            JSBSim's default stream, and so is one whose time would be more than
+            MAX_SIMULATION_TIME_S of simulation (FlightGear's Unix time). None: the
+            packet has no usable time, the sample time is the arrival time.
         lever_arm: where the head is relative to JSBSim's eye point (None: at it).
     """
 
@@ -282,8 +288,8 @@ class FgNetFdmDecoder(Decoder):
         p, q, r = body_rates_from_euler_rates(phi, theta, phidot, thetadot, psidot)
         omega = (p, -q, -r)
         f = (M_PER_FT * a_x, -M_PER_FT * a_y, -M_PER_FT * a_z)
-        if self.time_resolution_s is None or cur_time == JSBSIM_PLACEHOLDER_TIME:
-            # no sender time (JSBSim's default output sends its placeholder): the arrival's
+        t_s = math.inf if self.time_resolution_s is None else cur_time * self.time_resolution_s
+        if t_s > MAX_SIMULATION_TIME_S:
+            # no simulation time (JSBSim's placeholder, FlightGear's Unix time): the arrival's
             return TelemetrySample(received_s, omega, f, time_source="arrival")
-        t_s = cur_time * self.time_resolution_s
         return TelemetrySample(t_s, omega, f, time_source="sender")
