@@ -1098,7 +1098,8 @@ SECTIONS = (
         "Live loop",
         "live.json",
         "latency from a telemetry sample's arrival to the command computed from it, loop "
-        "jitter and CPU load, 10 minutes of live JSBSim telemetry",
+        "jitter and CPU load on live JSBSim telemetry, with and without the input "
+        "plausibility guard and the operator's controls in the loop",
         _live,
     ),
     Section(

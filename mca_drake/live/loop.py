@@ -73,6 +73,7 @@ from mca_drake.simulation.closed_loop import (
     PLANTS,
 )
 from mca_drake.systems import MotionCueingPlant
+from mca_drake.systems.meshcat_traces import MeshcatOutputTraces
 from mca_drake.systems.station import AddStation, StationConfig
 
 _ARRIVAL = TELEMETRY_FIELDS.index("arrival_s")
@@ -262,7 +263,9 @@ def MakeLiveClosedLoop(
 ) -> tuple[Diagram, dict]:
     """TelemetryReceiver -> ReferenceGuard -> OperatorConsole -> MCA -> Supervisor -> robot,
     with logs and a LatencyProbe; the robot is the analytical plant or the platform's
-    station (multibody, optionally drawn in `meshcat`). The control period is `receiver.time_step`.
+    station (multibody, drawn in `meshcat` if given; on the analytical plant `meshcat`
+    shows the traces of the reference and the cue). The control period is
+    `receiver.time_step`.
 
     Returns:
         (diagram, handles): the systems `receiver`, `mca`, `supervisor`, `probe`,
@@ -280,8 +283,6 @@ def MakeLiveClosedLoop(
     """
     if plant not in PLANTS:
         raise ValueError(f"unknown plant '{plant}'; valid: {', '.join(PLANTS)}")
-    if meshcat is not None and plant != "multibody":
-        raise ValueError("meshcat needs plant 'multibody'")
     if rsi_commands is not None and plant != "analytical":
         raise ValueError(
             "a robot over RSI follows the analytical plant's trajectory: use plant 'analytical'"
@@ -346,10 +347,15 @@ def MakeLiveClosedLoop(
         after_command["settings"] = console.GetOutputPort("settings")
         after_command["mode"] = console.GetOutputPort("mode")
     handles["recorder"] = _AddLiveRecorder(builder, before_poll, after_command, h)
-    if meshcat is not None:
+    if meshcat is not None and plant == "multibody":
         handles["traces"] = AddMeshcatDrawing(
             builder, meshcat, default_visualization(), handles["station"], reference, h
         )
+    elif meshcat is not None:  # no geometry to draw: the traces of the reference and cue
+        traces = MeshcatOutputTraces(meshcat, sample_period=h)
+        handles["traces"] = builder.AddNamedSystem("output_traces", traces)
+        builder.Connect(reference, traces.GetInputPort("reference"))
+        builder.Connect(inertial_output, traces.GetInputPort("measured_output"))
     diagram = builder.Build()
     diagram.set_name(f"live_{plant}_closed_loop")
     return diagram, handles
@@ -385,8 +391,9 @@ def run_live(
         realtime_rate: Drake's target real-time rate (1: live; 0: as fast as possible).
         robot: the platform cued (its limits are the supervisor's and the clamp's).
         plant: "analytical" or "multibody" (the platform's station; `station` its settings,
-            `meshcat` a pydrake Meshcat to draw it in). `meshcat` also carries the operator
-            page (`controls`), on either plant.
+            `meshcat` a pydrake Meshcat to draw it in; on the analytical plant it shows the
+            traces of the reference and the cue). `meshcat` also carries the operator page
+            (`controls`), on either plant.
         phase_lock: how the loop follows a periodic sender's phase (`live.phase_lock`;
             default on), so that samples wait little for their poll; at real-time rates only.
         rsi: drive a KUKA robot over RSI (`live.rsi.driver`; analytical plant, real time):
@@ -431,8 +438,7 @@ def run_live(
             scaling=scaling,
             robot=robot,
             station=station,
-            # the station is drawn; on the analytical plant the page has the controls only
-            meshcat=meshcat if plant == "multibody" else None,
+            meshcat=meshcat,
             rsi_commands=loop_end,
             plausibility=plausibility,
             controls=controls if controls.enabled else None,
