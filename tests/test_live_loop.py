@@ -12,6 +12,7 @@ import time
 from functools import partial
 
 import numpy as np
+import pytest
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.live.csv_udp import CsvDecoder, encode_csv_sample
@@ -326,3 +327,91 @@ def test_a_run_whose_every_datagram_is_refused_says_so_within_a_second(capsys):
     assert notices[0] in capsys.readouterr().err
     clean = live_with_sender(stream, 1.6, "washout", 1.5)
     assert clean["live"]["notices"] == [] and clean["live"]["packets"] > 50
+
+
+# A recording streamed as CSV over UDP at 100 Hz from its own process (its sample times).
+RECORDING_STREAM_PROCESS = """
+import socket, sys, time
+from mca_drake.live.csv_udp import encode_csv_sample
+from mca_drake.references.recording import load_recording
+recording = load_recording(sys.argv[1])
+sender, address = socket.socket(socket.AF_INET, socket.SOCK_DGRAM), (sys.argv[2], int(sys.argv[3]))
+start = time.perf_counter()
+for t, omega, f in zip(recording.t - recording.t[0], recording.omega, recording.f):
+    time.sleep(max(0.0, start + t - time.perf_counter()))
+    sender.sendto(encode_csv_sample(float(t), omega, f), address)
+"""
+
+
+def test_live_cueing_scores_as_offline_cueing_of_the_same_samples(tmp_path):
+    """A light aircraft's flight (a training seed) streamed on loopback: the live PI over
+    the span the stream covered is within 0.1 of the offline run on the recording."""
+    from mca_drake.references.flights import FlightSpec, flight_recording
+    from mca_drake.references.recording import save_recording
+    from mca_drake.references.reference import reference_from_recording
+    from mca_drake.simulation.closed_loop import run_closed_loop
+
+    seconds = 12.0
+    recording = flight_recording(FlightSpec(vehicle="light", seed=7), seconds)
+    path = tmp_path / "light.csv"
+    save_recording(path, recording)
+    processes = []
+
+    def start(address):
+        command = [sys.executable, "-c", RECORDING_STREAM_PROCESS, str(path), *map(str, address)]
+        processes.append(subprocess.Popen(command))
+
+    summary = run_live(
+        CsvDecoder(),
+        "dpc",
+        seconds + 1.0,
+        receiver=ReceiverConfig(port=0),
+        on_listening=start,
+        robot=KR500,
+    )
+    processes[0].wait(timeout=30)
+    first, last = summary["scored_span_s"]
+    assert first < 1.0 and abs(last - first - seconds) < 0.1  # the stream, not the tail
+    offline = run_closed_loop(
+        mca="dpc",
+        reference=reference_from_recording(recording).truncated(last - first),
+        robot=KR500,
+        progress=False,
+    ).summary
+    assert abs(summary["pi"] - offline["pi"]) < 0.1, (summary["pi"], offline["pi"])
+    assert summary["pi"] < summary["pi_zero_motion"] - 1.0  # it cued
+    assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+
+
+def test_jsbsims_stream_scores_as_offline_cueing_of_the_samples_received(tmp_path):
+    """JSBSim flying the light aircraft in real time (FGNetFDM with its time directive):
+    the live PI over the span it streamed is within 0.1 of the offline run on the samples
+    the loop received (the trajectory's reference over that span)."""
+    from mca_drake.conventions import CHANNELS
+    from mca_drake.live.demo import DEMO_TIME_RESOLUTION_S, start_demo_sender
+    from mca_drake.live.loop import make_decoder
+    from mca_drake.references.reference import Reference
+    from mca_drake.simulation.closed_loop import run_closed_loop
+
+    seconds, senders = 10.0, []
+    trajectory = tmp_path / "run.csv"
+    summary = run_live(
+        make_decoder("fgnetfdm", fgnetfdm_time_resolution_s=DEMO_TIME_RESOLUTION_S),
+        "dpc",
+        seconds,
+        receiver=ReceiverConfig(port=0),
+        on_listening=lambda address: senders.append(start_demo_sender(address[1], seconds)),
+        robot=KR500,
+        trajectory=str(trajectory),
+    )
+    senders[0].terminate()
+    senders[0].wait(timeout=10)
+    rows = np.genfromtxt(trajectory, delimiter=",", names=True, dtype=None, encoding="ascii")
+    first, last = (round(t / CONTROL_PERIOD_S) for t in summary["scored_span_s"])
+    assert last - first > 500
+    received = np.column_stack([rows[f"ref_{c}"] for c in CHANNELS])[first : last + 1]
+    offline = run_closed_loop(
+        mca="dpc", reference=Reference(received), robot=KR500, progress=False
+    ).summary
+    assert offline["pi_zero_motion"] == pytest.approx(summary["pi_zero_motion"], abs=1e-9)
+    assert abs(summary["pi"] - offline["pi"]) < 0.1, (summary["pi"], offline["pi"])

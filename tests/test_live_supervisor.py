@@ -44,6 +44,7 @@ def run(
     t_end=12.0,
     operator=None,
     initial_state=None,
+    telemetry_fn=None,
 ):
     """Closes the loop plant -> supervisor (with the operator's mode `operator(t)`, if
     given); returns (supervisor, context, states, commands)."""
@@ -55,7 +56,9 @@ def run(
     sources = {
         "mca_command": Scripted(6, command),
         "reference": Scripted(6, reference),
-        "telemetry": Scripted(len(TELEMETRY_FIELDS), lambda t: telemetry(fresh(t))),
+        "telemetry": Scripted(
+            len(TELEMETRY_FIELDS), telemetry_fn or (lambda t: telemetry(fresh(t)))
+        ),
         "mca_statistics": Scripted(4, lambda t: [step_time(t), 0, 0, 0]),
     }
     if operator is not None:
@@ -138,3 +141,28 @@ def test_bad_settings_are_refused(change):
 def test_a_judgement_offset_outside_the_period_is_refused():
     with pytest.raises(ValueError, match="judge_offset_s"):
         Supervisor(SupervisorConfig(), judge_offset_s=SupervisorConfig().time_step, robot=KR500)
+
+
+def test_the_first_sample_starts_the_mca_without_a_recovery_wait():
+    """Waiting for the stream is a fault ("no telemetry yet") that the first sample ends at
+    once: the MCA blends in over blend_s, not after recovery_s as after a lost stream."""
+    started = lambda t: t >= 1.0  # noqa: E731
+
+    def telemetry_from(t):
+        values = telemetry(True)
+        if not started(t):
+            values[TELEMETRY_FIELDS.index("age_s")] = np.inf  # no sample yet
+        return values
+
+    supervisor, _, _, commands = run(
+        lambda t: np.full(6, 0.2), lambda t: True, t_end=3.0, telemetry_fn=telemetry_from
+    )
+    transitions = supervisor.transitions
+    assert [(to, why) for _, _, to, why in transitions] == [
+        ("fault", "no telemetry yet"),
+        ("ok", "first sample"),
+    ]
+    assert abs(transitions[1][0] - 1.0) <= 0.011
+    config = SupervisorConfig()
+    k = round((1.0 + config.blend_s) / 0.01) + 2
+    assert np.allclose(commands[k], 0.2)  # the MCA's own command, 0.3 s after the start

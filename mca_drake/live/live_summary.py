@@ -47,6 +47,10 @@ class PacedRun:
     notices: list[str] = dataclasses.field(default_factory=list)
 
 
+# The summary's scores of what was cued: taken over the span the telemetry covered.
+SPAN_SCORES = ("pi", "pi_zero_motion", "rmse", "cc", "false_rotation", "perceived")
+
+
 def scored_summary(
     handles: dict,
     config: McaConfig,
@@ -56,27 +60,62 @@ def scored_summary(
     h: float,
     wall_s: float,
 ) -> dict:
-    """The closed-loop summary of the recorded run, scored as `run_closed_loop` scores."""
+    """The closed-loop summary of the recorded run, scored as `run_closed_loop` scores.
+
+    The limits, the step times and the jolts count the whole run; the tracking scores
+    (SPAN_SCORES) count the span the telemetry covered, from the control period of the
+    first sample to that of the last (`scored_span_s`, s of loop time): before the first
+    sample the robot waits at home, after the last it washes out, and neither is a cue of
+    the stream (a gap inside the span still counts).
+    """
     source = handles["receiver"]
     rows = handles["recorder"].rows
     reference, outputs, states, accelerations = live_signals(handles, plant, robot, h)
     n = reference.shape[0]
-    summary, _ = closed_loop_summary(
+    arguments = dict(
         mca=mca_name(config),
         mca_config=mca_config_record(config),
         plant=plant,
         reference_name=f"live {decoder.protocol} udp://{source.address[0]}:{source.address[1]}",
+        robot=robot,
+        time_step=h,
+        wall_s=wall_s,
+    )
+    statistics = rows("statistics")
+    summary, _ = closed_loop_summary(
+        **arguments,
         duration_s=n * h,
         reference=reference,
         outputs=outputs,
         states=states,
         accelerations=accelerations,
-        statistics=rows("statistics"),
-        wall_s=wall_s,
-        robot=robot,
-        time_step=h,
+        statistics=statistics,
     )
+    first, last = scored_span(handles["probe"].sample_instants, n)
+    summary["scored_span_s"] = [first * h, (last - 1) * h]
+    if last - first >= 2 and (first, last) != (0, n):
+        span = slice(first, last)
+        scored, _ = closed_loop_summary(
+            **arguments,
+            duration_s=(last - first) * h,
+            reference=reference[span],
+            outputs=outputs[span],
+            states=states[span],
+            accelerations=accelerations[span],
+            statistics=None,
+        )
+        summary |= {key: scored[key] for key in SPAN_SCORES}
     return summary
+
+
+def scored_span(sample_instants: list[int], periods: int) -> tuple[int, int]:
+    """[first, last) control periods of the span the telemetry covered: from the period
+    of the first sample to the one of the last, within the run's `periods` (all of them
+    when no sample came)."""
+    if not sample_instants:
+        return 0, periods
+    first = min(max(int(sample_instants[0]), 0), periods - 1)
+    return first, min(max(int(sample_instants[-1]) + 1, first + 1), periods)
 
 
 def live_signals(handles: dict, plant: str, robot: SerialChain, h: float):

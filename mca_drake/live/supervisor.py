@@ -6,7 +6,8 @@ Between the MCA and the robot. Every control period it judges the loop:
   that is not finite or beyond `max_reference`, an MCA command that is not finite, or
   `overruns_to_fault` MCA steps in a row over `step_budget_s`;
 - degraded: one MCA step over budget, or telemetry older than half `stale_after_s`;
-- ok otherwise. A fault clears only after `recovery_s` without any fault condition.
+- ok otherwise. A fault clears only after `recovery_s` without any fault condition; the
+  wait for the first sample ("no telemetry yet") clears with that sample.
 
 The command it passes on blends the MCA's command u_mca and a wash-out command u_home with a
 weight w that moves toward 0 in a fault and toward 1 otherwise, over `blend_s`, so that
@@ -53,6 +54,7 @@ HEALTH_STATES = ("ok", "degraded", "fault")
 HEALTH_FIELDS = ("state", "transitions", "ok_s", "degraded_s", "fault_s", "weight")
 _STATE, _TRANSITIONS, _OK_S, _DEGRADED_S, _FAULT_S, _WEIGHT, _CLEAR_S, _OVERRUNS = range(8)
 _ESTOP_AT, _REST_AT = 8, 9  # loop time of the emergency stop and of rest after it (nan: none)
+_STREAMING = 10  # 1 once the first telemetry sample has come
 # The robot is at rest when every joint is slower than this (rad/s or m/s).
 REST_SPEED = 1e-3
 _AGE, _FRESH = TELEMETRY_FIELDS.index("age_s"), TELEMETRY_FIELDS.index("fresh")
@@ -173,7 +175,7 @@ class Supervisor(LeafSystem):
         self._telemetry_port = self.DeclareVectorInputPort("telemetry", len(TELEMETRY_FIELDS))
         self._statistics_port = self.DeclareVectorInputPort("mca_statistics", 4)
         self._operator_port = self.DeclareVectorInputPort("operator", 1)
-        initial = np.zeros(10)
+        initial = np.zeros(11)
         initial[_WEIGHT] = 1.0
         initial[[_ESTOP_AT, _REST_AT]] = math.nan
         self._index = self.DeclareDiscreteState(initial)
@@ -254,8 +256,12 @@ class Supervisor(LeafSystem):
         s[_OVERRUNS] = s[_OVERRUNS] + 1 if overrun else 0
         why = self._fault_reason(context, int(s[_OVERRUNS]))
         current = int(s[_STATE])
+        first_sample = not why and not s[_STREAMING]
+        s[_STREAMING] = s[_STREAMING] or why != "no telemetry yet"
         if why:
             new, s[_CLEAR_S] = 2, 0.0
+        elif first_sample:  # the stream's start, not a recovery: the blend brings the MCA in
+            new, why = 0, "first sample"
         elif current == 2 and s[_CLEAR_S] + h < cfg.recovery_s - 1e-9:
             new, s[_CLEAR_S] = 2, s[_CLEAR_S] + h  # fault holds until it has been clear long
         else:
