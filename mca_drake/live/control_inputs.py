@@ -15,6 +15,7 @@ period's command has gone out. Nothing here blocks.
 from __future__ import annotations
 
 import contextlib
+import ipaddress
 import os
 import select
 import socket
@@ -60,8 +61,6 @@ class UdpControlPort:
         return self._socket.getsockname()
 
     def _allowed_sender(self, sender: tuple[str, int]) -> bool:
-        import ipaddress
-
         ip = int(ipaddress.IPv4Address(sender[0]))
         return any(ip == a and (p is None or p == sender[1]) for a, p in self._allowed)
 
@@ -116,6 +115,7 @@ class KeyboardControl:
         self._intensity = 1.0
         self._saved = None
         if os.isatty(fd):
+            # POSIX terminals only: where a terminal is given
             import termios
             import tty
 
@@ -150,7 +150,7 @@ class KeyboardControl:
     def close(self) -> None:
         """Gives the terminal back as it was."""
         if self._saved is not None:
-            import termios
+            import termios  # POSIX terminals only: where a terminal was given
 
             termios.tcsetattr(self._fd, termios.TCSADRAIN, self._saved)
             self._saved = None

@@ -84,6 +84,7 @@ class ControlsConfig:
             raise ValueError("ControlsConfig.keyboard_step must be in (0, 1]")
         initial_settings(self)  # raises for a bad intensity or gain
         if self.udp:
+            # the receiver loads pydrake: only for a scenario with a control port
             from mca_drake.live.endpoints import parse_endpoint
             from mca_drake.live.receiver import allowed_senders
 
