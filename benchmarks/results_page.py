@@ -681,8 +681,9 @@ def _hazards(results_dir: Path, data: dict) -> list[str]:
     provenance = data["provenance"]
     lines = [
         f"A validation flight ({provenance.get('flight', '')}, {data['duration_s']:g} s) cued "
-        f"clean and with each hazard injected at {provenance.get('hazard_at_s', 0):g} s, with "
-        "the input plausibility guard and without: the largest change of the cabin's specific "
+        f"clean and with each hazard injected at {provenance.get('hazard_at_s', 0):g} s (a "
+        "touchdown: in the first second), with the input plausibility guard and without: the "
+        "PI (beside the clean run's), the largest change of the cabin's specific "
         "force (f_x, f_y, a_z, a vector norm) in one control period (m/s², beside the clean "
         "flight's largest), the largest "
         "departure from the clean run's cue, when the cue was back within 0.05 of it (a reset "
@@ -692,21 +693,25 @@ def _hazards(results_dir: Path, data: dict) -> list[str]:
     rows = []
     for name, entry in data["mcas"].items():
         clean = entry["clean"]["jolts"]["peak_force_change_m_s2"]
+        clean_pi = entry["clean"].get("pi")
         for hazard, runs in entry["hazards"].items():
             for label, row in runs.items():
                 recovered = row["recovered_after_s"]
+                pi = "-" if "pi" not in row else f"{row['pi']:.3f} ({clean_pi:.3f})"
                 rows.append(
                     [
                         name,
                         hazard,
                         label,
+                        pi,
                         f"{row['jolts']['peak_force_change_m_s2']:.3f} ({clean:.3f})",
                         f"{row['largest_departure_from_clean']:.3f}",
                         "-" if recovered is None else f"{recovered:.2f} s",
                         str(row["violations"]),
                     ]
                 )
-    header = ["MCA", "hazard", "guard", "force change (clean)", "departure", "recovered"]
+    header = ["MCA", "hazard", "guard", "PI (clean)", "force change (clean)", "departure"]
+    header += ["recovered"]
     header += ["violations"]
     return [*lines, *_table(header, rows), ""]
 
