@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import socket
+
 import numpy as np
 import pytest
 from pydrake.multibody.parsing import Parser
@@ -61,3 +63,12 @@ def mca_like_segments(robot, rng, steps: int, gain: float = 0.8) -> list[Command
         segments.append(CommandSegment(k, q, qd, u))
         q, qd = q + H * qd + 0.5 * H * H * u, qd + H * u
     return segments
+
+
+def free_udp_port() -> int:
+    """A UDP port free on loopback now (for a test's listener that needs its number first)."""
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()
+    return port

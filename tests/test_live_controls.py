@@ -15,6 +15,7 @@ import time
 import msgpack
 import numpy as np
 import pytest
+from conftest import free_udp_port
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
@@ -326,14 +327,6 @@ def test_the_operator_page_sends_what_its_sliders_and_buttons_say(meshcat):
     finally:
         page.close()
     assert not set(meshcat.GetButtonNames()) & set(BUTTONS)
-
-
-def free_udp_port() -> int:
-    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    probe.bind(("127.0.0.1", 0))
-    port = probe.getsockname()[1]
-    probe.close()
-    return port
 
 
 @pytest.mark.parametrize("where", ["udp", "keyboard", "meshcat"])

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -13,7 +12,7 @@ import time
 import numpy as np
 import pytest
 from conftest import RSI_LOOP_PERIOD as H
-from conftest import limits_of, mca_like_segments
+from conftest import free_udp_port, limits_of, mca_like_segments
 from test_live_loop import stream
 
 from mca_drake.live.csv_udp import CsvDecoder
@@ -281,14 +280,6 @@ def test_the_emulator_stops_a_correction_beyond_the_limits(robot):
         RsiDriverConfig.from_dict({"speed": 3})
     with pytest.raises(ValueError, match="axis_signs"):
         RsiDriverConfig(axis_signs=[1, 1, 1, 1, 1, 2]).validate()
-
-
-def free_udp_port() -> int:
-    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    probe.bind(("127.0.0.1", 0))
-    port = probe.getsockname()[1]
-    probe.close()
-    return port
 
 
 def live_run_with_emulator(tmp_path, sender, robot, emulator_args):
