@@ -408,3 +408,45 @@ def test_a_scenario_and_the_live_flags_set_the_controls(tmp_path):
     args = build_parser().parse_args([*argv, "--intensity", "1.3"])
     with pytest.raises(ValueError, match="intensity must be a number in"):
         _scenario_from_flags(args)
+
+
+def test_the_live_command_takes_keys_from_its_terminal(tmp_path):
+    """`mca-drake live` with a terminal for stdin (a pseudo-terminal this test holds): it
+    says which keys control it, `-` turns the intensity down and `x` stops the robot; the
+    report and the summary say so."""
+    import json
+    import subprocess
+    import sys
+
+    from test_live_loop import stream
+
+    out = tmp_path / "live.json"
+    command = [sys.executable, "-m", "mca_drake.app.cli", "live", "--protocol", "csv"]
+    command += ["--port", "0", "--duration", "3", "--json", str(out)]
+    main, terminal = os.openpty()
+    process = subprocess.Popen(
+        command, stdin=terminal, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        line = process.stdout.readline()  # blocks until the socket is bound
+        port = int(line.strip().rsplit(":", 1)[1])
+        assert "x or Esc STOP" in process.stdout.readline()
+        sender = threading.Thread(
+            target=stream, args=(("127.0.0.1", port), 3.2), kwargs={"gap": (9, 9), "nan_at": -1}
+        )
+        sender.start()
+        time.sleep(1.0)
+        os.write(main, b"--")
+        time.sleep(0.7)
+        os.write(main, b"x")
+        sender.join(timeout=10)
+        assert process.wait(timeout=30) == 0, process.stderr.read()
+        report = process.stdout.read()
+    finally:
+        process.kill()
+        os.close(main)
+        os.close(terminal)
+    assert "emergency stop at" in report and "from keyboard: at rest after" in report
+    controls = json.loads(out.read_text())["controls"]
+    assert [e["command"] for e in controls["log"]] == ["intensity 0.9", "intensity 0.8", "estop"]
+    assert controls["final"]["mode"] == "estop" and controls["estop"]["time_to_rest_s"] >= 0
