@@ -168,6 +168,7 @@ def run_closed_loop_scenario(
         plot_dir=plot_dir,
         perception=scenario.perception,
         plausibility=scenario.plausibility,
+        comfort=scenario.comfort,
     )
     if scenario.trajectory:
         write_trajectory(scenario.trajectory, result, robot)
@@ -276,6 +277,7 @@ def run_live_scenario(
         meshcat=meshcat,
         rsi=rsi,
         plausibility=scenario.plausibility,
+        comfort=scenario.comfort,
         trajectory=scenario.trajectory or None,
         controls=scenario.controls,
         keyboard_fd=keyboard_fd,

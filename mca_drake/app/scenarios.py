@@ -22,6 +22,7 @@ from pydrake.common.yaml import yaml_dump, yaml_load, yaml_load_typed
 from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
 
+from mca_drake.comfort import ComfortConfig
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import (
     MCA_NAMES,
@@ -144,6 +145,9 @@ class ClosedLoopScenario:
     # The input plausibility guard in front of the MCA (`mca_drake.cueing.plausibility`:
     # spikes, step bounds, frozen streams); `{enabled: false}` reads the reference as it is.
     plausibility: PlausibilityConfig = dataclasses.field(default_factory=PlausibilityConfig)
+    # The cabin comfort bound between the MCA and the robot (`mca_drake.comfort`: the
+    # largest change of the cabin's specific force in one control period; 0: none).
+    comfort: ComfortConfig = dataclasses.field(default_factory=ComfortConfig)
     # Folder for summary.json, tracking.png (Fig. 4), perceived.png and joint_usage.png
     # (Fig. 5).
     output_dir: str = "results/closed_loop"
@@ -176,6 +180,7 @@ class ClosedLoopScenario:
         self.station.validate()
         self.perception.validate()
         self.plausibility.validate()
+        self.comfort.validate()
 
 
 @dataclasses.dataclass
@@ -393,6 +398,9 @@ class LiveScenario:
     # The input plausibility guard in front of the MCA (`mca_drake.cueing.plausibility`:
     # spikes, step bounds, a paused game's frozen stream faded out and back).
     plausibility: PlausibilityConfig = dataclasses.field(default_factory=PlausibilityConfig)
+    # The cabin comfort bound between the MCA and the robot (`mca_drake.comfort`: the
+    # largest change of the cabin's specific force in one control period; 0: none).
+    comfort: ComfortConfig = dataclasses.field(default_factory=ComfortConfig)
     # The operator's controls while the run goes on (`mca_drake.live.controls`): the first
     # intensity and gains, the ramp every change follows, the UDP control port and who may
     # use it, the keyboard and the operator page in Meshcat.
@@ -430,6 +438,7 @@ class LiveScenario:
         except ValueError as err:
             raise ValueError(f"LiveScenario.rsi: {err}") from None
         self.plausibility.validate()
+        self.comfort.validate()
         for name in ("beamng", "outsim", "f1", "controls"):
             try:
                 getattr(self, name).validate()

@@ -32,6 +32,7 @@ from pydrake.systems.framework import (
 )
 
 from mca_drake.atomic_io import atomic_write_text
+from mca_drake.comfort import ComfortConfig, comfort_block
 from mca_drake.cueing import McaConfig, as_mca_config
 from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_record
 from mca_drake.cueing.plausibility import PlausibilityConfig
@@ -42,6 +43,7 @@ from mca_drake.live.live_summary import (
     STALL_PERIODS,
     PacedRun,
     live_block,
+    live_signals,
     live_trajectory,
     rsi_block,
     scored_summary,
@@ -63,7 +65,9 @@ from mca_drake.live.supervisor import Supervisor, SupervisorConfig
 from mca_drake.live.telemetry import Decoder
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import ReferenceScaling
+from mca_drake.safety import substep_position_coefficient
 from mca_drake.simulation.builders import (
+    AddComfortBound,
     AddMca,
     AddMeshcatDrawing,
     AddReferenceGuard,
@@ -260,6 +264,7 @@ def MakeLiveClosedLoop(
     plausibility: PlausibilityConfig | None = None,
     controls: ControlsConfig | None = None,
     control_sources: list | None = None,
+    comfort: ComfortConfig | None = None,
 ) -> tuple[Diagram, dict]:
     """TelemetryReceiver -> ReferenceGuard -> OperatorConsole -> MCA -> Supervisor -> robot,
     with logs and a LatencyProbe; the robot is the analytical plant or the platform's
@@ -280,6 +285,8 @@ def MakeLiveClosedLoop(
         MCA's home pose (rad), where the robot must start. `console` is the
         OperatorConsole of `controls` (the run's first settings) reading `control_sources`
         (`live.control_inputs`); with neither, the MCA reads the guarded reference as it is.
+        `comfort_bound` is the CabinComfortBound of `comfort` between the supervisor and the
+        robot (None where `comfort` is absent or disabled).
     """
     if plant not in PLANTS:
         raise ValueError(f"unknown plant '{plant}'; valid: {', '.join(PLANTS)}")
@@ -323,7 +330,24 @@ def MakeLiveClosedLoop(
     handles["reference_guard"] = _ConnectMcaToSupervisor(
         builder, source, controller, guard, robot_ports, h, plausibility, console
     )
-    command = guard.GetOutputPort("joint_acceleration")
+    # the comfort bound keeps what the robot took: when the plant steps, or the station's
+    # command limiter takes it (half a plant step after the instant)
+    if plant == "analytical":
+        taken_at, coefficient = PLANT_DELAY_S, 0.5
+    else:
+        plant_step = (station or StationConfig()).plant_time_step
+        taken_at = 0.5 * plant_step
+        coefficient = substep_position_coefficient(round(h / plant_step))
+    command, handles["comfort_bound"] = AddComfortBound(
+        builder,
+        robot,
+        comfort,
+        guard.GetOutputPort("joint_acceleration"),
+        state,
+        h,
+        taken_at,
+        coefficient,
+    )
     builder.Connect(command, robot_ports.joint_acceleration)
     builder.Connect(source.GetOutputPort("telemetry"), probe.GetInputPort("telemetry"))
     builder.Connect(command, probe.GetInputPort("command"))
@@ -381,6 +405,7 @@ def run_live(
     trajectory: str | None = None,
     controls: ControlsConfig | None = None,
     keyboard_fd: int | None = None,
+    comfort: ComfortConfig | None = None,
 ) -> dict:
     """Runs the live loop for `duration_s` (s of simulated time, at `realtime_rate`) and
     returns its summary with the `live` block.
@@ -410,6 +435,10 @@ def run_live(
             UDP control port, the keyboard of `keyboard_fd` (a terminal; the CLI passes its
             stdin) and the operator page in `meshcat`; its log is the summary's `controls`
             block.
+        comfort: the cabin comfort bound between the supervisor and the robot
+            (`mca_drake.comfort`; default none: it costs two evaluations of the plant
+            output on the path from a sample to its command); its counts are the summary's
+            `comfort` block.
     """
     if not 0 < duration_s <= 24 * 3600:
         raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
@@ -443,6 +472,7 @@ def run_live(
             plausibility=plausibility,
             controls=controls if controls.enabled else None,
             control_sources=sources,
+            comfort=comfort,
         )
         run = _run_paced(
             diagram,
@@ -476,6 +506,11 @@ def run_live(
         to_rest = rest_at - console.estop["t_s"] if console.estop is not None else math.nan
         context = console.GetMyContextFromRoot(run.context)
         summary["controls"] = console.summary(context, to_rest)
+    bound = handles["comfort_bound"]
+    if bound is not None:
+        outputs = live_signals(handles, plant, robot, h)[1]
+        scaled = bound.bounded_periods(bound.GetMyContextFromRoot(run.context))
+        summary["comfort"] = comfort_block(outputs, bound.config, scaled)
     if run.rsi_status is not None:
         summary["rsi"] = rsi_block(handles, run)
     if trajectory:

@@ -15,13 +15,16 @@ from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 from pydrake.visualization import VisualizationConfig
 
+from mca_drake.comfort import ComfortConfig
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import DpcConfig, McaConfig, NmpcConfig, WashoutConfig, as_mca_config
 from mca_drake.cueing.plausibility import PlausibilityConfig
 from mca_drake.platforms.demo_motion import demo_joint_motion
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import Reference
+from mca_drake.safety import substep_position_coefficient
 from mca_drake.systems import MotionCueingPlant, ReferenceSource
+from mca_drake.systems.comfort_bound import CabinComfortBound
 from mca_drake.systems.dpc import DpcPolicy
 from mca_drake.systems.meshcat_traces import MeshcatOutputTraces
 from mca_drake.systems.nmpc import NmpcController
@@ -165,13 +168,49 @@ def _add_source_and_mca(builder, reference, mca, robot, plausibility=None):
     return source, controller, np.concatenate([home, np.zeros_like(home)]), guard
 
 
-def _connect_mca(builder, controller, state, inertial_output, joint_acceleration) -> None:
+def AddComfortBound(
+    builder,
+    robot: SerialChain,
+    comfort: ComfortConfig | None,
+    command_port,
+    state_port,
+    time_step: float,
+    update_offset_s: float = 0.0,
+    position_coefficient: float = 0.5,
+):
+    """The output port the robot reads its command from: `command_port` through a
+    CabinComfortBound named "comfort_bound" (`mca_drake.comfort`; it keeps the command the
+    robot took `update_offset_s` after each control instant), or `command_port` itself where
+    `comfort` is None or disabled; and the bound (None where absent)."""
+    if comfort is None or not comfort.enabled:
+        return command_port, None
+    bound = builder.AddNamedSystem(
+        "comfort_bound",
+        CabinComfortBound(robot, comfort, time_step, update_offset_s, position_coefficient),
+    )
+    builder.Connect(command_port, bound.GetInputPort("command"))
+    builder.Connect(state_port, bound.GetInputPort("state"))
+    return bound.GetOutputPort("bounded_command"), bound
+
+
+def _command_taken(controller, bound):
+    """The port whose log is the command the robot took: the MCA's, or the comfort bound's
+    applied command where there is one."""
+    if bound is None:
+        return controller.GetOutputPort("joint_acceleration")
+    return bound.GetOutputPort("applied_command")
+
+
+def _connect_mca(
+    builder, controller, state, inertial_output, joint_acceleration, command=None
+) -> None:
     """Feeds the MCA the robot's `state` (and `inertial_output` where it reads one) and
-    drives the robot's `joint_acceleration` input with its command."""
+    drives the robot's `joint_acceleration` input with its command (`command`: that
+    command after a comfort bound, `AddComfortBound`)."""
     builder.Connect(state, controller.GetInputPort("state"))
     if controller.HasInputPort("inertial_output"):
         builder.Connect(inertial_output, controller.GetInputPort("inertial_output"))
-    builder.Connect(controller.GetOutputPort("joint_acceleration"), joint_acceleration)
+    builder.Connect(command or controller.GetOutputPort("joint_acceleration"), joint_acceleration)
 
 
 def _add_logs(builder: DiagramBuilder, ports: dict, controller, time_step: float) -> dict:
@@ -190,9 +229,10 @@ def MakeAnalyticalClosedLoop(
     mca: McaConfig | str,
     robot: SerialChain,
     plausibility: PlausibilityConfig | None = None,
+    comfort: ComfortConfig | None = None,
 ) -> tuple[Diagram, dict]:
-    """ReferenceSource -> ReferenceGuard -> MCA -> MotionCueingPlant, the MCA fed the plant
-    state, with logs.
+    """ReferenceSource -> ReferenceGuard -> MCA -> (CabinComfortBound) -> MotionCueingPlant,
+    the MCA fed the plant state, with logs.
 
     The control period is the reference's time step. Logs (VectorLogSinks at the control
     period): `reference_log`, `state_log` (x_n at t_n), `command_log` and `statistics_log`.
@@ -205,10 +245,12 @@ def MakeAnalyticalClosedLoop(
         robot: the platform the plant moves.
         plausibility: the reference guard's settings (default PlausibilityConfig();
             `enabled: false` leaves it out).
+        comfort: the cabin comfort bound (`mca_drake.comfort`; None or disabled: none).
 
     Returns:
         (diagram, handles) with the systems `source`, `guard` (None without one), `mca`,
-        `plant` and the logs. The `reference_log` is the reference itself, unguarded: runs
+        `comfort_bound` (None without one), `plant` and the logs (`command_log`: what the
+        plant took). The `reference_log` is the reference itself, unguarded: runs
         are scored against what the vehicle did.
     """
     time_step = reference.time_step
@@ -219,18 +261,28 @@ def MakeAnalyticalClosedLoop(
     plant = builder.AddNamedSystem(
         "plant", MotionCueingPlant(robot=robot, time_step=time_step, initial_state=initial_state)
     )
+    # the bound keeps what the plant took: at the plant's own update instants
+    command, bound = AddComfortBound(
+        builder,
+        robot,
+        comfort,
+        controller.GetOutputPort("joint_acceleration"),
+        plant.GetOutputPort("state"),
+        time_step,
+    )
     _connect_mca(
         builder,
         controller,
         plant.GetOutputPort("state"),
         plant.GetOutputPort("inertial_output"),
         plant.GetInputPort("joint_acceleration"),
+        command,
     )
-    handles = dict(source=source, guard=guard, mca=controller, plant=plant)
+    handles = dict(source=source, guard=guard, mca=controller, comfort_bound=bound, plant=plant)
     ports = {
         "reference_log": source.GetOutputPort("reference"),
         "state_log": plant.GetOutputPort("state"),
-        "command_log": controller.GetOutputPort("joint_acceleration"),
+        "command_log": _command_taken(controller, bound),
     }
     if guard is not None:
         ports["reaction_log"] = guard.GetOutputPort("reaction")
@@ -248,10 +300,11 @@ def MakeMultibodyClosedLoop(
     meshcat=None,
     visualization: VisualizationConfig | None = None,
     plausibility: PlausibilityConfig | None = None,
+    comfort: ComfortConfig | None = None,
 ) -> tuple[Diagram, dict]:
-    """ReferenceSource -> ReferenceGuard -> MCA -> SerialChain station (MultibodyPlant,
-    inverse dynamics, head IMU), the MCA fed the station's measured state (and measured y
-    where it reads one).
+    """ReferenceSource -> ReferenceGuard -> MCA -> (CabinComfortBound) -> SerialChain
+    station (MultibodyPlant, inverse dynamics, head IMU), the MCA fed the station's
+    measured state (and measured y where it reads one).
 
     Logs (at the control period, the reference's time step): `reference_log`,
     `command_log` (the MCA's joint accelerations), `desired_state_log` ([q_d, qd_d] the
@@ -270,10 +323,12 @@ def MakeMultibodyClosedLoop(
             illustration/proximity/inertia layers); default: illustration only at 30 Hz.
         plausibility: the reference guard's settings (default PlausibilityConfig();
             `enabled: false` leaves it out).
+        comfort: the cabin comfort bound (`mca_drake.comfort`; None or disabled: none), on
+            the station's measured state.
 
     Returns:
         (diagram, handles): handles has `source`, `guard` (None without one), `mca`,
-        `station` (StationHandles) and the logs; call
+        `comfort_bound` (None without one), `station` (StationHandles) and the logs; call
         `handles["station"].SetInitialState(root_context)` before simulating (the robot
         starts at rest at the MCA's home pose).
     """
@@ -290,17 +345,33 @@ def MakeMultibodyClosedLoop(
         with_geometry=meshcat is not None,
         control_period=time_step,
     )
+    station_config = station if station is not None else StationConfig()
+    plant_step = station_config.plant_time_step
+    # the station's command limiter takes the command half a plant step after each instant
+    command, bound = AddComfortBound(
+        builder,
+        robot,
+        comfort,
+        controller.GetOutputPort("joint_acceleration"),
+        station_handles.measured_state,
+        time_step,
+        0.5 * plant_step,
+        substep_position_coefficient(round(time_step / plant_step)),
+    )
     _connect_mca(
         builder,
         controller,
         station_handles.measured_state,
         station_handles.measured_output,
         station_handles.joint_acceleration,
+        command,
     )
-    handles = dict(source=source, guard=guard, mca=controller, station=station_handles)
+    handles = dict(
+        source=source, guard=guard, mca=controller, comfort_bound=bound, station=station_handles
+    )
     ports = {
         "reference_log": source.GetOutputPort("reference"),
-        "command_log": controller.GetOutputPort("joint_acceleration"),
+        "command_log": _command_taken(controller, bound),
         "desired_state_log": station_handles.desired_state,
         "measured_state_log": station_handles.true_state,
         "measured_output_log": station_handles.true_output,

@@ -26,6 +26,7 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorC
 from tqdm.auto import tqdm
 
 from mca_drake.atomic_io import atomic_write_json, check_writable
+from mca_drake.comfort import ComfortConfig, comfort_block
 from mca_drake.cueing import McaConfig, as_mca_config, mca_config_record, mca_name
 from mca_drake.cueing.dpc import DpcConfig, for_vehicle, policy_record
 from mca_drake.cueing.plausibility import PlausibilityConfig
@@ -197,6 +198,7 @@ def run_closed_loop(
     plot_dir: str | Path | None = None,
     perception: PerceptionConfig | None = None,
     plausibility: PlausibilityConfig | None = None,
+    comfort: ComfortConfig | None = None,
 ) -> ClosedLoopResult:
     """Runs the closed loop of an MCA over `reference` on the analytical or multibody plant.
 
@@ -226,6 +228,9 @@ def run_closed_loop(
         plausibility: the reference guard in front of the MCA (`cueing.plausibility`;
             default PlausibilityConfig()); its counts are the summary's `plausibility`
             block (absent where `enabled` is false).
+        comfort: the cabin comfort bound between the MCA and the robot (`mca_drake.comfort`;
+            default none); where it acts, the summary's `comfort` block counts the periods
+            it scaled and those over it.
 
     Raises:
         ValueError: an unknown plant or MCA, a bad duration, or settings the plant cannot
@@ -245,7 +250,7 @@ def run_closed_loop(
     if plant == "analytical":
         if meshcat is not None or station is not None or visualization is not None:
             raise ValueError("meshcat, visualization and station need plant 'multibody'")
-        diagram, handles = MakeAnalyticalClosedLoop(reference, config, robot, plausibility)
+        diagram, handles = MakeAnalyticalClosedLoop(reference, config, robot, plausibility, comfort)
     else:
         station = station if station is not None else StationConfig()
         diagram, handles = MakeMultibodyClosedLoop(
@@ -256,6 +261,7 @@ def run_closed_loop(
             meshcat=meshcat,
             visualization=visualization,
             plausibility=plausibility,
+            comfort=comfort,
         )
     simulator = Simulator(diagram)
     if simulator_config is not None:
@@ -281,6 +287,10 @@ def run_closed_loop(
     guard = handles.get("guard")
     if guard is not None:
         result.summary["plausibility"] = guard.summary(guard.GetMyContextFromRoot(context))
+    bound = handles.get("comfort_bound")
+    if bound is not None:
+        scaled = bound.bounded_periods(bound.GetMyContextFromRoot(context))
+        result.summary["comfort"] = comfort_block(result.outputs, bound.config, scaled)
     if isinstance(config, DpcConfig):
         mca = handles["mca"]
         changes = mca.policy_changes(mca.GetMyContextFromRoot(context))

@@ -46,4 +46,6 @@ def closed_loop_scenario_from_flags(args: argparse.Namespace, **fixed) -> Closed
         scenario.duration_s = load_recording(args.reference).duration_s
     if args.duration_s is not None:
         scenario.duration_s = args.duration_s
+    if getattr(args, "max_force_change", None) is not None:
+        scenario.comfort.max_force_change = args.max_force_change
     return scenario

@@ -13,6 +13,7 @@ from mca_drake.app.cli.closed_loop_flags import (
 )
 from mca_drake.app.cli.flags import (
     ADDRESS_HELP,
+    add_comfort_flag,
     add_config_flags,
     add_platform_flag,
     add_quiet,
@@ -94,6 +95,7 @@ def add_parser(commands) -> None:
     parser.add_argument("--json", help="write the result summary here")
     parser.add_argument("--plot", help="PNG of target versus achieved outputs")
     add_trajectory_flag(parser)
+    add_comfort_flag(parser)
     add_quiet(parser)
     parser.set_defaults(func=run)
 
@@ -122,6 +124,8 @@ def run(args: argparse.Namespace) -> int:
 
 def run_suite(args: argparse.Namespace) -> int:
     """The evaluation suite over the cases and MCAs the flags choose; prints its report."""
+    if args.max_force_change is not None:
+        raise ValueError("--max-force-change is for one run: the suite cues without the bound")
     scenario = EvaluationScenario(
         **given_fields(args, [*SUITE_FLAGS, "duration_s", "address", "platform"])
     )

@@ -165,6 +165,17 @@ def add_platform_flag(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_comfort_flag(parser: argparse.ArgumentParser) -> None:
+    """--max-force-change M: the cabin comfort bound (`mca_drake.comfort`)."""
+    parser.add_argument(
+        "--max-force-change",
+        type=float,
+        help="the cabin comfort bound: the largest change of the cabin's specific force in "
+        "one control period, m/s^2 (a head jerk of M/0.01 s); held for every MCA, the "
+        "joint limits first; counted in the summary's comfort block (default: none)",
+    )
+
+
 def add_trajectory_flag(parser: argparse.ArgumentParser) -> None:
     """--trajectory FILE.csv: the run's time series, one row per control period."""
     parser.add_argument(

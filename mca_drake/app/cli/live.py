@@ -10,7 +10,12 @@ import tempfile
 from pathlib import Path
 
 from mca_drake.app.cli.closed_loop_flags import add_mca_flags
-from mca_drake.app.cli.flags import add_config_flags, add_trajectory_flag, given_fields
+from mca_drake.app.cli.flags import (
+    add_comfort_flag,
+    add_config_flags,
+    add_trajectory_flag,
+    given_fields,
+)
 from mca_drake.app.cli.report import format_pi, hold_meshcat, policy_lines
 from mca_drake.app.jobs import run_live_scenario, start_meshcat
 from mca_drake.app.scenarios import LiveScenario
@@ -57,6 +62,7 @@ def add_parser(commands) -> None:
     )
     parser.add_argument("--json", help="result summary with its live block")
     add_trajectory_flag(parser)
+    add_comfort_flag(parser)
     parser.add_argument(
         "--control-port",
         help="HOST:PORT: a UDP port for the operator's commands while the run goes on "
@@ -135,6 +141,8 @@ def _scenario_from_flags(args: argparse.Namespace) -> LiveScenario:
         scenario.controls.intensity = args.intensity
     if args.no_keyboard:
         scenario.controls.keyboard = False
+    if args.max_force_change is not None:
+        scenario.comfort.max_force_change = args.max_force_change
     scenario.validate()
     return scenario
 

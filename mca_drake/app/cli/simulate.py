@@ -9,6 +9,7 @@ from mca_drake.app.cli.closed_loop_flags import (
     closed_loop_scenario_from_flags,
 )
 from mca_drake.app.cli.flags import (
+    add_comfort_flag,
     add_config_flags,
     add_platform_flag,
     add_quiet,
@@ -57,6 +58,7 @@ def add_parser(commands) -> None:
         f"(default: the scenario's output_dir, {defaults.output_dir}); '' for none",
     )
     add_trajectory_flag(parser)
+    add_comfort_flag(parser)
     add_quiet(parser)
     parser.set_defaults(func=run)
 
