@@ -1,0 +1,207 @@
+"""A Stewart-platform hexapod's geometry and kinematics (numpy): the pose of its moving
+platform and the lengths of its six legs.
+
+Frames: the base frame B (fixed, z up) has its origin in the plane of the base joints; the
+platform frame P (moving) has its origin in the plane of the platform joints. At the
+neutral pose P is B raised by `neutral_height` (m). A pose is six numbers relative to the
+neutral pose, `(x, y, z, roll, pitch, yaw)` (m, rad): P's origin at (x, y, neutral_height +
+z) in B and its rotation R = Rz(yaw) Ry(pitch) Rx(roll). Leg i joins the base joint b_i (in
+B) to the platform joint p_i (in P); its length is
+
+    l_i = |t + R p_i - b_i|,      t = (x, y, neutral_height + z).
+
+`leg_lengths` is that inverse kinematics (batched over poses); `leg_jacobian` its exact
+derivative dl/dpose (6 x 6); `forward_kinematics` inverts it by Newton's method from the
+neutral pose (or a guess), to 1e-12 m on the lengths. The torch twin (for training through
+the legs) is `mca_drake.learning.hexapod`.
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+
+from mca_drake.input_checks import check_config_numbers
+
+LEGS = 6
+
+
+@dataclasses.dataclass
+class HexapodGeometry:
+    """Where a hexapod's legs attach, and how far and fast they may move."""
+
+    # Base joints b_i in the base frame, m: six [x, y, z].
+    base_joints: list[list[float]]
+    # Platform joints p_i in the platform frame, m: six [x, y, z].
+    platform_joints: list[list[float]]
+    # Height of the platform frame above the base frame at the neutral pose, m.
+    neutral_height: float
+    # Leg length range, m (the actuators' stroke, from the joint centres).
+    min_length: float
+    max_length: float
+    # Actuator speed and acceleration limits along the legs, m/s and m/s^2.
+    max_speed: float
+    max_acceleration: float
+
+    def validate(self) -> None:
+        """Raises ValueError for a geometry that cannot move, naming the field."""
+        check_config_numbers(self)
+        for name in ("base_joints", "platform_joints"):
+            if np.shape(getattr(self, name)) != (LEGS, 3):
+                raise ValueError(f"HexapodGeometry.{name} must be six [x, y, z] points, m")
+        for name in ("neutral_height", "min_length", "max_speed", "max_acceleration"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"HexapodGeometry.{name} must be positive")
+        if not self.max_length > self.min_length:
+            raise ValueError("HexapodGeometry.max_length must exceed min_length")
+        neutral = leg_lengths(np.zeros(6), self)
+        if np.any(neutral < self.min_length) or np.any(neutral > self.max_length):
+            raise ValueError(
+                f"the neutral pose's leg lengths {np.round(neutral, 4).tolist()} m are "
+                f"outside the stroke [{self.min_length}, {self.max_length}] m"
+            )
+
+    @classmethod
+    def symmetric(
+        cls,
+        base_radius: float,
+        platform_radius: float,
+        base_half_angle: float,
+        platform_half_angle: float,
+        neutral_height: float,
+        stroke: float,
+        max_speed: float,
+        max_acceleration: float,
+    ) -> "HexapodGeometry":
+        """The classic 6-6 hexapod: joints in pairs on two circles, pairs 120 deg apart.
+
+        Args:
+            base_radius, platform_radius: the circles' radii, m.
+            base_half_angle, platform_half_angle: half the angle between the two joints
+                of a pair, rad; the platform's pairs sit 60 deg from the base's, so each
+                leg runs from one base pair to the neighbouring platform pair.
+            neutral_height: the platform frame's height at the neutral pose, m.
+            stroke: the leg length range, centred on the neutral length, m.
+            max_speed, max_acceleration: along the legs, m/s and m/s^2.
+        """
+        base, platform = [], []
+        for pair in range(3):
+            centre = math.radians(120.0 * pair)
+            for side in (-1, 1):
+                a = centre + side * base_half_angle
+                base.append([base_radius * math.cos(a), base_radius * math.sin(a), 0.0])
+                # the leg from this base joint goes to the nearer joint of the platform pair
+                # 60 deg along on its side
+                p = centre + side * (math.radians(60.0) - platform_half_angle)
+                platform.append([platform_radius * math.cos(p), platform_radius * math.sin(p), 0.0])
+        lift = np.array([0.0, 0.0, neutral_height])
+        neutral = float(np.linalg.norm(np.array(platform[0]) + lift - np.array(base[0])))
+        return cls(
+            base_joints=base,
+            platform_joints=platform,
+            neutral_height=neutral_height,
+            min_length=neutral - 0.5 * stroke,
+            max_length=neutral + 0.5 * stroke,
+            max_speed=max_speed,
+            max_acceleration=max_acceleration,
+        )
+
+
+def rotation(roll, pitch, yaw) -> np.ndarray:
+    """Rz(yaw) Ry(pitch) Rx(roll), batched: angles of shape (...), result (..., 3, 3)."""
+    cr, sr = np.cos(roll), np.sin(roll)
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    cy, sy = np.cos(yaw), np.sin(yaw)
+    rows = [
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ]
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+
+
+def _legs(pose: np.ndarray, geometry: HexapodGeometry) -> np.ndarray:
+    """The leg vectors t + R p_i - b_i in B, shape (..., 6, 3)."""
+    pose = np.asarray(pose, dtype=float)
+    if pose.shape[-1:] != (6,) or not np.all(np.isfinite(pose)):
+        raise ValueError(f"a pose is six finite numbers (x, y, z, roll, pitch, yaw); got {pose}")
+    R = rotation(pose[..., 3], pose[..., 4], pose[..., 5])
+    t = pose[..., :3] + np.array([0.0, 0.0, geometry.neutral_height])
+    p = np.asarray(geometry.platform_joints, dtype=float)
+    b = np.asarray(geometry.base_joints, dtype=float)
+    return t[..., None, :] + np.einsum("...jk,ik->...ij", R, p) - b
+
+
+def leg_lengths(pose, geometry: HexapodGeometry) -> np.ndarray:
+    """The six leg lengths (m) of `pose` (..., 6) relative to the neutral pose: (..., 6)."""
+    return np.linalg.norm(_legs(pose, geometry), axis=-1)
+
+
+def leg_jacobian(pose, geometry: HexapodGeometry) -> np.ndarray:
+    """dl/dpose at one pose (6,): (6 legs, 6 pose coordinates), exact.
+
+    d l_i = u_i . (dt + dR p_i) with u_i the leg's unit vector; the angle columns use
+    dR/dangle of R = Rz Ry Rx.
+    """
+    pose = np.asarray(pose, dtype=float)
+    legs = _legs(pose, geometry)
+    units = legs / np.linalg.norm(legs, axis=-1, keepdims=True)
+    roll, pitch, yaw = pose[3:]
+    Rx, Ry, Rz = (
+        rotation(roll, 0.0, 0.0),
+        rotation(0.0, pitch, 0.0),
+        rotation(0.0, 0.0, yaw),
+    )
+    Kx = np.array([[0, 0, 0], [0, 0, -1], [0, 1, 0]], dtype=float)
+    Ky = np.array([[0, 0, 1], [0, 0, 0], [-1, 0, 0]], dtype=float)
+    Kz = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 0]], dtype=float)
+    derivatives = (Rz @ Ry @ Rx @ Kx, Rz @ Ry @ Ky @ Rx, Kz @ Rz @ Ry @ Rx)
+    p = np.asarray(geometry.platform_joints, dtype=float)
+    J = np.empty((LEGS, 6))
+    J[:, :3] = units
+    for k, dR in enumerate(derivatives):
+        J[:, 3 + k] = np.einsum("ij,ij->i", units, p @ dR.T)
+    return J
+
+
+def forward_kinematics(
+    lengths,
+    geometry: HexapodGeometry,
+    guess=None,
+    tolerance: float = 1e-12,
+    max_iterations: int = 50,
+) -> np.ndarray:
+    """The pose (6,) whose legs have `lengths` (6, m), by Newton's method from `guess`
+    (default the neutral pose): the pose nearest the guess where the hexapod has several.
+
+    Raises:
+        ValueError: lengths that are not six finite numbers, or no pose within
+            `max_iterations` (the lengths are beyond what the legs can reach together).
+    """
+    target = np.asarray(lengths, dtype=float)
+    if target.shape != (LEGS,) or not np.all(np.isfinite(target)):
+        raise ValueError(f"forward kinematics needs six finite leg lengths; got {lengths}")
+    pose = np.zeros(6) if guess is None else np.array(guess, dtype=float)
+    for _ in range(max_iterations):
+        error = leg_lengths(pose, geometry) - target
+        if np.max(np.abs(error)) <= tolerance:
+            return pose
+        step = np.linalg.solve(leg_jacobian(pose, geometry), error)
+        pose = pose - step
+    error = np.max(np.abs(leg_lengths(pose, geometry) - target))
+    if error <= 1e3 * tolerance:
+        return pose  # converged to the precision the lengths carry
+    raise ValueError(
+        f"forward kinematics did not converge in {max_iterations} iterations (leg length "
+        f"error {error:.3g} m): the lengths may be beyond the hexapod's workspace"
+    )
+
+
+__all__ = [
+    "LEGS",
+    "HexapodGeometry",
+    "forward_kinematics",
+    "leg_jacobian",
+    "leg_lengths",
+    "rotation",
+]

@@ -1,0 +1,103 @@
+"""Hexapod kinematics against closed forms on the symmetric geometry, forward kinematics
+inverting the inverse to 1e-9, the Jacobian against finite differences, torch = numpy."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mca_drake.platforms.hexapod import (
+    HexapodGeometry,
+    forward_kinematics,
+    leg_jacobian,
+    leg_lengths,
+)
+
+# A symmetric 6-6 hexapod of simulator size (base 1.2 m, platform 0.8 m radius).
+RB, RP, HB, HP, HEIGHT = 1.2, 0.8, math.radians(10.0), math.radians(12.0), 1.0
+
+
+@pytest.fixture(scope="module")
+def hexapod() -> HexapodGeometry:
+    geometry = HexapodGeometry.symmetric(RB, RP, HB, HP, HEIGHT, 0.8, 0.6, 6.0)
+    geometry.validate()
+    return geometry
+
+
+def base_and_platform_angles():
+    """Each leg's base and platform joint angles on their circles (the layout's definition)."""
+    angles = []
+    for pair in range(3):
+        centre = math.radians(120.0 * pair)
+        for side in (-1, 1):
+            angles.append((centre + side * HB, centre + side * (math.radians(60.0) - HP)))
+    return angles
+
+
+def test_heave_and_yaw_lengths_are_the_closed_form(hexapod):
+    """Heave z and yaw psi about the vertical axis: by the law of cosines on the circles,
+    l^2 = RB^2 + RP^2 - 2 RB RP cos(theta_p + psi - theta_b) + (HEIGHT + z)^2."""
+    for z, psi in [(0.0, 0.0), (0.15, 0.0), (-0.2, 0.0), (0.0, 0.3), (0.1, -0.25)]:
+        expected = [
+            math.sqrt(RB**2 + RP**2 - 2 * RB * RP * math.cos(tp + psi - tb) + (HEIGHT + z) ** 2)
+            for tb, tp in base_and_platform_angles()
+        ]
+        pose = [0.0, 0.0, z, 0.0, 0.0, psi]
+        np.testing.assert_allclose(leg_lengths(pose, hexapod), expected, rtol=0, atol=1e-14)
+
+
+def test_the_neutral_pose_has_six_equal_legs_inside_the_stroke(hexapod):
+    lengths = leg_lengths(np.zeros(6), hexapod)
+    assert np.ptp(lengths) < 1e-14
+    assert hexapod.min_length < lengths[0] < hexapod.max_length
+
+
+def random_poses(rng, n):
+    scale = np.array([0.15, 0.15, 0.12, 0.2, 0.2, 0.3])
+    return rng.uniform(-1, 1, size=(n, 6)) * scale
+
+
+def test_forward_kinematics_inverts_the_inverse(hexapod, rng):
+    poses = random_poses(rng, 200)
+    lengths = leg_lengths(poses, hexapod)  # batched
+    for pose, legs in zip(poses, lengths, strict=True):
+        found = forward_kinematics(legs, hexapod)
+        np.testing.assert_allclose(found, pose, atol=1e-9)
+
+
+def test_the_jacobian_is_the_derivative(hexapod, rng):
+    for pose in random_poses(rng, 20):
+        J = leg_jacobian(pose, hexapod)
+        step = 1e-6
+        numeric = np.column_stack(
+            [
+                (leg_lengths(pose + step * e, hexapod) - leg_lengths(pose - step * e, hexapod))
+                / (2 * step)
+                for e in np.eye(6)
+            ]
+        )
+        np.testing.assert_allclose(J, numeric, atol=1e-8)
+
+
+def test_torch_is_numpy(hexapod, rng):
+    torch = pytest.importorskip("torch")
+    from mca_drake.learning.hexapod import leg_lengths as torch_leg_lengths
+
+    poses = random_poses(rng, 50)
+    got = torch_leg_lengths(torch.tensor(poses, dtype=torch.float64), hexapod).numpy()
+    np.testing.assert_allclose(got, leg_lengths(poses, hexapod), rtol=0, atol=1e-14)
+
+
+def test_bad_input_says_what_is_wrong(hexapod):
+    with pytest.raises(ValueError, match="six finite numbers"):
+        leg_lengths([0.0, 0.0, math.nan, 0.0, 0.0, 0.0], hexapod)
+    with pytest.raises(ValueError, match="six finite leg lengths"):
+        forward_kinematics([1.0] * 5, hexapod)
+    with pytest.raises(ValueError, match="did not converge"):
+        forward_kinematics([10.0, 0.1, 10.0, 0.1, 10.0, 0.1], hexapod, max_iterations=20)
+    bad = HexapodGeometry.symmetric(RB, RP, HB, HP, HEIGHT, 0.8, 0.6, 6.0)
+    bad.min_length = bad.max_length + 0.1
+    with pytest.raises(ValueError, match="max_length must exceed"):
+        bad.validate()
