@@ -76,13 +76,16 @@ class HexapodGeometry:
         """The classic 6-6 hexapod: joints in pairs on two circles, pairs 120 deg apart.
 
         Args:
-            base_radius, platform_radius: the circles' radii, m.
-            base_half_angle, platform_half_angle: half the angle between the two joints
-                of a pair, rad; the platform's pairs sit 60 deg from the base's, so each
-                leg runs from one base pair to the neighbouring platform pair.
+            base_radius: the base joints' circle, m.
+            platform_radius: the platform joints' circle, m.
+            base_half_angle: half the angle between the two base joints of a pair, rad.
+            platform_half_angle: the same on the platform, rad; the platform's pairs sit
+                60 deg from the base's, so each leg runs from one base pair to the
+                neighbouring platform pair.
             neutral_height: the platform frame's height at the neutral pose, m.
             stroke: the leg length range, centred on the neutral length, m.
-            max_speed, max_acceleration: along the legs, m/s and m/s^2.
+            max_speed: the actuators' speed limit along the legs, m/s.
+            max_acceleration: their acceleration limit, m/s^2.
         """
         base, platform = [], []
         for pair in range(3):
