@@ -13,6 +13,7 @@ from mca_drake.platforms.hexapod import (
     forward_kinematics,
     leg_jacobian,
     leg_lengths,
+    leg_motion,
 )
 
 # A symmetric 6-6 hexapod of simulator size (base 1.2 m, platform 0.8 m radius).
@@ -79,6 +80,32 @@ def test_the_jacobian_is_the_derivative(hexapod, rng):
             ]
         )
         np.testing.assert_allclose(J, numeric, atol=1e-8)
+
+
+def test_leg_speeds_and_accelerations_are_the_time_derivatives(hexapod, rng):
+    """Along a smooth pose trajectory (sines of random amplitude, frequency and phase per
+    coordinate), the legs' speeds and accelerations against central differences in time
+    of their lengths."""
+    amplitude = rng.uniform(0.02, 0.12, 6)
+    omega = rng.uniform(0.5, 3.0, 6)
+    phase = rng.uniform(0, 2 * np.pi, 6)
+
+    def pose(t):
+        return amplitude * np.sin(omega * t + phase)
+
+    def rate(t):
+        return amplitude * omega * np.cos(omega * t + phase)
+
+    def accel(t):
+        return -amplitude * omega**2 * np.sin(omega * t + phase)
+
+    dt = 1e-4
+    for t in np.linspace(0.0, 3.0, 13):
+        lengths, speeds, accelerations = leg_motion(pose(t), rate(t), accel(t), hexapod)
+        before, after = leg_lengths(pose(t - dt), hexapod), leg_lengths(pose(t + dt), hexapod)
+        np.testing.assert_allclose(lengths, leg_lengths(pose(t), hexapod), atol=1e-15)
+        np.testing.assert_allclose(speeds, (after - before) / (2 * dt), atol=1e-8)
+        np.testing.assert_allclose(accelerations, (after - 2 * lengths + before) / dt**2, atol=2e-5)
 
 
 def test_torch_is_numpy(hexapod, rng):

@@ -11,8 +11,10 @@ B) to the platform joint p_i (in P); its length is
     l_i = |t + R p_i - b_i|,      t = (x, y, neutral_height + z).
 
 `leg_lengths` is that inverse kinematics (batched over poses); `leg_jacobian` its exact
-derivative dl/dpose (6 x 6); `forward_kinematics` inverts it by Newton's method from the
-neutral pose (or a guess), to 1e-12 m on the lengths. The torch twin (for training through
+derivative dl/dpose (6 x 6); `leg_motion` the legs' lengths, speeds and accelerations of a
+pose moving with given pose rates and accelerations (what the actuator limits bound);
+`forward_kinematics` inverts `leg_lengths` by Newton's method from the neutral pose (or a
+guess), to 1e-12 m on the lengths. The torch twin (for training through
 the legs) is `mca_drake.learning.hexapod`.
 """
 
@@ -144,27 +146,83 @@ def leg_jacobian(pose, geometry: HexapodGeometry) -> np.ndarray:
     """dl/dpose at one pose (6,): (6 legs, 6 pose coordinates), exact.
 
     d l_i = u_i . (dt + dR p_i) with u_i the leg's unit vector; the angle columns use
-    dR/dangle of R = Rz Ry Rx.
+    dR/dangle of R = Rz Ry Rx (`_rotation_derivatives`).
     """
     pose = np.asarray(pose, dtype=float)
     legs = _legs(pose, geometry)
     units = legs / np.linalg.norm(legs, axis=-1, keepdims=True)
-    roll, pitch, yaw = pose[3:]
-    Rx, Ry, Rz = (
-        rotation(roll, 0.0, 0.0),
-        rotation(0.0, pitch, 0.0),
-        rotation(0.0, 0.0, yaw),
-    )
-    Kx = np.array([[0, 0, 0], [0, 0, -1], [0, 1, 0]], dtype=float)
-    Ky = np.array([[0, 0, 1], [0, 0, 0], [-1, 0, 0]], dtype=float)
-    Kz = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 0]], dtype=float)
-    derivatives = (Rz @ Ry @ Rx @ Kx, Rz @ Ry @ Ky @ Rx, Kz @ Rz @ Ry @ Rx)
+    derivatives = _rotation_derivatives(pose[3:])[0]
     p = np.asarray(geometry.platform_joints, dtype=float)
     J = np.empty((LEGS, 6))
     J[:, :3] = units
     for k, dR in enumerate(derivatives):
         J[:, 3 + k] = np.einsum("ij,ij->i", units, p @ dR.T)
     return J
+
+
+_K = (
+    np.array([[0, 0, 0], [0, 0, -1], [0, 1, 0]], dtype=float),  # about x: roll
+    np.array([[0, 0, 1], [0, 0, 0], [-1, 0, 0]], dtype=float),  # about y: pitch
+    np.array([[0, -1, 0], [1, 0, 0], [0, 0, 0]], dtype=float),  # about z: yaw
+)
+
+
+def _rotation_derivatives(angles: np.ndarray) -> tuple[list, list]:
+    """dR/dangle_k (3) and d2R/dangle_k dangle_l (3 x 3) of R = Rz Ry Rx at (roll, pitch,
+    yaw): each factor's derivative is the factor times its axis' cross-product matrix."""
+    Rx = rotation(angles[0], 0.0, 0.0)
+    Ry = rotation(0.0, angles[1], 0.0)
+    Rz = rotation(0.0, 0.0, angles[2])
+    Kx, Ky, Kz = _K
+
+    def product(marks: dict) -> np.ndarray:
+        # R with each factor f of `marks` replaced by its derivative (K f, or f K^m)
+        zs = marks.get("z", 0)
+        out = np.linalg.matrix_power(Kz, zs) @ Rz if zs else Rz
+        out = out @ Ry
+        if marks.get("y"):
+            out = out @ np.linalg.matrix_power(Ky, marks["y"])
+        out = out @ Rx
+        if marks.get("x"):
+            out = out @ np.linalg.matrix_power(Kx, marks["x"])
+        return out
+
+    names = ("x", "y", "z")
+    first = [product({names[k]: 1}) for k in range(3)]
+    second = [
+        [product({names[k]: 1, names[m]: 1} if k != m else {names[k]: 2}) for m in range(3)]
+        for k in range(3)
+    ]
+    return first, second
+
+
+def leg_motion(pose, pose_rate, pose_acceleration, geometry: HexapodGeometry):
+    """The legs' lengths (m), speeds (m/s) and accelerations (m/s^2), each (6,), of one
+    `pose` moving at `pose_rate` with `pose_acceleration` (the six pose coordinates' first
+    and second time derivatives; angles as Euler-angle rates, rad/s and rad/s^2).
+
+    With v_i = t + R p_i - b_i: l_i = |v_i|, l'_i = u_i . v'_i and
+    l''_i = (|v'_i|^2 - l'_i^2) / l_i + u_i . v''_i, exactly.
+    """
+    pose = np.asarray(pose, dtype=float)
+    rate = np.asarray(pose_rate, dtype=float)
+    accel = np.asarray(pose_acceleration, dtype=float)
+    legs = _legs(pose, geometry)
+    lengths = np.linalg.norm(legs, axis=-1)
+    units = legs / lengths[:, None]
+    first, second = _rotation_derivatives(pose[3:])
+    R_dot = sum(first[k] * rate[3 + k] for k in range(3))
+    R_ddot = sum(first[k] * accel[3 + k] for k in range(3)) + sum(
+        second[k][m] * rate[3 + k] * rate[3 + m] for k in range(3) for m in range(3)
+    )
+    p = np.asarray(geometry.platform_joints, dtype=float)
+    v_dot = rate[:3] + p @ R_dot.T
+    v_ddot = accel[:3] + p @ R_ddot.T
+    speeds = np.einsum("ij,ij->i", units, v_dot)
+    accelerations = (np.einsum("ij,ij->i", v_dot, v_dot) - speeds**2) / lengths + np.einsum(
+        "ij,ij->i", units, v_ddot
+    )
+    return lengths, speeds, accelerations
 
 
 def forward_kinematics(
@@ -206,5 +264,6 @@ __all__ = [
     "forward_kinematics",
     "leg_jacobian",
     "leg_lengths",
+    "leg_motion",
     "rotation",
 ]
