@@ -49,6 +49,22 @@ def test_heave_and_yaw_lengths_are_the_closed_form(hexapod):
         np.testing.assert_allclose(leg_lengths(pose, hexapod), expected, rtol=0, atol=1e-14)
 
 
+def test_leg_lengths_are_drakes_rigid_transform_of_the_joints(hexapod, rng):
+    """Drake's own pose arithmetic: the platform frame at RigidTransform(RollPitchYaw(roll,
+    pitch, yaw), t) in the base frame, each leg from b_i to X_BP p_i."""
+    from pydrake.math import RigidTransform, RollPitchYaw
+
+    for pose in random_poses(rng, 25):
+        X_BP = RigidTransform(
+            RollPitchYaw(*pose[3:]), pose[:3] + np.array([0.0, 0.0, hexapod.neutral_height])
+        )
+        expected = [
+            np.linalg.norm(X_BP @ np.asarray(p) - np.asarray(b))
+            for p, b in zip(hexapod.platform_joints, hexapod.base_joints, strict=True)
+        ]
+        np.testing.assert_allclose(leg_lengths(pose, hexapod), expected, rtol=0, atol=1e-14)
+
+
 def test_the_neutral_pose_has_six_equal_legs_inside_the_stroke(hexapod):
     lengths = leg_lengths(np.zeros(6), hexapod)
     assert np.ptp(lengths) < 1e-14
