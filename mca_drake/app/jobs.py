@@ -281,6 +281,7 @@ def run_live_scenario(
         trajectory=scenario.trajectory or None,
         controls=scenario.controls,
         keyboard_fd=keyboard_fd,
+        rig=scenario.rig,
     )
     if scenario.output_json:
         atomic_write_json(scenario.output_json, summary)

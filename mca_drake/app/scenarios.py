@@ -48,6 +48,7 @@ from mca_drake.live.controls import ControlsConfig
 from mca_drake.live.f1 import F1Config
 from mca_drake.live.outsim import OutSimConfig
 from mca_drake.live.receiver import allowed_senders
+from mca_drake.live.rig_output import RigOutputConfig
 from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.files import (
@@ -405,6 +406,10 @@ class LiveScenario:
     # intensity and gains, the ramp every change follows, the UDP control port and who may
     # use it, the keyboard and the operator page in Meshcat.
     controls: ControlsConfig = dataclasses.field(default_factory=ControlsConfig)
+    # The rig's own output (`mca_drake.live.rig_output`): the actuator positions every
+    # control period to udp://HOST:PORT or serial://PATH?baud=N, in ASCII, a template or a
+    # binary layout; url "": none.
+    rig: RigOutputConfig = dataclasses.field(default_factory=RigOutputConfig)
     # The result summary with its live (and rsi) block; "": none.
     output_json: str = "results/live/summary.json"
     # The run's time series as CSV, one row per control period, with the supervisor's
@@ -444,6 +449,11 @@ class LiveScenario:
                 getattr(self, name).validate()
             except ValueError as err:
                 raise ValueError(f"LiveScenario.{name}: {err}") from None
+        if self.rig.url:
+            try:
+                self.rig.validate(load_platform(self.platform).num_joints)
+            except ValueError as err:
+                raise ValueError(f"LiveScenario.rig: {err}") from None
         if self.robot and self.realtime_rate != 1.0:
             raise ValueError(
                 f"a robot runs in real time: realtime_rate 1, not {self.realtime_rate}"

@@ -11,6 +11,7 @@ protocol in `decoders`.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import gc
 import math
@@ -53,6 +54,7 @@ from mca_drake.live.pacing import RealTimePacer
 from mca_drake.live.phase_lock import PhaseLockConfig, phase_correction
 from mca_drake.live.receiver import TELEMETRY_FIELDS, ReceiverConfig, TelemetryReceiver
 from mca_drake.live.recorder import BEFORE_POLL_S, LiveRecorder
+from mca_drake.live.rig_output import RigConnection, RigOutputConfig, RigOutputSender
 from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.live.rsi.link import (
     RobotClockServo,
@@ -265,6 +267,7 @@ def MakeLiveClosedLoop(
     controls: ControlsConfig | None = None,
     control_sources: list | None = None,
     comfort: ComfortConfig | None = None,
+    rig: tuple | None = None,
 ) -> tuple[Diagram, dict]:
     """TelemetryReceiver -> ReferenceGuard -> OperatorConsole -> MCA -> Supervisor -> robot,
     with logs and a LatencyProbe; the robot is the analytical plant or the platform's
@@ -286,7 +289,9 @@ def MakeLiveClosedLoop(
         OperatorConsole of `controls` (the run's first settings) reading `control_sources`
         (`live.control_inputs`); with neither, the MCA reads the guarded reference as it is.
         `comfort_bound` is the CabinComfortBound of `comfort` between the supervisor and the
-        robot (None where `comfort` is absent or disabled).
+        robot (None where `comfort` is absent or disabled). With `rig` (an open
+        `live.rig_output.RigConnection` and its RigOutputConfig), a RigOutputSender `rig`
+        sends the actuator positions every period.
     """
     if plant not in PLANTS:
         raise ValueError(f"unknown plant '{plant}'; valid: {', '.join(PLANTS)}")
@@ -351,6 +356,13 @@ def MakeLiveClosedLoop(
     builder.Connect(command, robot_ports.joint_acceleration)
     builder.Connect(source.GetOutputPort("telemetry"), probe.GetInputPort("telemetry"))
     builder.Connect(command, probe.GetInputPort("command"))
+    if rig is not None:
+        rig_sender = builder.AddNamedSystem(
+            "rig", RigOutputSender(rig[0], rig[1], h, robot.num_joints)
+        )
+        builder.Connect(state, rig_sender.GetInputPort("state"))
+        builder.Connect(command, rig_sender.GetInputPort("command"))
+        handles["rig"] = rig_sender
     if rsi_commands is not None:
         sender = builder.AddNamedSystem("rsi", RsiCommandSender(rsi_commands, h, robot.num_joints))
         builder.Connect(state, sender.GetInputPort("state"))
@@ -406,6 +418,7 @@ def run_live(
     controls: ControlsConfig | None = None,
     keyboard_fd: int | None = None,
     comfort: ComfortConfig | None = None,
+    rig: RigOutputConfig | None = None,
 ) -> dict:
     """Runs the live loop for `duration_s` (s of simulated time, at `realtime_rate`) and
     returns its summary with the `live` block.
@@ -439,6 +452,9 @@ def run_live(
             (`mca_drake.comfort`; default none: it costs two evaluations of the plant
             output on the path from a sample to its command); its counts are the summary's
             `comfort` block.
+        rig: the rig's own output (`live.rig_output`: the actuator positions each period
+            over UDP or a serial port; default none); its counts are the summary's `rig`
+            block.
     """
     if not 0 < duration_s <= 24 * 3600:
         raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
@@ -457,7 +473,9 @@ def run_live(
         loop_end, driver_end = segment_socket_pair()
     controls = controls or ControlsConfig()
     controls.validate()
-    with control_inputs(controls, meshcat, keyboard_fd) as sources:
+    if rig is not None and rig.url:
+        rig.validate(robot.num_joints)
+    with control_inputs(controls, meshcat, keyboard_fd) as sources, _rig(rig) as connection:
         diagram, handles = MakeLiveClosedLoop(
             decoder,
             config,
@@ -473,6 +491,7 @@ def run_live(
             controls=controls if controls.enabled else None,
             control_sources=sources,
             comfort=comfort,
+            rig=None if connection is None else (connection, rig),
         )
         run = _run_paced(
             diagram,
@@ -506,6 +525,8 @@ def run_live(
         to_rest = rest_at - console.estop["t_s"] if console.estop is not None else math.nan
         context = console.GetMyContextFromRoot(run.context)
         summary["controls"] = console.summary(context, to_rest)
+    if handles.get("rig") is not None:
+        summary["rig"] = handles["rig"].summary()
     bound = handles["comfort_bound"]
     if bound is not None:
         outputs = live_signals(handles, plant, robot, h)[1]
@@ -516,6 +537,19 @@ def run_live(
     if trajectory:
         atomic_write_text(trajectory, live_trajectory(handles, plant, robot, h))
     return summary
+
+
+@contextlib.contextmanager
+def _rig(config: RigOutputConfig | None):
+    """The rig output's open connection for the `with` block (None: no output)."""
+    if config is None or not config.url:
+        yield None
+        return
+    connection = RigConnection(config)
+    try:
+        yield connection
+    finally:
+        connection.close()
 
 
 def _run_paced(

@@ -73,6 +73,12 @@ def add_parser(commands) -> None:
         "--intensity", type=float, help="the master intensity the run starts with, in [0, 1]"
     )
     parser.add_argument(
+        "--rig",
+        help="send the actuator positions every control period to udp://HOST:PORT or "
+        "serial://PATH?baud=N (one ASCII line, SI units, comma-separated; the scenario's rig "
+        "field sets a template or a binary layout)",
+    )
+    parser.add_argument(
         "--no-keyboard",
         action="store_true",
         help="ignore the terminal's keys (by default + and - intensity, space pause/resume, "
@@ -143,6 +149,8 @@ def _scenario_from_flags(args: argparse.Namespace) -> LiveScenario:
         scenario.controls.keyboard = False
     if args.max_force_change is not None:
         scenario.comfort.max_force_change = args.max_force_change
+    if args.rig:
+        scenario.rig.url = args.rig
     scenario.validate()
     return scenario
 

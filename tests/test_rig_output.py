@@ -1,0 +1,115 @@
+"""The rig's own output: the formats against hand-built messages, bad settings refused, and
+a live run's datagrams (and a serial port's bytes, on a pseudo-terminal pair) carrying the
+positions the platform reached."""
+
+from __future__ import annotations
+
+import os
+import socket
+import struct
+
+import numpy as np
+import pytest
+
+from mca_drake.live.rig_output import RigConnection, RigOutputConfig, encode, where
+
+POSITIONS = [0.0123, -0.1045, 0.5, 1.25, -0.75, 2.0]
+
+
+def test_the_default_line_is_the_positions_in_si_units():
+    assert encode(POSITIONS, RigOutputConfig()) == (
+        b"0.012300,-0.104500,0.500000,1.250000,-0.750000,2.000000\n"
+    )
+
+
+def test_a_template_writes_scaled_counts_in_the_users_layout():
+    config = RigOutputConfig(
+        format="template",
+        template="A{0}B{1}C{5}{{}}\r\n",
+        scale=[1000.0] * 6,
+        offset=[0, 0, 0, 0, 0, 32768],
+        number_format=".0f",
+    )
+    config.validate(6)
+    # {k} only; other braces are text
+    assert encode(POSITIONS, config) == b"A12B-104C34768{{}}\r\n"
+
+
+def test_a_binary_layout_packs_rounded_counts():
+    config = RigOutputConfig(format="binary", binary_layout="<6i", scale=[1e4] * 6)
+    config.validate(6)
+    message = encode(POSITIONS, config)
+    assert struct.unpack("<6i", message) == (123, -1045, 5000, 12500, -7500, 20000)
+    floats = RigOutputConfig(format="binary", binary_layout=">6f")
+    np.testing.assert_allclose(struct.unpack(">6f", encode(POSITIONS, floats)), POSITIONS, 1e-6)
+
+
+def test_settings_that_cannot_be_written_are_refused():
+    bad = [
+        (RigOutputConfig(url="tcp://127.0.0.1:5"), "not udp://HOST:PORT or serial://"),
+        (RigOutputConfig(url="udp://127.0.0.1"), "needs a port"),
+        (RigOutputConfig(url="serial:///dev/null?baud=1234"), "baud must be one of"),
+        (RigOutputConfig(format="morse"), "format must be one of"),
+        (RigOutputConfig(format="template", template="X{7}"), "names actuator 7"),
+        (RigOutputConfig(format="template", template="no placeholder"), "no {k} placeholder"),
+        (RigOutputConfig(format="binary", binary_layout="<5i"), "packs 5 values"),
+        (RigOutputConfig(format="binary", binary_layout="<6z"), "binary_layout"),
+        (RigOutputConfig(scale=[1.0] * 5), "scale needs 6 values"),
+        (RigOutputConfig(number_format="q"), "not a format spec"),
+    ]
+    for config, message in bad:
+        with pytest.raises(ValueError, match=message):
+            config.validate(6)
+    assert where("serial:///dev/ttyUSB0?baud=115200") == ("serial", ("/dev/ttyUSB0", 115200))
+
+
+def test_a_serial_port_gets_the_bytes(tmp_path):
+    main, terminal = os.openpty()
+    try:
+        config = RigOutputConfig(url=f"serial://{os.ttyname(terminal)}?baud=115200")
+        connection = RigConnection(config)
+        connection.send(encode(POSITIONS, config))
+        connection.close()
+        assert os.read(main, 4096) == encode(POSITIONS, config)
+        assert (connection.sent, connection.failed) == (1, 0)
+    finally:
+        os.close(main)
+        os.close(terminal)
+    with pytest.raises(ValueError, match="cannot open the rig's serial port"):
+        RigConnection(RigOutputConfig(url=f"serial://{tmp_path}/none?baud=9600"))
+
+
+def test_a_live_run_sends_the_positions_the_platform_reaches(tmp_path, robot):
+    from test_live_loop import live_with_sender, stream_process
+
+    listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    listener.bind(("127.0.0.1", 0))
+    listener.settimeout(0.0)
+    port = listener.getsockname()[1]
+    trajectory = tmp_path / "run.csv"
+    try:
+        summary = live_with_sender(
+            stream_process,
+            2.2,
+            "dpc",
+            2.0,
+            rig=RigOutputConfig(url=f"udp://127.0.0.1:{port}", number_format=".9f"),
+            trajectory=str(trajectory),
+        )
+        lines = []
+        while True:
+            try:
+                lines.append(listener.recv(4096))
+            except BlockingIOError:
+                break
+    finally:
+        listener.close()
+    rig = summary["rig"]
+    assert rig["sent"] == len(lines) and rig["failed"] == 0 and len(lines) >= 190
+    sent = np.array([[float(v) for v in line.decode().strip().split(",")] for line in lines])
+    rows = np.genfromtxt(trajectory, delimiter=",", names=True)
+    q = np.column_stack([rows[name] for name in rows.dtype.names if name.startswith("q_")])
+    # line k: where the platform is at the next control instant, the trajectory's row k + 1
+    count = min(len(sent), len(q)) - 1
+    np.testing.assert_allclose(sent[:count], q[1 : count + 1], atol=1e-8)
+    assert np.ptp(q[:, 0]) > 1e-4  # it moved
