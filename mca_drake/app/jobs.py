@@ -282,6 +282,7 @@ def run_live_scenario(
         controls=scenario.controls,
         keyboard_fd=keyboard_fd,
         rig=scenario.rig,
+        pose_stream=scenario.pose_stream,
     )
     if scenario.output_json:
         atomic_write_json(scenario.output_json, summary)

@@ -48,7 +48,7 @@ from mca_drake.live.controls import ControlsConfig
 from mca_drake.live.f1 import F1Config
 from mca_drake.live.outsim import OutSimConfig
 from mca_drake.live.receiver import allowed_senders
-from mca_drake.live.rig_output import RigOutputConfig
+from mca_drake.live.rig_output import RigOutputConfig, where
 from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.files import (
@@ -410,6 +410,9 @@ class LiveScenario:
     # control period to udp://HOST:PORT or serial://PATH?baud=N, in ASCII, a template or a
     # binary layout; url "": none.
     rig: RigOutputConfig = dataclasses.field(default_factory=RigOutputConfig)
+    # udp://HOST:PORT for the head's pose relative to home every control period, for VR
+    # motion compensation (`mca_drake.live.pose_stream`); "": none.
+    pose_stream: str = ""
     # The result summary with its live (and rsi) block; "": none.
     output_json: str = "results/live/summary.json"
     # The run's time series as CSV, one row per control period, with the supervisor's
@@ -449,6 +452,8 @@ class LiveScenario:
                 getattr(self, name).validate()
             except ValueError as err:
                 raise ValueError(f"LiveScenario.{name}: {err}") from None
+        if self.pose_stream and where(self.pose_stream)[0] != "udp":
+            raise ValueError("LiveScenario.pose_stream goes to udp://HOST:PORT")
         if self.rig.url:
             try:
                 self.rig.validate(load_platform(self.platform).num_joints)

@@ -52,6 +52,7 @@ from mca_drake.live.live_summary import (
 from mca_drake.live.operator import OperatorConsole
 from mca_drake.live.pacing import RealTimePacer
 from mca_drake.live.phase_lock import PhaseLockConfig, phase_correction
+from mca_drake.live.pose_stream import PoseStreamSender
 from mca_drake.live.receiver import TELEMETRY_FIELDS, ReceiverConfig, TelemetryReceiver
 from mca_drake.live.recorder import BEFORE_POLL_S, LiveRecorder
 from mca_drake.live.rig_output import RigConnection, RigOutputConfig, RigOutputSender
@@ -268,6 +269,7 @@ def MakeLiveClosedLoop(
     control_sources: list | None = None,
     comfort: ComfortConfig | None = None,
     rig: tuple | None = None,
+    pose_stream: str = "",
 ) -> tuple[Diagram, dict]:
     """TelemetryReceiver -> ReferenceGuard -> OperatorConsole -> MCA -> Supervisor -> robot,
     with logs and a LatencyProbe; the robot is the analytical plant or the platform's
@@ -291,7 +293,8 @@ def MakeLiveClosedLoop(
         `comfort_bound` is the CabinComfortBound of `comfort` between the supervisor and the
         robot (None where `comfort` is absent or disabled). With `rig` (an open
         `live.rig_output.RigConnection` and its RigOutputConfig), a RigOutputSender `rig`
-        sends the actuator positions every period.
+        sends the actuator positions every period; with `pose_stream` (udp://HOST:PORT), a
+        PoseStreamSender `pose_stream` sends the head's pose relative to home.
     """
     if plant not in PLANTS:
         raise ValueError(f"unknown plant '{plant}'; valid: {', '.join(PLANTS)}")
@@ -363,6 +366,11 @@ def MakeLiveClosedLoop(
         builder.Connect(state, rig_sender.GetInputPort("state"))
         builder.Connect(command, rig_sender.GetInputPort("command"))
         handles["rig"] = rig_sender
+    if pose_stream:
+        poses = builder.AddNamedSystem("pose_stream", PoseStreamSender(pose_stream, robot, home, h))
+        builder.Connect(state, poses.GetInputPort("state"))
+        builder.Connect(command, poses.GetInputPort("command"))
+        handles["pose_stream"] = poses
     if rsi_commands is not None:
         sender = builder.AddNamedSystem("rsi", RsiCommandSender(rsi_commands, h, robot.num_joints))
         builder.Connect(state, sender.GetInputPort("state"))
@@ -419,6 +427,7 @@ def run_live(
     keyboard_fd: int | None = None,
     comfort: ComfortConfig | None = None,
     rig: RigOutputConfig | None = None,
+    pose_stream: str = "",
 ) -> dict:
     """Runs the live loop for `duration_s` (s of simulated time, at `realtime_rate`) and
     returns its summary with the `live` block.
@@ -455,6 +464,8 @@ def run_live(
         rig: the rig's own output (`live.rig_output`: the actuator positions each period
             over UDP or a serial port; default none); its counts are the summary's `rig`
             block.
+        pose_stream: udp://HOST:PORT for the head's pose relative to home each period
+            (`live.pose_stream`, for VR motion compensation; "": none).
     """
     if not 0 < duration_s <= 24 * 3600:
         raise ValueError(f"duration_s must be in (0, 86400] s; got {duration_s}")
@@ -492,6 +503,7 @@ def run_live(
             control_sources=sources,
             comfort=comfort,
             rig=None if connection is None else (connection, rig),
+            pose_stream=pose_stream,
         )
         run = _run_paced(
             diagram,
@@ -527,6 +539,9 @@ def run_live(
         summary["controls"] = console.summary(context, to_rest)
     if handles.get("rig") is not None:
         summary["rig"] = handles["rig"].summary()
+    if handles.get("pose_stream") is not None:
+        handles["pose_stream"].close()
+        summary["pose_stream"] = handles["pose_stream"].summary()
     bound = handles["comfort_bound"]
     if bound is not None:
         outputs = live_signals(handles, plant, robot, h)[1]

@@ -79,6 +79,11 @@ def add_parser(commands) -> None:
         "field sets a template or a binary layout)",
     )
     parser.add_argument(
+        "--pose-stream",
+        help="udp://HOST:PORT: the head's pose relative to home every control period, one "
+        "line t,x,y,z,qw,qx,qy,qz (s, m, unit quaternion), for VR motion compensation",
+    )
+    parser.add_argument(
         "--no-keyboard",
         action="store_true",
         help="ignore the terminal's keys (by default + and - intensity, space pause/resume, "
@@ -151,6 +156,8 @@ def _scenario_from_flags(args: argparse.Namespace) -> LiveScenario:
         scenario.comfort.max_force_change = args.max_force_change
     if args.rig:
         scenario.rig.url = args.rig
+    if args.pose_stream:
+        scenario.pose_stream = args.pose_stream
     scenario.validate()
     return scenario
 
