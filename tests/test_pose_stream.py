@@ -3,8 +3,6 @@ run's lines against the head pose Drake's MultibodyPlant gives for the positions
 
 from __future__ import annotations
 
-import socket
-
 import numpy as np
 import pytest
 from drake_oracle import drake_head_pose
@@ -32,33 +30,13 @@ def test_a_stream_that_is_not_udp_is_refused(robot):
         PoseStreamSender("serial:///dev/ttyS0?baud=9600", robot, np.zeros(6), H)
 
 
-def test_a_live_run_streams_the_heads_pose_from_home(tmp_path, robot, drake_plant):
-    from test_live_loop import live_with_sender, stream_process
+def test_a_live_run_streams_the_heads_pose_from_home(tmp_path, drake_plant):
+    from test_rig_output import live_run_listened
 
-    listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    listener.bind(("127.0.0.1", 0))
-    listener.setblocking(False)
-    trajectory = tmp_path / "run.csv"
-    try:
-        summary = live_with_sender(
-            stream_process,
-            2.2,
-            "dpc",
-            2.0,
-            pose_stream=f"udp://127.0.0.1:{listener.getsockname()[1]}",
-            trajectory=str(trajectory),
-        )
-        lines = []
-        while True:
-            try:
-                lines.append(listener.recv(4096).decode())
-            except BlockingIOError:
-                break
-    finally:
-        listener.close()
+    summary, datagrams, rows = live_run_listened(tmp_path, lambda url: {"pose_stream": url})
+    lines = [datagram.decode() for datagram in datagrams]
     assert summary["pose_stream"]["sent"] == len(lines) >= 190
     values = np.array([[float(v) for v in line.strip().split(",")] for line in lines])
-    rows = np.genfromtxt(trajectory, delimiter=",", names=True)
     q = np.column_stack([rows[name] for name in rows.dtype.names if name.startswith("q_")])
     context = drake_plant.CreateDefaultContext()
     X_WH0 = drake_head_pose(drake_plant, context, q[0])  # the run starts at home, at rest

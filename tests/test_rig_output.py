@@ -79,35 +79,39 @@ def test_a_serial_port_gets_the_bytes(tmp_path):
         RigConnection(RigOutputConfig(url=f"serial://{tmp_path}/none?baud=9600"))
 
 
-def test_a_live_run_sends_the_positions_the_platform_reaches(tmp_path, robot):
+def live_run_listened(tmp_path, options_for):
+    """A 2 s live run (the DPC on `test_live_loop.stream_process`) whose output goes to a
+    loopback listener: `options_for(url)` gives run_live's options for the listener's
+    udp://127.0.0.1:PORT. Returns (summary, the datagrams received, the trajectory's rows)."""
     from test_live_loop import live_with_sender, stream_process
 
     listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     listener.bind(("127.0.0.1", 0))
-    listener.settimeout(0.0)
-    port = listener.getsockname()[1]
+    listener.setblocking(False)
     trajectory = tmp_path / "run.csv"
+    url = f"udp://127.0.0.1:{listener.getsockname()[1]}"
     try:
         summary = live_with_sender(
-            stream_process,
-            2.2,
-            "dpc",
-            2.0,
-            rig=RigOutputConfig(url=f"udp://127.0.0.1:{port}", number_format=".9f"),
-            trajectory=str(trajectory),
+            stream_process, 2.2, "dpc", 2.0, trajectory=str(trajectory), **options_for(url)
         )
-        lines = []
+        datagrams = []
         while True:
             try:
-                lines.append(listener.recv(4096))
+                datagrams.append(listener.recv(4096))
             except BlockingIOError:
                 break
     finally:
         listener.close()
+    return summary, datagrams, np.genfromtxt(trajectory, delimiter=",", names=True)
+
+
+def test_a_live_run_sends_the_positions_the_platform_reaches(tmp_path):
+    summary, lines, rows = live_run_listened(
+        tmp_path, lambda url: {"rig": RigOutputConfig(url=url, number_format=".9f")}
+    )
     rig = summary["rig"]
     assert rig["sent"] == len(lines) and rig["failed"] == 0 and len(lines) >= 190
     sent = np.array([[float(v) for v in line.decode().strip().split(",")] for line in lines])
-    rows = np.genfromtxt(trajectory, delimiter=",", names=True)
     q = np.column_stack([rows[name] for name in rows.dtype.names if name.startswith("q_")])
     # line k: where the platform is at the next control instant, the trajectory's row k + 1
     count = min(len(sent), len(q)) - 1
