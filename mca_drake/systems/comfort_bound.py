@@ -4,7 +4,14 @@ whatever commands the robot (an MCA, the live supervisor) and the robot."""
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    DiscreteValues,
+    LeafSystem,
+    ValueProducer,
+)
 
 from mca_drake.comfort import FORCE_ROWS, ComfortConfig, comfort_fraction
 from mca_drake.conventions import CONTROL_PERIOD_S
@@ -67,11 +74,21 @@ class CabinComfortBound(LeafSystem):
         if not 0 <= update_offset_s < time_step:
             raise ValueError(f"update_offset_s must be in [0, time_step); got {update_offset_s}")
         self.DeclarePeriodicDiscreteUpdateEvent(time_step, update_offset_s, self._update)
+        # The bounded command, whether the bound scaled it, and the force it gives: computed
+        # once per context for both the output and the update (a cache entry).
+        self._step = self.DeclareCacheEntry(
+            description="the bounded command",
+            value_producer=ValueProducer(
+                allocate=lambda: AbstractValue.Make(((), False, ())), calc=self._calc_step
+            ),
+            prerequisites_of_calc={
+                self.xd_ticket(),
+                self._state_port.ticket(),
+                self._command_port.ticket(),
+            },
+        )
         self.DeclareVectorOutputPort(
-            "bounded_command",
-            n,
-            self._calc_command,
-            {self.xd_ticket(), self._state_port.ticket(), self._command_port.ticket()},
+            "bounded_command", n, self._calc_command, {self._step.ticket()}
         )
         self.DeclareVectorOutputPort("applied_command", n, self._calc_applied, {self.xd_ticket()})
         self.DeclareVectorOutputPort("bounded_periods", 1, self._calc_count, {self.xd_ticket()})
@@ -89,27 +106,35 @@ class CabinComfortBound(LeafSystem):
         n = self._joints
         return plant_output(x[:n], x[n:], u, self._robot)[FORCE_ROWS]
 
-    def _bounded(self, context: Context) -> tuple[np.ndarray, bool]:
-        """(the command after the bound and the clamp, whether the bound scaled it)."""
+    def _calc_step(self, context: Context, value: AbstractValue) -> None:
+        """(the command after the bound and the clamp, whether the bound scaled it, the
+        force f(x, u) it gives; empty where the command is not finite)."""
         u = np.array(self._command_port.Eval(context))
         if not self._config.enabled or not np.all(np.isfinite(u)):
-            return u, False
+            value.set_value((u, False, ()))
+            return
         s = context.get_discrete_state(self._index).value()
         n = self._joints
         x = np.array(self._state_port.Eval(context))
-        scaled = False
+        force, scaled = self._force(x, u), False
         if s[n + 3]:
             u_prev, f_prev = s[:n], s[n : n + 3]
             f_hold = self._force(x, u_prev)
-            alpha = comfort_fraction(
-                self._force(x, u) - f_hold, f_hold - f_prev, self._config.max_force_change
-            )
+            alpha = comfort_fraction(force - f_hold, f_hold - f_prev, self._config.max_force_change)
             if alpha < 1.0:
-                u, scaled = u_prev + alpha * (u - u_prev), True
-        return self._clamp(x, u)[0], scaled
+                # the force is affine in the command: the scaled command's, exactly
+                u, force, scaled = (
+                    u_prev + alpha * (u - u_prev),
+                    f_hold + alpha * (force - f_hold),
+                    True,
+                )
+        u, clamped = self._clamp(x, u)
+        if clamped:
+            force = self._force(x, u)
+        value.set_value((u, scaled, force))
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._bounded(context)[0])
+        output.SetFromVector(self._step.Eval(context)[0])
 
     def _calc_applied(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._index).value()[: self._joints])
@@ -118,14 +143,10 @@ class CabinComfortBound(LeafSystem):
         output.SetFromVector([context.get_discrete_state(self._index).value()[-1]])
 
     def _update(self, context: Context, discrete: DiscreteValues) -> None:
-        if not self._config.enabled:
-            return
-        u, scaled = self._bounded(context)
-        if not np.all(np.isfinite(u)):
-            return
-        x = np.array(self._state_port.Eval(context))
-        count = context.get_discrete_state(self._index).value()[-1] + scaled
-        discrete.set_value(self._index, np.r_[u, self._force(x, u), 1.0, count])
+        u, scaled, force = self._step.Eval(context)
+        if len(force):  # (nothing to keep from a command that is not finite)
+            count = context.get_discrete_state(self._index).value()[-1] + scaled
+            discrete.set_value(self._index, np.r_[u, force, 1.0, count])
 
 
 __all__ = ["CabinComfortBound"]
