@@ -68,7 +68,6 @@ from mca_drake.live.supervisor import Supervisor, SupervisorConfig
 from mca_drake.live.telemetry import Decoder
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import ReferenceScaling
-from mca_drake.safety import substep_position_coefficient
 from mca_drake.simulation.builders import (
     AddComfortBound,
     AddMca,
@@ -338,14 +337,6 @@ def MakeLiveClosedLoop(
     handles["reference_guard"] = _ConnectMcaToSupervisor(
         builder, source, controller, guard, robot_ports, h, plausibility, console
     )
-    # the comfort bound keeps what the robot took: when the plant steps, or the station's
-    # command limiter takes it (half a plant step after the instant)
-    if plant == "analytical":
-        taken_at, coefficient = PLANT_DELAY_S, 0.5
-    else:
-        plant_step = (station or StationConfig()).plant_time_step
-        taken_at = 0.5 * plant_step
-        coefficient = substep_position_coefficient(round(h / plant_step))
     command, handles["comfort_bound"] = AddComfortBound(
         builder,
         robot,
@@ -353,8 +344,8 @@ def MakeLiveClosedLoop(
         guard.GetOutputPort("joint_acceleration"),
         state,
         h,
-        taken_at,
-        coefficient,
+        PLANT_DELAY_S,  # the analytical plant steps after the command has gone out
+        None if plant == "analytical" else (station or StationConfig()),
     )
     builder.Connect(command, robot_ports.joint_acceleration)
     builder.Connect(source.GetOutputPort("telemetry"), probe.GetInputPort("telemetry"))

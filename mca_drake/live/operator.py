@@ -98,7 +98,7 @@ class OperatorConsole(LeafSystem):
     def _update(self, context: Context, state: State) -> None:
         s = context.get_discrete_state(self._index).value().tolist()
         targets, mode = s[_TARGET], int(s[_MODE])
-        changed = False
+        asked = (targets, mode)
         for source in self._sources:
             for text, answer in source.poll():
                 targets, new_mode, said, accepted = apply_command(
@@ -107,11 +107,10 @@ class OperatorConsole(LeafSystem):
                 self._record(context.get_time(), source.name, text, said, accepted)
                 if new_mode == ESTOP and mode != ESTOP:
                     self.estop = {"t_s": round(context.get_time(), 4), "source": source.name}
-                changed |= accepted and (new_mode != mode or said.startswith(("int", "gain")))
                 mode = new_mode
                 if answer is not None:
                     answer(said)
-        if changed:
+        if (targets, mode) != asked:  # every source shows the settings as they now are
             for source in self._sources:
                 source.show(targets, mode)
         current = [ramp(c, t, self._step) for c, t in zip(s[_CURRENT], targets, strict=True)]

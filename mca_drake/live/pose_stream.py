@@ -20,7 +20,7 @@ import numpy as np
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
 from mca_drake.live.recorder import AFTER_COMMAND_S
-from mca_drake.live.rig_output import where
+from mca_drake.live.rig_output import positions_at_period_end, where
 from mca_drake.platforms.kinematics import head_pose
 from mca_drake.platforms.serial import SerialChain
 
@@ -81,10 +81,8 @@ class PoseStreamSender(LeafSystem):
         self.sent = self.failed = 0
 
     def _send(self, context: Context) -> EventStatus:
-        x = self._state.Eval(context)
-        u = self._command.Eval(context)
-        n, h = self._n, self._h
-        q = x[:n] + h * x[n:] + 0.5 * h * h * u
+        h = self._h
+        q = positions_at_period_end(self._state.Eval(context), self._command.Eval(context), h)
         t_end = (round(context.get_time() / h) + 1) * h  # (published just after the instant)
         line = pose_line(t_end, self._home_inverse @ head_pose(q, self._robot))
         try:

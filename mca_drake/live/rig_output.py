@@ -24,6 +24,7 @@ import socket
 import struct
 from urllib.parse import parse_qs, urlparse
 
+import numpy as np
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
 from mca_drake.input_checks import check_config_numbers
@@ -194,6 +195,13 @@ def _set_raw(fd: int, baud: int) -> None:
     termios.tcsetattr(fd, termios.TCSANOW, attributes)
 
 
+def positions_at_period_end(x, u, h: float) -> np.ndarray:
+    """q + h qd + h^2 u / 2 of state x = [q, qd] (2n) under acceleration u (n) for h s:
+    where the platform is at the end of the period (the plant's exact step)."""
+    n = len(u)
+    return np.asarray(x[:n]) + h * np.asarray(x[n:]) + (0.5 * h * h) * np.asarray(u)
+
+
 class RigOutputSender(LeafSystem):
     """Sends, just after each control instant's command (`AFTER_COMMAND_S`), the actuator
     positions at the period's end, q + h qd + h^2 u / 2, through `connection` in `config`'s
@@ -221,11 +229,9 @@ class RigOutputSender(LeafSystem):
         self.DeclarePeriodicPublishEvent(period_s, AFTER_COMMAND_S, self._send)
 
     def _send(self, context: Context) -> EventStatus:
-        x = self._state.Eval(context).tolist()
-        u = self._command.Eval(context).tolist()
-        n, h = self._joints, self._h
-        target = [x[j] + h * x[n + j] + 0.5 * h * h * u[j] for j in range(n)]
-        self._connection.send(encode(target, self._config))
+        x, u = self._state.Eval(context), self._command.Eval(context)
+        target = positions_at_period_end(x, u, self._h)
+        self._connection.send(encode(target.tolist(), self._config))
         return EventStatus.Succeeded()
 
     def summary(self) -> dict:
@@ -246,5 +252,6 @@ __all__ = [
     "RigOutputConfig",
     "RigOutputSender",
     "encode",
+    "positions_at_period_end",
     "where",
 ]

@@ -151,7 +151,7 @@ def leg_jacobian(pose, geometry: HexapodGeometry) -> np.ndarray:
     pose = np.asarray(pose, dtype=float)
     legs = _legs(pose, geometry)
     units = legs / np.linalg.norm(legs, axis=-1, keepdims=True)
-    derivatives = _rotation_derivatives(pose[3:])[0]
+    derivatives = _rotation_derivatives(pose[3:], second=False)[0]
     p = np.asarray(geometry.platform_joints, dtype=float)
     J = np.empty((LEGS, 6))
     J[:, :3] = units
@@ -167,9 +167,10 @@ _K = (
 )
 
 
-def _rotation_derivatives(angles: np.ndarray) -> tuple[list, list]:
-    """dR/dangle_k (3) and d2R/dangle_k dangle_l (3 x 3) of R = Rz Ry Rx at (roll, pitch,
-    yaw): each factor's derivative is the factor times its axis' cross-product matrix."""
+def _rotation_derivatives(angles: np.ndarray, second: bool = True) -> tuple[list, list]:
+    """dR/dangle_k (3) and, with `second`, d2R/dangle_k dangle_l (3 x 3; else []) of
+    R = Rz Ry Rx at (roll, pitch, yaw): each factor's derivative is the factor times its
+    axis' cross-product matrix."""
     Rx = rotation(angles[0], 0.0, 0.0)
     Ry = rotation(0.0, angles[1], 0.0)
     Rz = rotation(0.0, 0.0, angles[2])
@@ -189,11 +190,13 @@ def _rotation_derivatives(angles: np.ndarray) -> tuple[list, list]:
 
     names = ("x", "y", "z")
     first = [product({names[k]: 1}) for k in range(3)]
-    second = [
+    if not second:
+        return first, []
+    seconds = [
         [product({names[k]: 1, names[m]: 1} if k != m else {names[k]: 2}) for m in range(3)]
         for k in range(3)
     ]
-    return first, second
+    return first, seconds
 
 
 def leg_motion(pose, pose_rate, pose_acceleration, geometry: HexapodGeometry):

@@ -175,18 +175,25 @@ def AddComfortBound(
     command_port,
     state_port,
     time_step: float,
-    update_offset_s: float = 0.0,
-    position_coefficient: float = 0.5,
+    plant_update_offset_s: float = 0.0,
+    station: StationConfig | None = None,
 ):
     """The output port the robot reads its command from: `command_port` through a
-    CabinComfortBound named "comfort_bound" (`mca_drake.comfort`; it keeps the command the
-    robot took `update_offset_s` after each control instant), or `command_port` itself where
-    `comfort` is None or disabled; and the bound (None where absent)."""
+    CabinComfortBound named "comfort_bound" (`mca_drake.comfort`), or `command_port` itself
+    where `comfort` is None or disabled; and the bound (None where absent). The bound keeps
+    the command when the robot takes it: the analytical plant's update
+    (`plant_update_offset_s` after each control instant) or, with a `station`, its command
+    limiter's (half a plant step after it, with the station's substep clamp)."""
     if comfort is None or not comfort.enabled:
         return command_port, None
+    if station is None:
+        taken_at, coefficient = plant_update_offset_s, 0.5
+    else:
+        step = station.plant_time_step
+        taken_at = 0.5 * step
+        coefficient = substep_position_coefficient(round(time_step / step))
     bound = builder.AddNamedSystem(
-        "comfort_bound",
-        CabinComfortBound(robot, comfort, time_step, update_offset_s, position_coefficient),
+        "comfort_bound", CabinComfortBound(robot, comfort, time_step, taken_at, coefficient)
     )
     builder.Connect(command_port, bound.GetInputPort("command"))
     builder.Connect(state_port, bound.GetInputPort("state"))
@@ -261,7 +268,6 @@ def MakeAnalyticalClosedLoop(
     plant = builder.AddNamedSystem(
         "plant", MotionCueingPlant(robot=robot, time_step=time_step, initial_state=initial_state)
     )
-    # the bound keeps what the plant took: at the plant's own update instants
     command, bound = AddComfortBound(
         builder,
         robot,
@@ -345,9 +351,6 @@ def MakeMultibodyClosedLoop(
         with_geometry=meshcat is not None,
         control_period=time_step,
     )
-    station_config = station if station is not None else StationConfig()
-    plant_step = station_config.plant_time_step
-    # the station's command limiter takes the command half a plant step after each instant
     command, bound = AddComfortBound(
         builder,
         robot,
@@ -355,8 +358,7 @@ def MakeMultibodyClosedLoop(
         controller.GetOutputPort("joint_acceleration"),
         station_handles.measured_state,
         time_step,
-        0.5 * plant_step,
-        substep_position_coefficient(round(time_step / plant_step)),
+        station=station if station is not None else StationConfig(),
     )
     _connect_mca(
         builder,
