@@ -206,6 +206,43 @@ class ViabilityClamp:
                 lo = max(-bound, -a)
         return lo, hi
 
+    def _interval(self, j: int, q: float, v: float) -> tuple[float, float, bool]:
+        """(lo, hi, viable) of joint j at (q, v): the full range far from the limits (the
+        common case costs a few float operations instead of the two quadratics of
+        `_joint_interval`), and the strongest braking command, not viable, where no command
+        keeps the joint inside."""
+        h = self.h
+        a, ha, b0a, inv_2a, vmax, upper, lower = self._free_constants[j]
+        # Far from the limits every |u| <= a is viable: full acceleration either way
+        # leaves a state that can still brake in time (q' + max(qd', 0)^2 / 2a inside,
+        # which also bounds q' and the mid-step peak), within qd_max.
+        up, down = v + ha, ha - v
+        if (
+            (v if v > 0.0 else -v) + ha <= vmax
+            and q + h * v + b0a + (up * up * inv_2a if up > 0.0 else 0.0) <= upper
+            and -q - h * v + b0a + (down * down * inv_2a if down > 0.0 else 0.0) <= lower
+        ):
+            return -a, a, True
+        lo, hi = self._joint_interval(j, q, v)
+        if not lo <= hi + VIABILITY_TOLERANCE:  # not viable: brake as hard as allowed
+            brake = min(max(-v / h, -a), a)
+            return brake, brake, False
+        return lo, max(hi, lo), True
+
+    def intervals(self, x) -> tuple[list[float], list[float], bool]:
+        """Per joint, the interval [lo, hi] of viable commands at state x = [q, qd] (2n),
+        as lists; and whether every joint is viable (where one is not, its interval is its
+        strongest braking command alone)."""
+        xs = np.asarray(x, float).tolist()
+        n = self._n
+        lows, highs, viable = [], [], True
+        for j in range(n):
+            lo, hi, ok = self._interval(j, xs[j], xs[n + j])
+            lows.append(lo)
+            highs.append(hi)
+            viable = viable and ok
+        return lows, highs, viable
+
     def is_viable(self, x) -> bool:
         """Whether state x = [q, qd] (2n) is viable: every joint has a non-empty interval,
         so some command keeps the robot inside its limits from here on."""
@@ -226,27 +263,11 @@ class ViabilityClamp:
         finite = all(math.isfinite(c) for c in us)
         safe, intervened = [], not finite
         for j in range(n):
-            q, v = xs[j], xs[n + j]
-            a, ha, b0a, inv_2a, vmax, upper, lower = self._free_constants[j]
-            # Far from the limits every |u| <= a is viable: full acceleration either way
-            # leaves a state that can still brake in time (q' + max(qd', 0)^2 / 2a inside,
-            # which also bounds q' and the mid-step peak), within qd_max. The common case
-            # costs a few float operations instead of the two quadratics below.
-            up, down = v + ha, ha - v
-            if (
-                (v if v > 0.0 else -v) + ha <= vmax
-                and q + h * v + b0a + (up * up * inv_2a if up > 0.0 else 0.0) <= upper
-                and -q - h * v + b0a + (down * down * inv_2a if down > 0.0 else 0.0) <= lower
-            ):
-                lo, hi = -a, a
-            else:
-                lo, hi = self._joint_interval(j, q, v)
-                if not lo <= hi + VIABILITY_TOLERANCE:  # not viable: brake as hard as allowed
-                    lo = hi = min(max(-v / h, -a), a)
-                    intervened = True
-                hi = max(hi, lo)
+            v = xs[n + j]
+            lo, hi, viable = self._interval(j, xs[j], v)
+            a = self._free_constants[j][0]
             c = us[j] if finite else min(max(-v / h, -a), a)
             s = min(max(c, lo), hi)
-            intervened = intervened or abs(s - c) > self.tolerance
+            intervened = intervened or not viable or abs(s - c) > self.tolerance
             safe.append(s)
         return np.array(safe), intervened

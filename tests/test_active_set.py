@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, SolverOptions
 
-from mca_drake.cueing.active_set import active_rows, solve_on_active_set
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
+from mca_drake.qp.active_set import active_rows, solve_on_active_set
 
 
 def random_qp(rng, n=12, m=30):

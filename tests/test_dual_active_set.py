@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from test_active_set import assert_kkt, clarabel, nmpc_qp_at_the_limits, random_qp
 
-from mca_drake.cueing.active_set import active_rows
-from mca_drake.cueing.dual_active_set import solve_dual_active_set
+from mca_drake.qp.active_set import active_rows
+from mca_drake.qp.dual_active_set import solve_dual_active_set
 
 
 @pytest.mark.parametrize("seed", range(10))

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mca_drake.cueing.active_set import cholesky
-from mca_drake.cueing.lapack import cho_factor, cho_inverse, cho_solve, triangular_solve
+from mca_drake.qp.active_set import cholesky
+from mca_drake.qp.lapack import cho_factor, cho_inverse, cho_solve, triangular_solve
 
 
 @pytest.fixture
@@ -68,8 +68,8 @@ def test_singular_triangle_gives_non_finite_not_garbage():
 def test_active_set_solvers_refuse_a_non_finite_gradient():
     """A NaN in g must give no solution, not a NaN one: the raw LAPACK calls skip scipy's
     finite checks, so the solvers check their inputs themselves."""
-    from mca_drake.cueing.active_set import solve_on_active_set
-    from mca_drake.cueing.dual_active_set import solve_dual_active_set
+    from mca_drake.qp.active_set import solve_on_active_set
+    from mca_drake.qp.dual_active_set import solve_dual_active_set
 
     H, C = np.eye(3), np.eye(3)
     g, lo, hi = np.array([np.nan, 1.0, 1.0]), -np.ones(3), np.ones(3)

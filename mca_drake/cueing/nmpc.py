@@ -32,10 +32,10 @@ descent method that stops at a KKT point of the nonlinear program.
 
 Solving (`mca_drake.cueing.nmpc_sqp.SequentialQpSolve`, the iteration this problem class
 inherits; the QP back-ends are `mca_drake.cueing.nmpc_qp`'s). Each QP is first solved on a
-guessed active set (the previous step's or iteration's; `mca_drake.cueing.active_set`): one
+guessed active set (the previous step's or iteration's; `mca_drake.qp.active_set`): one
 dense KKT solve, used only when it is
 verified optimal (feasible, multipliers >= 0), so it is exact to round-off. Where the guess
-is wrong, Goldfarb and Idnani's dual active-set method (`mca_drake.cueing.dual_active_set`)
+is wrong, Goldfarb and Idnani's dual active-set method (`mca_drake.qp.dual_active_set`)
 solves the QP exactly from the guess's dual-feasible part, in steps that each change one
 row; the next solve's guess is therefore always an exact active set. Only if that fails
 (round-off) does Drake's MathematicalProgram solve the QP (OSQP in rti mode, Clarabel in
@@ -58,9 +58,6 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from mca_drake.conventions import NUM_CHANNELS
-from mca_drake.cueing.active_set import (
-    parallel_groups,
-)
 from mca_drake.cueing.nmpc_config import NmpcConfig
 from mca_drake.cueing.nmpc_qp import CondensedQp, ShootingQp
 from mca_drake.cueing.nmpc_sqp import SequentialQpSolve
@@ -72,6 +69,9 @@ from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
 from mca_drake.platforms.serial import SerialChain
+from mca_drake.qp.active_set import (
+    parallel_groups,
+)
 from mca_drake.safety import viable_acceleration_bounds
 
 # The output channels of y and of a reference row.

@@ -68,7 +68,7 @@ class NmpcConfig:
     # tangents only keep the later plan realistic, and each costs 12 rows per node.
     stoppability_tangents: int = 2
     # Corrections of a guessed active set (every offending row changed at once) before the
-    # dual active-set method (`mca_drake.cueing.dual_active_set`) takes the QP from the
+    # dual active-set method (`mca_drake.qp.dual_active_set`) takes the QP from the
     # guess's dual-feasible part. None: 0 in both modes. Each correction is one KKT solve
     # (0.1 to 1 ms with many active rows) that often fails where many rows change, while the
     # dual method always ends, exactly: on a 300 s light flight at the tuned weights, rti's

@@ -15,14 +15,14 @@ import time
 import numpy as np
 
 from mca_drake.conventions import NUM_CHANNELS
-from mca_drake.cueing.active_set import active_rows, cholesky, solve_on_active_set
-from mca_drake.cueing.dual_active_set import solve_dual_active_set
 from mca_drake.cueing.nmpc_config import MODES
 from mca_drake.cueing.output_curvature import (
     finite_difference_hessians,
     psb_update,
     residual_curvature,
 )
+from mca_drake.qp.active_set import active_rows, cholesky, solve_on_active_set
+from mca_drake.qp.dual_active_set import solve_dual_active_set
 
 # The output channels of y and of a reference row.
 NY = NUM_CHANNELS

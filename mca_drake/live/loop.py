@@ -351,9 +351,7 @@ def MakeLiveClosedLoop(
     builder.Connect(source.GetOutputPort("telemetry"), probe.GetInputPort("telemetry"))
     builder.Connect(command, probe.GetInputPort("command"))
     if rig is not None:
-        rig_sender = builder.AddNamedSystem(
-            "rig", RigOutputSender(rig[0], rig[1], h, robot.num_joints)
-        )
+        rig_sender = builder.AddNamedSystem("rig", RigOutputSender(rig[0], rig[1], h, robot))
         builder.Connect(state, rig_sender.GetInputPort("state"))
         builder.Connect(command, rig_sender.GetInputPort("command"))
         handles["rig"] = rig_sender

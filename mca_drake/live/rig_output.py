@@ -1,10 +1,11 @@
 """The rig's own output: every control period, the actuator positions the platform is to
 reach, sent to the rig's controller over UDP or a serial port.
 
-The positions are the platform's joints (its actuators, in the platform's order; m or rad)
-at the end of the period the command has just gone out for, q + h qd + h^2 u / 2: where the
-robot (the analytical plant, the trajectory an RSI robot follows) will be at the next
-control instant. Formats (`RigOutputConfig.format`):
+The positions are the platform's actuators (`actuator_positions`, in the platform's
+`actuator_names` order: a serial robot's joints, rad or m; a hexapod's leg lengths, m) at
+the end of the period the command has just gone out for, where the coordinates are
+q + h qd + h^2 u / 2: where the platform (the analytical plant, the trajectory an RSI
+robot follows) will be at the next control instant. Formats (`RigOutputConfig.format`):
 
     ascii     one line: the positions in SI units, comma-separated (`number_format`),
               newline-terminated: "0.012300,-0.104500,...\\n"
@@ -204,8 +205,8 @@ def positions_at_period_end(x, u, h: float) -> np.ndarray:
 
 class RigOutputSender(LeafSystem):
     """Sends, just after each control instant's command (`AFTER_COMMAND_S`), the actuator
-    positions at the period's end, q + h qd + h^2 u / 2, through `connection` in `config`'s
-    format (module docstring).
+    positions at the period's end (those of q + h qd + h^2 u / 2) through `connection` in
+    `config`'s format (module docstring).
 
     .. pydrake_system::
 
@@ -215,31 +216,33 @@ class RigOutputSender(LeafSystem):
         - command
 
     `state` (2n): [q, qd] of the platform now; `command` (n): the acceleration it gets over
-    the period (after the supervisor and any comfort bound).
+    the period (after the supervisor and any comfort bound). `robot`: the platform, whose
+    `actuator_positions` turn coordinates into what the rig's actuators are told.
     """
 
-    def __init__(
-        self, connection: RigConnection, config: RigOutputConfig, period_s: float, joints: int
-    ):
+    def __init__(self, connection: RigConnection, config: RigOutputConfig, period_s: float, robot):
         super().__init__()
         self._connection, self._config = connection, config
-        self._h, self._joints = period_s, joints
+        self._h, self._robot = period_s, robot
+        joints = robot.num_joints
         self._state = self.DeclareVectorInputPort("state", 2 * joints)
         self._command = self.DeclareVectorInputPort("command", joints)
         self.DeclarePeriodicPublishEvent(period_s, AFTER_COMMAND_S, self._send)
 
     def _send(self, context: Context) -> EventStatus:
         x, u = self._state.Eval(context), self._command.Eval(context)
-        target = positions_at_period_end(x, u, self._h)
+        target = self._robot.actuator_positions(positions_at_period_end(x, u, self._h))
         self._connection.send(encode(target.tolist(), self._config))
         return EventStatus.Succeeded()
 
     def summary(self) -> dict:
-        """The summary's `rig` block: where, in what format, messages sent and failed."""
+        """The summary's `rig` block: where, in what format, which actuators in what order,
+        messages sent and failed."""
         connection = self._connection
         return {
             "url": connection.url,
             "format": self._config.format,
+            "actuators": list(self._robot.actuator_names),
             "sent": connection.sent,
             "failed": connection.failed,
         }

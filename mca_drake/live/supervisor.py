@@ -46,8 +46,8 @@ from mca_drake.conventions import CONTROL_PERIOD_S, NUM_CHANNELS
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.controls import ESTOP, RUN, WASHOUT
 from mca_drake.live.receiver import TELEMETRY_FIELDS
+from mca_drake.platforms.clamp import platform_clamp
 from mca_drake.platforms.serial import SerialChain
-from mca_drake.safety import ViabilityClamp
 
 HEALTH_STATES = ("ok", "degraded", "fault")
 # The `health` output port, in this order.
@@ -156,7 +156,7 @@ class Supervisor(LeafSystem):
         self._config.validate()
         self._robot = robot
         h = self._config.time_step
-        self._clamp = ViabilityClamp.for_robot(self._robot, h)
+        self._clamp = platform_clamp(self._robot, h)
         omega = 2 * math.pi * self._config.home_frequency_hz
         self._kp, self._kd = omega * omega, 2 * omega
         self._home_limit = self._config.home_acceleration_fraction * self._robot.qdd_max

@@ -1,7 +1,7 @@
 """Platform files: a motion platform described in YAML, packaged ones chosen by name.
 
-A platform file holds one tagged description, the same that a scenario's `platform` field
-takes inline:
+A platform file holds one tagged description (`!SerialRobot`, `!Hexapod`); a scenario's
+`platform` field takes the serial robot's inline:
 
     !SerialRobot
     name: kr500
@@ -22,6 +22,8 @@ from pathlib import Path
 
 import yaml
 
+from mca_drake.platforms.hexapod import HexapodGeometry
+from mca_drake.platforms.hexapod_platform import HexapodPlatform, hexapod_platform
 from mca_drake.platforms.serial import SerialChain, serial_chain_from_urdf
 from mca_drake.resources import packaged_folder
 
@@ -67,9 +69,105 @@ class SerialRobot:
         )
 
 
+@dataclasses.dataclass
+class Hexapod:
+    """A Stewart-platform hexapod from its legs' geometry and limits
+    (`mca_drake.platforms.hexapod_platform`): its joints listed, or the symmetric 6-6
+    layout of `HexapodGeometry.symmetric` by radii and angles."""
+
+    # The platform's name, as results and policy files record it; a file's stem if empty.
+    name: str = ""
+    # Base joints b_i in the base frame (x forward, y left, z up; origin in their plane), m:
+    # six [x, y, z]; empty: the symmetric layout below.
+    base_joints: list[list[float]] = dataclasses.field(default_factory=list)
+    # Platform joints p_i in the moving platform's frame, m: six [x, y, z], leg i from b_i.
+    platform_joints: list[list[float]] = dataclasses.field(default_factory=list)
+    # The symmetric layout (where no joints are listed): the joint circles' radii, m, and
+    # half the angle between a pair's two joints on each, rad.
+    base_radius: float = 0.0
+    platform_radius: float = 0.0
+    base_half_angle: float = 0.0
+    platform_half_angle: float = 0.0
+    # The platform frame's height above the base frame at the neutral pose, m.
+    neutral_height: float = 0.0
+    # The legs' length range between joint centres, m: both, or (symmetric layout) a
+    # stroke centred on the neutral length.
+    min_length: float = 0.0
+    max_length: float = 0.0
+    stroke: float = 0.0
+    # The actuators' speed (m/s) and acceleration (m/s^2) limits along the legs.
+    max_speed: float = 0.0
+    max_acceleration: float = 0.0
+    # The occupant's head in the moving platform's frame, m.
+    head_position: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 1.0])
+    # The moving mass (platform, cabin, occupant), kg, and its principal inertias, kg m^2.
+    payload_mass: float = 1000.0
+    payload_inertia: list[float] = dataclasses.field(default_factory=lambda: [500.0] * 3)
+    # Where the description says its numbers come from (maker's data sheet, paper, ...).
+    source: str = ""
+
+    def geometry(self) -> HexapodGeometry:
+        """The legs, validated (`HexapodGeometry.validate`)."""
+        listed = bool(self.base_joints or self.platform_joints)
+        symmetric = (
+            self.base_radius,
+            self.platform_radius,
+            self.base_half_angle,
+            self.platform_half_angle,
+        )
+        if listed and any(symmetric):
+            raise ValueError(
+                "a !Hexapod lists its joints (base_joints, platform_joints) or gives the "
+                "symmetric layout (base_radius, platform_radius, base_half_angle, "
+                "platform_half_angle), not both"
+            )
+        if listed:
+            if self.stroke:
+                raise ValueError("a !Hexapod with listed joints gives min_length and max_length")
+            geometry = HexapodGeometry(
+                base_joints=self.base_joints,
+                platform_joints=self.platform_joints,
+                neutral_height=self.neutral_height,
+                min_length=self.min_length,
+                max_length=self.max_length,
+                max_speed=self.max_speed,
+                max_acceleration=self.max_acceleration,
+            )
+        else:
+            if not all(v > 0 for v in symmetric[:2]) or self.stroke <= 0:
+                raise ValueError(
+                    "a !Hexapod needs base_joints and platform_joints, or base_radius, "
+                    "platform_radius, base_half_angle, platform_half_angle and stroke"
+                )
+            if self.min_length or self.max_length:
+                raise ValueError("a symmetric !Hexapod gives stroke, not min/max_length")
+            geometry = HexapodGeometry.symmetric(
+                *symmetric,
+                neutral_height=self.neutral_height,
+                stroke=self.stroke,
+                max_speed=self.max_speed,
+                max_acceleration=self.max_acceleration,
+            )
+        geometry.validate()
+        return geometry
+
+    def build(self, base_dir: str | os.PathLike = ".") -> HexapodPlatform:
+        """The platform (`hexapod_platform`); `base_dir` is unused (nothing to read)."""
+        if not self.name:
+            raise ValueError("a !Hexapod platform needs a `name`")
+        return hexapod_platform(
+            self.geometry(),
+            name=self.name,
+            head_position=self.head_position,
+            payload_mass=self.payload_mass,
+            payload_inertia=self.payload_inertia,
+            source=self.source,
+        )
+
+
 # The descriptions a platform file or a scenario's `platform` field can hold, by YAML tag.
-PLATFORM_KINDS = {"!SerialRobot": SerialRobot}
-PlatformDescription = SerialRobot
+PLATFORM_KINDS = {"!SerialRobot": SerialRobot, "!Hexapod": Hexapod}
+PlatformDescription = SerialRobot | Hexapod
 
 
 def _loader() -> type[yaml.SafeLoader]:
@@ -90,20 +188,32 @@ def _loader() -> type[yaml.SafeLoader]:
     return PlatformLoader
 
 
+def _is_number(value) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 def _typed(kind: type, fields: dict, tag: str):
-    """`kind(**fields)` after checking names and value types."""
+    """`kind(**fields)` after checking names and value types (by each field's type)."""
     valid = {f.name: f for f in dataclasses.fields(kind)}
     unknown = sorted(set(fields) - set(valid))
     if unknown:
         raise ValueError(f"{tag}: unknown fields {unknown}; valid: {', '.join(valid)}")
     for name, value in fields.items():
-        default = getattr(kind(), name)
-        if isinstance(default, list):
-            if not isinstance(value, list) or not all(
-                isinstance(v, int | float) and not isinstance(v, bool) for v in value
-            ):
+        declared = valid[name].type
+        if declared == list[float]:
+            if not isinstance(value, list) or not all(_is_number(v) for v in value):
                 raise ValueError(f"{tag}: {name} must be a list of numbers; got {value!r}")
             fields[name] = [float(v) for v in value]
+        elif declared == list[list[float]]:
+            if not isinstance(value, list) or not all(
+                isinstance(row, list) and all(_is_number(v) for v in row) for row in value
+            ):
+                raise ValueError(f"{tag}: {name} must be a list of [x, y, z] points; got {value!r}")
+            fields[name] = [[float(v) for v in row] for row in value]
+        elif declared is float:
+            if not _is_number(value):
+                raise ValueError(f"{tag}: {name} must be a number; got {value!r}")
+            fields[name] = float(value)
         elif not isinstance(value, str):
             raise ValueError(f"{tag}: {name} must be text; got {value!r}")
     return kind(**fields)
@@ -125,7 +235,7 @@ def read_platform_file(path: str | os.PathLike) -> PlatformDescription:
         raise ValueError(f"{path}: not a platform file: {err}") from err
     except ValueError as err:
         raise ValueError(f"{path}: {err}") from err
-    if not isinstance(document, PlatformDescription):
+    if not isinstance(document, tuple(PLATFORM_KINDS.values())):
         raise ValueError(
             f"{path}: a platform file holds one tagged description "
             f"({', '.join(PLATFORM_KINDS)}); got {type(document).__name__}"
@@ -185,7 +295,8 @@ def load_platform(
 
     Args:
         platform: a packaged name ("kr500", "kr500-rail"), a platform file, or a description
-            (as a scenario's `platform` field holds it).
+            (as a scenario's `platform` field holds it): a serial robot's
+            `SerialChain`, a hexapod's `HexapodPlatform` (a `SerialChain` too).
         base_dir: where a description's relative `urdf` path starts (a scenario's folder).
 
     Raises:
@@ -193,7 +304,7 @@ def load_platform(
         ValueError: a file or URDF that does not describe a platform (see
             `serial_chain_from_urdf`).
     """
-    if isinstance(platform, PlatformDescription):
+    if isinstance(platform, tuple(PLATFORM_KINDS.values())):
         return platform.build(base_dir)
     path = platform_file(platform)
     return read_platform_file(path).build(path.parent)

@@ -169,11 +169,11 @@ _K = (
 
 def _rotation_derivatives(angles: np.ndarray, second: bool = True) -> tuple[list, list]:
     """dR/dangle_k (3) and, with `second`, d2R/dangle_k dangle_l (3 x 3; else []) of
-    R = Rz Ry Rx at (roll, pitch, yaw): each factor's derivative is the factor times its
-    axis' cross-product matrix."""
-    Rx = rotation(angles[0], 0.0, 0.0)
-    Ry = rotation(0.0, angles[1], 0.0)
-    Rz = rotation(0.0, 0.0, angles[2])
+    R = Rz Ry Rx at angles (..., 3) = (roll, pitch, yaw), each (..., 3, 3): each factor's
+    derivative is the factor times its axis' cross-product matrix."""
+    Rx = rotation(angles[..., 0], 0.0 * angles[..., 0], 0.0 * angles[..., 0])
+    Ry = rotation(0.0 * angles[..., 1], angles[..., 1], 0.0 * angles[..., 1])
+    Rz = rotation(0.0 * angles[..., 2], 0.0 * angles[..., 2], angles[..., 2])
     Kx, Ky, Kz = _K
 
     def product(marks: dict) -> np.ndarray:
@@ -199,32 +199,40 @@ def _rotation_derivatives(angles: np.ndarray, second: bool = True) -> tuple[list
     return first, seconds
 
 
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("...ij,...ij->...i", a, b)
+
+
 def leg_motion(pose, pose_rate, pose_acceleration, geometry: HexapodGeometry):
-    """The legs' lengths (m), speeds (m/s) and accelerations (m/s^2), each (6,), of one
-    `pose` moving at `pose_rate` with `pose_acceleration` (the six pose coordinates' first
-    and second time derivatives; angles as Euler-angle rates, rad/s and rad/s^2).
+    """The legs' lengths (m), speeds (m/s) and accelerations (m/s^2), each (..., 6), of
+    poses (..., 6) moving at `pose_rate` with `pose_acceleration` (the six pose
+    coordinates' first and second time derivatives, same shape; angles as Euler-angle
+    rates, rad/s and rad/s^2).
 
     With v_i = t + R p_i - b_i: l_i = |v_i|, l'_i = u_i . v'_i and
     l''_i = (|v'_i|^2 - l'_i^2) / l_i + u_i . v''_i, exactly.
     """
     pose = np.asarray(pose, dtype=float)
-    rate = np.asarray(pose_rate, dtype=float)
-    accel = np.asarray(pose_acceleration, dtype=float)
+    rate = np.broadcast_to(np.asarray(pose_rate, dtype=float), pose.shape)
+    accel = np.broadcast_to(np.asarray(pose_acceleration, dtype=float), pose.shape)
     legs = _legs(pose, geometry)
     lengths = np.linalg.norm(legs, axis=-1)
-    units = legs / lengths[:, None]
-    first, second = _rotation_derivatives(pose[3:])
-    R_dot = sum(first[k] * rate[3 + k] for k in range(3))
-    R_ddot = sum(first[k] * accel[3 + k] for k in range(3)) + sum(
-        second[k][m] * rate[3 + k] * rate[3 + m] for k in range(3) for m in range(3)
+    units = legs / lengths[..., None]
+    first, second = _rotation_derivatives(pose[..., 3:])
+
+    def angle(values: np.ndarray, k: int) -> np.ndarray:
+        return values[..., 3 + k, None, None]
+
+    R_dot = sum(first[k] * angle(rate, k) for k in range(3))
+    R_ddot = sum(first[k] * angle(accel, k) for k in range(3)) + sum(
+        second[k][m] * angle(rate, k) * angle(rate, m) for k in range(3) for m in range(3)
     )
     p = np.asarray(geometry.platform_joints, dtype=float)
-    v_dot = rate[:3] + p @ R_dot.T
-    v_ddot = accel[:3] + p @ R_ddot.T
-    speeds = np.einsum("ij,ij->i", units, v_dot)
-    accelerations = (np.einsum("ij,ij->i", v_dot, v_dot) - speeds**2) / lengths + np.einsum(
-        "ij,ij->i", units, v_ddot
-    )
+    # R' p_i for every leg i: (..., 6, 3)
+    v_dot = rate[..., None, :3] + np.einsum("...jk,ik->...ij", R_dot, p)
+    v_ddot = accel[..., None, :3] + np.einsum("...jk,ik->...ij", R_ddot, p)
+    speeds = _dot(units, v_dot)
+    accelerations = (_dot(v_dot, v_dot) - speeds**2) / lengths + _dot(units, v_ddot)
     return lengths, speeds, accelerations
 
 

@@ -93,6 +93,16 @@ class SerialChain:
         return np.array([kind == "prismatic" for kind in self.joint_kinds])
 
     @property
+    def actuator_names(self) -> tuple[str, ...]:
+        """The actuators a rig's controller drives, in order: a serial robot's joints."""
+        return self.joint_names
+
+    def actuator_positions(self, q) -> np.ndarray:
+        """The actuators' positions (rad or m) of coordinates q (..., n): a serial robot's
+        actuators are its joints, so q itself (a hexapod's are its legs' lengths)."""
+        return np.asarray(q, dtype=float)
+
+    @property
     def x_min(self) -> np.ndarray:
         """Lower state bound [q_min, -qd_max], shape (2n,)."""
         return np.concatenate([self.q_min, -self.qd_max])

@@ -1,7 +1,9 @@
 """How much of a platform's joint ranges a run uses, and whether it left them.
 
 Positions, velocities and accelerations are normalised by the platform's limits so that
-+-1 is a limit and a magnitude above 1 a violation (the paper's Fig. 5).
++-1 is a limit and a magnitude above 1 a violation (the paper's Fig. 5). A platform whose
+actuators are not its coordinates (a hexapod's legs) has its actuators' lengths, speeds and
+accelerations normalised the same way, about their neutral lengths.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ import dataclasses
 import numpy as np
 
 from mca_drake.input_checks import as_float_array, same_shapes
+from mca_drake.platforms.hexapod_platform import HexapodPlatform
 from mca_drake.platforms.serial import SerialChain
 
 
@@ -41,20 +44,32 @@ class JointUsage:
     q: np.ndarray
     qd: np.ndarray
     qdd: np.ndarray
+    # The actuators' usage where they are not the joints (a hexapod's legs), else None.
+    actuators: JointUsage | None = None
+
+    def _named(self) -> tuple[tuple[str, np.ndarray], ...]:
+        named = (("q", self.q), ("qd", self.qd), ("qdd", self.qdd))
+        if self.actuators is not None:
+            a = self.actuators
+            named += (
+                ("actuator_position", a.q),
+                ("actuator_speed", a.qd),
+                ("actuator_acceleration", a.qdd),
+            )
+        return named
 
     def violations(self, tolerance: float = 1e-9) -> dict[str, int]:
-        """Number of samples (time steps) with any joint beyond its limit, per limit type."""
+        """Number of samples (time steps) with any joint beyond its limit, per limit type
+        (q, qd, qdd; and actuator_position, actuator_speed, actuator_acceleration for a
+        platform whose actuators are not its joints)."""
         return {
             name: int(np.sum(np.any(np.abs(usage) > 1.0 + tolerance, axis=-1)))
-            for name, usage in (("q", self.q), ("qd", self.qd), ("qdd", self.qdd))
+            for name, usage in self._named()
         }
 
     def peak(self) -> dict[str, np.ndarray]:
-        """Largest |usage| per joint, per limit type (shape (n,) each)."""
-        return {
-            name: np.max(np.abs(usage), axis=0)
-            for name, usage in (("q", self.q), ("qd", self.qd), ("qdd", self.qdd))
-        }
+        """Largest |usage| per joint (or actuator), per limit type (shape (n,) each)."""
+        return {name: np.max(np.abs(usage), axis=0) for name, usage in self._named()}
 
 
 def joint_usage(q, qd, qdd, robot: SerialChain) -> JointUsage:
@@ -75,6 +90,24 @@ def joint_usage(q, qd, qdd, robot: SerialChain) -> JointUsage:
         q=normalized_joint_usage(q, robot.q_min, robot.q_max),
         qd=normalized_joint_usage(qd, -robot.qd_max, robot.qd_max),
         qdd=normalized_joint_usage(qdd, -robot.qdd_max, robot.qdd_max),
+        actuators=_actuator_usage(q, qd, qdd, robot),
+    )
+
+
+def _actuator_usage(q, qd, qdd, robot) -> JointUsage | None:
+    """A hexapod's legs' usage: lengths about their neutral lengths, speeds, accelerations."""
+    if not isinstance(robot, HexapodPlatform):
+        return None
+    geometry = robot.actuators
+    lengths, speeds, accelerations = robot.actuator_motion(q, qd, qdd)
+    neutral = robot.actuator_positions(robot.home)
+    speed, acceleration = np.full(6, geometry.max_speed), np.full(6, geometry.max_acceleration)
+    return JointUsage(
+        q=normalized_joint_usage(
+            lengths - neutral, geometry.min_length - neutral, geometry.max_length - neutral
+        ),
+        qd=normalized_joint_usage(speeds, -speed, speed),
+        qdd=normalized_joint_usage(accelerations, -acceleration, acceleration),
     )
 
 

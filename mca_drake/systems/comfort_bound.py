@@ -15,9 +15,9 @@ from pydrake.systems.framework import (
 
 from mca_drake.comfort import FORCE_ROWS, ComfortConfig, comfort_fraction
 from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.platforms.clamp import platform_clamp
 from mca_drake.platforms.kinematics import plant_output
 from mca_drake.platforms.serial import SerialChain
-from mca_drake.safety import ViabilityClamp
 
 
 class CabinComfortBound(LeafSystem):
@@ -66,7 +66,7 @@ class CabinComfortBound(LeafSystem):
         config.validate()
         self._config, self._robot = config, robot
         n = self._joints = robot.num_joints
-        self._clamp = ViabilityClamp.for_robot(robot, time_step, position_coefficient)
+        self._clamp = platform_clamp(robot, time_step, position_coefficient)
         self._state_port = self.DeclareVectorInputPort("state", 2 * n)
         self._command_port = self.DeclareVectorInputPort("command", n)
         # [u applied (n), its force (3), started, bounded periods]

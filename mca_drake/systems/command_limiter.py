@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
+from mca_drake.platforms.clamp import platform_clamp
 from mca_drake.platforms.serial import SerialChain
-from mca_drake.safety import ViabilityClamp, substep_position_coefficient
+from mca_drake.safety import substep_position_coefficient
 
 
 class CommandLimiter(LeafSystem):
@@ -52,7 +53,7 @@ class CommandLimiter(LeafSystem):
                 f"the control period {control_period} s must be a whole number of plant "
                 f"steps ({plant_time_step} s)"
             )
-        self._clamp = ViabilityClamp.for_robot(
+        self._clamp = platform_clamp(
             robot, control_period, position_coefficient=substep_position_coefficient(substeps)
         )
         n = robot.num_joints

@@ -28,8 +28,8 @@ from mca_drake.cueing.recognition import (
     recognized_policy,
 )
 from mca_drake.cueing.reference_range import policy_reference_range
+from mca_drake.platforms.clamp import platform_clamp
 from mca_drake.platforms.serial import SerialChain
-from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
 
 
@@ -117,7 +117,7 @@ class DpcPolicy(LeafSystem):
             self._preview_port = self.DeclareVectorInputPort(
                 "reference_preview", 6 * self.preview_samples
             )
-        self._clamp = ViabilityClamp.for_robot(self._robot, time_step)
+        self._clamp = platform_clamp(self._robot, time_step)
         self._reference_port = self.DeclareVectorInputPort("reference", 6)
         self._state_port = self.DeclareVectorInputPort("state", 2 * n)
         self._output_port = self.DeclareVectorInputPort("inertial_output", 6)

@@ -9,9 +9,9 @@ from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from mca_drake.conventions import MCA_STATISTICS, NUM_CHANNELS
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
+from mca_drake.platforms.clamp import platform_clamp
 from mca_drake.platforms.kinematics import plant_output
 from mca_drake.platforms.serial import SerialChain
-from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
 
 
@@ -67,7 +67,7 @@ class NmpcController(LeafSystem):
     ):
         super().__init__()
         self._ocp = MotionCueingOcp(config, robot)
-        self._clamp = ViabilityClamp.for_robot(self._ocp.robot, self._ocp.config.time_step)
+        self._clamp = platform_clamp(self._ocp.robot, self._ocp.config.time_step)
         self._config = self._ocp.config
         if preview_samples is None:
             preview_samples = self._config.preview_steps

@@ -18,8 +18,8 @@ from pydrake.systems.framework import Context, DiscreteValues, LeafSystem, Value
 
 from mca_drake.conventions import CONTROL_PERIOD_S, MCA_STATISTICS
 from mca_drake.cueing.washout import WashoutConfig, WashoutFilters
+from mca_drake.platforms.clamp import platform_clamp
 from mca_drake.platforms.serial import SerialChain
-from mca_drake.safety import ViabilityClamp
 from mca_drake.systems.mca_update import DeclareMcaUpdate
 
 
@@ -69,7 +69,7 @@ class ClassicalWashout(LeafSystem):
         self._robot = robot
         self._h = float(time_step)
         self._filters = WashoutFilters(self._config, self._h)
-        self._clamp = ViabilityClamp.for_robot(self._robot, self._h)
+        self._clamp = platform_clamp(self._robot, self._h)
         plant = MultibodyPlant(0.0)
         Parser(plant).AddModels(str(self._robot.urdf_path))
         plant.Finalize()

@@ -2,7 +2,7 @@
 
     minimise 1/2 d^T H d + g^T d   subject to   lo <= C d <= hi   (C: (m, n))
 
-with H symmetric positive definite (the notation of `mca_drake.cueing.active_set`). The
+with H symmetric positive definite (the notation of `mca_drake.qp.active_set`). The
 method keeps a primal point d that minimises the cost on a set A of constraints held as
 equalities, with multipliers lambda_A >= 0 (dual feasible), and repeatedly takes the most
 violated constraint p: it raises p's multiplier from 0, moving d along the direction that
@@ -34,8 +34,8 @@ import dataclasses
 
 import numpy as np
 
-import mca_drake.cueing.lapack as lapack
-from mca_drake.cueing.active_set import (
+import mca_drake.qp.lapack as lapack
+from mca_drake.qp.active_set import (
     DUAL_TOLERANCE,
     PRIMAL_TOLERANCE,
     ActiveSetSolution,

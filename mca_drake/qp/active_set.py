@@ -24,7 +24,7 @@ import dataclasses
 import numpy as np
 import scipy.linalg.lapack
 
-import mca_drake.cueing.lapack as lapack
+import mca_drake.qp.lapack as lapack
 
 # A row counts as violated beyond this (absolute, in the units of C d; the NMPC keeps a
 # reserve of 1e-3 of every limit, so this never turns into a limit violation).
