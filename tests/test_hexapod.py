@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from mca_drake.platforms.hexapod import (
-    HexapodGeometry,
+from mca_drake.platforms.legs import (
+    LegGeometry,
     forward_kinematics,
     leg_jacobian,
     leg_lengths,
@@ -21,8 +21,8 @@ RB, RP, HB, HP, HEIGHT = 1.2, 0.8, math.radians(10.0), math.radians(12.0), 1.0
 
 
 @pytest.fixture(scope="module")
-def hexapod() -> HexapodGeometry:
-    geometry = HexapodGeometry.symmetric(RB, RP, HB, HP, HEIGHT, 0.8, 0.6, 6.0)
+def hexapod() -> LegGeometry:
+    geometry = LegGeometry.symmetric(RB, RP, HB, HP, HEIGHT, 0.8, 0.6, 6.0)
     geometry.validate()
     return geometry
 
@@ -126,7 +126,7 @@ def test_leg_speeds_and_accelerations_are_the_time_derivatives(hexapod, rng):
 
 def test_torch_is_numpy(hexapod, rng):
     torch = pytest.importorskip("torch")
-    from mca_drake.learning.hexapod import leg_lengths as torch_leg_lengths
+    from mca_drake.learning.legs import leg_lengths as torch_leg_lengths
 
     poses = random_poses(rng, 50)
     got = torch_leg_lengths(torch.tensor(poses, dtype=torch.float64), hexapod).numpy()
@@ -140,7 +140,7 @@ def test_bad_input_says_what_is_wrong(hexapod):
         forward_kinematics([1.0] * 5, hexapod)
     with pytest.raises(ValueError, match="did not converge"):
         forward_kinematics([10.0, 0.1, 10.0, 0.1, 10.0, 0.1], hexapod, max_iterations=20)
-    bad = HexapodGeometry.symmetric(RB, RP, HB, HP, HEIGHT, 0.8, 0.6, 6.0)
+    bad = LegGeometry.symmetric(RB, RP, HB, HP, HEIGHT, 0.8, 0.6, 6.0)
     bad.min_length = bad.max_length + 0.1
     with pytest.raises(ValueError, match="max_length must exceed"):
         bad.validate()

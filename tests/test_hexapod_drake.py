@@ -2,7 +2,7 @@
 platform as a free body, each leg a cylinder on a ball joint at its base joint with a rod
 on a prismatic joint, the chains closed at the platform joints by position constraints,
 solved by Drake's InverseKinematics (a model that shares no code with
-`mca_drake.platforms.hexapod`)."""
+`mca_drake.platforms.legs`)."""
 
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ from pydrake.multibody.tree import BallRpyJoint, FixedOffsetFrame, PrismaticJoin
 from pydrake.solvers import IpoptSolver, SnoptSolver, Solve, SolverOptions
 
 from mca_drake.platforms.files import load_platform
-from mca_drake.platforms.hexapod import leg_lengths, rotation
-from mca_drake.platforms.hexapod_platform import pose_of
+from mca_drake.platforms.leg_platform import pose_of
+from mca_drake.platforms.legs import leg_lengths, rotation
 
 # What the solver's tolerances (below) allow the two to differ by (m, rad).
 SOLVER_TOLERANCE = 1e-8

@@ -15,19 +15,19 @@ from scipy.optimize import minimize
 
 from mca_drake.platforms.clamp import platform_clamp
 from mca_drake.platforms.files import load_platform, read_platform_file
-from mca_drake.platforms.hexapod import HexapodGeometry, leg_lengths, leg_motion, rotation
-from mca_drake.platforms.hexapod_clamp import (
+from mca_drake.platforms.leg_clamp import (
     ACCELERATION_SHARE,
     RATE_RESERVE,
     STROKE_RESERVE_M,
-    HexapodClamp,
+    LegClamp,
 )
-from mca_drake.platforms.hexapod_platform import (
-    HexapodPlatform,
-    hexapod_platform,
+from mca_drake.platforms.leg_platform import (
+    LegPlatform,
+    leg_platform,
     pose_of,
     single_axis_limits,
 )
+from mca_drake.platforms.legs import LegGeometry, leg_lengths, leg_motion, rotation
 from mca_drake.platforms.usage import joint_usage
 from mca_drake.references.recording import Recording
 from mca_drake.references.reference import reference_from_recording
@@ -38,11 +38,11 @@ H = 0.01
 
 
 @pytest.fixture(scope="module")
-def hexapod() -> HexapodPlatform:
+def hexapod() -> LegPlatform:
     return load_platform("hexapod")
 
 
-def random_poses(rng, count: int, platform: HexapodPlatform, fraction: float = 0.5):
+def random_poses(rng, count: int, platform: LegPlatform, fraction: float = 0.5):
     """Coordinates q (count, 6) drawn inside `fraction` of the box."""
     return rng.uniform(fraction * platform.q_min, fraction * platform.q_max, size=(count, 6))
 
@@ -204,7 +204,7 @@ def test_the_packaged_file_holds_a_hexapod_description():
 
 
 # ------------------------------------------------------------------ the clamp
-def leg_rows(clamp: HexapodClamp, x):
+def leg_rows(clamp: LegClamp, x):
     """The clamp's linear leg constraints at x, independently of its own intervals: the
     legs' exact (length, speed) and J, c from `leg_motion`, and each leg's viability
     interval from `viable_acceleration_bounds`' scalar twin on the reserved limits."""
@@ -246,7 +246,7 @@ def test_the_clamp_returns_the_nearest_command_the_legs_and_box_allow(hexapod):
     # Oracle: scipy's SLSQP on the same problem, built from leg_motion and the box's
     # ViabilityClamp intervals (not from the clamp's own rows).
     rng = np.random.default_rng(3)
-    clamp = HexapodClamp(hexapod, H, period_end=False)  # the QP of the period's start
+    clamp = LegClamp(hexapod, H, period_end=False)  # the QP of the period's start
     weights = 1 / hexapod.qdd_max**2
     solved = 0
     for x in viable_states(rng, clamp, 60):
@@ -279,7 +279,7 @@ def test_the_clamp_returns_the_nearest_command_the_legs_and_box_allow(hexapod):
 
 
 def test_a_command_within_every_limit_passes_unchanged(hexapod):
-    clamp = HexapodClamp(hexapod, H)
+    clamp = LegClamp(hexapod, H)
     x = np.zeros(12)
     u = 0.1 * hexapod.qdd_max
     safe, intervened = clamp(x, u)
@@ -295,7 +295,7 @@ def test_random_commands_never_take_a_leg_beyond_its_limits(hexapod):
     # (the plant's exact step; lengths, speeds and accelerations by leg_motion).
     rng = np.random.default_rng(4)
     clamp = platform_clamp(hexapod, H)
-    assert isinstance(clamp, HexapodClamp)
+    assert isinstance(clamp, LegClamp)
     g = hexapod.actuators
     x = np.zeros(12)
     worst = {"length": -np.inf, "speed": -np.inf, "acceleration": -np.inf}
@@ -372,7 +372,7 @@ def test_the_usage_counts_a_leg_beyond_its_stroke(hexapod):
 
 
 def test_a_geometry_that_cannot_move_is_refused():
-    g = HexapodGeometry.symmetric(1.0, 0.7, 0.2, 0.2, 0.9, 0.4, 0.5, 6.0)
+    g = LegGeometry.symmetric(1.0, 0.7, 0.2, 0.2, 0.9, 0.4, 0.5, 6.0)
     g.min_length = float(leg_lengths(np.zeros(6), g)[0])  # a leg at its stroke's end
     with pytest.raises(ValueError, match="cannot move"):
-        hexapod_platform(g, name="stuck")
+        leg_platform(g, name="stuck")

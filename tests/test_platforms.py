@@ -20,7 +20,7 @@ from mca_drake.conventions import MIRROR_CHANNEL_SIGNS
 from mca_drake.cueing.dpc import DpcConfig, default_policy_path, load_policy_arrays
 from mca_drake.cueing.nmpc import MotionCueingOcp, NmpcConfig
 from mca_drake.learning.torch_plant import TorchPlant
-from mca_drake.platforms import hexapod_platform, kinematics, serial, urdf_chain
+from mca_drake.platforms import kinematics, leg_platform, serial, urdf_chain
 from mca_drake.platforms.files import (
     load_platform,
     model_path,
@@ -154,12 +154,12 @@ def test_the_xml_reader_gives_the_platform_drakes_parser_gives(name, monkeypatch
     with_drake = load_platform(name)
     monkeypatch.setattr(serial, "read_urdf", urdf_chain.read_urdf_with_xml)
     serial._load_cached.cache_clear()
-    hexapod_platform._build_cached.cache_clear()  # a hexapod's description holds its chain's
+    leg_platform._build_cached.cache_clear()  # a hexapod's description holds its chain's
     try:
         without = load_platform(name)
     finally:
         serial._load_cached.cache_clear()
-        hexapod_platform._build_cached.cache_clear()
+        leg_platform._build_cached.cache_clear()
     assert without is not with_drake
     for field in dataclasses.fields(with_drake):
         a, b = getattr(with_drake, field.name), getattr(without, field.name)

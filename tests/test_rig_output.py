@@ -12,6 +12,9 @@ import numpy as np
 import pytest
 
 from mca_drake.live.rig_output import RigConnection, RigOutputConfig, encode, where
+from mca_drake.platforms.files import load_platform
+from mca_drake.platforms.leg_platform import pose_of
+from mca_drake.platforms.legs import leg_lengths
 
 POSITIONS = [0.0123, -0.1045, 0.5, 1.25, -0.75, 2.0]
 
@@ -79,10 +82,11 @@ def test_a_serial_port_gets_the_bytes(tmp_path):
         RigConnection(RigOutputConfig(url=f"serial://{tmp_path}/none?baud=9600"))
 
 
-def live_run_listened(tmp_path, options_for):
-    """A 2 s live run (the DPC on `test_live_loop.stream_process`) whose output goes to a
-    loopback listener: `options_for(url)` gives run_live's options for the listener's
-    udp://127.0.0.1:PORT. Returns (summary, the datagrams received, the trajectory's rows)."""
+def live_run_listened(tmp_path, options_for, mca: str = "dpc"):
+    """A 2 s live run (`mca`, the DPC by default, on `test_live_loop.stream_process`) whose
+    output goes to a loopback listener: `options_for(url)` gives run_live's options for the
+    listener's udp://127.0.0.1:PORT. Returns (summary, the datagrams received, the
+    trajectory's rows)."""
     from test_live_loop import live_with_sender, stream_process
 
     listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -92,7 +96,7 @@ def live_run_listened(tmp_path, options_for):
     url = f"udp://127.0.0.1:{listener.getsockname()[1]}"
     try:
         summary = live_with_sender(
-            stream_process, 2.2, "dpc", 2.0, trajectory=str(trajectory), **options_for(url)
+            stream_process, 2.2, mca, 2.0, trajectory=str(trajectory), **options_for(url)
         )
         datagrams = []
         while True:
@@ -117,3 +121,25 @@ def test_a_live_run_sends_the_positions_the_platform_reaches(tmp_path):
     count = min(len(sent), len(q)) - 1
     np.testing.assert_allclose(sent[:count], q[1 : count + 1], atol=1e-8)
     assert np.ptp(q[:, 0]) > 1e-4  # it moved
+
+
+def test_a_hexapod_gets_its_leg_lengths_within_their_stroke(tmp_path):
+    hexapod = load_platform("hexapod")
+    summary, lines, rows = live_run_listened(
+        tmp_path,
+        lambda url: {"rig": RigOutputConfig(url=url, number_format=".9f"), "robot": hexapod},
+        mca="washout",
+    )
+    rig = summary["rig"]
+    assert rig["actuators"] == [f"leg_{i}" for i in range(1, 7)]
+    assert rig["sent"] == len(lines) and rig["failed"] == 0 and len(lines) >= 190
+    sent = np.array([[float(v) for v in line.decode().strip().split(",")] for line in lines])
+    g = hexapod.actuators
+    assert sent.shape[1] == 6
+    assert np.all((sent >= g.min_length) & (sent <= g.max_length))
+    # Oracle: the legs' lengths of the trajectory's next row, from leg_lengths of its pose
+    q = np.column_stack([rows[name] for name in rows.dtype.names if name.startswith("q_")])
+    expected = leg_lengths(pose_of(q), g)
+    count = min(len(sent), len(q)) - 1
+    np.testing.assert_allclose(sent[:count], expected[1 : count + 1], atol=1e-8)
+    assert np.ptp(sent[:, 0]) > 1e-4  # it moved

@@ -1,6 +1,6 @@
 """Platform files: a motion platform described in YAML, packaged ones chosen by name.
 
-A platform file holds one tagged description (`!SerialRobot`, `!Hexapod`); a scenario's
+A platform file holds one tagged description (`!SerialRobot`, `!Hexapod`, `!Rig`); a scenario's
 `platform` field takes the serial robot's inline:
 
     !SerialRobot
@@ -22,8 +22,8 @@ from pathlib import Path
 
 import yaml
 
-from mca_drake.platforms.hexapod import HexapodGeometry
-from mca_drake.platforms.hexapod_platform import HexapodPlatform, hexapod_platform
+from mca_drake.platforms.leg_platform import COORDINATES, LegPlatform, leg_platform
+from mca_drake.platforms.legs import LegGeometry
 from mca_drake.platforms.serial import SerialChain, serial_chain_from_urdf
 from mca_drake.resources import packaged_folder
 
@@ -72,8 +72,8 @@ class SerialRobot:
 @dataclasses.dataclass
 class Hexapod:
     """A Stewart-platform hexapod from its legs' geometry and limits
-    (`mca_drake.platforms.hexapod_platform`): its joints listed, or the symmetric 6-6
-    layout of `HexapodGeometry.symmetric` by radii and angles."""
+    (`mca_drake.platforms.leg_platform`): its joints listed, or the symmetric 6-6
+    layout of `LegGeometry.symmetric` by radii and angles."""
 
     # The platform's name, as results and policy files record it; a file's stem if empty.
     name: str = ""
@@ -106,8 +106,8 @@ class Hexapod:
     # Where the description says its numbers come from (maker's data sheet, paper, ...).
     source: str = ""
 
-    def geometry(self) -> HexapodGeometry:
-        """The legs, validated (`HexapodGeometry.validate`)."""
+    def geometry(self) -> LegGeometry:
+        """The legs, validated (`LegGeometry.validate`)."""
         listed = bool(self.base_joints or self.platform_joints)
         symmetric = (
             self.base_radius,
@@ -124,7 +124,7 @@ class Hexapod:
         if listed:
             if self.stroke:
                 raise ValueError("a !Hexapod with listed joints gives min_length and max_length")
-            geometry = HexapodGeometry(
+            geometry = LegGeometry(
                 base_joints=self.base_joints,
                 platform_joints=self.platform_joints,
                 neutral_height=self.neutral_height,
@@ -141,7 +141,7 @@ class Hexapod:
                 )
             if self.min_length or self.max_length:
                 raise ValueError("a symmetric !Hexapod gives stroke, not min/max_length")
-            geometry = HexapodGeometry.symmetric(
+            geometry = LegGeometry.symmetric(
                 *symmetric,
                 neutral_height=self.neutral_height,
                 stroke=self.stroke,
@@ -151,23 +151,82 @@ class Hexapod:
         geometry.validate()
         return geometry
 
-    def build(self, base_dir: str | os.PathLike = ".") -> HexapodPlatform:
-        """The platform (`hexapod_platform`); `base_dir` is unused (nothing to read)."""
-        if not self.name:
-            raise ValueError("a !Hexapod platform needs a `name`")
-        return hexapod_platform(
-            self.geometry(),
-            name=self.name,
-            head_position=self.head_position,
-            payload_mass=self.payload_mass,
-            payload_inertia=self.payload_inertia,
-            source=self.source,
+    def build(self, base_dir: str | os.PathLike = ".") -> LegPlatform:
+        """The platform (`leg_platform`); `base_dir` is unused (nothing to read)."""
+        geometry = self.geometry()
+        if len(geometry.base_joints) != 6:
+            raise ValueError(
+                f"a !Hexapod has six legs; got {len(geometry.base_joints)} (a rig with fewer "
+                "is a !Rig)"
+            )
+        return _build_legged(self, geometry, COORDINATES, "!Hexapod")
+
+
+@dataclasses.dataclass
+class Rig:
+    """A 2- or 3-DOF motion rig moved by linear actuators (`mca_drake.platforms.leg_platform`):
+    the pose coordinates its mechanism leaves free, and its actuators' joints."""
+
+    # The platform's name, as results and policy files record it; a file's stem if empty.
+    name: str = ""
+    # The pose coordinates it moves in, in chain order: [pitch, roll] (a 2-DOF seat on a
+    # pivot), [heave, pitch, roll] (a 3-DOF rig); the mechanism holds the others at zero.
+    coordinates: list[str] = dataclasses.field(default_factory=list)
+    # Where each actuator attaches: on the base (base frame: x forward, y left, z up), m, and
+    # on the moving platform (its frame, whose origin is the point it turns about), m.
+    base_joints: list[list[float]] = dataclasses.field(default_factory=list)
+    platform_joints: list[list[float]] = dataclasses.field(default_factory=list)
+    # The moving platform's origin above the base frame at the neutral pose, m.
+    neutral_height: float = 0.0
+    # The actuators' length range between joint centres, m.
+    min_length: float = 0.0
+    max_length: float = 0.0
+    # The actuators' speed (m/s) and acceleration (m/s^2) limits.
+    max_speed: float = 0.0
+    max_acceleration: float = 0.0
+    # The occupant's head in the moving platform's frame, m.
+    head_position: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.8])
+    # The moving mass (seat, occupant), kg, and its principal inertias, kg m^2.
+    payload_mass: float = 150.0
+    payload_inertia: list[float] = dataclasses.field(default_factory=lambda: [20.0] * 3)
+    # Where the description says its numbers come from.
+    source: str = ""
+
+    def build(self, base_dir: str | os.PathLike = ".") -> LegPlatform:
+        """The platform (`leg_platform`); `base_dir` is unused (nothing to read)."""
+        if not self.coordinates:
+            raise ValueError("a !Rig lists the coordinates it moves in, e.g. [pitch, roll]")
+        geometry = LegGeometry(
+            base_joints=self.base_joints,
+            platform_joints=self.platform_joints,
+            neutral_height=self.neutral_height,
+            min_length=self.min_length,
+            max_length=self.max_length,
+            max_speed=self.max_speed,
+            max_acceleration=self.max_acceleration,
         )
+        geometry.validate()
+        return _build_legged(self, geometry, self.coordinates, "!Rig")
+
+
+def _build_legged(description, geometry: LegGeometry, coordinates, tag: str) -> LegPlatform:
+    """The `LegPlatform` of a !Hexapod or !Rig description."""
+    if not description.name:
+        raise ValueError(f"a {tag} platform needs a `name`")
+    return leg_platform(
+        geometry,
+        name=description.name,
+        coordinates=coordinates,
+        head_position=description.head_position,
+        payload_mass=description.payload_mass,
+        payload_inertia=description.payload_inertia,
+        source=description.source,
+    )
 
 
 # The descriptions a platform file or a scenario's `platform` field can hold, by YAML tag.
-PLATFORM_KINDS = {"!SerialRobot": SerialRobot, "!Hexapod": Hexapod}
-PlatformDescription = SerialRobot | Hexapod
+PLATFORM_KINDS = {"!SerialRobot": SerialRobot, "!Hexapod": Hexapod, "!Rig": Rig}
+PlatformDescription = SerialRobot | Hexapod | Rig
 
 
 def _loader() -> type[yaml.SafeLoader]:
@@ -210,6 +269,9 @@ def _typed(kind: type, fields: dict, tag: str):
             ):
                 raise ValueError(f"{tag}: {name} must be a list of [x, y, z] points; got {value!r}")
             fields[name] = [[float(v) for v in row] for row in value]
+        elif declared == list[str]:
+            if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+                raise ValueError(f"{tag}: {name} must be a list of names; got {value!r}")
         elif declared is float:
             if not _is_number(value):
                 raise ValueError(f"{tag}: {name} must be a number; got {value!r}")
@@ -296,7 +358,7 @@ def load_platform(
     Args:
         platform: a packaged name ("kr500", "kr500-rail"), a platform file, or a description
             (as a scenario's `platform` field holds it): a serial robot's
-            `SerialChain`, a hexapod's `HexapodPlatform` (a `SerialChain` too).
+            `SerialChain`, a hexapod's `LegPlatform` (a `SerialChain` too).
         base_dir: where a description's relative `urdf` path starts (a scenario's folder).
 
     Raises:

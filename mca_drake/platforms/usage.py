@@ -13,7 +13,7 @@ import dataclasses
 import numpy as np
 
 from mca_drake.input_checks import as_float_array, same_shapes
-from mca_drake.platforms.hexapod_platform import HexapodPlatform
+from mca_drake.platforms.leg_platform import LegPlatform
 from mca_drake.platforms.serial import SerialChain
 
 
@@ -95,13 +95,16 @@ def joint_usage(q, qd, qdd, robot: SerialChain) -> JointUsage:
 
 
 def _actuator_usage(q, qd, qdd, robot) -> JointUsage | None:
-    """A hexapod's legs' usage: lengths about their neutral lengths, speeds, accelerations."""
-    if not isinstance(robot, HexapodPlatform):
+    """A legged platform's legs' usage: lengths about their neutral lengths, speeds and
+    accelerations; None for a platform whose actuators are its joints."""
+    if not isinstance(robot, LegPlatform):
         return None
     geometry = robot.actuators
     lengths, speeds, accelerations = robot.actuator_motion(q, qd, qdd)
     neutral = robot.actuator_positions(robot.home)
-    speed, acceleration = np.full(6, geometry.max_speed), np.full(6, geometry.max_acceleration)
+    legs = len(robot.actuator_names)
+    speed = np.full(legs, geometry.max_speed)
+    acceleration = np.full(legs, geometry.max_acceleration)
     return JointUsage(
         q=normalized_joint_usage(
             lengths - neutral, geometry.min_length - neutral, geometry.max_length - neutral

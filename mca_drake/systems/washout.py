@@ -183,6 +183,22 @@ class ClassicalWashout(LeafSystem):
         )
 
 
+# The head velocity component [w_x, w_y, w_z, v_x, v_y, v_z] each pose coordinate moves.
+_COMPONENT = {"roll": 0, "pitch": 1, "yaw": 2, "surge": 3, "sway": 4, "heave": 5}
+
+
+def tracked_velocity_components(robot) -> list[bool]:
+    """Which components of the head's spatial velocity [w; v] the washout's IK tracks: all
+    six on a serial robot or hexapod, those of its coordinates on a rig."""
+    coordinates = getattr(robot, "coordinates", ())
+    if robot.num_joints >= 6 or not coordinates:
+        return [True] * 6
+    flags = [False] * 6
+    for name in coordinates:
+        flags[_COMPONENT[name]] = True
+    return flags
+
+
 class _IkScratch:
     """What one ClassicalWashout step overwrites: a MultibodyPlant context set to the
     measured state and the differential-IK parameters with that step's position bounds.
@@ -202,6 +218,10 @@ class _IkScratch:
         # The acceleration is clipped afterwards and then passes the viability clamp.
         params.set_nominal_joint_position(washout._home)
         params.set_joint_centering_gain(np.zeros((n, n)))
+        # A rig moves in fewer than six coordinates: the IK tracks the head's velocity in
+        # those it has (a pitch/roll seat its roll and pitch rates: the tilt coordination),
+        # not the whole spatial velocity it cannot follow.
+        params.set_end_effector_velocity_flag(tracked_velocity_components(r))
         self.parameters = params
 
     def __deepcopy__(self, memo) -> _IkScratch:

@@ -94,6 +94,14 @@ def format_platforms(records: list[dict]) -> str:
                 f"{f'{lo:.3f} .. {hi:.3f} {unit}':>22}{joint['velocity']:>9.3f}/s"
                 f"{joint['acceleration']:>7.3f}/s2"
             )
+        actuators = record.get("actuators")
+        if actuators:  # a legged platform: its coordinates' box is each one's reach alone
+            lines.append(
+                f"  {len(actuators['names'])} legs: {actuators['min_length_m']:.3f} .. "
+                f"{actuators['max_length_m']:.3f} m, {actuators['max_speed_m_s']:.3f} m/s, "
+                f"{actuators['max_acceleration_m_s2']:.3f} m/s2 (the joints' ranges are each "
+                "one's reach alone from home; the clamp holds the legs)"
+            )
         lines.append("")
     return "\n".join(lines).rstrip("\n")
 

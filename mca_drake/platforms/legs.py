@@ -1,5 +1,7 @@
-"""A Stewart-platform hexapod's geometry and kinematics (numpy): the pose of its moving
-platform and the lengths of its six legs.
+"""The legs of a platform moved by linear actuators, and their kinematics (numpy): the
+pose of its moving platform and the lengths of its legs. A Stewart-platform hexapod has six
+legs and moves in all six pose coordinates; a small rig (2 or 3 DOF) has two to four
+actuators and moves in some of them, a mechanism holding the others at zero.
 
 Frames: the base frame B (fixed, z up) has its origin in the plane of the base joints; the
 platform frame P (moving) has its origin in the plane of the platform joints. At the
@@ -11,11 +13,11 @@ B) to the platform joint p_i (in P); its length is
     l_i = |t + R p_i - b_i|,      t = (x, y, neutral_height + z).
 
 `leg_lengths` is that inverse kinematics (batched over poses); `leg_jacobian` its exact
-derivative dl/dpose (6 x 6); `leg_motion` the legs' lengths, speeds and accelerations of a
+derivative dl/dpose (legs x 6); `leg_motion` the legs' lengths, speeds and accelerations of a
 pose moving with given pose rates and accelerations (what the actuator limits bound);
-`forward_kinematics` inverts `leg_lengths` by Newton's method from the neutral pose (or a
-guess), to 1e-12 m on the lengths. The torch twin (for training through
-the legs) is `mca_drake.learning.hexapod`.
+`forward_kinematics` inverts a hexapod's `leg_lengths` by Newton's method from the neutral
+pose (or a guess), to 1e-12 m on the lengths. The torch twin (for training through
+the legs) is `mca_drake.learning.legs`.
 """
 
 import dataclasses
@@ -25,16 +27,17 @@ import numpy as np
 
 from mca_drake.input_checks import check_config_numbers
 
+# A hexapod's legs.
 LEGS = 6
 
 
 @dataclasses.dataclass
-class HexapodGeometry:
-    """Where a hexapod's legs attach, and how far and fast they may move."""
+class LegGeometry:
+    """Where a platform's legs attach, and how far and fast they may move (every leg alike)."""
 
-    # Base joints b_i in the base frame, m: six [x, y, z].
+    # Base joints b_i in the base frame, m: one [x, y, z] per leg (a hexapod's six).
     base_joints: list[list[float]]
-    # Platform joints p_i in the platform frame, m: six [x, y, z].
+    # Platform joints p_i in the platform frame, m: one [x, y, z] per leg, leg i from b_i.
     platform_joints: list[list[float]]
     # Height of the platform frame above the base frame at the neutral pose, m.
     neutral_height: float
@@ -48,14 +51,19 @@ class HexapodGeometry:
     def validate(self) -> None:
         """Raises ValueError for a geometry that cannot move, naming the field."""
         check_config_numbers(self)
-        for name in ("base_joints", "platform_joints"):
-            if np.shape(getattr(self, name)) != (LEGS, 3):
-                raise ValueError(f"HexapodGeometry.{name} must be six [x, y, z] points, m")
+        legs = np.shape(self.base_joints)
+        if len(legs) != 2 or legs[1] != 3 or not legs[0] >= 1:
+            raise ValueError("LegGeometry.base_joints must be [x, y, z] points, m, one per leg")
+        if np.shape(self.platform_joints) != legs:
+            raise ValueError(
+                f"LegGeometry.platform_joints must be {legs[0]} [x, y, z] points, m, one per "
+                "base joint"
+            )
         for name in ("neutral_height", "min_length", "max_speed", "max_acceleration"):
             if not getattr(self, name) > 0:
-                raise ValueError(f"HexapodGeometry.{name} must be positive")
+                raise ValueError(f"LegGeometry.{name} must be positive")
         if not self.max_length > self.min_length:
-            raise ValueError("HexapodGeometry.max_length must exceed min_length")
+            raise ValueError("LegGeometry.max_length must exceed min_length")
         neutral = leg_lengths(np.zeros(6), self)
         if np.any(neutral < self.min_length) or np.any(neutral > self.max_length):
             raise ValueError(
@@ -74,7 +82,7 @@ class HexapodGeometry:
         stroke: float,
         max_speed: float,
         max_acceleration: float,
-    ) -> "HexapodGeometry":
+    ) -> "LegGeometry":
         """The classic 6-6 hexapod: joints in pairs on two circles, pairs 120 deg apart.
 
         Args:
@@ -125,7 +133,7 @@ def rotation(roll, pitch, yaw) -> np.ndarray:
     return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
 
 
-def _legs(pose: np.ndarray, geometry: HexapodGeometry) -> np.ndarray:
+def _legs(pose: np.ndarray, geometry: LegGeometry) -> np.ndarray:
     """The leg vectors t + R p_i - b_i in B, shape (..., 6, 3)."""
     pose = np.asarray(pose, dtype=float)
     if pose.shape[-1:] != (6,) or not np.all(np.isfinite(pose)):
@@ -137,13 +145,13 @@ def _legs(pose: np.ndarray, geometry: HexapodGeometry) -> np.ndarray:
     return t[..., None, :] + np.einsum("...jk,ik->...ij", R, p) - b
 
 
-def leg_lengths(pose, geometry: HexapodGeometry) -> np.ndarray:
-    """The six leg lengths (m) of `pose` (..., 6) relative to the neutral pose: (..., 6)."""
+def leg_lengths(pose, geometry: LegGeometry) -> np.ndarray:
+    """The leg lengths (m) of `pose` (..., 6) relative to the neutral pose: (..., legs)."""
     return np.linalg.norm(_legs(pose, geometry), axis=-1)
 
 
-def leg_jacobian(pose, geometry: HexapodGeometry) -> np.ndarray:
-    """dl/dpose at one pose (6,): (6 legs, 6 pose coordinates), exact.
+def leg_jacobian(pose, geometry: LegGeometry) -> np.ndarray:
+    """dl/dpose at one pose (6,): (legs, 6 pose coordinates), exact.
 
     d l_i = u_i . (dt + dR p_i) with u_i the leg's unit vector; the angle columns use
     dR/dangle of R = Rz Ry Rx (`_rotation_derivatives`).
@@ -153,7 +161,7 @@ def leg_jacobian(pose, geometry: HexapodGeometry) -> np.ndarray:
     units = legs / np.linalg.norm(legs, axis=-1, keepdims=True)
     derivatives = _rotation_derivatives(pose[3:], second=False)[0]
     p = np.asarray(geometry.platform_joints, dtype=float)
-    J = np.empty((LEGS, 6))
+    J = np.empty((legs.shape[0], 6))
     J[:, :3] = units
     for k, dR in enumerate(derivatives):
         J[:, 3 + k] = np.einsum("ij,ij->i", units, p @ dR.T)
@@ -203,8 +211,8 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("...ij,...ij->...i", a, b)
 
 
-def leg_motion(pose, pose_rate, pose_acceleration, geometry: HexapodGeometry):
-    """The legs' lengths (m), speeds (m/s) and accelerations (m/s^2), each (..., 6), of
+def leg_motion(pose, pose_rate, pose_acceleration, geometry: LegGeometry):
+    """The legs' lengths (m), speeds (m/s) and accelerations (m/s^2), each (..., legs), of
     poses (..., 6) moving at `pose_rate` with `pose_acceleration` (the six pose
     coordinates' first and second time derivatives, same shape; angles as Euler-angle
     rates, rad/s and rad/s^2).
@@ -238,18 +246,21 @@ def leg_motion(pose, pose_rate, pose_acceleration, geometry: HexapodGeometry):
 
 def forward_kinematics(
     lengths,
-    geometry: HexapodGeometry,
+    geometry: LegGeometry,
     guess=None,
     tolerance: float = 1e-12,
     max_iterations: int = 50,
 ) -> np.ndarray:
-    """The pose (6,) whose legs have `lengths` (6, m), by Newton's method from `guess`
-    (default the neutral pose): the pose nearest the guess where the hexapod has several.
+    """A hexapod's pose (6,) whose legs have `lengths` (6, m), by Newton's method from
+    `guess` (default the neutral pose): the pose nearest the guess where it has several.
 
     Raises:
-        ValueError: lengths that are not six finite numbers, or no pose within
+        ValueError: a geometry of other than six legs, lengths that are not six finite
+            numbers, or no pose within
             `max_iterations` (the lengths are beyond what the legs can reach together).
     """
+    if np.shape(geometry.base_joints)[0] != LEGS:
+        raise ValueError("forward kinematics is a hexapod's: six legs, six pose coordinates")
     target = np.asarray(lengths, dtype=float)
     if target.shape != (LEGS,) or not np.all(np.isfinite(target)):
         raise ValueError(f"forward kinematics needs six finite leg lengths; got {lengths}")
@@ -271,7 +282,7 @@ def forward_kinematics(
 
 __all__ = [
     "LEGS",
-    "HexapodGeometry",
+    "LegGeometry",
     "forward_kinematics",
     "leg_jacobian",
     "leg_lengths",

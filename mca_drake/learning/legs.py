@@ -1,9 +1,9 @@
-"""The torch twin of `mca_drake.platforms.hexapod`: a hexapod's leg lengths from its pose,
-differentiable, for training a policy through the legs."""
+"""The torch twin of `mca_drake.platforms.legs`: a legged platform's leg lengths from its
+pose, differentiable, for training a policy through the legs."""
 
 import torch
 
-from mca_drake.platforms.hexapod import HexapodGeometry
+from mca_drake.platforms.legs import LegGeometry
 
 
 def rotation(roll: torch.Tensor, pitch: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
@@ -19,9 +19,9 @@ def rotation(roll: torch.Tensor, pitch: torch.Tensor, yaw: torch.Tensor) -> torc
     return torch.stack([torch.stack(row, dim=-1) for row in rows], dim=-2)
 
 
-def leg_lengths(pose: torch.Tensor, geometry: HexapodGeometry) -> torch.Tensor:
-    """The six leg lengths (m) of `pose` (..., 6: x, y, z, roll, pitch, yaw relative to the
-    neutral pose; m, rad), as `platforms.hexapod.leg_lengths`: (..., 6)."""
+def leg_lengths(pose: torch.Tensor, geometry: LegGeometry) -> torch.Tensor:
+    """The leg lengths (m) of `pose` (..., 6: x, y, z, roll, pitch, yaw relative to the
+    neutral pose; m, rad), as `platforms.legs.leg_lengths`: (..., legs)."""
     if pose.shape[-1] != 6:
         raise ValueError(f"a pose is six numbers (x, y, z, roll, pitch, yaw); got {pose.shape}")
     p = torch.as_tensor(geometry.platform_joints, dtype=pose.dtype, device=pose.device)

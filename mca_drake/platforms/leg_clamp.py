@@ -5,7 +5,7 @@ A serial robot's actuators are its joints, and `mca_drake.safety.ViabilityClamp`
 joint's command into the exact interval that keeps it able to stop inside its limits. A
 hexapod's actuators are its legs: each leg is a double integrator in its own length l_i,
 with l_i'' = J_i(q) u + c_i(q, qd) for the coordinates' command u (J = dl/dq, c the
-legs' acceleration at u = 0: the centripetal terms of `hexapod.leg_motion`). Over one
+legs' acceleration at u = 0: the centripetal terms of `legs.leg_motion`). Over one
 control period the leg's acceleration is that of the period's start to first order in the
 period, so the per-leg viability interval of `ViabilityClamp` (on the leg's stroke, speed
 and acceleration, with reserves) turns into two linear inequalities on u. The clamp passes
@@ -41,7 +41,7 @@ import math
 
 import numpy as np
 
-from mca_drake.platforms.hexapod_platform import HexapodPlatform
+from mca_drake.platforms.leg_platform import LegPlatform
 from mca_drake.qp.dual_active_set import solve_dual_active_set
 from mca_drake.safety import ViabilityClamp
 
@@ -59,7 +59,7 @@ ACCELERATION_SHARE = 0.9
 END_PASSES = 2
 
 
-class HexapodClamp:
+class LegClamp:
     """Clamps a hexapod's coordinate accelerations (rad/s^2, m/s^2) so that its legs and
     its coordinates stay viable (module docstring).
 
@@ -75,7 +75,7 @@ class HexapodClamp:
 
     def __init__(
         self,
-        platform: HexapodPlatform,
+        platform: LegPlatform,
         h: float,
         tolerance: float = 1e-9,
         position_coefficient: float = 0.5,
@@ -197,4 +197,4 @@ def _holds(rows, u) -> bool:
     return True
 
 
-__all__ = ["ACCELERATION_SHARE", "RATE_RESERVE", "STROKE_RESERVE_M", "HexapodClamp"]
+__all__ = ["ACCELERATION_SHARE", "RATE_RESERVE", "STROKE_RESERVE_M", "LegClamp"]

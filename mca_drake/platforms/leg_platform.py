@@ -1,16 +1,18 @@
-"""A Stewart-platform hexapod as a motion platform: its pose as the coordinates every MCA
-plans in, its six legs as the actuators whose limits are physical.
+"""A platform moved by legs (linear actuators) as a motion platform: a Stewart-platform
+hexapod, or a 2- or 3-DOF rig. Its pose as the coordinates every MCA plans in, its legs as
+the actuators whose limits are physical.
 
 Every MCA, plant and station works on a `SerialChain`: coordinates q with box limits, the
-head's pose as a chain product. A hexapod's coordinates are its moving platform's pose
-relative to the neutral pose, and that pose *is* a chain: three prismatic joints along the
-base's x, y and z (surge, sway, heave), then three revolute joints about z, y' and x''
-(yaw, pitch, roll: R = Rz Ry Rx, `hexapod.rotation`). So `HexapodPlatform` is a
-`SerialChain` of those six virtual joints (the numpy and torch plants, the NMPC and the
-MultibodyPlant station use it unchanged) plus what makes it a hexapod: its legs
-(`HexapodGeometry`), whose lengths, speeds and accelerations (`hexapod.leg_motion`) are the
-limits that matter. The viability clamp of a hexapod (`hexapod_clamp.HexapodClamp`) holds
-every command to them; the summaries count them.
+head's pose as a chain product. A legged platform's coordinates are its moving platform's
+pose relative to the neutral pose, and that pose *is* a chain: prismatic joints along the
+base's x, y and z (surge, sway, heave), then revolute joints about z, y' and x'' (yaw,
+pitch, roll: R = Rz Ry Rx, `legs.rotation`). A hexapod moves in all six; a rig moves in
+those its mechanism leaves free (pitch and roll about a pivot; heave, pitch and roll), the
+others held at zero. So `LegPlatform` is a `SerialChain` of those virtual joints (the
+numpy and torch plants, the NMPC and the MultibodyPlant station use it unchanged) plus its
+legs (`LegGeometry`), whose lengths, speeds and accelerations (`legs.leg_motion`) are the
+limits that matter. Its viability clamp (`leg_clamp.LegClamp`) holds every command to
+them; the summaries count them.
 
 The chain's box limits are each coordinate's reach alone (`single_axis_limits`): from the
 neutral pose, the excursion each coordinate reaches before a leg reaches its stroke's end,
@@ -18,8 +20,9 @@ and the speed and acceleration it reaches at the neutral pose before a leg reach
 They are what a maker's data sheet gives per axis and what the MCAs plan with; combined
 motions inside that box can still ask more of a leg than it has, which the clamp refuses.
 
-Coordinates q (rad or m): (x, y, z, yaw, pitch, roll); `hexapod.leg_lengths` and friends
-take poses (x, y, z, roll, pitch, yaw): `pose_of` maps one to the other.
+Coordinates q (rad or m) in chain order, a subsequence of `COORDINATES` (surge, sway,
+heave, yaw, pitch, roll); `legs.leg_lengths` and friends take full poses (x, y, z, roll,
+pitch, yaw): `pose_of` maps one to the other.
 """
 
 import dataclasses
@@ -33,22 +36,30 @@ from pathlib import Path
 import numpy as np
 
 from mca_drake.atomic_io import atomic_write_text
-from mca_drake.platforms.hexapod import (
+from mca_drake.platforms.legs import (
     LEGS,
-    HexapodGeometry,
+    LegGeometry,
     leg_jacobian,
     leg_lengths,
     leg_motion,
 )
 from mca_drake.platforms.serial import SerialChain, serial_chain_from_urdf
 
-# The virtual joints, base to head, and the pose coordinate each one is.
+# The virtual joints a legged platform may have, base to head in chain order.
 COORDINATES = ("surge", "sway", "heave", "yaw", "pitch", "roll")
-# q index of each pose coordinate (x, y, z, roll, pitch, yaw), and the reverse (its own
-# inverse: it swaps roll and yaw).
-POSE_ORDER = (0, 1, 2, 5, 4, 3)
+# Each coordinate's place in a pose (x, y, z, roll, pitch, yaw).
+POSE_INDEX = {"surge": 0, "sway": 1, "heave": 2, "yaw": 5, "pitch": 4, "roll": 3}
+# Each coordinate's joint: kind and axis.
+JOINTS = {
+    "surge": ("prismatic", (1, 0, 0)),
+    "sway": ("prismatic", (0, 1, 0)),
+    "heave": ("prismatic", (0, 0, 1)),
+    "yaw": ("revolute", (0, 0, 1)),
+    "pitch": ("revolute", (0, 1, 0)),
+    "roll": ("revolute", (1, 0, 0)),
+}
 # Mirroring the motion about the base's x-z plane turns sway, yaw and roll round.
-MIRROR_SIGNS = (1.0, -1.0, 1.0, -1.0, 1.0, -1.0)
+MIRROR_SIGN = {"surge": 1.0, "sway": -1.0, "heave": 1.0, "yaw": -1.0, "pitch": 1.0, "roll": -1.0}
 # How far a rotation's single-axis reach is searched, rad (the chain's Euler angles are
 # singular at a pitch of 90 deg; no hexapod tilts near that).
 MAX_ANGLE = 1.2
@@ -60,44 +71,80 @@ VIRTUAL_LINK_MASS = 1.0
 VIRTUAL_LINK_INERTIA = 0.01
 
 
-def pose_of(q) -> np.ndarray:
-    """The hexapod pose (x, y, z, roll, pitch, yaw) (..., 6) of coordinates q (..., 6)."""
-    return np.asarray(q, dtype=float)[..., POSE_ORDER]
+def check_coordinates(coordinates) -> tuple[str, ...]:
+    """`coordinates` as a tuple, after checking they are distinct names of `COORDINATES`
+    in chain order.
+
+    Raises:
+        ValueError: an unknown, repeated or misordered coordinate, or none.
+    """
+    names = tuple(coordinates)
+    unknown = [c for c in names if c not in COORDINATES]
+    if unknown or not names:
+        raise ValueError(f"coordinates must be some of {', '.join(COORDINATES)}; got {list(names)}")
+    if list(names) != [c for c in COORDINATES if c in names]:
+        raise ValueError(
+            f"list the coordinates once each, in chain order ({', '.join(COORDINATES)}); "
+            f"got {list(names)}"
+        )
+    return names
+
+
+def pose_of(q, coordinates=COORDINATES) -> np.ndarray:
+    """The pose (x, y, z, roll, pitch, yaw) (..., 6) of coordinates q (..., k) named by
+    `coordinates` (default all six: q = (x, y, z, yaw, pitch, roll)); the others zero."""
+    q = np.asarray(q, dtype=float)
+    pose = np.zeros((*q.shape[:-1], 6))
+    pose[..., [POSE_INDEX[c] for c in coordinates]] = q
+    return pose
 
 
 @dataclasses.dataclass(frozen=True)
-class HexapodPlatform(SerialChain):
-    """A hexapod: the virtual chain of its pose (`SerialChain` fields) and its legs.
+class LegPlatform(SerialChain):
+    """A platform moved by legs: the virtual chain of its pose (`SerialChain` fields, one
+    joint per coordinate) and its legs.
 
     Attributes:
         actuators: the legs' attachment points and limits.
+        coordinates: the pose coordinates it moves in, in chain order (the joints' names).
         head_position: the head H in the moving platform's frame, m (3,).
         source: where the geometry and limits come from.
     """
 
-    actuators: HexapodGeometry
+    actuators: LegGeometry
+    coordinates: tuple[str, ...]
     head_position: tuple[float, float, float]
     source: str = ""
 
-    kind = "hexapod"
+    @property
+    def kind(self) -> str:
+        """ "hexapod" (six legs, six coordinates), else "rig-<k>dof"."""
+        if len(self.coordinates) == 6 and len(self.actuator_names) == LEGS:
+            return "hexapod"
+        return f"rig-{len(self.coordinates)}dof"
 
     @property
     def actuator_names(self) -> tuple[str, ...]:
-        """The legs, in the order of `actuators`' joints: leg_1 ... leg_6."""
-        return tuple(f"leg_{i + 1}" for i in range(LEGS))
+        """The legs, in the order of `actuators`' joints: leg_1, leg_2, ..."""
+        return tuple(f"leg_{i + 1}" for i in range(len(self.actuators.base_joints)))
+
+    def pose(self, q) -> np.ndarray:
+        """The pose (x, y, z, roll, pitch, yaw) (..., 6) of coordinates q (..., k)."""
+        return pose_of(q, self.coordinates)
 
     def actuator_positions(self, q) -> np.ndarray:
-        """The leg lengths (m) of coordinates q (..., 6): (..., 6)."""
-        return leg_lengths(pose_of(q), self.actuators)
+        """The leg lengths (m) of coordinates q (..., k): (..., legs)."""
+        return leg_lengths(self.pose(q), self.actuators)
 
     def actuator_motion(self, q, qd, qdd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The legs' lengths (m), speeds (m/s) and accelerations (m/s^2), each (..., 6), of
-        coordinates q moving at qd with qdd (each (..., 6)), exactly."""
-        return leg_motion(pose_of(q), pose_of(qd), pose_of(qdd), self.actuators)
+        """The legs' lengths (m), speeds (m/s) and accelerations (m/s^2), each (..., legs),
+        of coordinates q moving at qd with qdd (each (..., k)), exactly."""
+        return leg_motion(self.pose(q), self.pose(qd), self.pose(qdd), self.actuators)
 
     def actuator_jacobian(self, q) -> np.ndarray:
-        """d(leg lengths)/dq at one pose q (6,): (6 legs, 6 coordinates), exact."""
-        return leg_jacobian(pose_of(q), self.actuators)[:, POSE_ORDER]
+        """d(leg lengths)/dq at one pose q (k,): (legs, k), exact."""
+        columns = [POSE_INDEX[c] for c in self.coordinates]
+        return leg_jacobian(self.pose(q), self.actuators)[:, columns]
 
     def summary(self) -> dict:
         """As `SerialChain.summary`, with the legs' stroke and limits."""
@@ -116,7 +163,7 @@ class HexapodPlatform(SerialChain):
 
 @dataclasses.dataclass(frozen=True)
 class AxisLimits:
-    """Each coordinate's reach alone (q order, `COORDINATES`), each (6,): excursions
+    """Each coordinate's reach alone (q order), each (k,): excursions
     `q_min` < 0 < `q_max` (m or rad), symmetric speed `qd_max` and acceleration `qdd_max`."""
 
     q_min: np.ndarray
@@ -125,20 +172,21 @@ class AxisLimits:
     qdd_max: np.ndarray
 
 
-def _within_stroke(q: np.ndarray, geometry: HexapodGeometry) -> np.ndarray:
-    lengths = leg_lengths(pose_of(q), geometry)
+def _within_stroke(pose: np.ndarray, geometry: LegGeometry) -> np.ndarray:
+    lengths = leg_lengths(pose, geometry)
     return np.all((lengths >= geometry.min_length) & (lengths <= geometry.max_length), axis=-1)
 
 
-def _reach(axis: int, sign: float, geometry: HexapodGeometry) -> float:
-    """How far coordinate `axis` alone moves from neutral towards `sign` before a leg
+def _reach(coordinate: str, sign: float, geometry: LegGeometry) -> float:
+    """How far `coordinate` alone moves from neutral towards `sign` before a leg
     leaves its stroke: a scan of 400 steps for the first pose outside, then bisection to
     1e-9 (so a workspace that is not convex along the axis is cut at its first edge)."""
+    axis = POSE_INDEX[coordinate]
     limit = MAX_ANGLE if axis >= 3 else geometry.max_length
     steps = np.linspace(0.0, limit, 401)
-    q = np.zeros((steps.size, 6))
-    q[:, axis] = sign * steps
-    inside = _within_stroke(q, geometry)
+    poses = np.zeros((steps.size, 6))
+    poses[:, axis] = sign * steps
+    inside = _within_stroke(poses, geometry)
     if inside.all():
         return limit
     first_out = int(np.argmin(inside))
@@ -151,22 +199,34 @@ def _reach(axis: int, sign: float, geometry: HexapodGeometry) -> float:
     return lo
 
 
-def single_axis_limits(geometry: HexapodGeometry) -> AxisLimits:
+def single_axis_limits(geometry: LegGeometry, coordinates=COORDINATES) -> AxisLimits:
     """Each coordinate's reach alone (module docstring): the excursions by `_reach`, the
     speed and acceleration at the neutral pose where the fastest leg (the largest
-    |dl/dq_k|) reaches `max_speed` or `max_acceleration`."""
+    |dl/dq_k|) reaches `max_speed` or `max_acceleration`.
+
+    Raises:
+        ValueError: a leg at its stroke's end at the neutral pose, a coordinate that moves no
+            leg, or fewer legs than coordinates (dl/dq of less than full column rank: a
+            motion the legs do not hold).
+    """
     geometry.validate()
-    q_max = np.array([_reach(k, 1.0, geometry) for k in range(6)])
-    q_min = -np.array([_reach(k, -1.0, geometry) for k in range(6)])
+    coordinates = check_coordinates(coordinates)
+    q_max = np.array([_reach(c, 1.0, geometry) for c in coordinates])
+    q_min = -np.array([_reach(c, -1.0, geometry) for c in coordinates])
     if not (np.all(q_max > 0) and np.all(q_min < 0)):
         raise ValueError(
-            "the hexapod cannot move every coordinate from its neutral pose (a leg is at its "
+            "the platform cannot move every coordinate from its neutral pose (a leg is at its "
             "stroke's end there)"
         )
-    J = leg_jacobian(np.zeros(6), geometry)[:, POSE_ORDER]
+    J = leg_jacobian(np.zeros(6), geometry)[:, [POSE_INDEX[c] for c in coordinates]]
     lever = np.max(np.abs(J), axis=0)
     if not np.all(lever > 0):
-        raise ValueError("a coordinate moves no leg at the neutral pose: a singular hexapod")
+        raise ValueError("a coordinate moves no leg at the neutral pose: a singular platform")
+    if np.linalg.matrix_rank(J) < len(coordinates):
+        raise ValueError(
+            f"the legs do not hold every coordinate of {list(coordinates)} at the neutral "
+            "pose (dl/dq has rank below the coordinates' count)"
+        )
     return AxisLimits(
         q_min=q_min,
         q_max=q_max,
@@ -175,7 +235,7 @@ def single_axis_limits(geometry: HexapodGeometry) -> AxisLimits:
     )
 
 
-def _is_mirror_symmetric(geometry: HexapodGeometry) -> bool:
+def _is_mirror_symmetric(geometry: LegGeometry) -> bool:
     """Whether the legs, mirrored about the base's x-z plane, are the legs again (then the
     mirrored motion has mirrored leg lengths and the same limits)."""
     flip = np.array([1.0, -1.0, 1.0])
@@ -192,23 +252,23 @@ def _format(values) -> str:
 
 def virtual_chain_urdf(
     name: str,
-    geometry: HexapodGeometry,
+    geometry: LegGeometry,
+    coordinates: tuple[str, ...],
     limits: AxisLimits,
     head_position,
     payload_mass: float,
     payload_inertia,
 ) -> str:
-    """The URDF of a hexapod's virtual chain (module docstring): a base plate, the six
-    joints with `limits`, the moving platform carrying the payload (its centre of mass at
-    half the head's height) and the head frame `head`."""
-    axes = ((1, 0, 0), (0, 1, 0), (0, 0, 1), (0, 0, 1), (0, 1, 0), (1, 0, 0))
-    kinds = ("prismatic",) * 3 + ("revolute",) * 3
-    base_radius = float(np.max(np.linalg.norm(np.asarray(geometry.base_joints)[:, :2], axis=1)))
+    """The URDF of a legged platform's virtual chain (module docstring): a base plate, one
+    joint per coordinate with `limits`, the moving platform carrying the payload (its centre
+    of mass at half the head's height) and the head frame `head`."""
+    radii = np.linalg.norm(np.asarray(geometry.base_joints)[:, :2], axis=1)
+    base_radius = float(np.max(radii))
     top_radius = float(np.max(np.linalg.norm(np.asarray(geometry.platform_joints)[:, :2], axis=1)))
     small = VIRTUAL_LINK_INERTIA
     lines = [
         '<?xml version="1.0"?>',
-        f"<!-- The virtual chain of hexapod '{name}' (mca_drake.platforms.hexapod_platform):",
+        f"<!-- The virtual chain of hexapod '{name}' (mca_drake.platforms.leg_platform):",
         "     its coordinates surge, sway, heave, yaw, pitch, roll; generated from its",
         "     platform description, do not edit. -->",
         f'<robot name="{name}" xmlns:drake="http://drake.mit.edu">',
@@ -221,8 +281,10 @@ def virtual_chain_urdf(
         '<origin xyz="0 0 0" rpy="0 0 0"/></joint>',
     ]
     parent = "base"
-    for k, (joint, axis, kind) in enumerate(zip(COORDINATES, axes, kinds, strict=True)):
-        child = "platform" if k == 5 else f"{joint}_carriage"
+    last = len(coordinates) - 1
+    for k, joint in enumerate(coordinates):
+        kind, axis = JOINTS[joint]
+        child = "platform" if k == last else f"{joint}_carriage"
         if child == "platform":
             x, y, z = (float(v) for v in head_position)
             ixx, iyy, izz = (float(v) for v in payload_inertia)
@@ -277,20 +339,23 @@ def generated_models_folder() -> Path:
     return Path(cache) / "mca-drake" / "platforms"
 
 
-def hexapod_platform(
-    geometry: HexapodGeometry,
+def leg_platform(
+    geometry: LegGeometry,
     *,
     name: str,
+    coordinates=COORDINATES,
     head_position=(0.0, 0.0, 1.0),
     payload_mass: float = 1000.0,
     payload_inertia=(500.0, 500.0, 500.0),
     source: str = "",
-) -> HexapodPlatform:
-    """A hexapod platform from its legs' geometry.
+) -> LegPlatform:
+    """A legged platform (a hexapod; a rig) from its legs' geometry.
 
     Args:
         geometry: the legs (validated here).
         name: the platform's name.
+        coordinates: the pose coordinates it moves in, in chain order (default all six: a
+            hexapod; a 2-DOF rig: pitch, roll; a 3-DOF rig: heave, pitch, roll).
         head_position: the head H in the moving platform's frame (x forward, y left, z up),
             m: where the occupant's vestibular system sits above the platform.
         payload_mass: the moving mass (platform, cabin, occupant), kg, for the station.
@@ -298,10 +363,11 @@ def hexapod_platform(
         source: where the numbers come from.
 
     Raises:
-        ValueError: a geometry that cannot move (`HexapodGeometry.validate`,
-            `single_axis_limits`), a head position that is not three finite numbers, or a
-            payload that is not positive.
+        ValueError: a geometry that cannot move (`LegGeometry.validate`,
+            `single_axis_limits`), unknown coordinates, a head position that is not three
+            finite numbers, or a payload that is not positive.
     """
+    coordinates = check_coordinates(coordinates)
     head = np.asarray(head_position, dtype=float)
     if head.shape != (3,) or not np.all(np.isfinite(head)):
         raise ValueError(f"head_position must be three finite numbers, m; got {head_position}")
@@ -313,6 +379,7 @@ def hexapod_platform(
     return _build_cached(
         json.dumps(dataclasses.asdict(geometry)),
         name,
+        coordinates,
         tuple(head.tolist()),
         float(payload_mass),
         tuple(inertia.tolist()),
@@ -321,33 +388,34 @@ def hexapod_platform(
 
 
 @functools.lru_cache(maxsize=32)
-def _build_cached(geometry_json, name, head, payload_mass, inertia, source) -> HexapodPlatform:
+def _build_cached(
+    geometry_json, name, coordinates, head, payload_mass, inertia, source
+) -> LegPlatform:
     """One shared description per geometry and settings (the serial chains are cached the
     same way); its geometry is a copy that nobody else holds."""
-    geometry = HexapodGeometry(**json.loads(geometry_json))
-    limits = single_axis_limits(geometry)
-    text = virtual_chain_urdf(name, geometry, limits, head, payload_mass, inertia)
+    geometry = LegGeometry(**json.loads(geometry_json))
+    limits = single_axis_limits(geometry, coordinates)
+    text = virtual_chain_urdf(name, geometry, coordinates, limits, head, payload_mass, inertia)
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]
     path = generated_models_folder() / f"{name}-{digest}.urdf"
     if not path.is_file() or path.read_text() != text:
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(path, text)
-    chain = serial_chain_from_urdf(
-        path,
-        name=name,
-        head_frame="head",
-        mirror_joint_signs=MIRROR_SIGNS if _is_mirror_symmetric(geometry) else (),
-    )
+    mirror = [MIRROR_SIGN[c] for c in coordinates] if _is_mirror_symmetric(geometry) else ()
+    chain = serial_chain_from_urdf(path, name=name, head_frame="head", mirror_joint_signs=mirror)
     fields = {f.name: getattr(chain, f.name) for f in dataclasses.fields(SerialChain)}
-    return HexapodPlatform(**fields, actuators=geometry, head_position=head, source=source)
+    return LegPlatform(
+        **fields, actuators=geometry, coordinates=coordinates, head_position=head, source=source
+    )
 
 
 __all__ = [
     "COORDINATES",
     "AxisLimits",
-    "HexapodPlatform",
+    "LegPlatform",
+    "check_coordinates",
     "generated_models_folder",
-    "hexapod_platform",
+    "leg_platform",
     "pose_of",
     "single_axis_limits",
     "virtual_chain_urdf",
