@@ -2,7 +2,8 @@
 
     python benchmarks/bench_live.py [--duration 600] [--mcas dpc,nmpc-rti]
         [--plant analytical] [--phase-lock on|off|both] [--guard on|off|both]
-        [--controls on|off|both] [--protocol fgnetfdm|beamng] [--json results/live.json]
+        [--controls on|off|both] [--protocol fgnetfdm|beamng] [--platform kr500]
+        [--rig] [--json results/live.json]
 
 For each MCA, `mca-drake live --demo`'s set-up without Meshcat: a JSBSim process flies the
 light aircraft (a training seed) in real time and streams its FGNetFDM packets over
@@ -13,10 +14,14 @@ phase lock (`mca_drake.live.phase_lock`) on, off or both one after the other, an
 input plausibility guard (`mca_drake.cueing.plausibility`) on, off or both, and the
 operator's controls (`mca_drake.live.controls`: the console in the loop, polling a UDP
 control port and the Meshcat page's sliders and buttons every period) on, off or both
-(what they cost in latency, measured in the same run). Prints the
+(what they cost in latency, measured in the same run), on `--platform` (the KR500 by
+default; written to live_<platform>.json by default for another), with `--rig` the rig's
+own output (`mca_drake.live.rig_output`: the actuator positions, a hexapod's leg lengths,
+one ASCII datagram per period to a loopback listener that drains them). Prints the
 latency from a sample's arrival to the command computed from it (median, p99, max), the
 part of it the sample waited in the socket for its poll, the
-loop's jitter (|period - 10 ms| of its control instants on the wall clock), the loop
+loop's jitter (|period - 10 ms| of its control instants on the wall clock), with `--rig`
+the latency from a sample's arrival to the rig's datagram computed from it, the loop
 process's CPU load and the sender's, and the stream's counters. The machine's calibration
 first. Writes the figures with their provenance (date, command, calibration, machine) to
 `--json`, by default `benchmarks/results/live.json` (`live_driving.json` for beamng).
@@ -28,6 +33,7 @@ import argparse
 import resource
 import socket
 import tempfile
+import threading
 from pathlib import Path
 
 from common import default_result_path, in_ms, print_calibration, result_header
@@ -43,10 +49,9 @@ from mca_drake.live.drive_demo import DEMO_SEED as DRIVE_SEED
 from mca_drake.live.loop import make_decoder, run_live
 from mca_drake.live.phase_lock import PhaseLockConfig
 from mca_drake.live.receiver import ReceiverConfig
+from mca_drake.live.rig_output import RigOutputConfig
 from mca_drake.platforms.files import load_platform
 from mca_drake.references.recording import save_recording
-
-KR500 = load_platform("kr500")
 
 
 def children_cpu_s() -> float:
@@ -70,11 +75,35 @@ def main() -> None:
     parser.add_argument("--guard", choices=("on", "off", "both"), default="on")
     parser.add_argument("--controls", choices=("on", "off", "both"), default="on")
     parser.add_argument("--protocol", choices=("fgnetfdm", "beamng"), default="fgnetfdm")
-    parser.add_argument("--json", help="write the figures here (default: by the protocol)")
-    args = parser.parse_args()
-    args.json = args.json or default_result_path(
-        "live_driving.json" if args.protocol == "beamng" else "live.json"
+    parser.add_argument("--platform", default="kr500", help="a packaged platform or a file")
+    parser.add_argument(
+        "--rig", action="store_true", help="send the rig's datagrams to a loopback listener"
     )
+    parser.add_argument(
+        "--json", help="write the figures here (default: by the protocol and platform)"
+    )
+    args = parser.parse_args()
+    stem = "live_driving" if args.protocol == "beamng" else "live"
+    if args.platform != "kr500":
+        stem += f"_{Path(args.platform).stem}"
+    args.json = args.json or default_result_path(f"{stem}.json")
+    robot = load_platform(args.platform)
+    listener = None
+    if args.rig:  # a loopback listener that drains the datagrams, as a rig's controller
+        listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        listener.bind(("127.0.0.1", 0))
+        listener.settimeout(0.2)
+        draining = threading.Event()
+
+        def drain():
+            while not draining.is_set():
+                try:
+                    listener.recv(4096)
+                except OSError:
+                    pass
+
+        threading.Thread(target=drain, daemon=True).start()
+        rig = RigOutputConfig(url=f"udp://127.0.0.1:{listener.getsockname()[1]}")
     locks = {"on": (True,), "off": (False,), "both": (False, True)}[args.phase_lock]
     report = {"provenance": result_header(print_calibration()), "runs": {}}
     tmp = tempfile.TemporaryDirectory()
@@ -119,7 +148,8 @@ def main() -> None:
             on_listening=start,
             plant=args.plant,
             phase_lock=PhaseLockConfig(enabled=lock),
-            robot=KR500,
+            robot=robot,
+            rig=rig if args.rig else None,
             plausibility=PlausibilityConfig(enabled=guard),
             controls=ControlsConfig(enabled=console, udp=f"127.0.0.1:{free_udp_port()}"),
             meshcat=meshcat,
@@ -135,6 +165,8 @@ def main() -> None:
         if args.controls != "on":
             label += f", controls {'on' if console else 'off'}"
         report["runs"][label] = {
+            "platform": robot.summary(),
+            "rig": summary.get("rig"),
             "live": live,
             "pi": summary["pi"],
             "pi_zero_motion": summary["pi_zero_motion"],
@@ -154,7 +186,17 @@ def main() -> None:
             f"motion {summary['pi_zero_motion']:.3f}); violations {summary['violations']}",
             flush=True,
         )
+        if args.rig:
+            rig_block = summary["rig"]
+            print(
+                f"  rig: {rig_block['sent']} datagrams, {rig_block['failed']} failed; "
+                f"sample to datagram latency ms {in_ms(rig_block['latency_s'])}",
+                flush=True,
+            )
     tmp.cleanup()
+    if listener is not None:
+        draining.set()
+        listener.close()
     if args.json:
         atomic_write_json(args.json, report)
 

@@ -15,8 +15,12 @@ every step) and, with --bound, the share of the achievable improvement it gets (
 over flights of (PI_zero - PI) / (PI_zero - PI_bound), each flight's offline-optimal bound
 on that platform); per platform, the station's real-time factor and how its shipped
 policy was trained (command and wall time, from the policy file); and the rail's gain over
-the KR500 per channel (median over flights of the RMSE decrease and CC increase). The
-result file holds the date, command, machine and calibration.
+the KR500 per channel (median over flights of the RMSE decrease and CC increase). A
+platform with no shipped policy (the hexapod and the small rigs, so far) skips the DPC; the
+legged platforms' clamp interventions (commands the legs' limits changed) are counted. The
+result file holds the date, command, machine and calibration; the legged platforms' run
+beside the KR500 is written with `--platforms kr500,hexapod,rig-2dof,rig-3dof --mcas
+nmpc-rti,washout --json benchmarks/results/platforms_legged.json`.
 """
 
 from __future__ import annotations
@@ -50,10 +54,14 @@ def _spread(values) -> dict:
     return {"median": float(median), "q1": float(q1), "q3": float(q3)}
 
 
-def policy_provenance(platform: str) -> dict:
+def policy_provenance(platform: str) -> dict | None:
     """How the platform's shipped DPC policy was made: its file, command and training wall
-    time (this run and the runs its starting weights came from), from the file itself."""
-    path = DpcConfig().policy_path(platform)
+    time (this run and the runs its starting weights came from), from the file itself; None
+    where none is shipped for it (a legged platform's, so far)."""
+    try:
+        path = DpcConfig().policy_path(platform)
+    except FileNotFoundError:
+        return None
     _, metadata = load_policy_arrays(path)
     return {
         "file": path.name,
@@ -80,7 +88,11 @@ def measure(platforms, mcas, flights, duration: float, station_seconds: float, b
                 bounds[seed] = {"pi": s["pi"], "wall_s": s["solver"]["solve_time_s"]}
                 print(f"{name:>11}     bound {vehicle:>5} {seed}: PI {s['pi']:.3f}", flush=True)
         per_mca = {}
+        shipped = policy_provenance(robot.name) is not None
         for mca in mcas:
+            if mca == "dpc" and not shipped:
+                print(f"{name:>11}       dpc: no policy shipped for this platform", flush=True)
+                continue
             runs, step_times = [], []
             for (vehicle, seed), reference in references.items():
                 result = run_closed_loop(
@@ -101,6 +113,7 @@ def measure(platforms, mcas, flights, duration: float, station_seconds: float, b
                         "rmse": s["rmse"],
                         "cc": s["cc"],
                         "violations": s["violations"],
+                        "interventions": s["safety_interventions"],
                         "joint_range_used": s["joint_range_used"],
                     }
                 )
@@ -116,6 +129,8 @@ def measure(platforms, mcas, flights, duration: float, station_seconds: float, b
                 "perceived_pi": _spread([r["perceived_pi"] for r in runs]),
                 "worst_pi": max(r["pi"] for r in runs),
                 "violations": int(sum(sum(r["violations"].values()) for r in runs)),
+                # commands the platform's viability clamp changed (a legged platform's legs)
+                "interventions": int(sum(r["interventions"] for r in runs)),
                 "joint_range_used": np.median([r["joint_range_used"] for r in runs], 0).tolist(),
                 "step_time_s": {
                     "median": float(np.median(steps)),

@@ -556,6 +556,11 @@ def _platforms(results_dir: Path, data: dict) -> list[str]:
         station = platform["station"]
         header = ["MCA", "PI median (IQR)", "perceived PI", "worst PI", "violations"]
         header += ["joint range used", "step median (p99)"]
+        legged = any("interventions" in m for m in platform["mcas"].values())
+        if legged:
+            header += ["clamp interventions"]
+            for row, m in zip(rows, platform["mcas"].values(), strict=True):
+                row.append(str(m.get("interventions", "")))
         header += ["bound share"] if platform.get("bound") else []
         lines += [f"**{name}** ({platform['platform']['dof']} joints)", ""]
         lines += _table(header, rows)
@@ -1029,6 +1034,15 @@ SECTIONS = (
         "the same flights: each MCA's PI (the DPC with the platform's own policy), limits, "
         "joint use and step time, the station's real-time factor, how each policy was "
         "trained, and what the rail adds per channel (`bench_platforms.py`)",
+        _platforms,
+    ),
+    Section(
+        "Hexapod and small rigs",
+        "platforms_legged.json",
+        "the packaged hexapod and 2- and 3-DOF rigs beside the KR500 on the same flights: the "
+        "NMPC-rti's and the washout's PI, the legs' violations and the commands their clamp "
+        "changed, step time and the station's real-time factor (`bench_platforms.py "
+        "--platforms kr500,hexapod,rig-2dof,rig-3dof`; no DPC policy is shipped for them yet)",
         _platforms,
     ),
     Section(

@@ -376,3 +376,37 @@ def test_a_geometry_that_cannot_move_is_refused():
     g.min_length = float(leg_lengths(np.zeros(6), g)[0])  # a leg at its stroke's end
     with pytest.raises(ValueError, match="cannot move"):
         leg_platform(g, name="stuck")
+
+
+def test_meshcat_draws_each_leg_between_its_joints(hexapod):
+    from pydrake.geometry import StartMeshcat
+    from pydrake.systems.analysis import Simulator
+
+    from mca_drake.simulation.builders import MakeMultibodyClosedLoop
+    from mca_drake.systems.meshcat_legs import leg_segments, stroke_used
+
+    # the segments' lengths are the legs' lengths; mid-stroke is 0, a stroke's end 1
+    rng = np.random.default_rng(5)
+    for q in random_poses(rng, 5, hexapod):
+        segments = leg_segments(hexapod, q)
+        np.testing.assert_allclose(
+            np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1),
+            hexapod.actuator_positions(q),
+            atol=1e-14,
+        )
+    g = hexapod.actuators
+    np.testing.assert_allclose(
+        stroke_used(hexapod, np.array([g.min_length, 0.5 * (g.min_length + g.max_length)])),
+        [1.0, 0.0],
+    )
+    meshcat = StartMeshcat()
+    try:
+        diagram, handles = MakeMultibodyClosedLoop(
+            far_reference(2.0), "washout", meshcat=meshcat, robot=hexapod
+        )
+        simulator = Simulator(diagram)
+        handles["station"].SetInitialState(simulator.get_mutable_context())
+        simulator.AdvanceTo(0.5)
+        assert all(meshcat.HasPath(f"legs/leg_{i}") for i in range(1, 7))
+    finally:
+        meshcat.Delete()

@@ -132,6 +132,10 @@ def test_a_hexapod_gets_its_leg_lengths_within_their_stroke(tmp_path):
     )
     rig = summary["rig"]
     assert rig["actuators"] == [f"leg_{i}" for i in range(1, 7)]
+    # a sample's message goes out after the command computed from it, within a period
+    latency = rig["latency_s"]
+    live = summary["live"]["latency_s"]
+    assert live["median"] < latency["median"] < 0.01 + live["median"]
     assert rig["sent"] == len(lines) and rig["failed"] == 0 and len(lines) >= 190
     sent = np.array([[float(v) for v in line.decode().strip().split(",")] for line in lines])
     g = hexapod.actuators

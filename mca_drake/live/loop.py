@@ -382,7 +382,7 @@ def MakeLiveClosedLoop(
     handles["recorder"] = _AddLiveRecorder(builder, before_poll, after_command, h)
     if meshcat is not None and plant == "multibody":
         handles["traces"] = AddMeshcatDrawing(
-            builder, meshcat, default_visualization(), handles["station"], reference, h
+            builder, meshcat, default_visualization(), handles["station"], reference, h, robot
         )
     elif meshcat is not None:  # no geometry to draw: the traces of the reference and cue
         traces = MeshcatOutputTraces(meshcat, sample_period=h)
@@ -527,7 +527,8 @@ def run_live(
         context = console.GetMyContextFromRoot(run.context)
         summary["controls"] = console.summary(context, to_rest)
     if handles.get("rig") is not None:
-        summary["rig"] = handles["rig"].summary()
+        probe = handles["probe"]
+        summary["rig"] = handles["rig"].summary(probe.arrivals_s, probe.sample_instants)
     if handles.get("pose_stream") is not None:
         handles["pose_stream"].close()
         summary["pose_stream"] = handles["pose_stream"].summary()

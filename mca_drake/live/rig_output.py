@@ -18,11 +18,13 @@ robot follows) will be at the next control instant. Formats (`RigOutputConfig.fo
 A template is read as text with {k} placeholders only: nothing in it is evaluated.
 """
 
+import array
 import dataclasses
 import os
 import re
 import socket
 import struct
+import time
 from urllib.parse import parse_qs, urlparse
 
 import numpy as np
@@ -31,6 +33,7 @@ from pydrake.systems.framework import Context, EventStatus, LeafSystem
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.endpoints import parse_endpoint
 from mca_drake.live.recorder import AFTER_COMMAND_S
+from mca_drake.simulation.closed_loop import step_time_summary
 
 FORMATS = ("ascii", "template", "binary")
 _PLACEHOLDER = re.compile(r"\{(\d+)\}")
@@ -149,6 +152,8 @@ class RigConnection:
         self.kind, address = where(config.url)
         self.url = config.url
         self.sent = self.failed = 0
+        # time.perf_counter() just after each message went out (sent or failed), s
+        self.send_times_s = array.array("d")
         if self.kind == "udp":
             self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             self._socket.setblocking(False)
@@ -172,6 +177,7 @@ class RigConnection:
             self.sent += 1
         except OSError:
             self.failed += 1
+        self.send_times_s.append(time.perf_counter())
 
     def close(self) -> None:
         """Closes the socket or the port."""
@@ -235,16 +241,26 @@ class RigOutputSender(LeafSystem):
         self._connection.send(encode(target.tolist(), self._config))
         return EventStatus.Succeeded()
 
-    def summary(self) -> dict:
+    def summary(self, arrivals_s=(), sample_instants=()) -> dict:
         """The summary's `rig` block: where, in what format, which actuators in what order,
-        messages sent and failed."""
+        messages sent and failed, and (given each new telemetry sample's arrival,
+        time.perf_counter() s, and the control instant it was first used at) the latency
+        from a sample's arrival to the rig's message computed from it (median, p99, max;
+        the message of instant k is the k-th sent)."""
         connection = self._connection
+        sends = connection.send_times_s
+        latencies = [
+            sends[k] - arrival
+            for arrival, k in zip(arrivals_s, sample_instants, strict=True)
+            if 0 <= k < len(sends)
+        ]
         return {
             "url": connection.url,
             "format": self._config.format,
             "actuators": list(self._robot.actuator_names),
             "sent": connection.sent,
             "failed": connection.failed,
+            "latency_s": step_time_summary(np.asarray(latencies)) if latencies else None,
         }
 
 

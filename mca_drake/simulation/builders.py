@@ -20,12 +20,14 @@ from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing import DpcConfig, McaConfig, NmpcConfig, WashoutConfig, as_mca_config
 from mca_drake.cueing.plausibility import PlausibilityConfig
 from mca_drake.platforms.demo_motion import demo_joint_motion
+from mca_drake.platforms.leg_platform import LegPlatform
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.references.reference import Reference
 from mca_drake.safety import substep_position_coefficient
 from mca_drake.systems import MotionCueingPlant, ReferenceSource
 from mca_drake.systems.comfort_bound import CabinComfortBound
 from mca_drake.systems.dpc import DpcPolicy
+from mca_drake.systems.meshcat_legs import MeshcatLegs
 from mca_drake.systems.meshcat_traces import MeshcatOutputTraces
 from mca_drake.systems.nmpc import NmpcController
 from mca_drake.systems.plausibility import ReferenceGuard
@@ -389,6 +391,7 @@ def MakeMultibodyClosedLoop(
             station_handles,
             source.GetOutputPort("reference"),
             time_step,
+            robot,
         )
     diagram = builder.Build()
     diagram.set_name("multibody_closed_loop")
@@ -401,9 +404,13 @@ def default_visualization() -> VisualizationConfig:
     return VisualizationConfig(publish_period=1 / 30, publish_proximity=False)
 
 
-def AddMeshcatDrawing(builder, meshcat, visualization, station_handles, reference_port, time_step):
+def AddMeshcatDrawing(
+    builder, meshcat, visualization, station_handles, reference_port, time_step, robot=None
+):
     """Meshcat drawing of the station and the live target/measured strip charts (the target
-    from `reference_port`); returns the MeshcatOutputTraces system.
+    from `reference_port`), and a legged platform's legs (`robot`, a `LegPlatform`; the
+    virtual chain's URDF draws only its base and moving platform); returns the
+    MeshcatOutputTraces system.
 
     The drawing follows Drake's VisualizationConfig: the illustration and proximity layers
     with their colours, publish period and alpha sliders, as ApplyVisualizationConfig
@@ -436,4 +443,9 @@ def AddMeshcatDrawing(builder, meshcat, visualization, station_handles, referenc
     )
     builder.Connect(reference_port, traces.GetInputPort("reference"))
     builder.Connect(station_handles.true_output, traces.GetInputPort("measured_output"))
+    if isinstance(robot, LegPlatform):
+        legs = builder.AddNamedSystem(
+            "legs", MeshcatLegs(meshcat, robot, publish_period=config.publish_period)
+        )
+        builder.Connect(station_handles.true_state, legs.GetInputPort("state"))
     return traces
