@@ -70,41 +70,76 @@ class SerialRobot:
 
 
 @dataclasses.dataclass
-class Hexapod:
-    """A Stewart-platform hexapod from its legs' geometry and limits
-    (`mca_drake.platforms.leg_platform`): its joints listed, or the symmetric 6-6
-    layout of `LegGeometry.symmetric` by radii and angles."""
+class _Legs:
+    """What every platform moved by legs states: its legs' joints and limits, its head and
+    its payload (`Hexapod` and `Rig` add how its pose is laid out)."""
 
     # The platform's name, as results and policy files record it; a file's stem if empty.
     name: str = ""
-    # Base joints b_i in the base frame (x forward, y left, z up; origin in their plane), m:
-    # six [x, y, z]; empty: the symmetric layout below.
+    # Where each leg attaches: on the base (base frame: x forward, y left, z up; origin in
+    # the joints' plane), m, one [x, y, z] per leg, and on the moving platform (its frame,
+    # whose origin is the point it turns about), m, leg i from base joint i.
     base_joints: list[list[float]] = dataclasses.field(default_factory=list)
-    # Platform joints p_i in the moving platform's frame, m: six [x, y, z], leg i from b_i.
     platform_joints: list[list[float]] = dataclasses.field(default_factory=list)
+    # The moving platform's origin above the base frame at the neutral pose, m.
+    neutral_height: float = 0.0
+    # The legs' length range between joint centres, m.
+    min_length: float = 0.0
+    max_length: float = 0.0
+    # The actuators' speed (m/s) and acceleration (m/s^2) limits along the legs.
+    max_speed: float = 0.0
+    max_acceleration: float = 0.0
+    # The occupant's head in the moving platform's frame, m.
+    head_position: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 1.0])
+    # The moving mass (platform, cabin or seat, occupant), kg, and its principal inertias,
+    # kg m^2.
+    payload_mass: float = 1000.0
+    payload_inertia: list[float] = dataclasses.field(default_factory=lambda: [500.0] * 3)
+    # Where the description says its numbers come from (maker's data sheet, paper, ...).
+    source: str = ""
+
+    def listed_geometry(self) -> LegGeometry:
+        """The legs as listed, validated (`LegGeometry.validate`)."""
+        geometry = LegGeometry(
+            base_joints=self.base_joints,
+            platform_joints=self.platform_joints,
+            neutral_height=self.neutral_height,
+            min_length=self.min_length,
+            max_length=self.max_length,
+            max_speed=self.max_speed,
+            max_acceleration=self.max_acceleration,
+        )
+        geometry.validate()
+        return geometry
+
+    def _build(self, geometry: LegGeometry, coordinates, tag: str) -> LegPlatform:
+        if not self.name:
+            raise ValueError(f"a {tag} platform needs a `name`")
+        return leg_platform(
+            geometry,
+            name=self.name,
+            coordinates=coordinates,
+            head_position=self.head_position,
+            payload_mass=self.payload_mass,
+            payload_inertia=self.payload_inertia,
+            source=self.source,
+        )
+
+
+@dataclasses.dataclass
+class Hexapod(_Legs):
+    """A Stewart-platform hexapod from its legs' geometry and limits
+    (`mca_drake.platforms.leg_platform`): its six legs' joints listed, or the symmetric 6-6
+    layout of `LegGeometry.symmetric` by radii and angles (then `stroke`, centred on the
+    neutral length, instead of min_length and max_length)."""
+
     # The symmetric layout (where no joints are listed): the joint circles' radii, m, and
     # half the angle between a pair's two joints on each, rad.
     base_radius: float = 0.0
     platform_radius: float = 0.0
     base_half_angle: float = 0.0
     platform_half_angle: float = 0.0
-    # The platform frame's height above the base frame at the neutral pose, m.
-    neutral_height: float = 0.0
-    # The legs' length range between joint centres, m: both, or (symmetric layout) a
-    # stroke centred on the neutral length.
-    min_length: float = 0.0
-    max_length: float = 0.0
     stroke: float = 0.0
-    # The actuators' speed (m/s) and acceleration (m/s^2) limits along the legs.
-    max_speed: float = 0.0
-    max_acceleration: float = 0.0
-    # The occupant's head in the moving platform's frame, m.
-    head_position: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 1.0])
-    # The moving mass (platform, cabin, occupant), kg, and its principal inertias, kg m^2.
-    payload_mass: float = 1000.0
-    payload_inertia: list[float] = dataclasses.field(default_factory=lambda: [500.0] * 3)
-    # Where the description says its numbers come from (maker's data sheet, paper, ...).
-    source: str = ""
 
     def geometry(self) -> LegGeometry:
         """The legs, validated (`LegGeometry.validate`)."""
@@ -124,30 +159,21 @@ class Hexapod:
         if listed:
             if self.stroke:
                 raise ValueError("a !Hexapod with listed joints gives min_length and max_length")
-            geometry = LegGeometry(
-                base_joints=self.base_joints,
-                platform_joints=self.platform_joints,
-                neutral_height=self.neutral_height,
-                min_length=self.min_length,
-                max_length=self.max_length,
-                max_speed=self.max_speed,
-                max_acceleration=self.max_acceleration,
+            return self.listed_geometry()
+        if not all(v > 0 for v in symmetric[:2]) or self.stroke <= 0:
+            raise ValueError(
+                "a !Hexapod needs base_joints and platform_joints, or base_radius, "
+                "platform_radius, base_half_angle, platform_half_angle and stroke"
             )
-        else:
-            if not all(v > 0 for v in symmetric[:2]) or self.stroke <= 0:
-                raise ValueError(
-                    "a !Hexapod needs base_joints and platform_joints, or base_radius, "
-                    "platform_radius, base_half_angle, platform_half_angle and stroke"
-                )
-            if self.min_length or self.max_length:
-                raise ValueError("a symmetric !Hexapod gives stroke, not min/max_length")
-            geometry = LegGeometry.symmetric(
-                *symmetric,
-                neutral_height=self.neutral_height,
-                stroke=self.stroke,
-                max_speed=self.max_speed,
-                max_acceleration=self.max_acceleration,
-            )
+        if self.min_length or self.max_length:
+            raise ValueError("a symmetric !Hexapod gives stroke, not min/max_length")
+        geometry = LegGeometry.symmetric(
+            *symmetric,
+            neutral_height=self.neutral_height,
+            stroke=self.stroke,
+            max_speed=self.max_speed,
+            max_acceleration=self.max_acceleration,
+        )
         geometry.validate()
         return geometry
 
@@ -159,69 +185,23 @@ class Hexapod:
                 f"a !Hexapod has six legs; got {len(geometry.base_joints)} (a rig with fewer "
                 "is a !Rig)"
             )
-        return _build_legged(self, geometry, COORDINATES, "!Hexapod")
+        return self._build(geometry, COORDINATES, "!Hexapod")
 
 
 @dataclasses.dataclass
-class Rig:
+class Rig(_Legs):
     """A 2- or 3-DOF motion rig moved by linear actuators (`mca_drake.platforms.leg_platform`):
     the pose coordinates its mechanism leaves free, and its actuators' joints."""
 
-    # The platform's name, as results and policy files record it; a file's stem if empty.
-    name: str = ""
     # The pose coordinates it moves in, in chain order: [pitch, roll] (a 2-DOF seat on a
     # pivot), [heave, pitch, roll] (a 3-DOF rig); the mechanism holds the others at zero.
     coordinates: list[str] = dataclasses.field(default_factory=list)
-    # Where each actuator attaches: on the base (base frame: x forward, y left, z up), m, and
-    # on the moving platform (its frame, whose origin is the point it turns about), m.
-    base_joints: list[list[float]] = dataclasses.field(default_factory=list)
-    platform_joints: list[list[float]] = dataclasses.field(default_factory=list)
-    # The moving platform's origin above the base frame at the neutral pose, m.
-    neutral_height: float = 0.0
-    # The actuators' length range between joint centres, m.
-    min_length: float = 0.0
-    max_length: float = 0.0
-    # The actuators' speed (m/s) and acceleration (m/s^2) limits.
-    max_speed: float = 0.0
-    max_acceleration: float = 0.0
-    # The occupant's head in the moving platform's frame, m.
-    head_position: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.8])
-    # The moving mass (seat, occupant), kg, and its principal inertias, kg m^2.
-    payload_mass: float = 150.0
-    payload_inertia: list[float] = dataclasses.field(default_factory=lambda: [20.0] * 3)
-    # Where the description says its numbers come from.
-    source: str = ""
 
     def build(self, base_dir: str | os.PathLike = ".") -> LegPlatform:
         """The platform (`leg_platform`); `base_dir` is unused (nothing to read)."""
         if not self.coordinates:
             raise ValueError("a !Rig lists the coordinates it moves in, e.g. [pitch, roll]")
-        geometry = LegGeometry(
-            base_joints=self.base_joints,
-            platform_joints=self.platform_joints,
-            neutral_height=self.neutral_height,
-            min_length=self.min_length,
-            max_length=self.max_length,
-            max_speed=self.max_speed,
-            max_acceleration=self.max_acceleration,
-        )
-        geometry.validate()
-        return _build_legged(self, geometry, self.coordinates, "!Rig")
-
-
-def _build_legged(description, geometry: LegGeometry, coordinates, tag: str) -> LegPlatform:
-    """The `LegPlatform` of a !Hexapod or !Rig description."""
-    if not description.name:
-        raise ValueError(f"a {tag} platform needs a `name`")
-    return leg_platform(
-        geometry,
-        name=description.name,
-        coordinates=coordinates,
-        head_position=description.head_position,
-        payload_mass=description.payload_mass,
-        payload_inertia=description.payload_inertia,
-        source=description.source,
-    )
+        return self._build(self.listed_geometry(), self.coordinates, "!Rig")
 
 
 # The descriptions a platform file or a scenario's `platform` field can hold, by YAML tag.
