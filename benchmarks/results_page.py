@@ -909,7 +909,17 @@ def _live(results_dir: Path, data: dict) -> list[str]:
                 str(sum(run["violations"].values())),
             ]
         )
+        rig = run.get("rig")
+        if rig:  # the rig's own output: from a sample to the rig's message computed from it
+            rig_latency = rig["latency_s"]
+            rows[-1].insert(
+                2,
+                f"{fmt_ms(rig_latency['median'])} / {fmt_ms(rig_latency['p99'])} / "
+                f"{fmt_ms(rig_latency['max'])}",
+            )
     header = ["run", "sample to command: median / p99 / max", "wait for the poll (median)"]
+    if any(run.get("rig") for run in data["runs"].values()):
+        header.insert(2, "sample to rig message: median / p99 / max")
     header += ["loop jitter p99", "CPU load", "packets / dropped", "violations"]
     sender = data.get("sender", "JSBSim's FGNetFDM packets of the light aircraft, seed 7")
     lines = [
@@ -1126,6 +1136,14 @@ SECTIONS = (
         "live_driving.json",
         "the same figures on a racing simulator's telemetry: a car's drive as BeamNG "
         "MotionSim packets",
+        _live,
+    ),
+    Section(
+        "Live loop, hexapod",
+        "live_hexapod.json",
+        "the same figures on the packaged hexapod with the rig's own output: its leg lengths "
+        "to a loopback listener each period, and the latency from a sample to that message "
+        "(`bench_live.py --platform hexapod --rig`)",
         _live,
     ),
     Section(
