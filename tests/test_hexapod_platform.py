@@ -132,6 +132,12 @@ def test_actuator_motion_is_the_time_derivative_of_the_leg_lengths(hexapod):
     )
     np.testing.assert_allclose(speeds, (after - before) / (2 * dt), atol=1e-8)
     np.testing.assert_allclose(accelerations, (after - 2 * lengths + before) / dt**2, atol=2e-5)
+    # one pass for a clamp: drift + J qdd is the legs' acceleration, J the Jacobian
+    rate_lengths, rate_speeds, drift, J = hexapod.actuator_rates(q, qd)
+    np.testing.assert_allclose(rate_lengths, lengths, atol=1e-14)
+    np.testing.assert_allclose(rate_speeds, speeds, atol=1e-14)
+    np.testing.assert_allclose(drift + J @ qdd, accelerations, atol=1e-12)
+    np.testing.assert_allclose(J, hexapod.actuator_jacobian(q), atol=1e-14)
     # batched = one at a time
     batch = hexapod.actuator_motion(
         np.stack([q, 2 * q]), np.stack([qd, qd]), np.stack([qdd, 0 * qdd])

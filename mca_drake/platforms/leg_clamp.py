@@ -109,9 +109,7 @@ class LegClamp:
         speeds (m/s), accelerations at zero command c (m/s^2), each (6,), and dl/dq (6, 6)."""
         x = np.asarray(x, dtype=float)
         n = self.platform.num_joints
-        q, qd = x[:n], x[n:]
-        lengths, speeds, drift = self.platform.actuator_motion(q, qd, np.zeros(n))
-        return lengths, speeds, drift, self.platform.actuator_jacobian(q)
+        return self.platform.actuator_rates(x[:n], x[n:])
 
     def _leg_intervals(self, x):
         lengths, speeds, drift, J = self.leg_state(x)
@@ -154,12 +152,10 @@ class LegClamp:
         x = np.asarray(x, dtype=float)
         n, h = self.platform.num_joints, self.h
         q, qd = x[:n] + h * x[n:] + 0.5 * h * h * u, x[n:] + h * u
-        _, _, accelerations = self.platform.actuator_motion(q, qd, u)
+        _, _, drift, J = self.platform.actuator_rates(q, qd)
         limit = self._end_limit
-        if np.all(np.abs(accelerations) <= limit):
+        if np.all(np.abs(drift + J @ u) <= limit):
             return None
-        J = self.platform.actuator_jacobian(q)
-        drift = accelerations - J @ u
         return J, -limit - drift, limit - drift
 
     def _nearest(self, command, rows) -> np.ndarray:

@@ -42,6 +42,7 @@ from mca_drake.platforms.legs import (
     leg_jacobian,
     leg_lengths,
     leg_motion,
+    leg_rates,
 )
 from mca_drake.platforms.serial import SerialChain, serial_chain_from_urdf
 
@@ -140,6 +141,13 @@ class LegPlatform(SerialChain):
         """The legs' lengths (m), speeds (m/s) and accelerations (m/s^2), each (..., legs),
         of coordinates q moving at qd with qdd (each (..., k)), exactly."""
         return leg_motion(self.pose(q), self.pose(qd), self.pose(qdd), self.actuators)
+
+    def actuator_rates(self, q, qd) -> tuple[np.ndarray, ...]:
+        """At one state (q, qd), each (k,): the legs' lengths, speeds and accelerations at
+        qdd = 0 (each (legs,)) and d(leg lengths)/dq (legs, k), in one pass
+        (`legs.leg_rates`): the legs' accelerations under qdd are drift + J qdd."""
+        lengths, speeds, drift, J = leg_rates(self.pose(q), self.pose(qd), self.actuators)
+        return lengths, speeds, drift, J[:, [POSE_INDEX[c] for c in self.coordinates]]
 
     def actuator_jacobian(self, q) -> np.ndarray:
         """d(leg lengths)/dq at one pose q (k,): (legs, k), exact."""

@@ -138,7 +138,11 @@ def _legs(pose: np.ndarray, geometry: LegGeometry) -> np.ndarray:
     pose = np.asarray(pose, dtype=float)
     if pose.shape[-1:] != (6,) or not np.all(np.isfinite(pose)):
         raise ValueError(f"a pose is six finite numbers (x, y, z, roll, pitch, yaw); got {pose}")
-    R = rotation(pose[..., 3], pose[..., 4], pose[..., 5])
+    if pose.ndim == 1:  # one pose: from its factors' scalars, not the batched stack
+        Rx, Ry, Rz = _factors(pose[3:])
+        R = Rz @ Ry @ Rx
+    else:
+        R = rotation(pose[..., 3], pose[..., 4], pose[..., 5])
     t = pose[..., :3] + np.array([0.0, 0.0, geometry.neutral_height])
     p = np.asarray(geometry.platform_joints, dtype=float)
     b = np.asarray(geometry.base_joints, dtype=float)
@@ -175,25 +179,45 @@ _K = (
 )
 
 
+# Each axis' cross-product matrix to the powers 0, 1 and 2.
+_K_POWERS = tuple(tuple(np.linalg.matrix_power(K, m) for m in range(3)) for K in _K)
+
+
+def _factors(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rx(roll), Ry(pitch), Rz(yaw) of angles (..., 3); one pose's from scalars (a clamp
+    evaluates one pose a period, where numpy's batched stacking costs most of the time)."""
+    if angles.ndim == 1:
+        (cr, cp, cy), (sr, sp, sy) = np.cos(angles).tolist(), np.sin(angles).tolist()
+        return (
+            np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]]),
+            np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]]),
+            np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]]),
+        )
+    zero = np.zeros_like(angles[..., 0])
+    return (
+        rotation(angles[..., 0], zero, zero),
+        rotation(zero, angles[..., 1], zero),
+        rotation(zero, zero, angles[..., 2]),
+    )
+
+
 def _rotation_derivatives(angles: np.ndarray, second: bool = True) -> tuple[list, list]:
     """dR/dangle_k (3) and, with `second`, d2R/dangle_k dangle_l (3 x 3; else []) of
     R = Rz Ry Rx at angles (..., 3) = (roll, pitch, yaw), each (..., 3, 3): each factor's
     derivative is the factor times its axis' cross-product matrix."""
-    Rx = rotation(angles[..., 0], 0.0 * angles[..., 0], 0.0 * angles[..., 0])
-    Ry = rotation(0.0 * angles[..., 1], angles[..., 1], 0.0 * angles[..., 1])
-    Rz = rotation(0.0 * angles[..., 2], 0.0 * angles[..., 2], angles[..., 2])
-    Kx, Ky, Kz = _K
+    Rx, Ry, Rz = _factors(angles)
+    Kx, Ky, Kz = _K_POWERS
 
     def product(marks: dict) -> np.ndarray:
         # R with each factor f of `marks` replaced by its derivative (K f, or f K^m)
         zs = marks.get("z", 0)
-        out = np.linalg.matrix_power(Kz, zs) @ Rz if zs else Rz
+        out = Kz[zs] @ Rz if zs else Rz
         out = out @ Ry
         if marks.get("y"):
-            out = out @ np.linalg.matrix_power(Ky, marks["y"])
+            out = out @ Ky[marks["y"]]
         out = out @ Rx
         if marks.get("x"):
-            out = out @ np.linalg.matrix_power(Kx, marks["x"])
+            out = out @ Kx[marks["x"]]
         return out
 
     names = ("x", "y", "z")
@@ -244,6 +268,31 @@ def leg_motion(pose, pose_rate, pose_acceleration, geometry: LegGeometry):
     return lengths, speeds, accelerations
 
 
+def leg_rates(pose, pose_rate, geometry: LegGeometry):
+    """One pose (6,) moving at `pose_rate` (6,): the legs' lengths (m), speeds (m/s) and
+    accelerations at zero pose acceleration (m/s^2), each (legs,), and dl/dpose (legs, 6),
+    from one pass over the rotation's derivatives. A leg's acceleration under a pose
+    acceleration a is that drift plus J a (`leg_motion`'s l'' is linear in a): what a
+    clamp needs every period."""
+    pose = np.asarray(pose, dtype=float)
+    rate = np.asarray(pose_rate, dtype=float)
+    legs = _legs(pose, geometry)
+    lengths = np.linalg.norm(legs, axis=-1)
+    units = legs / lengths[:, None]
+    first, second = _rotation_derivatives(pose[3:])
+    R_dot = sum(first[k] * rate[3 + k] for k in range(3))
+    R_ddot = sum(second[k][m] * (rate[3 + k] * rate[3 + m]) for k in range(3) for m in range(3))
+    p = np.asarray(geometry.platform_joints, dtype=float)
+    v_dot = rate[:3] + p @ R_dot.T
+    speeds = _dot(units, v_dot)
+    drift = (_dot(v_dot, v_dot) - speeds**2) / lengths + _dot(units, p @ R_ddot.T)
+    J = np.empty((lengths.size, 6))
+    J[:, :3] = units
+    for k, dR in enumerate(first):
+        J[:, 3 + k] = _dot(units, p @ dR.T)
+    return lengths, speeds, drift, J
+
+
 def forward_kinematics(
     lengths,
     geometry: LegGeometry,
@@ -287,5 +336,6 @@ __all__ = [
     "leg_jacobian",
     "leg_lengths",
     "leg_motion",
+    "leg_rates",
     "rotation",
 ]
