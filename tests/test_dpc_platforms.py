@@ -224,3 +224,51 @@ def test_transfer_policy_writes_a_policy_for_the_platform(tmp_path, capsys):
     rail = str(shipped_policy_path("kr500-rail_default_policy"))
     assert main(["transfer-policy", rail, "--platform", "kr500", "--out", str(tmp_path / "x")]) == 2
     assert "['rail_axis'] that platform 'kr500' does not have" in capsys.readouterr().err
+
+
+def test_a_policy_trains_on_the_hexapod_with_its_legs_in_the_loss(tmp_path):
+    """train-policy --platform hexapod from scratch: the rollout's limit term holds the
+    legs (a rollout beyond the stroke pays for it), and the file records the hexapod and
+    runs there."""
+    from mca_drake.learning.dpc_training import RolloutPlant
+
+    hexapod = load_platform("hexapod")
+    data = rest_segments(_rail_targets(), hexapod.summary()).save(tmp_path / "hexapod.npz")
+    config = DpcTrainingConfig(
+        platform="hexapod",
+        compile=False,
+        window_segments=1,
+        own_start_fraction=0.0,
+        mirror_fraction=0.0,
+        yaw_shift_fraction=0.0,
+        train=TrainConfig(batch_size=8, max_epochs=2, horizons=(32,), device="cpu"),
+    )
+    plant = RolloutPlant(config, hexapod)
+    assert plant.legs is not None
+    # heave 0.25 m (inside no stroke: the legs reach 0.18 m) costs; the neutral pose not
+    X = torch.zeros(1, 2, 12)
+    X[0, 1, 2] = 0.25
+    assert plant.legs.excess(X).item() > 0 and plant.legs.excess(torch.zeros(1, 2, 12)) == 0
+    _, path = train_policy(config, data, tmp_path / "out", progress=False)
+    _, metadata = load_policy_arrays(path)
+    assert policy_platform(metadata) == "hexapod" and metadata["platform"]["dof"] == 6
+    from mca_drake.systems.dpc import DpcPolicy
+
+    DpcPolicy(path, hexapod)
+
+
+def test_train_policy_learns_the_nmpc_objective_tuned_for_its_platform():
+    """--objective tuned (the default) on a platform that ships tuned NMPC weights trains
+    with those (read here from the shipped file itself); elsewhere the KR500's defaults."""
+    import yaml
+
+    from mca_drake.app.cli.training import objective_config
+    from mca_drake.resources import data_dir
+
+    shipped = yaml.safe_load((data_dir() / "platforms" / "hexapod.yaml").read_text())["nmpc"]
+    config = objective_config("tuned", "hexapod")
+    assert config.washout_weight == shipped["washout_weight"]
+    assert list(config.tracking_channel_weights) == shipped["output_weights"]
+    assert config.terminal_velocity_weight == shipped["terminal_velocity_weight"]
+    assert objective_config("tuned", "kr500-rail") == DpcTrainingConfig()
+    assert objective_config("tuned") == DpcTrainingConfig()

@@ -59,6 +59,7 @@ from threadpoolctl import ThreadpoolController
 
 from mca_drake.conventions import NUM_CHANNELS
 from mca_drake.cueing.nmpc_config import NmpcConfig
+from mca_drake.cueing.nmpc_legs import LegRows
 from mca_drake.cueing.nmpc_qp import CondensedQp, ShootingQp
 from mca_drake.cueing.nmpc_sqp import SequentialQpSolve
 from mca_drake.cueing.output_curvature import (
@@ -68,6 +69,7 @@ from mca_drake.cueing.output_curvature import (
 from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
+from mca_drake.platforms.leg_platform import LegPlatform
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.qp.active_set import (
     parallel_groups,
@@ -201,11 +203,22 @@ class MotionCueingOcp(SequentialQpSolve):
                     lower.append(np.full(nu, -np.inf))
                     upper.append((r.q_max if side > 0 else -r.q_min) + offset)
         self.A = np.vstack(rows)
-        # Every row of the QP in U: the node constraints A, then the box on U itself.
-        self._C = np.vstack([self.A, np.eye(nu * N)])
+        # A legged platform's legs: rows linearised about the plan at every iteration
+        # (`nmpc_legs`), between the fixed node rows and the box, rewritten in place.
+        self._legs = None
+        if isinstance(robot, LegPlatform) and cfg.leg_constraints:
+            self._legs = LegRows(
+                robot, self._Gq, self._Gqd, cfg.limit_margin, cfg.stoppability_tangents
+            )
+        leg_rows = 0 if self._legs is None else self._legs.num_rows
+        self._leg_rows = slice(self.A.shape[0], self.A.shape[0] + leg_rows)
+        # Every row of the QP in U: the node constraints A, the legs', the box on U itself.
+        self._C = np.vstack([self.A, np.zeros((leg_rows, nu * N)), np.eye(nu * N)])
         self.num_rows = self._C.shape[0]
-        # node 1's rows are multiples of u_0's box rows (the exact viability interval)
+        # node 1's rows are multiples of u_0's box rows (the exact viability interval); the
+        # legs' rows change with the plan and are counted parallel to none
         self._parallel = parallel_groups(self._C)
+        self._parallel[self._leg_rows] = -1
         self._row_norms = np.linalg.norm(self._C, axis=1)
         self._blas = ThreadpoolController()
         self._corrections = cfg.active_set_corrections
@@ -365,17 +378,33 @@ class MotionCueingOcp(SequentialQpSolve):
         return lo, hi
 
     def is_feasible(self, x0: np.ndarray, U: np.ndarray, tol: float = 1e-7) -> bool:
-        """Whether plan U satisfies every constraint from state x0."""
+        """Whether plan U satisfies every constraint from state x0 (a legged platform's
+        legs: their planned stroke and speed, exactly, at nodes 2..N)."""
         lb, ub = self.constraint_bounds(x0)
         AU = self.A @ U.reshape(-1)
         lo, hi = self.input_bounds(x0)
         u = U.reshape(-1)
+        legs_within = self._legs is None or self._legs.violation(*self.states(x0, U)) <= tol
         return bool(
             np.all(AU >= lb - tol)
             and np.all(AU <= ub + tol)
             and np.all(u >= lo - tol)
             and np.all(u <= hi + tol)
+            and legs_within
         )
+
+    def load_leg_rows(self, x0, U, row_lo: np.ndarray, row_hi: np.ndarray) -> None:
+        """A legged platform's leg rows linearised about plan U (N, n) from x0: written into
+        the QP's rows and into `row_lo`, `row_hi` (`num_rows` each, bounds on C U) in place,
+        so that the step's bounds (row - C U) are the linearisation's. No-op elsewhere."""
+        if self._legs is None:
+            return
+        C, lo, hi = self._legs.rows(*self.states(x0, U))
+        rows = self._leg_rows
+        self._C[rows] = C
+        self._row_norms[rows] = np.linalg.norm(C, axis=1)
+        CU = C @ U.reshape(-1)
+        row_lo[rows], row_hi[rows] = lo + CU, hi + CU
 
     def gauss_newton_terms(self, x0, U, refs) -> tuple[np.ndarray, np.ndarray]:
         """Hessian H (6N, 6N) and gradient g (6N,) of the Gauss-Newton model at U."""

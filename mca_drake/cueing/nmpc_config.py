@@ -67,6 +67,11 @@ class NmpcConfig:
     # Two tangents are enough: u_0 is held to the exact viability interval anyway, the
     # tangents only keep the later plan realistic, and each costs 12 rows per node.
     stoppability_tangents: int = 2
+    # Legged platforms (hexapods, rigs): plan within the legs' stroke and speed, linearised
+    # about the plan at every Gauss-Newton iteration at the nodes after the first
+    # (`mca_drake.cueing.nmpc_legs`). Off, the plan sees only the coordinates' box and the
+    # viability clamp alone holds the legs. Ignored on serial robots.
+    leg_constraints: bool = True
     # Corrections of a guessed active set (every offending row changed at once) before the
     # dual active-set method (`mca_drake.qp.dual_active_set`) takes the QP from the
     # guess's dual-feasible part. None: 0 in both modes. Each correction is one KKT solve

@@ -9,7 +9,8 @@ QP (OSQP or Clarabel):
   makes the constraint matrix dense and the QP ten times slower.
 - `CondensedQp`: min 1/2 d'Hd + g'd subject to d_lo <= C d <= d_hi over the condensed plan
   step d, for the perceived objective, whose cost couples the nodes so that stage costs
-  cannot hold it; built at its first use.
+  cannot hold it, and for a legged platform, whose leg rows move with the plan; built at
+  its first use, its rows reloaded at each solve.
 
 Both are sized from the platform's joint count n (the OCP's `PlanningLimits`).
 """
@@ -183,6 +184,7 @@ class CondensedQp:
             self._program = (prog, d, cost.evaluator(), limits.evaluator(), solver)
         prog, d, cost, limits, (solver, options) = self._program
         cost.UpdateCoefficients(H, g, 0.0, is_convex=True)
-        limits.set_bounds(d_lo, d_hi)
+        # C is the OCP's own array: a legged platform's leg rows change with the plan
+        limits.UpdateCoefficients(self._C, d_lo, d_hi)
         result = solver.Solve(prog, None, options)
         return _solution(result, d, (-1,))

@@ -153,6 +153,8 @@ class SequentialQpSolve:
         # Marquardt's damping, and the last non-zero one (`_next_damping`)
         damping, shed = 0.0, 0.0
         for _ in range(1 if mode == "rti" else cfg.max_iterations):
+            # a legged platform's legs, linearised about this iteration's plan
+            self.load_leg_rows(x0, U, row_lo, row_hi)
             g = model.g
             if multipliers is not None:
                 # U is the last QP's solution: feasible, its active rows exactly at their
@@ -226,7 +228,8 @@ class SequentialQpSolve:
         self._shooting.set_first_input_bounds(lo[: self.nu], hi[: self.nu])
         U = np.clip(U.reshape(-1), lo, hi).reshape(self.N, self.nu)
         lb, ub = self.constraint_bounds(x0)
-        row_lo, row_hi = np.concatenate([lb, lo]), np.concatenate([ub, hi])
+        legs = np.zeros(self.num_rows - lb.size - lo.size)  # set per iteration (load_leg_rows)
+        row_lo, row_hi = np.concatenate([lb, legs, lo]), np.concatenate([ub, legs, hi])
         active = np.zeros(self.num_rows, dtype=np.int8)
         if active_guess is not None and np.shape(active_guess) == (self.num_rows,):
             active = np.clip(np.rint(active_guess), -1, 1).astype(np.int8)
@@ -379,15 +382,16 @@ class SequentialQpSolve:
         if gauss_newton is not H:
             H, factor = gauss_newton, cholesky(gauss_newton)
         x0, U, refs, jac = linearisation
-        if self._output_form is None:
+        if self._output_form is None and self._legs is None:
             x_bar = self._update_qp(x0, U, refs, jac)
             U_qp, message = self._solve_qp(U, x_bar)
             if U_qp is None:
                 return None, None, False, message
             d = (U_qp - U).reshape(-1)
         else:
-            # the perceived cost couples the nodes: the sparse program's stage costs cannot
-            # hold it, so Drake's solver takes the condensed QP in the step itself
+            # the perceived cost couples the nodes, and the legs' rows move with the plan:
+            # the sparse program's stage costs and fixed rows hold neither, so Drake's
+            # solver takes the condensed QP in the step itself
             d, message = self._condensed_qp.solve(gauss_newton, g, d_lo, d_hi)
             if d is None:
                 return None, None, False, message

@@ -18,7 +18,9 @@ plus, beyond the paper, the NMPC's terminal cost ||q_n||^2 + ||qd_n||^2 on the l
 (without it a policy trained on 2.56 s rollouts drifts to the limits within seconds of a
 long flight), its weights scaled by the NMPC's horizon / n_c (`terminal_weight_horizon`),
 and the rollout runs behind the viability clamp the deployed policy runs behind
-(`safety_filter`), so that training and deployment see the same closed loop. Half of each
+(`safety_filter`), so that training and deployment see the same closed loop. On a legged
+platform (a hexapod, a small rig) the limit term also holds its legs' stroke and speed
+(`learning.legs.LegLimits`; the deployed clamp holds them exactly). Half of each
 training batch flies its window's mirror image (`mirror_fraction`), half starts with the base
 joint turned (`yaw_shift_fraction`) and half tracks its window slowed down
 (`time_stretch_fraction`), each drawn independently. Optionally the loss adds the PI's
@@ -61,6 +63,7 @@ from mca_drake.cueing.reference_range import (
 )
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
 from mca_drake.learning.configs import DpcTrainingConfig
+from mca_drake.learning.legs import LegLimits
 from mca_drake.learning.output_models import PAPER_PLATFORM, MixedAnalyticalOutput
 from mca_drake.learning.perception import TorchVestibularFilter
 from mca_drake.learning.policy_network import (
@@ -75,6 +78,7 @@ from mca_drake.learning.trainer import CurriculumTrainer
 from mca_drake.metrics import STILL_TOLERANCE
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.files import load_platform
+from mca_drake.platforms.leg_platform import LegPlatform
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.segments import (
     SOURCE_COLUMNS,
@@ -114,6 +118,9 @@ class RolloutPlant(nn.Module):
             self.output_model = MixedAnalyticalOutput()
             state = torch.load(config.learned_output_weights, map_location="cpu", weights_only=True)
             load_state_into(self.output_model, state, config.learned_output_weights)
+        # a legged platform's legs: their stroke and speed join the loss's limit term (the
+        # deployed viability clamp holds them exactly; the box clamp here is the joints')
+        self.legs = LegLimits(robot, self.dt) if isinstance(robot, LegPlatform) else None
         for p in self.parameters():
             p.requires_grad_(False)
 
@@ -228,12 +235,14 @@ def dpc_loss_terms(
     channel_weights: torch.Tensor | None = None,
     correlation: bool = False,
     perception: TorchVestibularFilter | None = None,
+    legs: LegLimits | None = None,
 ) -> dict[str, torch.Tensor]:
     """The loss terms (unweighted), each averaged over segments and steps; the tracking
     term's channels weighted by `channel_weights` if given (6, or per window (B, 1, 6) or
     (B, 1, 1)); with `perception`, the tracking term compares what the occupant perceives
     (the vestibular model of y - Y over the rollout, from rest); with `correlation`, also
-    sum_k (1 - CC_k) of `pooled_correlation` (0 to 12)."""
+    sum_k (1 - CC_k) of `pooled_correlation` (0 to 12); with `legs` (a legged platform's),
+    the limit term adds the legs' squared excess beyond their stroke and speed."""
     X_next = rollout.X[:, 1:]
     n = policy.joints
     lower, upper = policy.lower[n:], policy.upper[n:]
@@ -251,7 +260,8 @@ def dpc_loss_terms(
         "input": (rollout.U**2).sum(-1).mean(),
         "washout": squared_angles.sum(-1).mean(),
         "base_washout": squared_angles[..., 0].mean(),
-        "limits": (violation**2).sum(-1).mean(),
+        "limits": (violation**2).sum(-1).mean()
+        + (0.0 if legs is None else legs.excess(rollout.X).mean()),
         "terminal_position": (rollout.X[:, -1, :n] ** 2).sum(-1).mean(),
         "terminal_velocity": (rollout.X[:, -1, n:] ** 2).sum(-1).mean(),
     }
@@ -517,6 +527,7 @@ def dpc_objective(
             weights_here,
             correlation=config.correlation_weight > 0,
             perception=perception,
+            legs=plant.legs,
         )
         if config.terminal_weight_horizon > 0:
             scale = config.terminal_weight_horizon / targets.shape[1]

@@ -1,8 +1,12 @@
 """The torch twin of `mca_drake.platforms.legs`: a legged platform's leg lengths from its
-pose, differentiable, for training a policy through the legs."""
+pose, differentiable, for training a policy through the legs, and the legs' limits as the
+penalty a DPC rollout pays (`LegLimits`)."""
 
 import torch
+from torch import nn
 
+from mca_drake.platforms.leg_clamp import RATE_RESERVE, STROKE_RESERVE_M
+from mca_drake.platforms.leg_platform import POSE_INDEX, LegPlatform
 from mca_drake.platforms.legs import LegGeometry
 
 
@@ -34,4 +38,48 @@ def leg_lengths(pose: torch.Tensor, geometry: LegGeometry) -> torch.Tensor:
     return torch.linalg.vector_norm(legs, dim=-1)
 
 
-__all__ = ["leg_lengths", "rotation"]
+class LegLimits(nn.Module):
+    """How far a legged platform's rollout takes its legs past their stroke and speed: the
+    DPC loss's limit term for the legs (the coordinates' box is the policy's own).
+
+    The legs' lengths are exact (`leg_lengths` of each state's pose); their speeds are the
+    lengths' differences over a control period (what the rollout's steps move them by), so
+    the term needs no derivatives of the kinematics beyond autograd's. The limits keep the
+    viability clamp's reserves (`platforms.leg_clamp`), so that a policy trained inside them
+    is one the deployed clamp lets through unchanged.
+
+    Args:
+        platform: the legged platform (k coordinates).
+        dt: the rollout's control period, s.
+    """
+
+    def __init__(self, platform: LegPlatform, dt: float):
+        super().__init__()
+        self.geometry = geometry = platform.actuators
+        self.dt = float(dt)
+        k = platform.num_joints
+        to_pose = torch.zeros(k, 6)
+        for i, coordinate in enumerate(platform.coordinates):
+            to_pose[i, POSE_INDEX[coordinate]] = 1.0
+        self.register_buffer("to_pose", to_pose, persistent=False)
+        self.low = geometry.min_length + STROKE_RESERVE_M
+        self.high = geometry.max_length - STROKE_RESERVE_M
+        self.max_speed = geometry.max_speed * (1.0 - RATE_RESERVE)
+
+    def lengths(self, X: torch.Tensor) -> torch.Tensor:
+        """The leg lengths (m) of states X (..., 2k): (..., legs)."""
+        k = self.to_pose.shape[0]
+        return leg_lengths(X[..., :k] @ self.to_pose.to(X), self.geometry)
+
+    def excess(self, X: torch.Tensor) -> torch.Tensor:
+        """Per step of a rollout X (B, T + 1, 2k): the sum over legs of the squared excess
+        beyond the stroke at the step's end (m^2) and beyond the speed over the step
+        ((m/s)^2), shape (B, T)."""
+        lengths = self.lengths(X)
+        after = lengths[:, 1:]
+        stroke = torch.relu(after - self.high) + torch.relu(self.low - after)
+        speed = torch.relu((lengths[:, 1:] - lengths[:, :-1]).abs() / self.dt - self.max_speed)
+        return (stroke**2 + speed**2).sum(-1)
+
+
+__all__ = ["LegLimits", "leg_lengths", "rotation"]

@@ -106,7 +106,7 @@ class OperatorConsole(LeafSystem):
                 )
                 self._record(context.get_time(), source.name, text, said, accepted)
                 if new_mode == ESTOP and mode != ESTOP:
-                    self.estop = {"t_s": round(context.get_time(), 4), "source": source.name}
+                    self.estop = {"t_s": round(context.get_time(), 6), "source": source.name}
                 mode = new_mode
                 if answer is not None:
                     answer(said)
@@ -152,7 +152,7 @@ class OperatorConsole(LeafSystem):
             "commands": self.commands,
             "refused": self.refused,
             "log": [
-                {"t_s": round(t, 4), "source": src, "command": text, "answer": said}
+                {"t_s": round(t, 6), "source": src, "command": text, "answer": said}
                 for t, src, text, said, _ in self.log
             ],
             "final": dict(zip(CONTROL_SETTINGS, s[_CURRENT], strict=True))

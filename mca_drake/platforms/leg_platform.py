@@ -41,6 +41,7 @@ from mca_drake.platforms.legs import (
     LegGeometry,
     leg_jacobian,
     leg_lengths,
+    leg_linearisation,
     leg_motion,
     leg_rates,
 )
@@ -148,6 +149,14 @@ class LegPlatform(SerialChain):
         (`legs.leg_rates`): the legs' accelerations under qdd are drift + J qdd."""
         lengths, speeds, drift, J = leg_rates(self.pose(q), self.pose(qd), self.actuators)
         return lengths, speeds, drift, J[:, [POSE_INDEX[c] for c in self.coordinates]]
+
+    def actuator_linearisation(self, q, qd) -> tuple[np.ndarray, ...]:
+        """At states (q, qd), each (..., k): the legs' lengths (m) and speeds (m/s), each
+        (..., legs), and their exact derivatives J = dl/dq = dl'/dqd and S = dl'/dq, each
+        (..., legs, k) (`legs.leg_linearisation`): what the NMPC bounds the legs with."""
+        lengths, speeds, J, S = leg_linearisation(self.pose(q), self.pose(qd), self.actuators)
+        columns = [POSE_INDEX[c] for c in self.coordinates]
+        return lengths, speeds, J[..., columns], S[..., columns]
 
     def actuator_jacobian(self, q) -> np.ndarray:
         """d(leg lengths)/dq at one pose q (k,): (legs, k), exact."""

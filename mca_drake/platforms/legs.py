@@ -15,6 +15,8 @@ B) to the platform joint p_i (in P); its length is
 `leg_lengths` is that inverse kinematics (batched over poses); `leg_jacobian` its exact
 derivative dl/dpose (legs x 6); `leg_motion` the legs' lengths, speeds and accelerations of a
 pose moving with given pose rates and accelerations (what the actuator limits bound);
+`leg_linearisation` the exact derivatives of lengths and speeds along a motion (what a
+planner's linearised limits need);
 `forward_kinematics` inverts a hexapod's `leg_lengths` by Newton's method from the neutral
 pose (or a guess), to 1e-12 m on the lengths. The torch twin (for training through
 the legs) is `mca_drake.learning.legs`.
@@ -291,6 +293,45 @@ def leg_rates(pose, pose_rate, geometry: LegGeometry):
     for k, dR in enumerate(first):
         J[:, 3 + k] = _dot(units, p @ dR.T)
     return lengths, speeds, drift, J
+
+
+def leg_linearisation(pose, pose_rate, geometry: LegGeometry):
+    """Poses (..., 6) moving at `pose_rate` (..., 6): the legs' lengths l (m) and speeds
+    l' (m/s), each (..., legs), and their exact first derivatives: J = dl/dpose =
+    dl'/dpose_rate and S = dl'/dpose, each (..., legs, 6). What a planner needs to bound
+    the legs' stroke and speed along a planned motion, linearised about it.
+
+    With v_i = t + R p_i - b_i, u_i = v_i / l_i and l'_i = u_i . v'_i:
+    dl'_i/dpose_j = (dv_i/dpose_j . v'_i - (u_i . dv_i/dpose_j) l'_i) / l_i
+                    + u_i . (dv'_i/dpose_j),
+    dv'_i/dpose_j zero for the position coordinates and d2R/dangle_j dangle_k rate_k p_i
+    for the angles.
+    """
+    pose = np.asarray(pose, dtype=float)
+    rate = np.broadcast_to(np.asarray(pose_rate, dtype=float), pose.shape)
+    legs = _legs(pose, geometry)
+    lengths = np.linalg.norm(legs, axis=-1)
+    units = legs / lengths[..., None]
+    first, second = _rotation_derivatives(pose[..., 3:])
+    p = np.asarray(geometry.platform_joints, dtype=float)
+
+    def angle(values: np.ndarray, k: int) -> np.ndarray:
+        return values[..., 3 + k, None, None]
+
+    R_dot = sum(first[k] * angle(rate, k) for k in range(3))
+    v_dot = rate[..., None, :3] + np.einsum("...jk,ik->...ij", R_dot, p)
+    speeds = _dot(units, v_dot)
+    # dv_i/dpose_j (..., legs, 6, 3): the unit vectors for x, y, z; dR/dangle p_i for angles
+    dv = np.zeros((*legs.shape[:-1], 6, 3))
+    dv[..., :, [0, 1, 2], [0, 1, 2]] = 1.0
+    for k in range(3):
+        dv[..., :, 3 + k, :] = np.einsum("...jk,ik->...ij", first[k], p)
+    J = np.einsum("...ic,...ijc->...ij", units, dv)
+    S = (np.einsum("...ijc,...ic->...ij", dv, v_dot) - J * speeds[..., None]) / lengths[..., None]
+    for k in range(3):
+        dR_dot = sum(second[k][m] * angle(rate, m) for m in range(3))
+        S[..., 3 + k] += _dot(units, np.einsum("...jk,ik->...ij", dR_dot, p))
+    return lengths, speeds, J, S
 
 
 def forward_kinematics(

@@ -21,9 +21,10 @@ from mca_drake.app.cli.flags import (
     given_fields,
 )
 from mca_drake.cueing.nmpc_config import NmpcConfig
-from mca_drake.cueing.profiles import profile_config
+from mca_drake.cueing.profiles import load_platform_settings, profile_config
 from mca_drake.learning.configs import DpcTrainingConfig
 from mca_drake.platforms.excitation import ExcitationConfig, generate_excitation_dataset
+from mca_drake.platforms.files import packaged_name
 from mca_drake.resources import PROFILES
 from mca_drake.segments import DEFAULT_DATASET
 
@@ -103,8 +104,8 @@ def _add_train_policy(commands) -> None:
         "--objective",
         choices=("tuned", "paper", *PROFILES),
         default="tuned",
-        help="loss weights: tuned (the shipped NMPC's weights, tracking the references; "
-        "default), paper (equation 9, tracking the NMPC-achieved outputs), or a profile's "
+        help="loss weights: tuned (the shipped NMPC's weights on --platform, tracking the "
+        "references; default), paper (equation 9, tracking the NMPC-achieved outputs), or a profile's "
         f"NMPC objective ({', '.join(PROFILES)}: that profile's weights, tracking the references)",
     )
     parser.add_argument("--dataset", default=DEFAULT_DATASET, help="closed-loop dataset.npz")
@@ -134,11 +135,14 @@ def channel_weights(text: str) -> str | tuple[float, ...]:
         ) from None
 
 
-def objective_config(objective: str) -> DpcTrainingConfig:
-    """--objective: the training config whose loss is "tuned" (the defaults), "paper", or a
-    profile's NMPC objective (`mca_drake.cueing.profiles`)."""
+def objective_config(objective: str, platform: str = "") -> DpcTrainingConfig:
+    """--objective: the training config whose loss is "tuned" (the NMPC tuned for the
+    packaged `platform` where it ships settings, `cueing.profiles.load_platform_settings`;
+    else the defaults, tuned on the KR500), "paper", or a profile's NMPC objective
+    (`mca_drake.cueing.profiles`)."""
     if objective == "tuned":
-        return DpcTrainingConfig()
+        tuned = load_platform_settings(packaged_name(platform)) if platform else None
+        return DpcTrainingConfig() if tuned is None else DpcTrainingConfig.matching(tuned.nmpc)
     if objective == "paper":
         return DpcTrainingConfig.paper()
     return DpcTrainingConfig.matching(profile_config(NmpcConfig, objective))
@@ -160,7 +164,7 @@ def run_train_policy(args: argparse.Namespace) -> int:
     # torch: loaded by the training commands only, so the others start fast
     from mca_drake.learning.dpc_training import train_policy
 
-    base = objective_config(args.objective)
+    base = objective_config(args.objective, args.platform or "")
     config = dataclasses.replace(base, **given_fields(args, POLICY_FLAGS))
     if args.no_compile:
         config.compile = False
