@@ -130,3 +130,35 @@ def test_a_rig_that_cannot_move_as_it_says_is_refused(tmp_path, coordinates, bas
     path.write_text(RIG.format(coordinates=coordinates, base=base))
     with pytest.raises(ValueError, match=message):
         load_platform(path)
+
+
+def test_a_scenario_cues_a_hexapod_or_a_seat_described_inline():
+    """`platform: !Hexapod {...}` and `!Rig {...}` in a scenario (or --set) build the same
+    platform as the file would, and a closed loop runs on it within every leg limit."""
+    from mca_drake.app.jobs import run_closed_loop_scenario
+    from mca_drake.app.scenarios import load_scenario
+
+    hexapod = (
+        "{platform: !Hexapod {name: inline-hexapod, base_radius: 1.2, platform_radius: 0.55, "
+        "base_half_angle: 0.349066, platform_half_angle: 0.0698132, neutral_height: 1.05, "
+        "stroke: 0.30, max_speed: 0.25, max_acceleration: 4.0, head_position: [0, 0, 1.1]}}"
+    )
+    seat = (
+        "{platform: !Rig {name: inline-seat, coordinates: [pitch, roll], "
+        "base_joints: [[-0.35, 0.30, 0.0], [-0.35, -0.30, 0.0]], "
+        "platform_joints: [[-0.35, 0.30, 0.0], [-0.35, -0.30, 0.0]], neutral_height: 0.45, "
+        "min_length: 0.375, max_length: 0.525, max_speed: 0.2, max_acceleration: 5.0}}"
+    )
+    quick = "{mca: washout, plant: analytical, duration_s: 2.0}"
+    for override, name, kind, dof in (
+        (hexapod, "inline-hexapod", "hexapod", 6),
+        (seat, "inline-seat", "rig-2dof", 2),
+    ):
+        scenario = load_scenario("closed_loop_dpc", [quick, override])
+        result = run_closed_loop_scenario(scenario, progress=False, json_path="", plot_dir="")
+        platform = result.summary["platform"]
+        assert (platform["name"], platform["kind"], platform["dof"]) == (name, kind, dof)
+        assert sum(result.summary["violations"].values()) == 0
+        assert "actuator_position" in result.summary["violations"]
+    with pytest.raises(ValueError, match="platform"):
+        load_scenario("closed_loop_dpc", [quick, seat.replace("[pitch, roll]", "[roll, pitch]")])

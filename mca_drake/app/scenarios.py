@@ -53,7 +53,7 @@ from mca_drake.live.rsi.driver import RsiDriverConfig
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.files import (
     DEFAULT_PLATFORM,
-    SerialRobot,
+    PlatformField,
     load_platform,
     packaged_name,
 )
@@ -80,8 +80,9 @@ class PlantDemoScenario:
     # Control period of the plant and of the logged signals, s.
     time_step: float = CONTROL_PERIOD_S
     # The motion platform: a packaged name (`mca-drake platforms`), a platform file, or an
-    # inline !SerialRobot {name, urdf, ...} (its urdf relative to the working directory).
-    platform: Union[str, SerialRobot] = DEFAULT_PLATFORM  # noqa: UP007 (YAML loader)
+    # inline !SerialRobot {name, urdf, ...} (its urdf relative to the working directory),
+    # !Hexapod {...} or !Rig {...} (`mca_drake.platforms.files`).
+    platform: PlatformField = DEFAULT_PLATFORM
 
     def validate(self) -> None:
         """Raises ValueError for values that cannot run."""
@@ -122,8 +123,9 @@ class ClosedLoopScenario:
     # "analytical".
     plant: str = "multibody"
     # The motion platform: a packaged name (`mca-drake platforms`), a platform file, or an
-    # inline !SerialRobot {name, urdf, ...} (its urdf relative to the working directory).
-    platform: Union[str, SerialRobot] = DEFAULT_PLATFORM  # noqa: UP007 (YAML loader)
+    # inline !SerialRobot {name, urdf, ...} (its urdf relative to the working directory),
+    # !Hexapod {...} or !Rig {...} (`mca_drake.platforms.files`).
+    platform: PlatformField = DEFAULT_PLATFORM
     # The vehicle motion to cue: a flight (a recording file or a built-in JSBSim flight),
     # or a built-in drive tagged !DriveSpec (`mca_drake.references.drives`).
     flight: Union[FlightSpec, DriveSpec] = dataclasses.field(default_factory=FlightSpec)  # noqa: UP007 (YAML loader)
@@ -255,8 +257,8 @@ class EvaluationScenario:
     bound: Optional[OptimalConfig] = None  # noqa: UP045 (YAML loader)
     # The motion platform every run cues on: a packaged name (`mca-drake platforms`; its
     # tuned settings are the defaults of the MCAs named), a platform file, or an inline
-    # !SerialRobot {...}.
-    platform: Union[str, SerialRobot] = DEFAULT_PLATFORM  # noqa: UP007 (YAML loader)
+    # !SerialRobot {...}, !Hexapod {...} or !Rig {...}.
+    platform: PlatformField = DEFAULT_PLATFORM
 
     def __post_init__(self) -> None:
         self.mcas = [as_mca_config(m, packaged_name(self.platform)) for m in self.mcas]
@@ -320,8 +322,8 @@ class DatasetScenario:
     # Folder of the per-flight files and the merged dataset.npz (resumable).
     output_dir: str = DEFAULT_DATASET_DIR
     # The motion platform the MCA cues on: a packaged name (`mca-drake platforms`), a
-    # platform file, or an inline !SerialRobot {...}.
-    platform: Union[str, SerialRobot] = DEFAULT_PLATFORM  # noqa: UP007 (YAML loader)
+    # platform file, or an inline !SerialRobot {...}, !Hexapod {...} or !Rig {...}.
+    platform: PlatformField = DEFAULT_PLATFORM
 
     def __post_init__(self) -> None:
         self.mca = as_mca_config(self.mca, packaged_name(self.platform))
@@ -419,8 +421,8 @@ class LiveScenario:
     # health (`mca_drake.simulation.trajectory`); "": none.
     trajectory: str = ""
     # The motion platform cued: a packaged name (`mca-drake platforms`), a platform file,
-    # or an inline !SerialRobot {...}.
-    platform: Union[str, SerialRobot] = DEFAULT_PLATFORM  # noqa: UP007 (YAML loader)
+    # or an inline !SerialRobot {...}, !Hexapod {...} or !Rig {...}.
+    platform: PlatformField = DEFAULT_PLATFORM
 
     def __post_init__(self) -> None:
         self.mca = as_mca_config(self.mca, packaged_name(self.platform))

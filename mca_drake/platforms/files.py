@@ -19,6 +19,7 @@ inline description through the real field types.)
 import dataclasses
 import os
 from pathlib import Path
+from typing import Union
 
 import yaml
 
@@ -207,6 +208,9 @@ class Rig(_Legs):
 # The descriptions a platform file or a scenario's `platform` field can hold, by YAML tag.
 PLATFORM_KINDS = {"!SerialRobot": SerialRobot, "!Hexapod": Hexapod, "!Rig": Rig}
 PlatformDescription = SerialRobot | Hexapod | Rig
+# A config's `platform` field: a packaged name or a file, or a description inline (Drake's
+# YAML loader reads the tag: !SerialRobot {...}, !Hexapod {...}, !Rig {...}).
+PlatformField = Union[str, SerialRobot, Hexapod, Rig]  # noqa: UP007 (YAML loader)
 
 
 def _loader() -> type[yaml.SafeLoader]:

@@ -37,7 +37,7 @@ from mca_drake.atomic_io import check_writable
 from mca_drake.conventions import CONTROL_PERIOD_S, FIRST_EVALUATION_SEED
 from mca_drake.cueing import McaConfig, NmpcConfig, as_mca_config, mca_config_record
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
-from mca_drake.platforms.files import DEFAULT_PLATFORM, SerialRobot, load_platform, packaged_name
+from mca_drake.platforms.files import DEFAULT_PLATFORM, PlatformField, load_platform, packaged_name
 from mca_drake.platforms.kinematics import cut_trajectory
 from mca_drake.references.drives import (
     check_training_motion_vehicle,
@@ -95,7 +95,7 @@ class ClosedLoopDatasetConfig:
     dtype: str = "float32"
     # The motion platform the MCA cues on: a packaged name, a platform file or a
     # description (`mca_drake.platforms.files.load_platform`).
-    platform: str | SerialRobot = DEFAULT_PLATFORM
+    platform: PlatformField = DEFAULT_PLATFORM
 
     def __post_init__(self) -> None:
         self.mca = as_mca_config(self.mca, packaged_name(self.platform))

@@ -25,7 +25,7 @@ from mca_drake.cueing import (
 )
 from mca_drake.cueing.dpc import for_vehicle
 from mca_drake.cueing.optimal import OptimalConfig
-from mca_drake.platforms.files import SerialRobot, load_platform
+from mca_drake.platforms.files import PlatformField, load_platform
 from mca_drake.references.drives import motion_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.simulation.optimal_bound import run_optimal_bound
@@ -66,7 +66,7 @@ def _run_one(
     seed: int,
     duration_s: float,
     out: str,
-    platform: str | SerialRobot,
+    platform: PlatformField,
 ) -> dict:
     """One flight of a case through an MCA, or its offline-optimal bound, on `platform`;
     its summary is written to the run's file."""

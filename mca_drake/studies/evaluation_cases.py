@@ -29,7 +29,7 @@ from mca_drake.cueing.dpc import for_vehicle
 from mca_drake.cueing.optimal import OptimalConfig
 from mca_drake.cueing.recognition import RecognitionConfig
 from mca_drake.input_checks import MAX_DURATION_S, check_range
-from mca_drake.platforms.files import DEFAULT_PLATFORM, SerialRobot, load_platform, packaged_name
+from mca_drake.platforms.files import DEFAULT_PLATFORM, PlatformField, load_platform, packaged_name
 from mca_drake.references.drives import DriveSpec
 from mca_drake.references.flights import FlightSpec
 from mca_drake.references.jsbsim import UNSEEN_VEHICLES
@@ -130,7 +130,7 @@ class EvaluationConfig:
     bound: OptimalConfig | None = None
     # The motion platform every run cues on: a packaged name (its tuned settings are the
     # defaults of the MCAs named), a platform file or a description.
-    platform: str | SerialRobot = DEFAULT_PLATFORM
+    platform: PlatformField = DEFAULT_PLATFORM
 
     def __post_init__(self) -> None:
         self.mcas = tuple(as_mca_config(m, packaged_name(self.platform)) for m in self.mcas)

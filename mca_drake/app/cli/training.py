@@ -105,7 +105,8 @@ def _add_train_policy(commands) -> None:
         choices=("tuned", "paper", *PROFILES),
         default="tuned",
         help="loss weights: tuned (the shipped NMPC's weights on --platform, tracking the "
-        "references; default), paper (equation 9, tracking the NMPC-achieved outputs), or a profile's "
+        "references; default), paper (equation 9, tracking the NMPC-achieved outputs), or a "
+        "profile's "
         f"NMPC objective ({', '.join(PROFILES)}: that profile's weights, tracking the references)",
     )
     parser.add_argument("--dataset", default=DEFAULT_DATASET, help="closed-loop dataset.npz")
