@@ -60,6 +60,8 @@ JOINTS = {
     "pitch": ("revolute", (0, 1, 0)),
     "roll": ("revolute", (1, 0, 0)),
 }
+# The pose coordinate that moves each head velocity component [w_x, w_y, w_z, v_x, v_y, v_z].
+VELOCITY_COMPONENTS = ("roll", "pitch", "yaw", "surge", "sway", "heave")
 # Mirroring the motion about the base's x-z plane turns sway, yaw and roll round.
 MIRROR_SIGN = {"surge": 1.0, "sway": -1.0, "heave": 1.0, "yaw": -1.0, "pitch": 1.0, "roll": -1.0}
 # How far a rotation's single-axis reach is searched, rad (the chain's Euler angles are
@@ -129,6 +131,14 @@ class LegPlatform(SerialChain):
     def actuator_names(self) -> tuple[str, ...]:
         """The legs, in the order of `actuators`' joints: leg_1, leg_2, ..."""
         return tuple(f"leg_{i + 1}" for i in range(len(self.actuators.base_joints)))
+
+    @property
+    def head_velocity_components(self) -> tuple[bool, ...]:
+        """All six on a hexapod; on a rig, the head velocity components its coordinates
+        move (a pitch/roll seat: w_x and w_y)."""
+        if len(self.coordinates) == len(COORDINATES):
+            return (True,) * 6
+        return tuple(c in self.coordinates for c in VELOCITY_COMPONENTS)
 
     def pose(self, q) -> np.ndarray:
         """The pose (x, y, z, roll, pitch, yaw) (..., 6) of coordinates q (..., k)."""

@@ -103,6 +103,13 @@ class SerialChain:
         return np.asarray(q, dtype=float)
 
     @property
+    def head_velocity_components(self) -> tuple[bool, ...]:
+        """Which components of the head's spatial velocity [w_x, w_y, w_z, v_x, v_y, v_z] the
+        platform can follow independently (what a washout's inverse kinematics tracks): all
+        six on a serial robot (a rig moving in fewer coordinates says which)."""
+        return (True,) * 6
+
+    @property
     def x_min(self) -> np.ndarray:
         """Lower state bound [q_min, -qd_max], shape (2n,)."""
         return np.concatenate([self.q_min, -self.qd_max])

@@ -183,20 +183,11 @@ class ClassicalWashout(LeafSystem):
         )
 
 
-# The head velocity component [w_x, w_y, w_z, v_x, v_y, v_z] each pose coordinate moves.
-_COMPONENT = {"roll": 0, "pitch": 1, "yaw": 2, "surge": 3, "sway": 4, "heave": 5}
-
-
 def tracked_velocity_components(robot) -> list[bool]:
-    """Which components of the head's spatial velocity [w; v] the washout's IK tracks: all
-    six on a serial robot or hexapod, those of its coordinates on a rig."""
-    coordinates = getattr(robot, "coordinates", ())
-    if robot.num_joints >= 6 or not coordinates:
-        return [True] * 6
-    flags = [False] * 6
-    for name in coordinates:
-        flags[_COMPONENT[name]] = True
-    return flags
+    """Which components of the head's spatial velocity [w; v] the washout's IK tracks: those
+    the platform can follow (`SerialChain.head_velocity_components`: all six on a serial
+    robot or hexapod, those of its coordinates on a rig)."""
+    return list(robot.head_velocity_components)
 
 
 class _IkScratch:
