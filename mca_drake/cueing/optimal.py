@@ -36,6 +36,7 @@ import numpy as np
 
 from mca_drake.conventions import CONTROL_PERIOD_S
 from mca_drake.cueing.nmpc_config import OBJECTIVES, NmpcConfig
+from mca_drake.cueing.optimal_legs import BoundLegRows
 from mca_drake.cueing.output_curvature import finite_difference_hessians, residual_curvature
 from mca_drake.cueing.shooting import double_integrator_step
 from mca_drake.cueing.stagewise_qp import solve_stagewise_qp
@@ -43,6 +44,7 @@ from mca_drake.input_checks import as_float_array, check_config_numbers
 from mca_drake.perception.filters import DiscreteFilter, vestibular_filter
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.kinematics import plant_output, plant_output_jacobians
+from mca_drake.platforms.leg_platform import LegPlatform
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.platforms.usage import limit_violations
 
@@ -51,6 +53,9 @@ QP_TOLERANCE_SHARE = 1e-3
 # The scaled residual up to which an unconverged QP's step is still tried.
 QP_RESIDUAL_USABLE = 1e-6
 # Stages whose output Hessians are formed at once (6 x 18 x 18 values per stage).
+# A legged platform's QPs re-solved per iteration at most, with the legs' bounds corrected by
+# the linearisation's remainder at the last step (`OptimalCueing._corrected_for_legs`).
+SECOND_ORDER_CORRECTIONS = 2
 CURVATURE_CHUNK = 2000
 
 _TUNED = NmpcConfig()
@@ -178,16 +183,22 @@ class OptimalCueing:
         self._build_program()
 
     def _build_program(self) -> None:
-        """The QP's fixed data: its stages are w_k = (de_k, dx_k, du_k) for k = 0..T (stage
-        T: the last states and an input that nothing weighs or bounds, so that every stage
-        has the same shape), its dynamics w_(k+1)[:n + 12] = F_k w_k from de_0 = dx_0 = 0;
-        the weights, Jacobians and bounds are set per iteration."""
+        """The QP's fixed data: its stages are w_k = (de_k, dx_k, dz_k, du_k) for k = 0..T
+        (stage T: the last states and an input that nothing weighs or bounds, so that every
+        stage has the same shape; dz_k: a legged platform's legs, `optimal_legs`, else
+        none), its dynamics w_(k+1)[:ns] = F_k w_k from de_0 = dx_0 = dz_0 = 0; the
+        weights, Jacobians and bounds are set per iteration."""
         n, h = self.n, self.config.time_step
         Phi, Gamma = double_integrator_step(h, self.nu)
-        self._F = np.zeros((n + self.nx, n + self.nx + self.nu))
+        self._legs = None
+        if isinstance(self.robot, LegPlatform):
+            self._legs = BoundLegRows(self.robot, Phi, Gamma)
+        self.nz = 0 if self._legs is None else self._legs.size
+        self.ns = n + self.nx + self.nz  # a stage's states
+        self._F = np.zeros((self.ns, self.ns + self.nu))
         self._F[:n, :n] = self._model[0]
-        self._F[n:, n : n + self.nx] = Phi
-        self._F[n:, n + self.nx :] = Gamma
+        self._F[n : n + self.nx, n : n + self.nx] = Phi
+        self._F[n : n + self.nx, self.ns :] = Gamma
 
     # ------------------------------------------------------------------ trajectories
     def states(self, x0: np.ndarray, U: np.ndarray) -> np.ndarray:
@@ -260,6 +271,8 @@ class OptimalCueing:
             # Gauss-Newton progress
             qp_tolerance = max(cfg.qp_tolerance, min(1e-6, QP_TOLERANCE_SHARE * kkt))
             d = self._solve_qp(x, U, Q, b, J, qp_tolerance)
+            if d is not None and self._legs is not None:
+                d = self._corrected_for_legs(x0, x, U, (Q, b, J), qp_tolerance, d)
             if d is None:
                 break
             dU, dX, dE = d
@@ -309,9 +322,14 @@ class OptimalCueing:
         """Whether states x (T + 1, 2n) and inputs U (T, n) keep every limit, judged as the
         run summaries count violations (`platforms.usage.limit_violations`: `tol` of each
         limit's half-range), so that no iterate the solver keeps, converged or not, is one a
-        summary would count."""
+        summary would count: the states after each step, and a legged platform's legs'
+        accelerations while each input acts (at the state it acts from)."""
         q, qd = x[1:, : self.nu], x[1:, self.nu :]
-        return not any(limit_violations(q, qd, U, self.robot, tol).values())
+        after = limit_violations(q, qd, U, self.robot, tol)
+        if self._legs is not None:
+            acting = limit_violations(x[:-1, : self.nu], x[:-1, self.nu :], U, self.robot, tol)
+            after["actuator_acceleration"] = acting["actuator_acceleration"]
+        return not any(after.values())
 
     def _stage_terms(self, x, U, jac, residual, weights, w):
         """Per stage, the Gauss-Newton Hessian Q_k (T, m, m) and gradient b_k (T, m) of the
@@ -353,33 +371,66 @@ class OptimalCueing:
             out[lo:hi] = residual_curvature(M, weighted[lo:hi])
         return out
 
-    def _solve_qp(self, x, U, Q, b, J, tolerance: float):
+    def _corrected_for_legs(self, x0, x, U, terms, tolerance: float, d):
+        """A legged platform's QP step d with second-order corrections: where the full step
+        takes a leg past its exact limit (the linearised legs bend away from the true ones),
+        the QP is solved again with the legs' bounds moved by what the linearisation missed
+        at that step (its remainder), up to SECOND_ORDER_CORRECTIONS times; the step that
+        keeps every limit, else the last one (the line search shortens it)."""
+        for _ in range(SECOND_ORDER_CORRECTIONS):
+            U_try = U + d[0]
+            x_try = self.states(x0, U_try)
+            if self._feasible(x_try, U_try):
+                return d
+            remainder = self._legs.remainder(x, U, x_try, U_try, self._leg_rows)
+            corrected = self._solve_qp(x, U, *terms, tolerance, leg_shift=remainder)
+            if corrected is None:
+                return d
+            d = corrected
+        return d
+
+    def _solve_qp(self, x, U, Q, b, J, tolerance: float, leg_shift=None):
         """The QP step (dU (T, 6), dX (T, 12), dE (T, n)) of the stage-wise QP
-        (`stagewise_qp`), or None where it did not converge."""
-        r, n, T = self.robot, self.n, self.T
-        m = n + self.nx + self.nu
+        (`stagewise_qp`), or None where it did not converge. `leg_shift` (T, 3L): a legged
+        platform's correction of its legs' linearised values (`_corrected_for_legs`); the
+        legs' rows about (x, U) are computed once and kept for it."""
+        r, n, T, ns = self.robot, self.n, self.T, self.ns
+        m = ns + self.nu
+        # Q and b are on (de, dx, du); the legs' dz (between dx and du) carry no cost
+        cost = np.r_[np.arange(n + self.nx), np.arange(ns, m)]
         # the objective summed rather than averaged over the stages: its multipliers and
         # residuals then have the scale of one stage's
         H = np.zeros((T + 1, m, m))
         g = np.zeros((T + 1, m))
-        H[:T], g[:T] = T * Q, T * b
-        H[T, n + self.nx :, n + self.nx :] = np.eye(self.nu)  # stage T's input: nothing weighs it
+        H[:T, cost[:, None], cost[None, :]], g[:T, cost] = T * Q, T * b
+        H[T, ns:, ns:] = np.eye(self.nu)  # stage T's input: nothing weighs it
         lower, upper = np.full((T + 1, m), -np.inf), np.full((T + 1, m), np.inf)
         lower[1:, n : n + self.nx] = np.r_[r.q_min, -r.qd_max] - x[1:]
         upper[1:, n : n + self.nx] = np.r_[r.q_max, r.qd_max] - x[1:]
-        lower[:T, n + self.nx :] = -r.qdd_max - U
-        upper[:T, n + self.nx :] = r.qdd_max - U
+        lower[:T, ns:] = -r.qdd_max - U
+        upper[:T, ns:] = r.qdd_max - U
         F = self._F
-        if n:  # the model's dynamics, linearised: de_(k+1) = A de_k + B J_k (dx_k, du_k)
+        if n or self._legs is not None:
             F = np.broadcast_to(F, (T, *F.shape)).copy()
-            F[:, :n, n:] = self._model[1] @ J
+        if n:  # the model's dynamics, linearised: de_(k+1) = A de_k + B J_k (dx_k, du_k)
+            BJ = self._model[1] @ J
+            F[:, :n, n : n + self.nx], F[:, :n, ns:] = BJ[..., : self.nx], BJ[..., self.nx :]
+        if self._legs is not None:  # the legs, linearised: dz_(k+1) = Fz_k (dx_k, du_k)
+            if leg_shift is None:
+                self._leg_rows = self._legs.rows(x, U)
+            Fz, z = self._leg_rows
+            if leg_shift is not None:
+                z = z + leg_shift
+            legs = slice(n + self.nx, ns)
+            F[:, legs, n : n + self.nx], F[:, legs, ns:] = Fz[..., : self.nx], Fz[..., self.nx :]
+            lower[1:, legs], upper[1:, legs] = self._legs.lower - z, self._legs.upper - z
         solution = solve_stagewise_qp(
             H,
             g,
             F,
             lower,
             upper,
-            np.zeros(n + self.nx),
+            np.zeros(ns),
             tolerance=tolerance,
             max_iterations=self.config.qp_iterations,
         )
@@ -388,7 +439,7 @@ class OptimalCueing:
         if not solution.converged and not solution.residual <= QP_RESIDUAL_USABLE:
             return None
         w = solution.w
-        return w[:T, n + self.nx :], w[1:, n : n + self.nx], w[1:, :n]
+        return w[:T, ns:], w[1:, n : n + self.nx], w[1:, :n]
 
     def _stationarity(self, Q, b, dU, dX, dE) -> float:
         """|H d|_inf / max(1, |g|_inf) of the last QP's step: the nonlinear program's
