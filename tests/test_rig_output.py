@@ -5,8 +5,10 @@ positions the platform reached."""
 from __future__ import annotations
 
 import os
+import select
 import socket
 import struct
+import time
 
 import numpy as np
 import pytest
@@ -146,4 +148,52 @@ def test_a_hexapod_gets_its_leg_lengths_within_their_stroke(tmp_path):
     expected = leg_lengths(pose_of(q), g)
     count = min(len(sent), len(q)) - 1
     np.testing.assert_allclose(sent[:count], expected[1 : count + 1], atol=1e-8)
+    assert np.ptp(sent[:, 0]) > 1e-4  # it moved
+
+
+def test_a_hexapod_run_over_a_serial_port_sends_one_line_a_period_within_the_stroke():
+    """The same live run as over UDP, to a pseudo-terminal this test opens (nothing touches
+    a real device): every line parses, one per control period, each leg within its stroke."""
+    import threading
+
+    from test_live_loop import live_with_sender, stream_process
+
+    hexapod = load_platform("hexapod")
+    main, terminal = os.openpty()
+    received = bytearray()
+    stop = threading.Event()
+
+    def drain():  # the rig's side: read whatever arrives until the run has ended
+        while not stop.is_set():
+            ready, _, _ = select.select([main], [], [], 0.05)
+            if ready:
+                received.extend(os.read(main, 65536))
+
+    reader = threading.Thread(target=drain, daemon=True)
+    reader.start()
+    try:
+        url = f"serial://{os.ttyname(terminal)}?baud=115200"
+        summary = live_with_sender(
+            stream_process,
+            2.2,
+            "washout",
+            2.0,
+            rig=RigOutputConfig(url=url, number_format=".9f"),
+            robot=hexapod,
+        )
+        time.sleep(0.2)
+    finally:
+        stop.set()
+        reader.join(timeout=5)
+        os.close(main)
+        os.close(terminal)
+    lines = bytes(received).decode("ascii").splitlines()
+    rig = summary["rig"]
+    assert rig["failed"] == 0 and rig["sent"] == len(lines) >= 190
+    # one line per control period of the run (the loop's periods, counted by the summary)
+    assert abs(len(lines) - round(summary["duration_s"] / 0.01)) <= 2
+    sent = np.array([[float(v) for v in line.split(",")] for line in lines])
+    g = hexapod.actuators
+    assert sent.shape == (len(lines), 6)
+    assert np.all((sent >= g.min_length) & (sent <= g.max_length))
     assert np.ptp(sent[:, 0]) > 1e-4  # it moved
