@@ -15,17 +15,21 @@ every step) and, with --bound, the share of the achievable improvement it gets (
 over flights of (PI_zero - PI) / (PI_zero - PI_bound), each flight's offline-optimal bound
 on that platform); per platform, the station's real-time factor and how its shipped
 policy was trained (command and wall time, from the policy file); and the rail's gain over
-the KR500 per channel (median over flights of the RMSE decrease and CC increase). A
-platform with no shipped policy (the hexapod and the small rigs, so far) skips the DPC; the
-legged platforms' clamp interventions (commands the legs' limits changed) are counted. The
-result file holds the date, command, machine and calibration; the legged platforms' run
-beside the KR500 is written with `--platforms kr500,hexapod,rig-2dof,rig-3dof --mcas
-nmpc-rti,washout --json benchmarks/results/platforms_legged.json`.
+the KR500 per channel (median over flights of the RMSE decrease and CC increase). An MCA
+name with a suffix runs a variant beside the shipped settings: `nmpc-rti:kr500-weights`
+(the KR500's tuned weights on another platform), `nmpc-rti:box` (the NMPC without the legs'
+rows). A platform with no shipped policy skips the DPC; the legged platforms' clamp
+interventions (commands the legs' limits changed) are counted. The result file holds the
+date, command, machine and calibration; the legged platforms' run beside the KR500 is
+written with `--platforms kr500,hexapod,rig-2dof,rig-3dof --mcas
+dpc,nmpc-rti,nmpc-rti:box,nmpc-rti:kr500-weights,washout --bound --json
+benchmarks/results/platforms_legged.json`.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
 import numpy as np
 from common import default_result_path, print_calibration, result_header
@@ -35,6 +39,7 @@ from mca_drake.conventions import CHANNELS
 from mca_drake.cueing import DpcConfig, mca_config_from_name
 from mca_drake.cueing.dpc import load_policy_arrays
 from mca_drake.platforms.files import load_platform, packaged_name, packaged_platforms
+from mca_drake.platforms.leg_platform import LegPlatform
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.simulation.closed_loop import run_closed_loop
 from mca_drake.simulation.optimal_bound import run_optimal_bound
@@ -71,6 +76,35 @@ def policy_provenance(platform: str) -> dict | None:
     }
 
 
+# MCA name suffixes of variants measured beside the shipped settings: ":kr500-weights" (the
+# class defaults, tuned on the KR500, instead of the platform's tuned settings) and ":box"
+# (the NMPC without the legs' rows: only the coordinates' box and the clamp hold the legs).
+VARIANTS = ("kr500-weights", "box")
+
+
+def mca_variant(mca: str, platform: str):
+    """The MCA config of `mca` on `platform` (a packaged name): NAME as it means there, or
+    NAME:VARIANT[:VARIANT] (`VARIANTS`)."""
+    base, *variants = mca.split(":")
+    unknown = set(variants) - set(VARIANTS)
+    if unknown:
+        raise SystemExit(f"unknown MCA variant {sorted(unknown)}; valid: {', '.join(VARIANTS)}")
+    config = mca_config_from_name(base, "" if "kr500-weights" in variants else platform)
+    if "box" in variants:
+        config = dataclasses.replace(config, leg_constraints=False)
+    return config
+
+
+def variant_differs(mca: str, robot) -> bool:
+    """Whether a variant runs anything other than its base MCA on `robot`: ":box" only on a
+    legged platform, ":kr500-weights" only where the platform ships tuned settings."""
+    base, *variants = mca.split(":")
+    if "box" in variants and not isinstance(robot, LegPlatform):
+        return False
+    tuned = mca_config_from_name(base, packaged_name(robot.name))
+    return "kr500-weights" not in variants or tuned != mca_config_from_name(base)
+
+
 def measure(platforms, mcas, flights, duration: float, station_seconds: float, bound: bool) -> dict:
     """{platform: {"mcas": {mca: figures}, "station": figures, "bound": figures}} on the
     given flights."""
@@ -90,13 +124,15 @@ def measure(platforms, mcas, flights, duration: float, station_seconds: float, b
         per_mca = {}
         shipped = policy_provenance(robot.name) is not None
         for mca in mcas:
-            if mca == "dpc" and not shipped:
+            if mca.split(":")[0] == "dpc" and not shipped:
                 print(f"{name:>11}       dpc: no policy shipped for this platform", flush=True)
                 continue
+            if not variant_differs(mca, robot):
+                continue  # the same MCA as its base name here
             runs, step_times = [], []
             for (vehicle, seed), reference in references.items():
                 result = run_closed_loop(
-                    mca=mca_config_from_name(mca, packaged_name(name)),
+                    mca=mca_variant(mca, packaged_name(name)),
                     reference=reference,
                     plant="analytical",
                     robot=robot,
@@ -143,7 +179,7 @@ def measure(platforms, mcas, flights, duration: float, station_seconds: float, b
         vehicle, seed = flights[0]
         reference = flight_reference(FlightSpec(vehicle=vehicle, seed=seed), station_seconds)
         station = run_closed_loop(
-            mca=mca_config_from_name("nmpc-rti"),
+            mca=mca_config_from_name("nmpc-rti", packaged_name(name)),
             reference=reference,
             plant="multibody",
             robot=robot,
@@ -174,6 +210,8 @@ def rail_gain(results: dict, mca: str) -> dict | None:
     """Per channel, the median over flights of the KR500's RMSE less the rail's and of the
     rail's CC less the KR500's (positive: the rail cues that channel better)."""
     if "kr500" not in results or "kr500-rail" not in results:
+        return None
+    if mca not in results["kr500"]["mcas"] or mca not in results["kr500-rail"]["mcas"]:
         return None
     base, rail = results["kr500"]["mcas"][mca]["runs"], results["kr500-rail"]["mcas"][mca]["runs"]
     rmse = np.median(
