@@ -13,7 +13,8 @@ size that runs where the converged NMPC's core-hours do not (`--mcas` adds it). 
 are flown once for all platforms (one cache). Runs are resumable (`--runs-dir`, one folder
 per platform). Writes per platform, case and MCA: median PI and perceived PI, the worst
 flight, flights better than zero motion, joint range used, violations and safety
-interventions; and per platform and MCA the median over every flight; with the date,
+interventions; and per platform and MCA the median PI and perceived PI over every flight
+(a platform that ships no DPC policy runs without the DPC: `skipped`); with the date,
 command, machine and calibration, to `--json` (default
 `benchmarks/results/platform_suites.json`).
 """
@@ -28,7 +29,7 @@ import numpy as np
 from common import default_result_path, print_calibration, result_header
 
 from mca_drake.atomic_io import atomic_write_json
-from mca_drake.cueing import mca_config_from_name
+from mca_drake.cueing import DpcConfig, mca_config_from_name
 from mca_drake.platforms.files import load_platform, packaged_platforms
 from mca_drake.studies.evaluation import run_evaluation
 from mca_drake.studies.evaluation_cases import EvaluationConfig, default_cases
@@ -46,12 +47,22 @@ KEPT = (
 )
 
 
+def has_policy(platform: str) -> bool:
+    """Whether the platform ships DPC policies (else the suite runs without the DPC)."""
+    try:
+        DpcConfig().policy_path(platform)
+    except FileNotFoundError:
+        return False
+    return True
+
+
 def platform_suite(platform: str, args, runs_dir: Path) -> dict:
     """The cut suite on `platform`: its report's figures per case and MCA, and per MCA the
     median over every flight of every case."""
     cases = tuple(dataclasses.replace(c, seeds=c.seeds[: args.flights]) for c in default_cases())
+    names = [m for m in args.mcas.split(",") if m != "dpc" or has_policy(platform)]
     config = EvaluationConfig(
-        mcas=tuple(mca_config_from_name(m) for m in args.mcas.split(",")),
+        mcas=tuple(mca_config_from_name(m) for m in names),
         cases=cases,
         duration_s=args.duration,
         platform=platform,
@@ -63,8 +74,10 @@ def platform_suite(platform: str, args, runs_dir: Path) -> dict:
         (runs_dir / "flights").mkdir(exist_ok=True)
         flights.symlink_to(Path("..") / "flights", target_is_directory=True)
     report = run_evaluation(config, out, workers=args.workers, progress=True)
-    result: dict = {"cases": {}, "all": {}}
+    skipped = sorted(set(args.mcas.split(",")) - set(names))
+    result: dict = {"cases": {}, "all": {}, "skipped": skipped}
     every: dict[str, list[float]] = {}
+    perceived: dict[str, list[float]] = {}
     for name, case in report["cases"].items():
         result["cases"][name] = {
             "vehicle": case["vehicle"],
@@ -72,8 +85,13 @@ def platform_suite(platform: str, args, runs_dir: Path) -> dict:
         }
         for m, e in case["mcas"].items():
             every.setdefault(m, []).extend(e["pi"])
+            perceived.setdefault(m, []).extend(e["perceived_pi"])
     for m, pis in every.items():
-        result["all"][m] = {"flights": len(pis), "pi_median": float(np.median(pis))}
+        result["all"][m] = {
+            "flights": len(pis),
+            "pi_median": float(np.median(pis)),
+            "perceived_pi_median": float(np.median(perceived[m])),
+        }
     return result
 
 
