@@ -42,6 +42,9 @@ MCA_LABELS = {
     "nmpc-converged-perceived": "NMPC, converged, perceived objective",
     "nmpc-rti-preview256": "NMPC, RTI, 2.56 s preview",
     "nmpc-rti-preview1000": "NMPC, RTI, 10 s horizon and preview",
+    # bench_platforms.py's variants on a platform beside its shipped settings
+    "nmpc-rti:box": "NMPC, RTI, without the legs' rows",
+    "nmpc-rti:kr500-weights": "NMPC, RTI, the KR500's weights",
 }
 
 
@@ -1050,9 +1053,11 @@ SECTIONS = (
         "Hexapod and small rigs",
         "platforms_legged.json",
         "the packaged hexapod and 2- and 3-DOF rigs beside the KR500 on the same flights: the "
-        "NMPC-rti's and the washout's PI, the legs' violations and the commands their clamp "
-        "changed, step time and the station's real-time factor (`bench_platforms.py "
-        "--platforms kr500,hexapod,rig-2dof,rig-3dof`; no DPC policy is shipped for them yet)",
+        "NMPC-rti with the platform's tuned weights, without the legs' rows and with the "
+        "KR500's weights, and the washout: PI, the legs' violations and the commands their "
+        "clamp changed, step time, each flight's offline-optimal bound and the share of it "
+        "each MCA gets, and the station's real-time factor (`bench_platforms.py --platforms "
+        "kr500,hexapod,rig-2dof,rig-3dof --bound`)",
         _platforms,
     ),
     Section(

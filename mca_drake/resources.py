@@ -18,6 +18,10 @@ PACKAGED_FOLDERS = ("models", "diagrams")
 # each carries moved onto its joints, as <platform>_<name> (`cueing.dpc.platform_policy_name`).
 PLATFORMS_WITH_POLICIES = ("kr500-rail", "fanuc-m900ib700")
 MOVED_POLICIES = ("default_policy", "light_policy", "transport_policy", "ground_policy")
+# The packaged platforms whose joints no KR500 policy shares (a legged platform's pose
+# coordinates) that ship one policy trained on them, <platform>_default_policy, which stands
+# for every one of the KR500's there.
+PLATFORMS_WITH_OWN_POLICY = ("hexapod",)
 # Policy files shipped with the package (mca_drake/data/<name>.npz).
 SHIPPED_POLICIES = (
     "default_policy",
@@ -26,6 +30,7 @@ SHIPPED_POLICIES = (
     "light_policy",
     "transport_policy",
     *(f"{platform}_{name}" for platform in PLATFORMS_WITH_POLICIES for name in MOVED_POLICIES),
+    *(f"{platform}_default_policy" for platform in PLATFORMS_WITH_OWN_POLICY),
 )
 # MCA profiles shipped for vehicle motion other than flight (`mca_drake.cueing.profiles`): the
 # NMPC's and washout's settings in data/profiles/<name>.yaml, the DPC's policy

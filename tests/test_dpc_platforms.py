@@ -115,7 +115,8 @@ def test_a_policy_trains_on_the_rail_from_the_kr500s_and_records_it(tmp_path):
 
 def test_each_platform_picks_its_own_shipped_policy():
     """Each packaged platform runs the KR500's choice of policy (by envelope, by profile)
-    moved onto its joints; a platform that ships none says how to make one."""
+    moved onto its joints, or the one policy trained on it (the hexapod); a platform that
+    ships none says how to make one."""
     assert DpcConfig().policy_path("kr500") == default_policy_path()
     for name in ("kr500-rail", "fanuc-m900ib700"):
         for config, kr500_policy in (
@@ -128,6 +129,15 @@ def test_each_platform_picks_its_own_shipped_policy():
             path = config.policy_path(name)
             assert path.name == f"{name}_{kr500_policy}.npz"
             assert policy_platform(load_policy_arrays(path)[1]) == name
+    # the hexapod's joints are its pose coordinates: one policy trained on it stands for all
+    for config in (DpcConfig(), DpcConfig(vehicle="light"), DpcConfig(profile="ground")):
+        path = config.policy_path("hexapod")
+        assert path.name == "hexapod_default_policy.npz"
+        arrays, metadata = load_policy_arrays(path)
+        assert policy_platform(metadata) == "hexapod" and arrays["W2"].shape[0] == 3 * 6
+        assert "train-policy --platform hexapod" in metadata["command"]
+    with pytest.raises(FileNotFoundError, match=r"train-policy --platform rig-2dof"):
+        DpcConfig().policy_path("rig-2dof")
     with pytest.raises(FileNotFoundError, match=r"transfer-policy .* --platform my-robot"):
         DpcConfig().policy_path("my-robot")
 

@@ -343,7 +343,13 @@ def far_reference(seconds: float = 12.0):
 
 
 @pytest.mark.parametrize(
-    "mca, plant", [("washout", "analytical"), ("nmpc-rti", "analytical"), ("nmpc-rti", "multibody")]
+    "mca, plant",
+    [
+        ("washout", "analytical"),
+        ("nmpc-rti", "analytical"),
+        ("nmpc-rti", "multibody"),
+        ("dpc", "analytical"),  # the hexapod's own shipped policy
+    ],
 )
 def test_cues_far_beyond_the_rig_leave_every_leg_inside_its_limits(hexapod, mca, plant):
     result = run_closed_loop(

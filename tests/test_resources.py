@@ -63,6 +63,7 @@ def test_bad_names_are_refused():
             for platform in ("kr500-rail", "fanuc-m900ib700")
             for name in ("default_policy", "light_policy", "transport_policy", "ground_policy")
         ),
+        "hexapod_default_policy.npz",
     ]
 
 

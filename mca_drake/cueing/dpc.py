@@ -31,6 +31,7 @@ from mca_drake.references.driving.car import CARS
 from mca_drake.references.synthetic import VEHICLE_ENVELOPES
 from mca_drake.resources import (
     MOVED_POLICIES,
+    PLATFORMS_WITH_OWN_POLICY,
     PLATFORMS_WITH_POLICIES,
     SHIPPED_POLICIES,
     check_profile,
@@ -230,8 +231,14 @@ def platform_policy_name(platform: str, name: str) -> str:
     packaged platform `platform` (`PLATFORMS_WITH_POLICIES`): "<platform>_<name>", the
     KR500's moved onto its joints (`mca-drake transfer-policy`), chosen as the KR500's are.
     Moved, they cued validation flights better than the KR500 default fine-tuned on a
-    dataset made on the platform (docs/concepts/platforms.md; decision 0022).
+    dataset made on the platform (docs/concepts/platforms.md; decision 0022). A platform
+    whose joints no KR500 policy shares ships one policy trained on it
+    (`PLATFORMS_WITH_OWN_POLICY`: "<platform>_default_policy"), which stands for every name.
     FileNotFoundError, with the commands that make one, for a platform that ships none."""
+    if name not in MOVED_POLICIES:
+        raise ValueError(f"'{name}' is not one of the policies platforms carry: {MOVED_POLICIES}")
+    if platform in PLATFORMS_WITH_OWN_POLICY:
+        return f"{platform}_default_policy"
     if platform not in PLATFORMS_WITH_POLICIES:
         raise FileNotFoundError(
             f"no policy is shipped for platform '{platform}': move the KR500's onto it with "
@@ -240,8 +247,6 @@ def platform_policy_name(platform: str, name: str) -> str:
             f"dataset closed-loop --platform {platform}` and `mca-drake train-policy "
             f"--platform {platform}`, then pass it as --policy (DpcConfig.policy)"
         )
-    if name not in MOVED_POLICIES:
-        raise ValueError(f"'{name}' is not one of the policies platforms carry: {MOVED_POLICIES}")
     return f"{platform}_{name}"
 
 
