@@ -22,8 +22,10 @@ rows). A platform with no shipped policy skips the DPC; the legged platforms' cl
 interventions (commands the legs' limits changed) are counted. The result file holds the
 date, command, machine and calibration; the legged platforms' run beside the KR500 is
 written with `--platforms kr500,hexapod,rig-2dof,rig-3dof --mcas
-dpc,nmpc-rti,nmpc-rti:box,nmpc-rti:kr500-weights,washout --bound --json
-benchmarks/results/platforms_legged.json`.
+dpc,nmpc-rti,nmpc-rti:box,nmpc-rti:kr500-weights,washout --json
+benchmarks/results/platforms_legged.json`, and with the bound on 30 s of the same flights
+(the hexapod's bound takes minutes per 30 s) with `--mcas dpc,nmpc-rti,washout --bound
+--duration 30 --station-seconds 10 --json benchmarks/results/platforms_legged_bound.json`.
 """
 
 from __future__ import annotations

@@ -1061,6 +1061,15 @@ SECTIONS = (
         _platforms,
     ),
     Section(
+        "Hexapod and small rigs: the offline bound",
+        "platforms_legged_bound.json",
+        "the same platforms on 30 s of the same flights with each flight's offline-optimal "
+        "bound on each platform (the legs' limits held at every sample): every MCA's share "
+        "of the improvement the platform allows (`bench_platforms.py --platforms "
+        "kr500,hexapod,rig-2dof,rig-3dof --mcas dpc,nmpc-rti,washout --bound --duration 30`)",
+        _platforms,
+    ),
+    Section(
         "References that name no vehicle",
         "unnamed.json",
         "the suite's flights cued without their vehicle's name, the DPC recognizing it from "
