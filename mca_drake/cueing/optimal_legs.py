@@ -61,18 +61,19 @@ class BoundLegRows:
         Fz_k the map from (dx_k, du_k) to dz_(k+1) and z_k the values z_(k+1) there (module
         docstring's order: lengths, speeds, accelerations, each leg by leg)."""
         k, p = self.k, self.platform
-        after = x[1:]
-        # the lengths and speeds at the step's end, J and S there (T, L, k) each; the
-        # accelerations while u_k acts at x_k
-        lengths, speeds, J, S = p.actuator_linearisation(after[:, :k], after[:, k:])
+        # lengths, speeds, J and S at every state (T + 1, L[, k]), in one pass: those at the
+        # steps' ends bound the legs there; J at the steps' starts is the derivative of the
+        # legs' accelerations in the command
+        lengths, speeds, J, S = p.actuator_linearisation(x[:, :k], x[:, k:])
         before = x[:-1]
         _, _, accelerations = p.actuator_motion(before[:, :k], before[:, k:], U)
-        values = np.concatenate([lengths, speeds, accelerations], axis=1)
+        values = np.concatenate([lengths[1:], speeds[1:], accelerations], axis=1)
         # d(l, l')_(k+1) / dx_(k+1): [[J, 0], [S, J]], (T, 2L, 2k)
+        J_after, S_after = J[1:], S[1:]
         state_map = np.concatenate(
             [
-                np.concatenate([J, np.zeros_like(J)], axis=2),
-                np.concatenate([S, J], axis=2),
+                np.concatenate([J_after, np.zeros_like(J_after)], axis=2),
+                np.concatenate([S_after, J_after], axis=2),
             ],
             axis=1,
         )
@@ -80,33 +81,34 @@ class BoundLegRows:
         T = U.shape[0]
         Fz = np.empty((T, self.size, 3 * k))
         Fz[:, : 2 * self.legs] = state_map @ step
-        Fz[:, 2 * self.legs :] = self._acceleration_jacobian(before, U)
+        Fz[:, 2 * self.legs :, : 2 * k] = self._acceleration_state_jacobian(before, U)
+        Fz[:, 2 * self.legs :, 2 * k :] = J[:-1]  # l'' = J u + c is linear in u
         return Fz, values
+
+    def values(self, x: np.ndarray, U: np.ndarray) -> np.ndarray:
+        """The legs' exact z_(k+1) along x (T + 1, 2k), U (T, k): (T, 3L)."""
+        k, p = self.k, self.platform
+        after, before = x[1:], x[:-1]
+        lengths, speeds, _ = p.actuator_motion(after[:, :k], after[:, k:], np.zeros_like(U))
+        _, _, accelerations = p.actuator_motion(before[:, :k], before[:, k:], U)
+        return np.concatenate([lengths, speeds, accelerations], axis=1)
 
     def remainder(self, x, U, x_try, U_try, rows) -> np.ndarray:
         """What the linearisation `rows` (`rows(x, U)`'s (Fz, z)) misses at the trial
         trajectory (x_try, U_try): the legs' exact z there minus z + Fz (dx_k, du_k),
         shape (T, 3L)."""
         Fz, z = rows
-        k = self.k
         step = np.concatenate([x_try[:-1] - x[:-1], U_try - U], axis=1)  # (T, 3k)
-        linear = z + np.einsum("tij,tj->ti", Fz, step)
-        after = x_try[1:]
-        lengths, speeds, _ = self.platform.actuator_motion(after[:, :k], after[:, k:], 0 * U_try)
-        _, _, accelerations = self.platform.actuator_motion(x_try[:-1, :k], x_try[:-1, k:], U_try)
-        return np.concatenate([lengths, speeds, accelerations], axis=1) - linear
+        return self.values(x_try, U_try) - (z + np.einsum("tij,tj->ti", Fz, step))
 
-    def _acceleration_jacobian(self, x: np.ndarray, U: np.ndarray) -> np.ndarray:
-        """d l''(x_k, u_k) / d(x_k, u_k), (T, L, 3k): central differences in the state, the
-        exact J in the command (l'' = J u + c is linear in u)."""
+    def _acceleration_state_jacobian(self, x: np.ndarray, U: np.ndarray) -> np.ndarray:
+        """d l''(x_k, u_k) / dx_k, (T, L, 2k), by central differences."""
         k, p = self.k, self.platform
-        out = np.empty((U.shape[0], self.legs, 3 * k))
+        out = np.empty((U.shape[0], self.legs, 2 * k))
         for i in range(2 * k):
             e = np.zeros(2 * k)
             e[i] = DIFFERENCE_STEP
             up = p.actuator_motion((x + e)[:, :k], (x + e)[:, k:], U)[2]
             down = p.actuator_motion((x - e)[:, :k], (x - e)[:, k:], U)[2]
             out[:, :, i] = (up - down) / (2 * DIFFERENCE_STEP)
-        _, _, J, _ = p.actuator_linearisation(x[:, :k], x[:, k:])
-        out[:, :, 2 * k :] = J
         return out
