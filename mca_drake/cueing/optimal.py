@@ -322,14 +322,14 @@ class OptimalCueing:
         """Whether states x (T + 1, 2n) and inputs U (T, n) keep every limit, judged as the
         run summaries count violations (`platforms.usage.limit_violations`: `tol` of each
         limit's half-range), so that no iterate the solver keeps, converged or not, is one a
-        summary would count: the states after each step, and a legged platform's legs'
-        accelerations while each input acts (at the state it acts from)."""
-        q, qd = x[1:, : self.nu], x[1:, self.nu :]
-        after = limit_violations(q, qd, U, self.robot, tol)
-        if self._legs is not None:
-            acting = limit_violations(x[:-1, : self.nu], x[:-1, self.nu :], U, self.robot, tol)
-            after["actuator_acceleration"] = acting["actuator_acceleration"]
-        return not any(after.values())
+        summary would count: positions and speeds at every step's end, accelerations (the
+        joints', and a legged platform's legs', which depend on the state too) while each
+        input acts, at the state it acts from."""
+        n = self.nu
+        ends = limit_violations(x[1:, :n], x[1:, n:], U, self.robot, tol)
+        acting = limit_violations(x[:-1, :n], x[:-1, n:], U, self.robot, tol)
+        accelerations = {"qdd", "actuator_acceleration"}
+        return not any((acting if name in accelerations else ends)[name] for name in ends)
 
     def _stage_terms(self, x, U, jac, residual, weights, w):
         """Per stage, the Gauss-Newton Hessian Q_k (T, m, m) and gradient b_k (T, m) of the
