@@ -68,7 +68,7 @@ def test_leg_lengths_are_drakes_rigid_transform_of_the_joints(hexapod, rng):
 def test_the_neutral_pose_has_six_equal_legs_inside_the_stroke(hexapod):
     lengths = leg_lengths(np.zeros(6), hexapod)
     assert np.ptp(lengths) < 1e-14
-    assert hexapod.min_length < lengths[0] < hexapod.max_length
+    assert hexapod.min_position < lengths[0] < hexapod.max_position
 
 
 def random_poses(rng, n):
@@ -136,11 +136,11 @@ def test_torch_is_numpy(hexapod, rng):
 def test_bad_input_says_what_is_wrong(hexapod):
     with pytest.raises(ValueError, match="six finite numbers"):
         leg_lengths([0.0, 0.0, math.nan, 0.0, 0.0, 0.0], hexapod)
-    with pytest.raises(ValueError, match="six finite leg lengths"):
+    with pytest.raises(ValueError, match="six finite actuator positions"):
         forward_kinematics([1.0] * 5, hexapod)
     with pytest.raises(ValueError, match="did not converge"):
         forward_kinematics([10.0, 0.1, 10.0, 0.1, 10.0, 0.1], hexapod, max_iterations=20)
     bad = LegGeometry.symmetric(RB, RP, HB, HP, HEIGHT, 0.8, 0.6, 6.0)
-    bad.min_length = bad.max_length + 0.1
-    with pytest.raises(ValueError, match="max_length must exceed"):
+    bad.min_position = bad.max_position + 0.1
+    with pytest.raises(ValueError, match="max_position must exceed"):
         bad.validate()

@@ -17,8 +17,8 @@ from mca_drake.platforms.clamp import platform_clamp
 from mca_drake.platforms.files import load_platform, read_platform_file
 from mca_drake.platforms.leg_clamp import (
     ACCELERATION_SHARE,
+    POSITION_RESERVE,
     RATE_RESERVE,
-    STROKE_RESERVE_M,
     LegClamp,
 )
 from mca_drake.platforms.leg_platform import (
@@ -77,11 +77,11 @@ def test_each_coordinate_alone_reaches_a_leg_limit_at_its_box_edge(hexapod):
             q[k] = edge
             lengths = hexapod.actuator_positions(q)
             # at the edge a leg is at an end of its stroke (to the bisection's 1e-9)
-            gap = min(np.min(lengths - g.min_length), np.min(g.max_length - lengths))
+            gap = min(np.min(lengths - g.min_position), np.min(g.max_position - lengths))
             assert abs(gap) < 1e-8, (k, edge, gap)
             # inside it every leg is within its stroke
             inside = hexapod.actuator_positions(0.999 * q)
-            assert np.all((inside > g.min_length) & (inside < g.max_length))
+            assert np.all((inside > g.min_position) & (inside < g.max_position))
         # at the neutral pose, the coordinate at its speed (acceleration) limit drives the
         # fastest leg at exactly the leg's speed (acceleration) limit
         rate = np.zeros(6)
@@ -157,7 +157,7 @@ def test_a_hexapod_file_lists_its_joints_or_gives_the_symmetric_layout(tmp_path,
         f"base_joints: {points(geometry.base_joints)}\n"
         f"platform_joints: {points(geometry.platform_joints)}\n"
         f"neutral_height: {geometry.neutral_height!r}\n"
-        f"min_length: {geometry.min_length!r}\nmax_length: {geometry.max_length!r}\n"
+        f"min_length: {geometry.min_position!r}\nmax_length: {geometry.max_position!r}\n"
         f"max_speed: {geometry.max_speed}\nmax_acceleration: {geometry.max_acceleration}\n"
         "head_position: [0, 0, 1.1]\npayload_mass: 500\npayload_inertia: [120, 120, 100]\n"
     )
@@ -227,8 +227,8 @@ def leg_rows(clamp: LegClamp, x):
     g = platform.actuators
     keep = 1 - RATE_RESERVE
     legs = ViabilityClamp(
-        [g.min_length + STROKE_RESERVE_M] * 6,
-        [g.max_length - STROKE_RESERVE_M] * 6,
+        [g.min_position + POSITION_RESERVE] * 6,
+        [g.max_position - POSITION_RESERVE] * 6,
         [g.max_speed * keep] * 6,
         [g.max_acceleration * ACCELERATION_SHARE] * 6,
         H,
@@ -316,7 +316,7 @@ def test_random_commands_never_take_a_leg_beyond_its_limits(hexapod):
                 q + s * qd + 0.5 * s * s * u, qd + s * u, u
             )
             worst["length"] = max(
-                worst["length"], np.max(g.min_length - lengths), np.max(lengths - g.max_length)
+                worst["length"], np.max(g.min_position - lengths), np.max(lengths - g.max_position)
             )
             worst["speed"] = max(worst["speed"], np.max(np.abs(speeds)) - g.max_speed)
             worst["acceleration"] = max(
@@ -367,7 +367,7 @@ def test_cues_far_beyond_the_rig_leave_every_leg_inside_its_limits(hexapod, mca,
     n = hexapod.num_joints
     lengths = leg_lengths(pose_of(result.states[:, :n]), hexapod.actuators)
     g = hexapod.actuators
-    assert np.all((lengths >= g.min_length) & (lengths <= g.max_length))
+    assert np.all((lengths >= g.min_position) & (lengths <= g.max_position))
     assert result.summary["pi"] < result.summary["pi_zero_motion"]
     if mca == "nmpc-rti":
         assert result.summary["safety_interventions"] > 0  # the legs, not the box, held it
@@ -385,7 +385,7 @@ def test_the_usage_counts_a_leg_beyond_its_stroke(hexapod):
 
 def test_a_geometry_that_cannot_move_is_refused():
     g = LegGeometry.symmetric(1.0, 0.7, 0.2, 0.2, 0.9, 0.4, 0.5, 6.0)
-    g.min_length = float(leg_lengths(np.zeros(6), g)[0])  # a leg at its stroke's end
+    g.min_position = float(leg_lengths(np.zeros(6), g)[0])  # a leg at its stroke's end
     with pytest.raises(ValueError, match="cannot move"):
         leg_platform(g, name="stuck")
 
@@ -408,7 +408,7 @@ def test_meshcat_draws_each_leg_between_its_joints(hexapod):
         )
     g = hexapod.actuators
     np.testing.assert_allclose(
-        stroke_used(hexapod, np.array([g.min_length, 0.5 * (g.min_length + g.max_length)])),
+        stroke_used(hexapod, np.array([g.min_position, 0.5 * (g.min_position + g.max_position)])),
         [1.0, 0.0],
     )
     meshcat = StartMeshcat()

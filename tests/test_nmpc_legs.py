@@ -130,7 +130,7 @@ def test_dpc_leg_limit_term_is_the_legs_excess_and_its_gradient_pulls_back():
     import torch
 
     from mca_drake.learning.legs import LegLimits
-    from mca_drake.platforms.leg_clamp import RATE_RESERVE, STROKE_RESERVE_M
+    from mca_drake.platforms.leg_clamp import POSITION_RESERVE, RATE_RESERVE
 
     platform = load_platform("rig-3dof")
     limits = LegLimits(platform, 0.01)
@@ -140,7 +140,7 @@ def test_dpc_leg_limit_term_is_the_legs_excess_and_its_gradient_pulls_back():
     X = np.concatenate([q, np.zeros_like(q)], axis=-1)
     lengths = platform.actuator_positions(q)
     g = platform.actuators
-    low, high = g.min_length + STROKE_RESERVE_M, g.max_length - STROKE_RESERVE_M
+    low, high = g.min_position + POSITION_RESERVE, g.max_position - POSITION_RESERVE
     stroke = np.maximum(lengths[:, 1:] - high, 0) + np.maximum(low - lengths[:, 1:], 0)
     speed = np.abs(np.diff(lengths, axis=1)) / 0.01 - g.max_speed * (1 - RATE_RESERVE)
     expected = (stroke**2 + np.maximum(speed, 0) ** 2).sum(-1)

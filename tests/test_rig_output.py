@@ -142,7 +142,7 @@ def test_a_hexapod_gets_its_leg_lengths_within_their_stroke(tmp_path):
     sent = np.array([[float(v) for v in line.decode().strip().split(",")] for line in lines])
     g = hexapod.actuators
     assert sent.shape[1] == 6
-    assert np.all((sent >= g.min_length) & (sent <= g.max_length))
+    assert np.all((sent >= g.min_position) & (sent <= g.max_position))
     # Oracle: the legs' lengths of the trajectory's next row, from leg_lengths of its pose
     q = np.column_stack([rows[name] for name in rows.dtype.names if name.startswith("q_")])
     expected = leg_lengths(pose_of(q), g)
@@ -195,5 +195,5 @@ def test_a_hexapod_run_over_a_serial_port_sends_one_line_a_period_within_the_str
     sent = np.array([[float(v) for v in line.split(",")] for line in lines])
     g = hexapod.actuators
     assert sent.shape == (len(lines), 6)
-    assert np.all((sent >= g.min_length) & (sent <= g.max_length))
+    assert np.all((sent >= g.min_position) & (sent <= g.max_position))
     assert np.ptp(sent[:, 0]) > 1e-4  # it moved

@@ -95,7 +95,7 @@ def test_a_rig_cues_a_reference_beyond_it_without_an_actuator_violation(rig, mca
     assert sum(s["violations"].values()) == 0, s["violations"]
     lengths = leg_lengths(robot.pose(result.states[:, : robot.num_joints]), robot.actuators)
     g = robot.actuators
-    assert np.all((lengths >= g.min_length) & (lengths <= g.max_length))
+    assert np.all((lengths >= g.min_position) & (lengths <= g.max_position))
     assert np.ptp(lengths) > 0.01  # it moved
     if mca == "washout":
         assert s["pi"] < s["pi_zero_motion"]

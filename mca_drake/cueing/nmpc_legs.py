@@ -21,7 +21,7 @@ and is the viability clamp's: it holds every leg exactly on the command the plan
 combinations. The legs' accelerations are not planned: the coordinates' box bounds them
 near home and the clamp holds them.
 
-Reserves: the clamp's (`STROKE_RESERVE_M` of stroke, `RATE_RESERVE` of speed) plus the
+Reserves: the clamp's (`POSITION_RESERVE` of stroke, `RATE_RESERVE` of speed) plus the
 NMPC's `limit_margin` of the stroke and speed, so that the plan stays where the clamp lets
 it through unchanged.
 
@@ -30,9 +30,11 @@ the second-order remainder (micrometres on a step of the rti's size); the next s
 are linearised about that plan and pull it back, and the clamp holds the command.
 """
 
+import math
+
 import numpy as np
 
-from mca_drake.platforms.leg_clamp import ACCELERATION_SHARE, RATE_RESERVE, STROKE_RESERVE_M
+from mca_drake.platforms.leg_clamp import ACCELERATION_SHARE, POSITION_RESERVE, RATE_RESERVE
 from mca_drake.platforms.leg_platform import LegPlatform
 
 # The first node with leg rows (node 1 is the viability clamp's: module docstring).
@@ -65,8 +67,8 @@ class LegRows:
         self._Gqd = Gqd.reshape(nodes, k, -1)[FIRST_NODE:]
         g = platform.actuators
         legs = len(platform.actuator_names)
-        reserve = STROKE_RESERVE_M + margin * (g.max_length - g.min_length)
-        self.length_range = (g.min_length + reserve, g.max_length - reserve)
+        reserve = POSITION_RESERVE + margin * (g.max_position - g.min_position)
+        self.length_range = (g.min_position + reserve, g.max_position - reserve)
         self.max_speed = g.max_speed * (1.0 - RATE_RESERVE) * (1.0 - margin)
         braking = g.max_acceleration * ACCELERATION_SHARE * (1.0 - margin)
         speeds = [self.max_speed * i / tangents for i in range(1, tangents + 1)]
@@ -95,11 +97,15 @@ class LegRows:
             upper.append(l_hi + offset - value)
         size = position.shape[-1]
         C = np.concatenate([b.reshape(-1, size) for b in blocks])
-        return (
-            C,
-            np.concatenate([b.reshape(-1) for b in lower]),
-            np.concatenate([b.reshape(-1) for b in upper]),
-        )
+        lo = np.concatenate([b.reshape(-1) for b in lower])
+        hi = np.concatenate([b.reshape(-1) for b in upper])
+        # A node the plan takes beyond a crank's reach has no arm angle to linearise: its
+        # rows are dropped this iteration (`violation` counts the node as infinitely far
+        # out, and the clamp holds the command executed).
+        lost = ~(np.isfinite(lo) & np.isfinite(hi) & np.all(np.isfinite(C), axis=1))
+        if np.any(lost):
+            C[lost], lo[lost], hi[lost] = 0.0, -np.inf, np.inf
+        return C, lo, hi
 
     def violation(self, q: np.ndarray, qd: np.ndarray) -> float:
         """How far the node states q, qd (each (N + 1, k)) are beyond the legs' planned stroke
@@ -115,4 +121,6 @@ class LegRows:
                 (np.abs(speeds) - self.max_speed).reshape(-1),
             ]
         )
+        if np.isnan(beyond).any():
+            return math.inf  # a node beyond a crank's reach
         return float(max(0.0, beyond.max(initial=0.0)))

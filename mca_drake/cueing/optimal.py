@@ -383,6 +383,8 @@ class OptimalCueing:
             if self._feasible(x_try, U_try):
                 return d
             remainder = self._legs.remainder(x, U, x_try, U_try, self._leg_rows)
+            if not np.all(np.isfinite(remainder)):
+                return d  # the full step leaves a crank's reach: the line search shortens it
             corrected = self._solve_qp(x, U, *terms, tolerance, leg_shift=remainder)
             if corrected is None:
                 return d

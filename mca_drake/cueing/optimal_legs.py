@@ -50,10 +50,10 @@ class BoundLegRows:
         self.size = 3 * legs  # z: lengths, speeds, accelerations
         self._Phi, self._Gamma = Phi, Gamma
         g = platform.actuators
-        half = 0.5 * (g.max_length - g.min_length)
+        half = 0.5 * (g.max_position - g.min_position)
         reserve = LEG_RESERVE * np.array([half, g.max_speed, g.max_acceleration])
-        lo = np.array([g.min_length, -g.max_speed, -g.max_acceleration]) + reserve
-        hi = np.array([g.max_length, g.max_speed, g.max_acceleration]) - reserve
+        lo = np.array([g.min_position, -g.max_speed, -g.max_acceleration]) + reserve
+        hi = np.array([g.max_position, g.max_speed, g.max_acceleration]) - reserve
         self.lower, self.upper = np.repeat(lo, legs), np.repeat(hi, legs)
 
     def rows(self, x: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1,11 +1,11 @@
-"""The torch twin of `mca_drake.platforms.legs`: a legged platform's leg lengths from its
-pose, differentiable, for training a policy through the legs, and the legs' limits as the
-penalty a DPC rollout pays (`LegLimits`)."""
+"""The torch twin of `mca_drake.platforms.legs`: a legged platform's actuator positions
+(leg lengths; crank angles) from its pose, differentiable, for training a policy through
+the legs, and the legs' limits as the penalty a DPC rollout pays (`LegLimits`)."""
 
 import torch
 from torch import nn
 
-from mca_drake.platforms.leg_clamp import RATE_RESERVE, STROKE_RESERVE_M
+from mca_drake.platforms.leg_clamp import POSITION_RESERVE, RATE_RESERVE
 from mca_drake.platforms.leg_platform import POSE_INDEX, LegPlatform
 from mca_drake.platforms.legs import LegGeometry
 
@@ -23,9 +23,9 @@ def rotation(roll: torch.Tensor, pitch: torch.Tensor, yaw: torch.Tensor) -> torc
     return torch.stack([torch.stack(row, dim=-1) for row in rows], dim=-2)
 
 
-def leg_lengths(pose: torch.Tensor, geometry: LegGeometry) -> torch.Tensor:
-    """The leg lengths (m) of `pose` (..., 6: x, y, z, roll, pitch, yaw relative to the
-    neutral pose; m, rad), as `platforms.legs.leg_lengths`: (..., legs)."""
+def _leg_vectors(pose: torch.Tensor, geometry: LegGeometry) -> torch.Tensor:
+    """The leg vectors t + R p_i - b_i (..., legs, 3) of poses (..., 6), as
+    `platforms.legs`."""
     if pose.shape[-1] != 6:
         raise ValueError(f"a pose is six numbers (x, y, z, roll, pitch, yaw); got {pose.shape}")
     p = torch.as_tensor(geometry.platform_joints, dtype=pose.dtype, device=pose.device)
@@ -34,16 +34,45 @@ def leg_lengths(pose: torch.Tensor, geometry: LegGeometry) -> torch.Tensor:
     lift = torch.zeros(3, dtype=pose.dtype, device=pose.device)
     lift[2] = geometry.neutral_height
     t = pose[..., :3] + lift
-    legs = t[..., None, :] + torch.einsum("...jk,ik->...ij", R, p) - b
-    return torch.linalg.vector_norm(legs, dim=-1)
+    return t[..., None, :] + torch.einsum("...jk,ik->...ij", R, p) - b
+
+
+def leg_lengths(pose: torch.Tensor, geometry: LegGeometry) -> torch.Tensor:
+    """The distances (m) between each leg's joints at `pose` (..., 6: x, y, z, roll, pitch,
+    yaw relative to the neutral pose; m, rad), as `platforms.legs.leg_lengths`:
+    (..., legs)."""
+    return torch.linalg.vector_norm(_leg_vectors(pose, geometry), dim=-1)
+
+
+def actuator_positions(pose: torch.Tensor, geometry: LegGeometry) -> torch.Tensor:
+    """The actuators' positions at `pose` (..., 6), as
+    `platforms.legs.actuator_positions`: leg lengths (m), or where cranks turn the legs the
+    arms' angles (rad) by the same closed form; (..., legs). Past a crank's reach the
+    angle is clipped to the nearest reachable one (the limit term then sees the arm at
+    its extreme, with a gradient towards reach)."""
+    legs = _leg_vectors(pose, geometry)
+    cranks = geometry.cranks
+    if cranks is None:
+        return torch.linalg.vector_norm(legs, dim=-1)
+    options = {"dtype": pose.dtype, "device": pose.device}
+    e = torch.as_tensor(cranks.arm_directions, **options)
+    f = torch.linalg.cross(torch.as_tensor(cranks.motor_axes, **options), e)
+    arm, rod = cranks.arm_length, cranks.rod_length
+    M, N = (legs * e).sum(-1), (legs * f).sum(-1)
+    K = ((legs * legs).sum(-1) + arm**2 - rod**2) / (2.0 * arm)
+    # the reach's edge clipped inside +-1, where acos's derivative is still finite
+    ratio = (K / torch.hypot(M, N)).clamp(-1.0 + 1e-9, 1.0 - 1e-9)
+    branch = torch.where(N >= 0, 1.0, -1.0).to(pose.dtype)
+    return torch.atan2(N, M) - branch * torch.acos(ratio)
 
 
 class LegLimits(nn.Module):
-    """How far a legged platform's rollout takes its legs past their stroke and speed: the
-    DPC loss's limit term for the legs (the coordinates' box is the policy's own).
+    """How far a legged platform's rollout takes its actuators past their range and speed:
+    the DPC loss's limit term for the legs (the coordinates' box is the policy's own).
 
-    The legs' lengths are exact (`leg_lengths` of each state's pose); their speeds are the
-    lengths' differences over a control period (what the rollout's steps move them by), so
+    The actuators' positions are exact (`actuator_positions` of each state's pose: leg
+    lengths, or crank angles); their speeds are the positions' differences over a control
+    period (what the rollout's steps move them by), so
     the term needs no derivatives of the kinematics beyond autograd's. The limits keep the
     viability clamp's reserves (`platforms.leg_clamp`), so that a policy trained inside them
     is one the deployed clamp lets through unchanged.
@@ -62,19 +91,19 @@ class LegLimits(nn.Module):
         for i, coordinate in enumerate(platform.coordinates):
             to_pose[i, POSE_INDEX[coordinate]] = 1.0
         self.register_buffer("to_pose", to_pose, persistent=False)
-        self.low = geometry.min_length + STROKE_RESERVE_M
-        self.high = geometry.max_length - STROKE_RESERVE_M
+        self.low = geometry.min_position + POSITION_RESERVE
+        self.high = geometry.max_position - POSITION_RESERVE
         self.max_speed = geometry.max_speed * (1.0 - RATE_RESERVE)
 
     def lengths(self, X: torch.Tensor) -> torch.Tensor:
-        """The leg lengths (m) of states X (..., 2k): (..., legs)."""
+        """The actuators' positions (m; rad for cranks) of states X (..., 2k): (..., legs)."""
         k = self.to_pose.shape[0]
-        return leg_lengths(X[..., :k] @ self.to_pose.to(X), self.geometry)
+        return actuator_positions(X[..., :k] @ self.to_pose.to(X), self.geometry)
 
     def excess(self, X: torch.Tensor) -> torch.Tensor:
         """Per step of a rollout X (B, T + 1, 2k): the sum over legs of the squared excess
-        beyond the stroke at the step's end (m^2) and beyond the speed over the step
-        ((m/s)^2), shape (B, T)."""
+        beyond the range at the step's end (m^2; rad^2) and beyond the speed over the step
+        ((m/s)^2; (rad/s)^2), shape (B, T)."""
         lengths = self.lengths(X)
         after = lengths[:, 1:]
         stroke = torch.relu(after - self.high) + torch.relu(self.low - after)
@@ -82,4 +111,4 @@ class LegLimits(nn.Module):
         return (stroke**2 + speed**2).sum(-1)
 
 
-__all__ = ["LegLimits", "leg_lengths", "rotation"]
+__all__ = ["LegLimits", "actuator_positions", "leg_lengths", "rotation"]

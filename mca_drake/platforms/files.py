@@ -24,7 +24,7 @@ from typing import Union
 import yaml
 
 from mca_drake.platforms.leg_platform import COORDINATES, LegPlatform, leg_platform
-from mca_drake.platforms.legs import LegGeometry
+from mca_drake.platforms.legs import Cranks, LegGeometry
 from mca_drake.platforms.serial import SerialChain, serial_chain_from_urdf
 from mca_drake.resources import packaged_folder
 
@@ -84,12 +84,25 @@ class _Legs:
     platform_joints: list[list[float]] = dataclasses.field(default_factory=list)
     # The moving platform's origin above the base frame at the neutral pose, m.
     neutral_height: float = 0.0
-    # The legs' length range between joint centres, m.
+    # The legs' length range between joint centres, m (linear legs, listed joints).
     min_length: float = 0.0
     max_length: float = 0.0
-    # The actuators' speed (m/s) and acceleration (m/s^2) limits along the legs.
+    # The actuators' speed and acceleration limits: m/s and m/s^2 along linear legs, rad/s
+    # and rad/s^2 of a crank's arm.
     max_speed: float = 0.0
     max_acceleration: float = 0.0
+    # Rotary actuators (`legs.Cranks`): a motor at each base joint turns an arm of this
+    # length, m, and a rod joins the arm's tip to the platform joint; the actuators'
+    # positions are the arms' angles, rad. 0: linear legs.
+    arm_length: float = 0.0
+    # With cranks and listed joints: the rods' length, m; each arm's direction at angle 0
+    # and its motor's axis (unit [x, y, z] in the base frame, one per leg; positive angles
+    # turn the arm about the axis by the right-hand rule); the arms' angle range, rad.
+    rod_length: float = 0.0
+    arm_directions: list[list[float]] = dataclasses.field(default_factory=list)
+    motor_axes: list[list[float]] = dataclasses.field(default_factory=list)
+    min_angle: float = 0.0
+    max_angle: float = 0.0
     # The occupant's head in the moving platform's frame, m.
     head_position: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 1.0])
     # The moving mass (platform, cabin or seat, occupant), kg, and its principal inertias,
@@ -101,17 +114,41 @@ class _Legs:
 
     def listed_geometry(self) -> LegGeometry:
         """The legs as listed, validated (`LegGeometry.validate`)."""
+        cranks, low, high = None, self.min_length, self.max_length
+        if self.arm_length:
+            if self.min_length or self.max_length:
+                raise ValueError(
+                    "legs turned by cranks (arm_length) give min_angle and max_angle, rad, "
+                    "not min_length and max_length"
+                )
+            cranks = Cranks(
+                arm_length=self.arm_length,
+                rod_length=self.rod_length,
+                arm_directions=self.arm_directions,
+                motor_axes=self.motor_axes,
+            )
+            low, high = self.min_angle, self.max_angle
+        else:
+            self._no_crank_fields("linear legs (no arm_length)")
         geometry = LegGeometry(
             base_joints=self.base_joints,
             platform_joints=self.platform_joints,
             neutral_height=self.neutral_height,
-            min_length=self.min_length,
-            max_length=self.max_length,
+            min_position=low,
+            max_position=high,
             max_speed=self.max_speed,
             max_acceleration=self.max_acceleration,
+            cranks=cranks,
         )
         geometry.validate()
         return geometry
+
+    def _no_crank_fields(self, what: str) -> None:
+        """Raises ValueError where a crank's listed fields are set for `what`."""
+        listed = ("rod_length", "arm_directions", "motor_axes", "min_angle", "max_angle")
+        given = [name for name in listed if getattr(self, name)]
+        if given:
+            raise ValueError(f"{', '.join(given)} describe listed cranks; {what} take none")
 
     def _build(self, geometry: LegGeometry, coordinates, tag: str) -> LegPlatform:
         if not self.name:
@@ -132,7 +169,8 @@ class Hexapod(_Legs):
     """A Stewart-platform hexapod from its legs' geometry and limits
     (`mca_drake.platforms.leg_platform`): its six legs' joints listed, or the symmetric 6-6
     layout of `LegGeometry.symmetric` by radii and angles (then `stroke`, centred on the
-    neutral length, instead of min_length and max_length)."""
+    neutral position, instead of min_length and max_length); linear legs, or rotary
+    actuators with `arm_length` (a hobby hexapod's servos)."""
 
     # The symmetric layout (where no joints are listed): the joint circles' radii, m, and
     # half the angle between a pair's two joints on each, rad.
@@ -140,6 +178,8 @@ class Hexapod(_Legs):
     platform_radius: float = 0.0
     base_half_angle: float = 0.0
     platform_half_angle: float = 0.0
+    # The actuators' range centred on their neutral position: m of leg length; rad of arm
+    # angle with cranks (the arms horizontal at the neutral pose).
     stroke: float = 0.0
 
     def geometry(self) -> LegGeometry:
@@ -168,12 +208,14 @@ class Hexapod(_Legs):
             )
         if self.min_length or self.max_length:
             raise ValueError("a symmetric !Hexapod gives stroke, not min/max_length")
+        self._no_crank_fields("a symmetric !Hexapod (its cranks follow from arm_length)")
         geometry = LegGeometry.symmetric(
             *symmetric,
             neutral_height=self.neutral_height,
             stroke=self.stroke,
             max_speed=self.max_speed,
             max_acceleration=self.max_acceleration,
+            arm_length=self.arm_length,
         )
         geometry.validate()
         return geometry

@@ -24,7 +24,7 @@ acceleration, and the pose's command, constant over the period, does not hold a 
 acceleration constant (J and c change with the pose): where a command would ask more than
 the limit (less `RATE_RESERVE`) of a leg at the period's end, that end's acceleration
 bound, linearised about the end state the command reaches, joins the constraints (twice at
-most). The stroke keeps `STROKE_RESERVE_M` at each end, the speed `RATE_RESERVE`.
+most). The stroke keeps `POSITION_RESERVE` at each end, the speed `RATE_RESERVE`.
 
 Where the box and the legs cannot both hold (a box interval that asks for more
 acceleration than the legs can give), the legs win: the command nearest the box's clamp of
@@ -47,8 +47,9 @@ from mca_drake.safety import ViabilityClamp
 
 # What the clamp keeps in reserve of each leg limit for the period's remainder (the leg's
 # acceleration changes within a period as J and c do: of order h^3 times the pose's jerk,
-# micrometres at 100 Hz): of the stroke at each end, m, and of the speed and acceleration.
-STROKE_RESERVE_M = 1e-3
+# micrometres at 100 Hz): of the range at each end (m of a leg's stroke, rad of an arm's
+# angle), and of the speed and acceleration.
+POSITION_RESERVE = 1e-3
 RATE_RESERVE = 0.01
 # The share of a leg's acceleration the clamp commands and brakes with: the rest is kept for
 # what the legs' coupling adds within a period (the centripetal terms c change with the
@@ -89,8 +90,8 @@ class LegClamp:
         legs = len(platform.actuator_names)
         keep = 1.0 - RATE_RESERVE
         self.legs = ViabilityClamp(
-            [geometry.min_length + STROKE_RESERVE_M] * legs,
-            [geometry.max_length - STROKE_RESERVE_M] * legs,
+            [geometry.min_position + POSITION_RESERVE] * legs,
+            [geometry.max_position - POSITION_RESERVE] * legs,
             [geometry.max_speed * keep] * legs,
             [geometry.max_acceleration * ACCELERATION_SHARE] * legs,
             h,
@@ -193,4 +194,4 @@ def _holds(rows, u) -> bool:
     return True
 
 
-__all__ = ["ACCELERATION_SHARE", "RATE_RESERVE", "STROKE_RESERVE_M", "LegClamp"]
+__all__ = ["ACCELERATION_SHARE", "POSITION_RESERVE", "RATE_RESERVE", "LegClamp"]

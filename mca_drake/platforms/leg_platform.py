@@ -39,8 +39,8 @@ from mca_drake.atomic_io import atomic_write_text
 from mca_drake.platforms.legs import (
     LEGS,
     LegGeometry,
+    actuator_positions,
     leg_jacobian,
-    leg_lengths,
     leg_linearisation,
     leg_motion,
     leg_rates,
@@ -145,8 +145,9 @@ class LegPlatform(SerialChain):
         return pose_of(q, self.coordinates)
 
     def actuator_positions(self, q) -> np.ndarray:
-        """The leg lengths (m) of coordinates q (..., k): (..., legs)."""
-        return leg_lengths(self.pose(q), self.actuators)
+        """The actuators' positions (leg lengths, m; arm angles, rad) of coordinates q
+        (..., k): (..., legs)."""
+        return actuator_positions(self.pose(q), self.actuators)
 
     def actuator_motion(self, q, qd, qdd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The legs' lengths (m), speeds (m/s) and accelerations (m/s^2), each (..., legs),
@@ -174,16 +175,19 @@ class LegPlatform(SerialChain):
         return leg_jacobian(self.pose(q), self.actuators)[:, columns]
 
     def summary(self) -> dict:
-        """As `SerialChain.summary`, with the legs' stroke and limits."""
+        """As `SerialChain.summary`, with the actuators' kind, range and limits (in their
+        unit: m for linear legs, rad for cranks)."""
         geometry = self.actuators
         return {
             **super().summary(),
             "actuators": {
                 "names": list(self.actuator_names),
-                "min_length_m": geometry.min_length,
-                "max_length_m": geometry.max_length,
-                "max_speed_m_s": geometry.max_speed,
-                "max_acceleration_m_s2": geometry.max_acceleration,
+                "kind": "linear" if geometry.cranks is None else "rotary",
+                "unit": geometry.unit,
+                "min_position": geometry.min_position,
+                "max_position": geometry.max_position,
+                "max_speed": geometry.max_speed,
+                "max_acceleration": geometry.max_acceleration,
             },
         }
 
@@ -200,8 +204,10 @@ class AxisLimits:
 
 
 def _within_stroke(pose: np.ndarray, geometry: LegGeometry) -> np.ndarray:
-    lengths = leg_lengths(pose, geometry)
-    return np.all((lengths >= geometry.min_length) & (lengths <= geometry.max_length), axis=-1)
+    positions = actuator_positions(pose, geometry)
+    return np.all(
+        (positions >= geometry.min_position) & (positions <= geometry.max_position), axis=-1
+    )
 
 
 def _reach(coordinate: str, sign: float, geometry: LegGeometry) -> float:
@@ -209,7 +215,12 @@ def _reach(coordinate: str, sign: float, geometry: LegGeometry) -> float:
     leaves its stroke: a scan of 400 steps for the first pose outside, then bisection to
     1e-9 (so a workspace that is not convex along the axis is cut at its first edge)."""
     axis = POSE_INDEX[coordinate]
-    limit = MAX_ANGLE if axis >= 3 else geometry.max_length
+    if axis >= 3:
+        limit = MAX_ANGLE
+    elif geometry.cranks is None:
+        limit = geometry.max_position  # no leg reaches further than its longest
+    else:
+        limit = geometry.cranks.arm_length + geometry.cranks.rod_length
     steps = np.linspace(0.0, limit, 401)
     poses = np.zeros((steps.size, 6))
     poses[:, axis] = sign * steps

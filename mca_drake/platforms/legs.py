@@ -1,25 +1,35 @@
-"""The legs of a platform moved by linear actuators, and their kinematics (numpy): the
-pose of its moving platform and the lengths of its legs. A Stewart-platform hexapod has six
-legs and moves in all six pose coordinates; a small rig (2 or 3 DOF) has two to four
-actuators and moves in some of them, a mechanism holding the others at zero.
+"""The legs of a platform moved by actuators between a base and a moving platform, and
+their kinematics (numpy): the pose of its moving platform and the positions of its
+actuators. A Stewart-platform hexapod has six legs and moves in all six pose coordinates;
+a small rig (2 or 3 DOF) has two to four actuators and moves in some of them, a mechanism
+holding the others at zero.
 
 Frames: the base frame B (fixed, z up) has its origin in the plane of the base joints; the
 platform frame P (moving) has its origin in the plane of the platform joints. At the
 neutral pose P is B raised by `neutral_height` (m). A pose is six numbers relative to the
 neutral pose, `(x, y, z, roll, pitch, yaw)` (m, rad): P's origin at (x, y, neutral_height +
 z) in B and its rotation R = Rz(yaw) Ry(pitch) Rx(roll). Leg i joins the base joint b_i (in
-B) to the platform joint p_i (in P); its length is
+B) to the platform joint p_i (in P) along the leg vector
 
-    l_i = |t + R p_i - b_i|,      t = (x, y, neutral_height + z).
+    v_i = t + R p_i - b_i,      t = (x, y, neutral_height + z).
 
-`leg_lengths` is that inverse kinematics (batched over poses); `leg_jacobian` its exact
-derivative dl/dpose (legs x 6); `leg_motion` the legs' lengths, speeds and accelerations of a
-pose moving with given pose rates and accelerations (what the actuator limits bound);
-`leg_linearisation` the exact derivatives of lengths and speeds along a motion (what a
-planner's linearised limits need);
-`forward_kinematics` inverts a hexapod's `leg_lengths` by Newton's method from the neutral
-pose (or a guess), to 1e-12 m on the lengths. The torch twin (for training through
-the legs) is `mca_drake.learning.legs`.
+An actuator's position a_i is a function of its leg vector alone:
+- a linear actuator (the legs of most hexapods and rigs): the leg's length a_i = |v_i|, m;
+- a rotary one (`Cranks`: a motor at b_i turns an arm of length c, a rod of fixed length r
+  joins the arm's tip to p_i): the arm's angle a_i, rad, the solution of
+  |v_i - c (cos a_i e_i + sin a_i f_i)| = r nearer zero, e_i the arm's direction at angle 0
+  and f_i = axis_i x e_i.
+Every function here works through `_actuators`, the positions and their first and second
+derivatives by the leg vector, so either kind gets the same exact kinematics:
+
+`actuator_positions` is the inverse kinematics (batched over poses); `leg_jacobian` its
+exact derivative da/dpose (legs x 6); `leg_motion` the actuators' positions, speeds and
+accelerations of a pose moving with given pose rates and accelerations (what the actuator
+limits bound); `leg_linearisation` the exact derivatives of positions and speeds along a
+motion (what a planner's linearised limits need); `forward_kinematics` inverts a hexapod's
+`actuator_positions` by Newton's method from the neutral pose (or a guess), to 1e-12 on the
+positions. `leg_lengths` is the distance between each leg's joints (a linear leg's
+position). The torch twin (for training through the legs) is `mca_drake.learning.legs`.
 """
 
 import dataclasses
@@ -34,21 +44,70 @@ LEGS = 6
 
 
 @dataclasses.dataclass
-class LegGeometry:
-    """Where a platform's legs attach, and how far and fast they may move (every leg alike)."""
+class Cranks:
+    """Rotary actuators: at each base joint b_i a motor turns an arm of `arm_length` about
+    its axis; a rod of `rod_length` joins the arm's tip to the platform joint p_i (ball
+    joints at both ends). The actuator's position is the arm's angle, rad: 0 along the
+    arm's zero direction e_i, positive turning about the motor's axis by the right-hand
+    rule (towards f_i = axis_i x e_i)."""
 
-    # Base joints b_i in the base frame, m: one [x, y, z] per leg (a hexapod's six).
+    # The arm from the motor's axis to the rod's joint, m, and the rod between joints, m.
+    arm_length: float
+    rod_length: float
+    # Each arm's direction at angle 0, and its motor's axis (perpendicular to it): unit
+    # [x, y, z] in the base frame, one per leg.
+    arm_directions: list[list[float]]
+    motor_axes: list[list[float]]
+
+    def validate(self, legs: int) -> None:
+        """Raises ValueError for arms that cannot turn, naming the field."""
+        check_config_numbers(self)
+        if not (self.arm_length > 0 and self.rod_length > 0):
+            raise ValueError("Cranks.arm_length and Cranks.rod_length must be positive, m")
+        for name in ("arm_directions", "motor_axes"):
+            vectors = np.asarray(getattr(self, name), dtype=float)
+            if vectors.shape != (legs, 3) or not np.allclose(
+                np.linalg.norm(vectors, axis=1), 1.0, atol=1e-9
+            ):
+                raise ValueError(
+                    f"Cranks.{name} must be {legs} unit [x, y, z] vectors, one per leg"
+                )
+        e, axis = np.asarray(self.arm_directions), np.asarray(self.motor_axes)
+        if not np.allclose(np.einsum("ij,ij->i", e, axis), 0.0, atol=1e-9):
+            raise ValueError("each of Cranks.motor_axes must be perpendicular to its arm direction")
+
+
+@dataclasses.dataclass
+class LegGeometry:
+    """Where a platform's legs attach, what moves them and how far and fast their actuators
+    may move (every leg alike). An actuator's position is its leg's length (m) for linear
+    actuators, its arm's angle (rad) where `cranks` turns the legs; speeds and
+    accelerations are in the same unit per s and s^2."""
+
+    # Base joints b_i in the base frame, m: one [x, y, z] per leg (a hexapod's six); where
+    # cranks turn the legs, the arms' pivots on the motors' axes.
     base_joints: list[list[float]]
     # Platform joints p_i in the platform frame, m: one [x, y, z] per leg, leg i from b_i.
     platform_joints: list[list[float]]
     # Height of the platform frame above the base frame at the neutral pose, m.
     neutral_height: float
-    # Leg length range, m (the actuators' stroke, from the joint centres).
-    min_length: float
-    max_length: float
-    # Actuator speed and acceleration limits along the legs, m/s and m/s^2.
+    # The actuators' position range (m of leg length between joint centres; rad of arm
+    # angle), and their speed and acceleration limits (per s, per s^2).
+    min_position: float
+    max_position: float
     max_speed: float
     max_acceleration: float
+    # Rotary actuators (`Cranks`); None: linear legs.
+    cranks: Cranks | None = None
+
+    def __post_init__(self):
+        if isinstance(self.cranks, dict):  # from a JSON or YAML round trip
+            self.cranks = Cranks(**self.cranks)
+
+    @property
+    def unit(self) -> str:
+        """The actuators' position unit: "m" (linear legs) or "rad" (cranks)."""
+        return "m" if self.cranks is None else "rad"
 
     def validate(self) -> None:
         """Raises ValueError for a geometry that cannot move, naming the field."""
@@ -61,16 +120,25 @@ class LegGeometry:
                 f"LegGeometry.platform_joints must be {legs[0]} [x, y, z] points, m, one per "
                 "base joint"
             )
-        for name in ("neutral_height", "min_length", "max_speed", "max_acceleration"):
+        for name in ("neutral_height", "max_speed", "max_acceleration"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"LegGeometry.{name} must be positive")
-        if not self.max_length > self.min_length:
-            raise ValueError("LegGeometry.max_length must exceed min_length")
-        neutral = leg_lengths(np.zeros(6), self)
-        if np.any(neutral < self.min_length) or np.any(neutral > self.max_length):
+        if self.cranks is None and not self.min_position > 0:
             raise ValueError(
-                f"the neutral pose's leg lengths {np.round(neutral, 4).tolist()} m are "
-                f"outside the stroke [{self.min_length}, {self.max_length}] m"
+                "LegGeometry.min_position (a linear leg's shortest length) must be positive"
+            )
+        if not self.max_position > self.min_position:
+            raise ValueError("LegGeometry.max_position must exceed min_position")
+        if self.cranks is not None:
+            self.cranks.validate(legs[0])
+            if not (self.min_position > -math.pi and self.max_position < math.pi):
+                raise ValueError("a crank's angle range must lie inside (-pi, pi), rad")
+        neutral = actuator_positions(np.zeros(6), self)
+        if np.any(neutral < self.min_position) or np.any(neutral > self.max_position):
+            raise ValueError(
+                f"the neutral pose's actuator positions {np.round(neutral, 4).tolist()} "
+                f"{self.unit} are outside the range [{self.min_position}, "
+                f"{self.max_position}] {self.unit}"
             )
 
     @classmethod
@@ -84,6 +152,7 @@ class LegGeometry:
         stroke: float,
         max_speed: float,
         max_acceleration: float,
+        arm_length: float = 0.0,
     ) -> "LegGeometry":
         """The classic 6-6 hexapod: joints in pairs on two circles, pairs 120 deg apart.
 
@@ -95,9 +164,15 @@ class LegGeometry:
                 60 deg from the base's, so each leg runs from one base pair to the
                 neighbouring platform pair.
             neutral_height: the platform frame's height at the neutral pose, m.
-            stroke: the leg length range, centred on the neutral length, m.
-            max_speed: the actuators' speed limit along the legs, m/s.
-            max_acceleration: their acceleration limit, m/s^2.
+            stroke: the actuators' range, centred on their neutral position: m of leg
+                length, or rad of arm angle with cranks.
+            max_speed: the actuators' speed limit, m/s (rad/s with cranks).
+            max_acceleration: their acceleration limit, m/s^2 (rad/s^2 with cranks).
+            arm_length: with a positive length, rotary actuators (`Cranks`): each base
+                joint a motor whose arm (this long, m) lies horizontal at the neutral pose,
+                along the base circle's tangent towards its leg's platform joint, turning
+                about the radius (up positive); each rod as long as the arm's tip is from
+                its platform joint there. 0: linear legs.
         """
         base, platform = [], []
         for pair in range(3):
@@ -110,13 +185,44 @@ class LegGeometry:
                 p = centre + side * (math.radians(60.0) - platform_half_angle)
                 platform.append([platform_radius * math.cos(p), platform_radius * math.sin(p), 0.0])
         lift = np.array([0.0, 0.0, neutral_height])
-        neutral = float(np.linalg.norm(np.array(platform[0]) + lift - np.array(base[0])))
+        tops = np.array(platform) + lift
+        if arm_length > 0:
+            # each arm along its circle's tangent on its leg's side; its axis the radius,
+            # signed so that turning up is positive (axis x e = +z)
+            tangents, axes = [], []
+            for b in base:
+                radial = np.array([b[0], b[1], 0.0]) / math.hypot(b[0], b[1])
+                tangent = np.array([-radial[1], radial[0], 0.0])
+                side = 1.0 if np.dot(tops[len(tangents)] - np.array(b), tangent) > 0 else -1.0
+                e = side * tangent
+                axis = np.cross(e, [0.0, 0.0, 1.0])  # axis x e = z for e horizontal
+                tangents.append(e.tolist())
+                axes.append(axis.tolist())
+            tips = np.array(base) + arm_length * np.array(tangents)
+            rods = np.linalg.norm(tops - tips, axis=1)
+            cranks = Cranks(
+                arm_length=arm_length,
+                rod_length=float(rods[0]),
+                arm_directions=tangents,
+                motor_axes=axes,
+            )
+            return cls(
+                base_joints=base,
+                platform_joints=platform,
+                neutral_height=neutral_height,
+                min_position=-0.5 * stroke,
+                max_position=0.5 * stroke,
+                max_speed=max_speed,
+                max_acceleration=max_acceleration,
+                cranks=cranks,
+            )
+        neutral = float(np.linalg.norm(tops[0] - np.array(base[0])))
         return cls(
             base_joints=base,
             platform_joints=platform,
             neutral_height=neutral_height,
-            min_length=neutral - 0.5 * stroke,
-            max_length=neutral + 0.5 * stroke,
+            min_position=neutral - 0.5 * stroke,
+            max_position=neutral + 0.5 * stroke,
             max_speed=max_speed,
             max_acceleration=max_acceleration,
         )
@@ -136,7 +242,7 @@ def rotation(roll, pitch, yaw) -> np.ndarray:
 
 
 def _legs(pose: np.ndarray, geometry: LegGeometry) -> np.ndarray:
-    """The leg vectors t + R p_i - b_i in B, shape (..., 6, 3)."""
+    """The leg vectors t + R p_i - b_i in B, shape (..., legs, 3)."""
     pose = np.asarray(pose, dtype=float)
     if pose.shape[-1:] != (6,) or not np.all(np.isfinite(pose)):
         raise ValueError(f"a pose is six finite numbers (x, y, z, roll, pitch, yaw); got {pose}")
@@ -151,26 +257,88 @@ def _legs(pose: np.ndarray, geometry: LegGeometry) -> np.ndarray:
     return t[..., None, :] + np.einsum("...jk,ik->...ij", R, p) - b
 
 
+def _crank_angles(legs: np.ndarray, cranks: Cranks):
+    """The arms' angles (..., legs) of leg vectors (..., legs, 3), with the arms' unit
+    directions c(a) and their derivatives c'(a) (..., legs, 3); NaN where the rod cannot
+    reach (the pose is beyond the mechanism).
+
+    |v - c_len c(a)|^2 = r^2 is M cos a + N sin a = K with M = v.e, N = v.f and
+    K = (|v|^2 + c_len^2 - r^2) / (2 c_len): a = phi -+ acos(K / rho) with
+    (rho, phi) the polar form of (M, N); the sign that gives the solution nearer zero is
+    N's (cos a is then the larger).
+    """
+    e = np.asarray(cranks.arm_directions, dtype=float)
+    f = np.cross(np.asarray(cranks.motor_axes, dtype=float), e)
+    arm, rod = cranks.arm_length, cranks.rod_length
+    M, N = _dot(legs, e), _dot(legs, f)
+    K = (_dot(legs, legs) + arm**2 - rod**2) / (2.0 * arm)
+    with np.errstate(invalid="ignore"):
+        spread = np.arccos(K / np.hypot(M, N))
+    angles = np.arctan2(N, M) - np.where(N >= 0.0, 1.0, -1.0) * spread
+    cos, sin = np.cos(angles)[..., None], np.sin(angles)[..., None]
+    return angles, cos * e + sin * f, cos * f - sin * e
+
+
+def _actuators(legs: np.ndarray, geometry: LegGeometry, derivatives: bool = True):
+    """The actuators' positions a (..., legs) of leg vectors v (..., legs, 3) and, with
+    `derivatives`, da/dv (..., legs, 3) and d2a/dv2 (..., legs, 3, 3) (else None, None).
+
+    A linear leg: a = |v|, da/dv = u = v / |v|, d2a/dv2 = (I - u u^T) / |v|.
+    A crank (implicit in F(a, v) = |w|^2 - r^2 = 0, w = v - c_len c(a)):
+    da/dv = g = w / D with D = c_len (w . c'(a)), and differentiating g once more,
+    d2a/dv2 = (I - c_len (c' g^T + g c'^T) + c_len (c_len + w . c) g g^T) / D.
+    """
+    if geometry.cranks is None:
+        lengths = np.linalg.norm(legs, axis=-1)
+        if not derivatives:
+            return lengths, None, None
+        g = legs / lengths[..., None]
+        H = (np.eye(3) - g[..., :, None] * g[..., None, :]) / lengths[..., None, None]
+        return lengths, g, H
+    angles, c, c_dot = _crank_angles(legs, geometry.cranks)
+    if not derivatives:
+        return angles, None, None
+    arm = geometry.cranks.arm_length
+    w = legs - arm * c
+    D = arm * _dot(w, c_dot)[..., None]
+    g = w / D
+    cross = c_dot[..., :, None] * g[..., None, :]
+    H = (
+        np.eye(3)
+        - arm * (cross + np.swapaxes(cross, -1, -2))
+        + (arm * (arm + _dot(w, c)))[..., None, None] * (g[..., :, None] * g[..., None, :])
+    ) / D[..., None]
+    return angles, g, H
+
+
+def actuator_positions(pose, geometry: LegGeometry) -> np.ndarray:
+    """The actuators' positions of `pose` (..., 6) relative to the neutral pose: leg
+    lengths (m), or arm angles (rad) where cranks turn the legs; (..., legs)."""
+    return _actuators(_legs(pose, geometry), geometry, derivatives=False)[0]
+
+
 def leg_lengths(pose, geometry: LegGeometry) -> np.ndarray:
-    """The leg lengths (m) of `pose` (..., 6) relative to the neutral pose: (..., legs)."""
+    """The distances (m) between each leg's joints at `pose` (..., 6): (..., legs); a
+    linear leg's position."""
     return np.linalg.norm(_legs(pose, geometry), axis=-1)
 
 
 def leg_jacobian(pose, geometry: LegGeometry) -> np.ndarray:
-    """dl/dpose at one pose (6,): (legs, 6 pose coordinates), exact.
+    """da/dpose of the actuators' positions at one pose (6,): (legs, 6 pose coordinates),
+    exact.
 
-    d l_i = u_i . (dt + dR p_i) with u_i the leg's unit vector; the angle columns use
+    d a_i = g_i . (dt + dR p_i) with g_i = da_i/dv_i (`_actuators`); the angle columns use
     dR/dangle of R = Rz Ry Rx (`_rotation_derivatives`).
     """
     pose = np.asarray(pose, dtype=float)
     legs = _legs(pose, geometry)
-    units = legs / np.linalg.norm(legs, axis=-1, keepdims=True)
+    g = _actuators(legs, geometry)[1]
     derivatives = _rotation_derivatives(pose[3:], second=False)[0]
     p = np.asarray(geometry.platform_joints, dtype=float)
     J = np.empty((legs.shape[0], 6))
-    J[:, :3] = units
+    J[:, :3] = g
     for k, dR in enumerate(derivatives):
-        J[:, 3 + k] = np.einsum("ij,ij->i", units, p @ dR.T)
+        J[:, 3 + k] = np.einsum("ij,ij->i", g, p @ dR.T)
     return J
 
 
@@ -237,21 +405,26 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("...ij,...ij->...i", a, b)
 
 
-def leg_motion(pose, pose_rate, pose_acceleration, geometry: LegGeometry):
-    """The legs' lengths (m), speeds (m/s) and accelerations (m/s^2), each (..., legs), of
-    poses (..., 6) moving at `pose_rate` with `pose_acceleration` (the six pose
-    coordinates' first and second time derivatives, same shape; angles as Euler-angle
-    rates, rad/s and rad/s^2).
+def _quadratic(x: np.ndarray, H: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """x_i^T H_i y_i per leg: x, y (..., legs, 3), H (..., legs, 3, 3) -> (..., legs)."""
+    return np.einsum("...i,...ij,...j->...", x, H, y)
 
-    With v_i = t + R p_i - b_i: l_i = |v_i|, l'_i = u_i . v'_i and
-    l''_i = (|v'_i|^2 - l'_i^2) / l_i + u_i . v''_i, exactly.
+
+def leg_motion(pose, pose_rate, pose_acceleration, geometry: LegGeometry):
+    """The actuators' positions, speeds and accelerations (m, m/s, m/s^2 for linear legs;
+    rad, rad/s, rad/s^2 for cranks), each (..., legs), of poses (..., 6) moving at
+    `pose_rate` with `pose_acceleration` (the six pose coordinates' first and second time
+    derivatives, same shape; angles as Euler-angle rates, rad/s and rad/s^2).
+
+    With v_i = t + R p_i - b_i and g_i, H_i the position's first and second derivatives by
+    v_i (`_actuators`): a'_i = g_i . v'_i and a''_i = v'_i^T H_i v'_i + g_i . v''_i,
+    exactly (for a linear leg, (|v'_i|^2 - l'_i^2) / l_i + u_i . v''_i).
     """
     pose = np.asarray(pose, dtype=float)
     rate = np.broadcast_to(np.asarray(pose_rate, dtype=float), pose.shape)
     accel = np.broadcast_to(np.asarray(pose_acceleration, dtype=float), pose.shape)
     legs = _legs(pose, geometry)
-    lengths = np.linalg.norm(legs, axis=-1)
-    units = legs / lengths[..., None]
+    positions, g, H = _actuators(legs, geometry)
     first, second = _rotation_derivatives(pose[..., 3:])
 
     def angle(values: np.ndarray, k: int) -> np.ndarray:
@@ -262,56 +435,55 @@ def leg_motion(pose, pose_rate, pose_acceleration, geometry: LegGeometry):
         second[k][m] * angle(rate, k) * angle(rate, m) for k in range(3) for m in range(3)
     )
     p = np.asarray(geometry.platform_joints, dtype=float)
-    # R' p_i for every leg i: (..., 6, 3)
+    # R' p_i for every leg i: (..., legs, 3)
     v_dot = rate[..., None, :3] + np.einsum("...jk,ik->...ij", R_dot, p)
     v_ddot = accel[..., None, :3] + np.einsum("...jk,ik->...ij", R_ddot, p)
-    speeds = _dot(units, v_dot)
-    accelerations = (_dot(v_dot, v_dot) - speeds**2) / lengths + _dot(units, v_ddot)
-    return lengths, speeds, accelerations
+    speeds = _dot(g, v_dot)
+    accelerations = _quadratic(v_dot, H, v_dot) + _dot(g, v_ddot)
+    return positions, speeds, accelerations
 
 
 def leg_rates(pose, pose_rate, geometry: LegGeometry):
-    """One pose (6,) moving at `pose_rate` (6,): the legs' lengths (m), speeds (m/s) and
-    accelerations at zero pose acceleration (m/s^2), each (legs,), and dl/dpose (legs, 6),
-    from one pass over the rotation's derivatives. A leg's acceleration under a pose
-    acceleration a is that drift plus J a (`leg_motion`'s l'' is linear in a): what a
-    clamp needs every period."""
+    """One pose (6,) moving at `pose_rate` (6,): the actuators' positions, speeds and
+    accelerations at zero pose acceleration (`leg_motion`'s units), each (legs,), and
+    da/dpose (legs, 6), from one pass over the rotation's derivatives. An actuator's
+    acceleration under a pose acceleration a is that drift plus J a (`leg_motion`'s a'' is
+    linear in the pose acceleration): what a clamp needs every period."""
     pose = np.asarray(pose, dtype=float)
     rate = np.asarray(pose_rate, dtype=float)
     legs = _legs(pose, geometry)
-    lengths = np.linalg.norm(legs, axis=-1)
-    units = legs / lengths[:, None]
+    positions, g, H = _actuators(legs, geometry)
     first, second = _rotation_derivatives(pose[3:])
     R_dot = sum(first[k] * rate[3 + k] for k in range(3))
     R_ddot = sum(second[k][m] * (rate[3 + k] * rate[3 + m]) for k in range(3) for m in range(3))
     p = np.asarray(geometry.platform_joints, dtype=float)
     v_dot = rate[:3] + p @ R_dot.T
-    speeds = _dot(units, v_dot)
-    drift = (_dot(v_dot, v_dot) - speeds**2) / lengths + _dot(units, p @ R_ddot.T)
-    J = np.empty((lengths.size, 6))
-    J[:, :3] = units
+    speeds = _dot(g, v_dot)
+    drift = _quadratic(v_dot, H, v_dot) + _dot(g, p @ R_ddot.T)
+    J = np.empty((positions.size, 6))
+    J[:, :3] = g
     for k, dR in enumerate(first):
-        J[:, 3 + k] = _dot(units, p @ dR.T)
-    return lengths, speeds, drift, J
+        J[:, 3 + k] = _dot(g, p @ dR.T)
+    return positions, speeds, drift, J
 
 
 def leg_linearisation(pose, pose_rate, geometry: LegGeometry):
-    """Poses (..., 6) moving at `pose_rate` (..., 6): the legs' lengths l (m) and speeds
-    l' (m/s), each (..., legs), and their exact first derivatives: J = dl/dpose =
-    dl'/dpose_rate and S = dl'/dpose, each (..., legs, 6). What a planner needs to bound
-    the legs' stroke and speed along a planned motion, linearised about it.
+    """Poses (..., 6) moving at `pose_rate` (..., 6): the actuators' positions a and speeds
+    a' (`leg_motion`'s units), each (..., legs), and their exact first derivatives:
+    J = da/dpose = da'/dpose_rate and S = da'/dpose, each (..., legs, 6). What a planner
+    needs to bound the actuators' range and speed along a planned motion, linearised about
+    it.
 
-    With v_i = t + R p_i - b_i, u_i = v_i / l_i and l'_i = u_i . v'_i:
-    dl'_i/dpose_j = (dv_i/dpose_j . v'_i - (u_i . dv_i/dpose_j) l'_i) / l_i
-                    + u_i . (dv'_i/dpose_j),
+    With v_i = t + R p_i - b_i, g_i and H_i the position's derivatives by v_i and
+    a'_i = g_i . v'_i:
+    da'_i/dpose_j = (dv_i/dpose_j)^T H_i v'_i + g_i . (dv'_i/dpose_j),
     dv'_i/dpose_j zero for the position coordinates and d2R/dangle_j dangle_k rate_k p_i
     for the angles.
     """
     pose = np.asarray(pose, dtype=float)
     rate = np.broadcast_to(np.asarray(pose_rate, dtype=float), pose.shape)
     legs = _legs(pose, geometry)
-    lengths = np.linalg.norm(legs, axis=-1)
-    units = legs / lengths[..., None]
+    positions, g, H = _actuators(legs, geometry)
     first, second = _rotation_derivatives(pose[..., 3:])
     p = np.asarray(geometry.platform_joints, dtype=float)
 
@@ -320,62 +492,69 @@ def leg_linearisation(pose, pose_rate, geometry: LegGeometry):
 
     R_dot = sum(first[k] * angle(rate, k) for k in range(3))
     v_dot = rate[..., None, :3] + np.einsum("...jk,ik->...ij", R_dot, p)
-    speeds = _dot(units, v_dot)
+    speeds = _dot(g, v_dot)
     # dv_i/dpose_j (..., legs, 6, 3): the unit vectors for x, y, z; dR/dangle p_i for angles
     dv = np.zeros((*legs.shape[:-1], 6, 3))
     dv[..., :, [0, 1, 2], [0, 1, 2]] = 1.0
     for k in range(3):
         dv[..., :, 3 + k, :] = np.einsum("...jk,ik->...ij", first[k], p)
-    J = np.einsum("...ic,...ijc->...ij", units, dv)
-    S = (np.einsum("...ijc,...ic->...ij", dv, v_dot) - J * speeds[..., None]) / lengths[..., None]
+    J = np.einsum("...ic,...ijc->...ij", g, dv)
+    S = np.einsum("...ijc,...icd,...id->...ij", dv, H, v_dot)
     for k in range(3):
         dR_dot = sum(second[k][m] * angle(rate, m) for m in range(3))
-        S[..., 3 + k] += _dot(units, np.einsum("...jk,ik->...ij", dR_dot, p))
-    return lengths, speeds, J, S
+        S[..., 3 + k] += _dot(g, np.einsum("...jk,ik->...ij", dR_dot, p))
+    return positions, speeds, J, S
 
 
 def forward_kinematics(
-    lengths,
+    positions,
     geometry: LegGeometry,
     guess=None,
     tolerance: float = 1e-12,
     max_iterations: int = 50,
 ) -> np.ndarray:
-    """A hexapod's pose (6,) whose legs have `lengths` (6, m), by Newton's method from
-    `guess` (default the neutral pose): the pose nearest the guess where it has several.
+    """A hexapod's pose (6,) whose actuators are at `positions` (6: leg lengths, m, or arm
+    angles, rad), by Newton's method from `guess` (default the neutral pose): the pose
+    nearest the guess where it has several.
 
     Raises:
-        ValueError: a geometry of other than six legs, lengths that are not six finite
-            numbers, or no pose within
-            `max_iterations` (the lengths are beyond what the legs can reach together).
+        ValueError: a geometry of other than six legs, positions that are not six finite
+            numbers, or no pose within `max_iterations` (the positions are beyond what the
+            legs can reach together).
     """
     if np.shape(geometry.base_joints)[0] != LEGS:
         raise ValueError("forward kinematics is a hexapod's: six legs, six pose coordinates")
-    target = np.asarray(lengths, dtype=float)
+    target = np.asarray(positions, dtype=float)
     if target.shape != (LEGS,) or not np.all(np.isfinite(target)):
-        raise ValueError(f"forward kinematics needs six finite leg lengths; got {lengths}")
+        raise ValueError(f"forward kinematics needs six finite actuator positions; got {positions}")
     pose = np.zeros(6) if guess is None else np.array(guess, dtype=float)
     for _ in range(max_iterations):
-        error = leg_lengths(pose, geometry) - target
+        error = actuator_positions(pose, geometry) - target
+        if not np.all(np.isfinite(error)):
+            break  # a step left the mechanism's reach
         if np.max(np.abs(error)) <= tolerance:
             return pose
         step = np.linalg.solve(leg_jacobian(pose, geometry), error)
         pose = pose - step
-    error = np.max(np.abs(leg_lengths(pose, geometry) - target))
+    error = np.max(np.abs(actuator_positions(pose, geometry) - target))
     if error <= 1e3 * tolerance:
-        return pose  # converged to the precision the lengths carry
+        return pose  # converged to the precision the positions carry
     raise ValueError(
-        f"forward kinematics did not converge in {max_iterations} iterations (leg length "
-        f"error {error:.3g} m): the lengths may be beyond the hexapod's workspace"
+        f"forward kinematics did not converge in {max_iterations} iterations (actuator "
+        f"position error {error:.3g} {geometry.unit}): the positions may be beyond the "
+        "hexapod's workspace"
     )
 
 
 __all__ = [
     "LEGS",
+    "Cranks",
     "LegGeometry",
+    "actuator_positions",
     "forward_kinematics",
     "leg_jacobian",
     "leg_lengths",
+    "leg_linearisation",
     "leg_motion",
     "leg_rates",
     "rotation",

@@ -95,23 +95,31 @@ def joint_usage(q, qd, qdd, robot: SerialChain) -> JointUsage:
 
 
 def _actuator_usage(q, qd, qdd, robot) -> JointUsage | None:
-    """A legged platform's legs' usage: lengths about their neutral lengths, speeds and
+    """A legged platform's actuators' usage: positions about their neutral ones, speeds and
     accelerations; None for a platform whose actuators are its joints."""
     if not isinstance(robot, LegPlatform):
         return None
     geometry = robot.actuators
-    lengths, speeds, accelerations = robot.actuator_motion(q, qd, qdd)
+    positions, speeds, accelerations = robot.actuator_motion(q, qd, qdd)
     neutral = robot.actuator_positions(robot.home)
+    # A pose beyond a crank's reach has no arm angle (NaN): infinitely far beyond every limit.
+    beyond = ~np.isfinite(positions)
+    positions, speeds, accelerations = (
+        np.where(beyond, 0.0, values) for values in (positions - neutral, speeds, accelerations)
+    )
     legs = len(robot.actuator_names)
     speed = np.full(legs, geometry.max_speed)
     acceleration = np.full(legs, geometry.max_acceleration)
-    return JointUsage(
+    usage = JointUsage(
         q=normalized_joint_usage(
-            lengths - neutral, geometry.min_length - neutral, geometry.max_length - neutral
+            positions, geometry.min_position - neutral, geometry.max_position - neutral
         ),
         qd=normalized_joint_usage(speeds, -speed, speed),
         qdd=normalized_joint_usage(accelerations, -acceleration, acceleration),
     )
+    for values in (usage.q, usage.qd, usage.qdd):
+        values[beyond] = np.inf
+    return usage
 
 
 def limit_violations(q, qd, qdd, robot: SerialChain, tolerance: float = 1e-9) -> dict:

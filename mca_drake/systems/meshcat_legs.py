@@ -1,5 +1,5 @@
 """MeshcatLegs: a legged platform's legs drawn in Meshcat, coloured by how much of their
-stroke they use."""
+actuators' range they use."""
 
 from __future__ import annotations
 
@@ -8,37 +8,47 @@ from pydrake.geometry import Meshcat, Rgba
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
 from mca_drake.platforms.leg_platform import LegPlatform
-from mca_drake.platforms.legs import rotation
+from mca_drake.platforms.legs import actuator_positions, rotation
 
-# A leg at mid-stroke is drawn in the first colour, one at a stroke's end in the second.
+# An actuator mid-range is drawn in the first colour, one at a range's end in the second.
 _MIDDLE = np.array([0.2, 0.6, 0.25])
 _END = np.array([0.9, 0.15, 0.1])
 
 
 def leg_segments(platform: LegPlatform, q) -> np.ndarray:
-    """Each leg's two joint centres in the world (the base frame) at coordinates q (k,):
-    shape (legs, 2, 3), base joint first."""
-    x, y, z, roll, pitch, yaw = platform.pose(np.asarray(q, dtype=float))
+    """Each leg as a polyline of joint centres in the world (the base frame) at coordinates
+    q (k,), base first: (legs, 2, 3) for linear legs (base and platform joints), (legs, 3,
+    3) for cranks (the arm's pivot, its tip, the platform joint)."""
+    pose = platform.pose(np.asarray(q, dtype=float))
+    x, y, z, roll, pitch, yaw = pose
     geometry = platform.actuators
     R = rotation(roll, pitch, yaw)
     t = np.array([x, y, geometry.neutral_height + z])
     top = t + np.asarray(geometry.platform_joints, dtype=float) @ R.T
-    return np.stack([np.asarray(geometry.base_joints, dtype=float), top], axis=1)
+    base = np.asarray(geometry.base_joints, dtype=float)
+    cranks = geometry.cranks
+    if cranks is None:
+        return np.stack([base, top], axis=1)
+    angles = actuator_positions(pose, geometry)[:, None]
+    e = np.asarray(cranks.arm_directions, dtype=float)
+    f = np.cross(np.asarray(cranks.motor_axes, dtype=float), e)
+    tips = base + cranks.arm_length * (np.cos(angles) * e + np.sin(angles) * f)
+    return np.stack([base, tips, top], axis=1)
 
 
-def stroke_used(platform: LegPlatform, lengths: np.ndarray) -> np.ndarray:
-    """Each leg's distance from mid-stroke as a share of half the stroke: 0 in the middle,
-    1 at an end, shape (legs,)."""
+def stroke_used(platform: LegPlatform, positions: np.ndarray) -> np.ndarray:
+    """Each actuator's distance from the middle of its range as a share of half the range:
+    0 in the middle, 1 at an end, shape (legs,), of positions (legs,) (m; rad for cranks)."""
     geometry = platform.actuators
-    middle = 0.5 * (geometry.min_length + geometry.max_length)
-    half = 0.5 * (geometry.max_length - geometry.min_length)
-    return np.abs(lengths - middle) / half
+    middle = 0.5 * (geometry.min_position + geometry.max_position)
+    half = 0.5 * (geometry.max_position - geometry.min_position)
+    return np.abs(positions - middle) / half
 
 
 class MeshcatLegs(LeafSystem):
-    """Draws a legged platform's legs in Meshcat as lines between their joint centres,
-    green at mid-stroke turning red towards a stroke's end (the virtual chain's URDF draws
-    only the base and the moving platform).
+    """Draws a legged platform's legs in Meshcat as lines between their joint centres (a
+    crank's arm and rod), green at mid-range turning red towards a range's end (the
+    virtual chain's URDF draws only the base and the moving platform).
 
     .. pydrake_system::
 
@@ -70,9 +80,9 @@ class MeshcatLegs(LeafSystem):
     def _draw(self, context: Context) -> EventStatus:
         q = self._state.Eval(context)[: self._platform.num_joints]
         segments = leg_segments(self._platform, q)
-        lengths = np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1)
+        positions = self._platform.actuator_positions(q)
         for i, (segment, used) in enumerate(
-            zip(segments, stroke_used(self._platform, lengths), strict=True)
+            zip(segments, stroke_used(self._platform, positions), strict=True)
         ):
             r, g, b = _MIDDLE + min(float(used), 1.0) * (_END - _MIDDLE)
             self._meshcat.SetLine(

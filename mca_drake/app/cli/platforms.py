@@ -96,10 +96,12 @@ def format_platforms(records: list[dict]) -> str:
             )
         actuators = record.get("actuators")
         if actuators:  # a legged platform: its coordinates' box is each one's reach alone
+            unit = actuators["unit"]
             lines.append(
-                f"  {len(actuators['names'])} legs: {actuators['min_length_m']:.3f} .. "
-                f"{actuators['max_length_m']:.3f} m, {actuators['max_speed_m_s']:.3f} m/s, "
-                f"{actuators['max_acceleration_m_s2']:.3f} m/s2 (the joints' ranges are each "
+                f"  {len(actuators['names'])} {actuators['kind']} actuators: "
+                f"{actuators['min_position']:.3f} .. {actuators['max_position']:.3f} {unit}, "
+                f"{actuators['max_speed']:.3f} {unit}/s, "
+                f"{actuators['max_acceleration']:.3f} {unit}/s2 (the joints' ranges are each "
                 "one's reach alone from home; the clamp holds the legs)"
             )
         lines.append("")
