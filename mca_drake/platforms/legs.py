@@ -241,16 +241,21 @@ def rotation(roll, pitch, yaw) -> np.ndarray:
     return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
 
 
-def _legs(pose: np.ndarray, geometry: LegGeometry) -> np.ndarray:
-    """The leg vectors t + R p_i - b_i in B, shape (..., legs, 3)."""
+def _pose(pose) -> np.ndarray:
+    """`pose` as floats, after checking it is poses of six finite numbers (..., 6)."""
     pose = np.asarray(pose, dtype=float)
     if pose.shape[-1:] != (6,) or not np.all(np.isfinite(pose)):
         raise ValueError(f"a pose is six finite numbers (x, y, z, roll, pitch, yaw); got {pose}")
-    if pose.ndim == 1:  # one pose: from its factors' scalars, not the batched stack
-        Rx, Ry, Rz = _factors(pose[3:])
-        R = Rz @ Ry @ Rx
-    else:
-        R = rotation(pose[..., 3], pose[..., 4], pose[..., 5])
+    return pose
+
+
+def _legs(pose: np.ndarray, geometry: LegGeometry, R: np.ndarray | None = None) -> np.ndarray:
+    """The leg vectors t + R p_i - b_i in B, shape (..., legs, 3), of poses (..., 6) (checked
+    by `_pose`) whose rotations are R (..., 3, 3) (default: from their angles)."""
+    if R is None:
+        pose = _pose(pose)
+        X, Y, Z = _factors(pose[..., 3:])
+        R = Z[0] @ Y[0] @ X[0]
     t = pose[..., :3] + np.array([0.0, 0.0, geometry.neutral_height])
     p = np.asarray(geometry.platform_joints, dtype=float)
     b = np.asarray(geometry.base_joints, dtype=float)
@@ -330,10 +335,10 @@ def leg_jacobian(pose, geometry: LegGeometry) -> np.ndarray:
     d a_i = g_i . (dt + dR p_i) with g_i = da_i/dv_i (`_actuators`); the angle columns use
     dR/dangle of R = Rz Ry Rx (`_rotation_derivatives`).
     """
-    pose = np.asarray(pose, dtype=float)
-    legs = _legs(pose, geometry)
+    pose = _pose(pose)
+    R, derivatives, _ = _rotation_derivatives(pose[3:], second=False)
+    legs = _legs(pose, geometry, R)
     g = _actuators(legs, geometry)[1]
-    derivatives = _rotation_derivatives(pose[3:], second=False)[0]
     p = np.asarray(geometry.platform_joints, dtype=float)
     J = np.empty((legs.shape[0], 6))
     J[:, :3] = g
@@ -342,63 +347,69 @@ def leg_jacobian(pose, geometry: LegGeometry) -> np.ndarray:
     return J
 
 
-_K = (
-    np.array([[0, 0, 0], [0, 0, -1], [0, 1, 0]], dtype=float),  # about x: roll
-    np.array([[0, 0, 1], [0, 0, 0], [-1, 0, 0]], dtype=float),  # about y: pitch
-    np.array([[0, -1, 0], [1, 0, 0], [0, 0, 0]], dtype=float),  # about z: yaw
-)
-
-
-# Each axis' cross-product matrix to the powers 0, 1 and 2.
-_K_POWERS = tuple(tuple(np.linalg.matrix_power(K, m) for m in range(3)) for K in _K)
-
-
-def _factors(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Rx(roll), Ry(pitch), Rz(yaw) of angles (..., 3); one pose's from scalars (a clamp
-    evaluates one pose a period, where numpy's batched stacking costs most of the time)."""
-    if angles.ndim == 1:
-        (cr, cp, cy), (sr, sp, sy) = np.cos(angles).tolist(), np.sin(angles).tolist()
-        return (
-            np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]]),
-            np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]]),
-            np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]]),
+def _factors(angles: np.ndarray, order: int = 0) -> tuple[tuple[np.ndarray, ...], ...]:
+    """Rx(roll), Ry(pitch), Rz(yaw) of angles (..., 3) and their derivatives by their own
+    angle up to `order` (0, 1 or 2): three tuples (factor, d factor, d2 factor)[: order + 1],
+    each (..., 3, 3); one pose's from scalars (a clamp evaluates one pose a period, where
+    numpy's batched stacking costs most of the time)."""
+    c, s = np.cos(angles), np.sin(angles)
+    if angles.ndim == 1:  # one pose: plain nested lists are faster than filling arrays
+        (cr, cp, cy), (sr, sp, sy) = c.tolist(), s.tolist()
+        rows = (
+            (
+                [[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]],
+                [[0.0, 0.0, 0.0], [0.0, -sr, -cr], [0.0, cr, -sr]],
+                [[0.0, 0.0, 0.0], [0.0, -cr, sr], [0.0, -sr, -cr]],
+            ),
+            (
+                [[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]],
+                [[-sp, 0.0, cp], [0.0, 0.0, 0.0], [-cp, 0.0, -sp]],
+                [[-cp, 0.0, -sp], [0.0, 0.0, 0.0], [sp, 0.0, -cp]],
+            ),
+            (
+                [[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]],
+                [[-sy, -cy, 0.0], [cy, -sy, 0.0], [0.0, 0.0, 0.0]],
+                [[-cy, sy, 0.0], [-sy, -cy, 0.0], [0.0, 0.0, 0.0]],
+            ),
         )
-    zero = np.zeros_like(angles[..., 0])
-    return (
-        rotation(angles[..., 0], zero, zero),
-        rotation(zero, angles[..., 1], zero),
-        rotation(zero, zero, angles[..., 2]),
-    )
+        return tuple(tuple(np.array(m) for m in axis[: order + 1]) for axis in rows)
+    # a rotation about axis a by angle t: its two other axes (i, j) carry [[c, -s], [s, c]];
+    # the first derivative [[-s, -c], [c, -s]], the second [[-c, s], [-s, -c]]; the axis
+    # itself 1, 0, 0
+    out = []
+    for axis, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+        ca, sa = c[..., axis], s[..., axis]
+        blocks = ((ca, -sa, sa, ca), (-sa, -ca, ca, -sa), (-ca, sa, -sa, -ca))
+        factors = []
+        for m in range(order + 1):
+            F = np.zeros((*angles.shape[:-1], 3, 3))
+            if m == 0:
+                F[..., axis, axis] = 1.0
+            F[..., i, i], F[..., i, j], F[..., j, i], F[..., j, j] = blocks[m]
+            factors.append(F)
+        out.append(tuple(factors))
+    return tuple(out)
 
 
-def _rotation_derivatives(angles: np.ndarray, second: bool = True) -> tuple[list, list]:
-    """dR/dangle_k (3) and, with `second`, d2R/dangle_k dangle_l (3 x 3; else []) of
-    R = Rz Ry Rx at angles (..., 3) = (roll, pitch, yaw), each (..., 3, 3): each factor's
-    derivative is the factor times its axis' cross-product matrix."""
-    Rx, Ry, Rz = _factors(angles)
-    Kx, Ky, Kz = _K_POWERS
-
-    def product(marks: dict) -> np.ndarray:
-        # R with each factor f of `marks` replaced by its derivative (K f, or f K^m)
-        zs = marks.get("z", 0)
-        out = Kz[zs] @ Rz if zs else Rz
-        out = out @ Ry
-        if marks.get("y"):
-            out = out @ Ky[marks["y"]]
-        out = out @ Rx
-        if marks.get("x"):
-            out = out @ Kx[marks["x"]]
-        return out
-
-    names = ("x", "y", "z")
-    first = [product({names[k]: 1}) for k in range(3)]
+def _rotation_derivatives(angles: np.ndarray, second: bool = True):
+    """R = Rz Ry Rx at angles (..., 3) = (roll, pitch, yaw), dR/dangle_k (3) and, with
+    `second`, d2R/dangle_k dangle_l (3 x 3; else []), each (..., 3, 3): a derivative of R
+    is the product with each factor replaced by its own derivative (`_factors`), and the
+    products share their Rz Ry parts."""
+    X, Y, Z = _factors(angles, 2 if second else 1)
+    ZY = {(0, 0): Z[0] @ Y[0], (0, 1): Z[0] @ Y[1], (1, 0): Z[1] @ Y[0]}
+    R = ZY[0, 0] @ X[0]
+    # by roll (x), pitch (y), yaw (z)
+    first = [ZY[0, 0] @ X[1], ZY[0, 1] @ X[0], ZY[1, 0] @ X[0]]
     if not second:
-        return first, []
-    seconds = [
-        [product({names[k]: 1, names[m]: 1} if k != m else {names[k]: 2}) for m in range(3)]
-        for k in range(3)
-    ]
-    return first, seconds
+        return R, first, []
+    xx = ZY[0, 0] @ X[2]
+    yy = (Z[0] @ Y[2]) @ X[0]
+    zz = (Z[2] @ Y[0]) @ X[0]
+    xy = ZY[0, 1] @ X[1]
+    xz = ZY[1, 0] @ X[1]
+    yz = (Z[1] @ Y[1]) @ X[0]
+    return R, first, [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -420,12 +431,12 @@ def leg_motion(pose, pose_rate, pose_acceleration, geometry: LegGeometry):
     v_i (`_actuators`): a'_i = g_i . v'_i and a''_i = v'_i^T H_i v'_i + g_i . v''_i,
     exactly (for a linear leg, (|v'_i|^2 - l'_i^2) / l_i + u_i . v''_i).
     """
-    pose = np.asarray(pose, dtype=float)
+    pose = _pose(pose)
     rate = np.broadcast_to(np.asarray(pose_rate, dtype=float), pose.shape)
     accel = np.broadcast_to(np.asarray(pose_acceleration, dtype=float), pose.shape)
-    legs = _legs(pose, geometry)
+    R, first, second = _rotation_derivatives(pose[..., 3:])
+    legs = _legs(pose, geometry, R)
     positions, g, H = _actuators(legs, geometry)
-    first, second = _rotation_derivatives(pose[..., 3:])
 
     def angle(values: np.ndarray, k: int) -> np.ndarray:
         return values[..., 3 + k, None, None]
@@ -449,11 +460,11 @@ def leg_rates(pose, pose_rate, geometry: LegGeometry):
     da/dpose (legs, 6), from one pass over the rotation's derivatives. An actuator's
     acceleration under a pose acceleration a is that drift plus J a (`leg_motion`'s a'' is
     linear in the pose acceleration): what a clamp needs every period."""
-    pose = np.asarray(pose, dtype=float)
+    pose = _pose(pose)
     rate = np.asarray(pose_rate, dtype=float)
-    legs = _legs(pose, geometry)
+    R, first, second = _rotation_derivatives(pose[3:])
+    legs = _legs(pose, geometry, R)
     positions, g, H = _actuators(legs, geometry)
-    first, second = _rotation_derivatives(pose[3:])
     R_dot = sum(first[k] * rate[3 + k] for k in range(3))
     R_ddot = sum(second[k][m] * (rate[3 + k] * rate[3 + m]) for k in range(3) for m in range(3))
     p = np.asarray(geometry.platform_joints, dtype=float)
@@ -480,11 +491,11 @@ def leg_linearisation(pose, pose_rate, geometry: LegGeometry):
     dv'_i/dpose_j zero for the position coordinates and d2R/dangle_j dangle_k rate_k p_i
     for the angles.
     """
-    pose = np.asarray(pose, dtype=float)
+    pose = _pose(pose)
     rate = np.broadcast_to(np.asarray(pose_rate, dtype=float), pose.shape)
-    legs = _legs(pose, geometry)
+    R, first, second = _rotation_derivatives(pose[..., 3:])
+    legs = _legs(pose, geometry, R)
     positions, g, H = _actuators(legs, geometry)
-    first, second = _rotation_derivatives(pose[..., 3:])
     p = np.asarray(geometry.platform_joints, dtype=float)
 
     def angle(values: np.ndarray, k: int) -> np.ndarray:
@@ -499,7 +510,7 @@ def leg_linearisation(pose, pose_rate, geometry: LegGeometry):
     for k in range(3):
         dv[..., :, 3 + k, :] = np.einsum("...jk,ik->...ij", first[k], p)
     J = np.einsum("...ic,...ijc->...ij", g, dv)
-    S = np.einsum("...ijc,...icd,...id->...ij", dv, H, v_dot)
+    S = np.einsum("...ijc,...ic->...ij", dv, np.einsum("...icd,...id->...ic", H, v_dot))
     for k in range(3):
         dR_dot = sum(second[k][m] * angle(rate, m) for m in range(3))
         S[..., 3 + k] += _dot(g, np.einsum("...jk,ik->...ij", dR_dot, p))
