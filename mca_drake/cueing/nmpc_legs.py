@@ -84,8 +84,8 @@ class LegRows:
         lengths, speeds, J, S = self.platform.actuator_linearisation(
             q[FIRST_NODE:], qd[FIRST_NODE:]
         )
-        position = np.einsum("klj,kjs->kls", J, self._Gq)  # (K, legs, kN)
-        speed = np.einsum("klj,kjs->kls", J, self._Gqd) + np.einsum("klj,kjs->kls", S, self._Gq)
+        position = J @ self._Gq  # (K, legs, kN)
+        speed = J @ self._Gqd + S @ self._Gq
         l_lo, l_hi = self.length_range
         blocks = [position, speed]
         lower = [l_lo - lengths, -self.max_speed - speeds]
