@@ -23,9 +23,10 @@ from mca_drake.platforms.files import load_platform
 KR500 = load_platform("kr500")
 
 
-def stream(address, duration_s, rate_hz=100.0, gap=(1.0, 1.6), nan_at=2.0):
+def stream(address, duration_s, rate_hz=100.0, gap=(1.0, 1.6), nan_at=2.0, sent=None):
     """Sends a gentle surge oscillation at `rate_hz` for `duration_s` (wall), silent during
-    `gap`, plus a NaN datagram and garbage at `nan_at` (s); bounded, stops by itself."""
+    `gap`, plus a NaN datagram and garbage at `nan_at` (s); bounded, stops by itself. Sets
+    the event `sent` once its first datagram is out."""
     sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     start = time.perf_counter()
     k = 0
@@ -33,6 +34,8 @@ def stream(address, duration_s, rate_hz=100.0, gap=(1.0, 1.6), nan_at=2.0):
         if not gap[0] <= t < gap[1]:
             f = [1.5 * np.sin(2 * np.pi * 0.5 * t), 0.0, 9.81]
             sender.sendto(encode_csv_sample(t, [0.0, 0.05, 0.0], f), address)
+            if sent is not None:
+                sent.set()
         if abs(t - nan_at) < 0.5 / rate_hz:
             sender.sendto(b"nan,0,0,0,0,0,9.81", address)
             sender.sendto(b"\xff" * 40, address)
@@ -273,12 +276,15 @@ def test_the_phase_lock_brings_the_polls_just_after_a_periodic_senders_packets()
 
 
 def with_intruder(address, duration_s):
-    """The real stream from 127.0.0.1, and an intruder on 127.0.0.2 that starts a moment
-    later with a violent roll (3 rad/s) at 100 Hz; both bounded."""
+    """The real stream from 127.0.0.1, and an intruder on 127.0.0.2 that starts 0.2 s after
+    the real stream's first datagram (however late a loaded machine schedules it) with a
+    violent roll (3 rad/s) at 100 Hz; both bounded."""
     intruder = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     intruder.bind(("127.0.0.2", 0))
+    first_sent = threading.Event()
 
     def flood():
+        first_sent.wait(timeout=5.0)
         start = time.perf_counter()
         time.sleep(0.2)
         while (t := time.perf_counter() - start) < duration_s:
@@ -288,7 +294,7 @@ def with_intruder(address, duration_s):
 
     thread = threading.Thread(target=flood, daemon=True)
     thread.start()
-    stream(address, duration_s, gap=(9.0, 9.0), nan_at=99.0)
+    stream(address, duration_s, gap=(9.0, 9.0), nan_at=99.0, sent=first_sent)
     thread.join(timeout=5)
 
 
