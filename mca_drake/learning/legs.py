@@ -56,7 +56,7 @@ def actuator_positions(pose: torch.Tensor, geometry: LegGeometry) -> torch.Tenso
         return torch.linalg.vector_norm(legs, dim=-1)
     options = {"dtype": pose.dtype, "device": pose.device}
     e = torch.as_tensor(cranks.arm_directions, **options)
-    f = torch.linalg.cross(torch.as_tensor(cranks.motor_axes, **options), e)
+    f = torch.as_tensor(cranks.turn_directions(), **options)
     arm, rod = cranks.arm_length, cranks.rod_length
     M, N = (legs * e).sum(-1), (legs * f).sum(-1)
     K = ((legs * legs).sum(-1) + arm**2 - rod**2) / (2.0 * arm)

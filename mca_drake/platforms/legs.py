@@ -59,6 +59,11 @@ class Cranks:
     arm_directions: list[list[float]]
     motor_axes: list[list[float]]
 
+    def turn_directions(self) -> np.ndarray:
+        """Each arm's direction at +90 deg, f_i = axis_i x e_i: (legs, 3)."""
+        e = np.asarray(self.arm_directions, dtype=float)
+        return np.cross(np.asarray(self.motor_axes, dtype=float), e)
+
     def validate(self, legs: int) -> None:
         """Raises ValueError for arms that cannot turn, naming the field."""
         check_config_numbers(self)
@@ -272,8 +277,7 @@ def _crank_angles(legs: np.ndarray, cranks: Cranks):
     (rho, phi) the polar form of (M, N); the sign that gives the solution nearer zero is
     N's (cos a is then the larger).
     """
-    e = np.asarray(cranks.arm_directions, dtype=float)
-    f = np.cross(np.asarray(cranks.motor_axes, dtype=float), e)
+    e, f = np.asarray(cranks.arm_directions, dtype=float), cranks.turn_directions()
     arm, rod = cranks.arm_length, cranks.rod_length
     M, N = _dot(legs, e), _dot(legs, f)
     K = (_dot(legs, legs) + arm**2 - rod**2) / (2.0 * arm)
@@ -320,6 +324,20 @@ def actuator_positions(pose, geometry: LegGeometry) -> np.ndarray:
     """The actuators' positions of `pose` (..., 6) relative to the neutral pose: leg
     lengths (m), or arm angles (rad) where cranks turn the legs; (..., legs)."""
     return _actuators(_legs(pose, geometry), geometry, derivatives=False)[0]
+
+
+def arm_tips(pose, geometry: LegGeometry) -> np.ndarray:
+    """Where cranks turn the legs: each arm's tip (the rod's lower joint) in the base frame
+    at `pose` (..., 6), m: (..., legs, 3).
+
+    Raises:
+        ValueError: a geometry of linear legs (no arms).
+    """
+    if geometry.cranks is None:
+        raise ValueError("linear legs have no arms")
+    _, directions, _ = _crank_angles(_legs(pose, geometry), geometry.cranks)
+    base = np.asarray(geometry.base_joints, dtype=float)
+    return base + geometry.cranks.arm_length * directions
 
 
 def leg_lengths(pose, geometry: LegGeometry) -> np.ndarray:
@@ -562,6 +580,7 @@ __all__ = [
     "Cranks",
     "LegGeometry",
     "actuator_positions",
+    "arm_tips",
     "forward_kinematics",
     "leg_jacobian",
     "leg_lengths",

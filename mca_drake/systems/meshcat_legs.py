@@ -8,7 +8,7 @@ from pydrake.geometry import Meshcat, Rgba
 from pydrake.systems.framework import Context, EventStatus, LeafSystem
 
 from mca_drake.platforms.leg_platform import LegPlatform
-from mca_drake.platforms.legs import actuator_positions, rotation
+from mca_drake.platforms.legs import arm_tips, rotation
 
 # An actuator mid-range is drawn in the first colour, one at a range's end in the second.
 _MIDDLE = np.array([0.2, 0.6, 0.25])
@@ -26,14 +26,9 @@ def leg_segments(platform: LegPlatform, q) -> np.ndarray:
     t = np.array([x, y, geometry.neutral_height + z])
     top = t + np.asarray(geometry.platform_joints, dtype=float) @ R.T
     base = np.asarray(geometry.base_joints, dtype=float)
-    cranks = geometry.cranks
-    if cranks is None:
+    if geometry.cranks is None:
         return np.stack([base, top], axis=1)
-    angles = actuator_positions(pose, geometry)[:, None]
-    e = np.asarray(cranks.arm_directions, dtype=float)
-    f = np.cross(np.asarray(cranks.motor_axes, dtype=float), e)
-    tips = base + cranks.arm_length * (np.cos(angles) * e + np.sin(angles) * f)
-    return np.stack([base, tips, top], axis=1)
+    return np.stack([base, arm_tips(pose, geometry), top], axis=1)
 
 
 def stroke_used(platform: LegPlatform, positions: np.ndarray) -> np.ndarray:
