@@ -421,3 +421,20 @@ def test_jsbsims_stream_scores_as_offline_cueing_of_the_samples_received(tmp_pat
     ).summary
     assert offline["pi_zero_motion"] == pytest.approx(summary["pi_zero_motion"], abs=1e-9)
     assert abs(summary["pi"] - offline["pi"]) < 0.1, (summary["pi"], offline["pi"])
+
+
+def test_a_live_run_cues_its_scaling_and_is_scored_at_the_default():
+    """Scaled to nothing (both scales 0), the live washout is asked for no motion and the
+    robot stays at home, while the run is scored against the telemetry at the default
+    scaling: its PI is zero motion's."""
+    from mca_drake.references.reference import ReferenceScaling
+
+    nothing = ReferenceScaling(angular_scale=0.0, force_scale=0.0)
+    summary = live_with_sender(
+        partial(stream, gap=(9.0, 9.0), nan_at=-1.0), 2.5, "washout", 2.5, scaling=nothing
+    )
+    assert summary["live"]["packets"] > 100
+    assert summary["scaling"]["force_scale"] == 0.0
+    # the surge it was sent (0.75 m/s^2 amplitude at the default scaling) is all error
+    assert summary["rmse"][3] == pytest.approx(0.75 / np.sqrt(2), rel=0.1)
+    assert summary["pi"] == pytest.approx(summary["pi_zero_motion"], abs=1e-6)

@@ -169,6 +169,7 @@ def run_closed_loop_scenario(
         perception=scenario.perception,
         plausibility=scenario.plausibility,
         comfort=scenario.comfort,
+        scaling=scenario.scaling,
     )
     if scenario.trajectory:
         write_trajectory(scenario.trajectory, result, robot)
@@ -277,6 +278,7 @@ def run_live_scenario(
         meshcat=meshcat,
         rsi=rsi,
         plausibility=scenario.plausibility,
+        scaling=scenario.scaling,
         comfort=scenario.comfort,
         trajectory=scenario.trajectory or None,
         controls=scenario.controls,

@@ -59,6 +59,7 @@ from mca_drake.platforms.files import (
 )
 from mca_drake.references.drives import DriveSpec
 from mca_drake.references.flights import FlightSpec
+from mca_drake.references.reference import ReferenceScaling
 from mca_drake.resources import scenario_path
 from mca_drake.simulation.closed_loop import PLANTS
 from mca_drake.studies.closed_loop_dataset import DEFAULT_DATASET_DIR, ClosedLoopDatasetConfig
@@ -111,7 +112,8 @@ def _fast_simulator() -> SimulatorConfig:
 
 @dataclasses.dataclass
 class ClosedLoopScenario:
-    """Closed-loop motion cueing on the KR500 (MultibodyPlant station or analytical plant)."""
+    """Closed-loop motion cueing of one flight, drive or recording on a platform (its
+    MultibodyPlant station or the analytical plant)."""
 
     # The motion cueing algorithm and its settings: !DpcConfig, !NmpcConfig or
     # !WashoutConfig (`mca_drake.cueing`), or a name (`mca_drake.cueing.MCA_NAMES`: dpc,
@@ -148,6 +150,11 @@ class ClosedLoopScenario:
     # The input plausibility guard in front of the MCA (`mca_drake.cueing.plausibility`:
     # spikes, step bounds, frozen streams); `{enabled: false}` reads the reference as it is.
     plausibility: PlausibilityConfig = dataclasses.field(default_factory=PlausibilityConfig)
+    # How the vehicle's motion becomes the reference the MCA cues
+    # (`mca_drake.references.reference.ReferenceScaling`): angular_scale and force_scale
+    # (default 0.5 each), per-channel limits and limit_mode. The run is still scored against
+    # the default scaling, so its PI stays comparable; the summary records the scaling.
+    scaling: ReferenceScaling = dataclasses.field(default_factory=ReferenceScaling)
     # The cabin comfort bound between the MCA and the robot (`mca_drake.comfort`: the
     # largest change of the cabin's specific force in one control period; 0: none).
     comfort: ComfortConfig = dataclasses.field(default_factory=ComfortConfig)
@@ -183,6 +190,7 @@ class ClosedLoopScenario:
         self.station.validate()
         self.perception.validate()
         self.plausibility.validate()
+        self.scaling.validate()
         self.comfort.validate()
 
 
@@ -231,8 +239,8 @@ class SuiteCase:
 
 @dataclasses.dataclass
 class EvaluationScenario:
-    """The scenario evaluation of the MCAs (Case A light aircraft, Case B jet, Case C
-    aircraft neither trained nor tuned on)."""
+    """The evaluation suite: every MCA on the cases' flights and drives (default A-E: light
+    aircraft, jets, aircraft neither trained nor tuned on, cars, the route pilot)."""
 
     # MCAs compared (DPC is tested against each other one): configs or names.
     mcas: list[McaConfig] = dataclasses.field(
@@ -311,6 +319,9 @@ class DatasetScenario:
     synthetic_share: float = ClosedLoopDatasetConfig.synthetic_share
     # Segment length n_p, steps.
     horizon: int = ClosedLoopDatasetConfig.horizon
+    # How the flights' motion becomes the reference the MCA cues and the dataset holds
+    # (`mca_drake.references.reference.ReferenceScaling`; default 0.5 each, no limits).
+    scaling: ReferenceScaling = dataclasses.field(default_factory=ReferenceScaling)
     # MCA that generates the trajectories: a config or a name.
     mca: McaConfig = dataclasses.field(default_factory=lambda: ClosedLoopDatasetConfig().mca)
     # Seed of the shuffle before the 70/20/10 split.
@@ -347,6 +358,7 @@ class DatasetScenario:
             random_style_share=self.random_style_share,
             synthetic_share=self.synthetic_share,
             horizon=self.horizon,
+            scaling=self.scaling,
             mca=self.mca,
             split_seed=self.split_seed,
             platform=self.platform,
@@ -401,6 +413,11 @@ class LiveScenario:
     # The input plausibility guard in front of the MCA (`mca_drake.cueing.plausibility`:
     # spikes, step bounds, a paused game's frozen stream faded out and back).
     plausibility: PlausibilityConfig = dataclasses.field(default_factory=PlausibilityConfig)
+    # How the vehicle's motion becomes the reference the MCA cues
+    # (`mca_drake.references.reference.ReferenceScaling`): angular_scale and force_scale
+    # (default 0.5 each), per-channel limits and limit_mode. The run is still scored against
+    # the default scaling, so its PI stays comparable; the summary records the scaling.
+    scaling: ReferenceScaling = dataclasses.field(default_factory=ReferenceScaling)
     # The cabin comfort bound between the MCA and the robot (`mca_drake.comfort`: the
     # largest change of the cabin's specific force in one control period; 0: none).
     comfort: ComfortConfig = dataclasses.field(default_factory=ComfortConfig)
@@ -448,6 +465,7 @@ class LiveScenario:
         except ValueError as err:
             raise ValueError(f"LiveScenario.rsi: {err}") from None
         self.plausibility.validate()
+        self.scaling.validate()
         self.comfort.validate()
         for name in ("beamng", "outsim", "f1", "controls"):
             try:

@@ -80,6 +80,7 @@ from mca_drake.simulation.closed_loop import (
 )
 from mca_drake.systems import MotionCueingPlant
 from mca_drake.systems.meshcat_traces import MeshcatOutputTraces
+from mca_drake.systems.reference_scaling import AddReferenceScaling
 from mca_drake.systems.station import AddStation, StationConfig
 
 _ARRIVAL = TELEMETRY_FIELDS.index("arrival_s")
@@ -222,9 +223,11 @@ def _ConnectMcaToSupervisor(
     time_step: float,
     plausibility: PlausibilityConfig | None = None,
     console: OperatorConsole | None = None,
+    scaling: ReferenceScaling | None = None,
 ):
     """Wires the receiver's reference (through the reference guard, `AddReferenceGuard`,
-    and the operator's `console`, if any) and the robot's state into the MCA, and the MCA's
+    the scenario's scaling, `AddReferenceScaling`, and the operator's `console`, if any)
+    and the robot's state into the MCA, and the MCA's
     command, statistics, the telemetry and the operator's mode into the supervisor that
     judges them (the supervisor reads the reference as received: its NaN and stale checks
     are its own); returns the reference guard (None: disabled)."""
@@ -233,6 +236,8 @@ def _ConnectMcaToSupervisor(
     guarded, reference_guard = AddReferenceGuard(
         builder, reference, plausibility, time_step, JUDGE_DELAY_S
     )
+    # the operator's intensity and gains act on the reference at the scenario's scaling
+    guarded, _ = AddReferenceScaling(builder, guarded, scaling)
     if console is not None:
         builder.Connect(guarded, console.GetInputPort("reference"))
         guarded = console.GetOutputPort("scaled_reference")
@@ -304,9 +309,7 @@ def MakeLiveClosedLoop(
     receiver_config = receiver or ReceiverConfig()
     h = receiver_config.time_step
     builder = DiagramBuilder()
-    source = builder.AddNamedSystem(
-        "receiver", TelemetryReceiver(decoder, receiver_config, scaling)
-    )
+    source = builder.AddNamedSystem("receiver", TelemetryReceiver(decoder, receiver_config))
     # the MCA's step after the poll, in the poll's simulator step (`systems.mca_update`)
     controller = AddMca(builder, mca, robot, h, update_event="discrete")
     n = robot.num_joints
@@ -335,7 +338,7 @@ def MakeLiveClosedLoop(
         )
     handles["operator"] = console
     handles["reference_guard"] = _ConnectMcaToSupervisor(
-        builder, source, controller, guard, robot_ports, h, plausibility, console
+        builder, source, controller, guard, robot_ports, h, plausibility, console, scaling
     )
     command, handles["comfort_bound"] = AddComfortBound(
         builder,
@@ -439,6 +442,10 @@ def run_live(
             (and the run ends with RuntimeError) if the robot is not at the MCA's home pose.
         plausibility: the reference guard in front of the MCA (`cueing.plausibility`;
             default on); its counts are the summary's `plausibility` block.
+        scaling: the scaling the MCA cues at (`references.reference.ReferenceScaling`,
+            applied behind the guard and before the operator's gains; default: the default
+            scaling); the run is scored against the telemetry at the default scaling, and the
+            summary's `scaling` block records it.
         trajectory: a CSV path for the run's time series (`simulation.trajectory`, with the
             supervisor's health per period), written atomically after the run.
         controls: the operator's controls (`live.controls`; default: the run's settings at
@@ -509,6 +516,7 @@ def run_live(
         )
     summary = scored_summary(handles, config, plant, decoder, robot, h, run.wall_s)
     summary["live"] = live_block(handles, run, decoder, realtime_rate, h)
+    summary["scaling"] = (scaling or ReferenceScaling()).record()
     reference_guard = handles["reference_guard"]
     if reference_guard is not None:
         summary["plausibility"] = reference_guard.summary(

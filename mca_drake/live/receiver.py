@@ -180,7 +180,9 @@ class TelemetryReceiver(LeafSystem):
     Args:
         decoder: the protocol's decoder (it also moves samples to the head: its `LeverArm`).
         config: address, staleness and timing.
-        scaling: how samples become y_ref (default s_w = s_f = 0.5, as for recordings).
+        scaling: how samples become y_ref (default s_w = s_f = 0.5, as for recordings). The
+            live loop keeps the default here, what its runs are scored against, and cues a
+            scenario's own scaling behind the guard (`systems.reference_scaling`).
 
     Raises:
         ValueError: a bad setting. OSError: the address cannot be bound (in use, say).

@@ -48,7 +48,8 @@ class FlightSpec:
     # Recording CSV (columns t, omega_x, omega_y, omega_z, f_x, f_y, f_z); empty: fly the
     # built-in JSBSim flight below.
     recording: str = ""
-    # Built-in flight: "light" (c172p) or "jet" (global5000).
+    # Aircraft of the built-in flight (`mca_drake.references.jsbsim.VEHICLES`: "light" the
+    # c172p, "jet" the global5000, ...).
     vehicle: str = "light"
     # Seed of the built-in flight's pilot (training used 100-104; evaluation 1000 on).
     seed: int = 1000

@@ -6,9 +6,13 @@ so that level unaccelerated flight asks for y_ref = 0, what the simulator feels 
 neutral pose. The defaults s_w = s_f = 0.5 are the customary starting point for motion
 cueing of aircraft on a robot whose accelerations are far below the vehicle's; optional
 per-channel limits clip (or softly saturate) what is asked of the robot.
-"""
 
-from __future__ import annotations
+A run that cues with another scaling (a scenario's `scaling`, `--force-scale`) is still scored
+against the reference at the default scaling (`rescaled_reference` takes one to the other), so
+that its PI stays comparable with every other run's: a reference scaled down reads as the
+weaker cue it is.
+(No `from __future__ import annotations` here: scenarios load `ReferenceScaling` from YAML.)
+"""
 
 import dataclasses
 import math
@@ -24,24 +28,55 @@ DEFAULT_FORCE_SCALE = 0.5
 
 @dataclasses.dataclass
 class ReferenceScaling:
-    """How a recording becomes a reference."""
+    """How a recording becomes a reference: y_ref = scale * (vehicle motion), then limits."""
 
     # Scale s_w on angular velocity (dimensionless).
     angular_scale: float = DEFAULT_ANGULAR_SCALE
     # Scale s_f on specific force (dimensionless).
     force_scale: float = DEFAULT_FORCE_SCALE
-    # Per-channel bound on |y_ref| after scaling (rad/s, m/s^2), six values; empty: none.
-    limits: tuple[float, ...] = ()
+    # Per-channel bound on |y_ref| after scaling (rad/s, m/s^2), six values in the order
+    # w_x, w_y, w_z, f_x, f_y, a_z; empty: none.
+    limits: list[float] = dataclasses.field(default_factory=list)
     # "clip" (hard) or "tanh" (smooth: limit * tanh(y / limit)).
     limit_mode: str = "clip"
 
     def validate(self) -> None:
-        if not (self.angular_scale >= 0 and self.force_scale >= 0):
-            raise ValueError("scale factors must be non-negative")
-        if self.limits and (len(self.limits) != 6 or min(self.limits) <= 0):
-            raise ValueError(f"limits must be six positive values; got {self.limits}")
+        """Raises ValueError for settings that cannot scale a reference."""
+        scales = (self.angular_scale, self.force_scale)
+        if not all(math.isfinite(s) and s >= 0 for s in scales):
+            raise ValueError(
+                f"scaling: angular_scale and force_scale must be finite and >= 0; got {scales}"
+            )
+        limits = list(self.limits)
+        if limits and (len(limits) != 6 or not all(math.isfinite(v) and v > 0 for v in limits)):
+            raise ValueError(f"scaling: limits must be six positive values; got {limits}")
         if self.limit_mode not in ("clip", "tanh"):
-            raise ValueError(f"unknown limit_mode '{self.limit_mode}'; valid: clip, tanh")
+            raise ValueError(f"scaling: unknown limit_mode '{self.limit_mode}'; valid: clip, tanh")
+
+    @property
+    def is_default(self) -> bool:
+        """Whether this is the default scaling, which every run is scored against."""
+        return (
+            self.angular_scale == DEFAULT_ANGULAR_SCALE
+            and self.force_scale == DEFAULT_FORCE_SCALE
+            and not self.limits
+        )
+
+    def factors(self) -> tuple[float, ...]:
+        """Per-channel factors (6) from the default scaling to this one, before the
+        limits: s_w / 0.5 on the angular rates, s_f / 0.5 on the forces."""
+        w = self.angular_scale / DEFAULT_ANGULAR_SCALE
+        f = self.force_scale / DEFAULT_FORCE_SCALE
+        return (w, w, w, f, f, f)
+
+    def record(self) -> dict:
+        """The scaling as a run's summary reports it (`scaling` block)."""
+        return {
+            "angular_scale": float(self.angular_scale),
+            "force_scale": float(self.force_scale),
+            "limits": [float(v) for v in self.limits],
+            "limit_mode": self.limit_mode,
+        }
 
 
 @dataclasses.dataclass
@@ -81,7 +116,7 @@ class Reference:
         """Time from the first to the last sample [s]."""
         return self.time_step * (self.y.shape[0] - 1)
 
-    def truncated(self, duration_s: float) -> Reference:
+    def truncated(self, duration_s: float) -> "Reference":
         """The first `duration_s` seconds (all of it if shorter)."""
         n = min(round(duration_s / self.time_step) + 1, self.y.shape[0])
         return Reference(self.y[:n], self.time_step, self.name, self.vehicle)
@@ -100,14 +135,25 @@ def scaled_reference(omega: np.ndarray, f: np.ndarray, scaling: ReferenceScaling
         ],
         axis=-1,
     )
-    if scaling.limits:
-        limits = np.asarray(scaling.limits)
-        y = (
-            np.clip(y, -limits, limits)
-            if scaling.limit_mode == "clip"
-            else limits * np.tanh(y / limits)
-        )
-    return y
+    return _limited(y, scaling)
+
+
+def _limited(y: np.ndarray, scaling: ReferenceScaling) -> np.ndarray:
+    """y (..., 6) within the scaling's limits (clipped or softly saturated)."""
+    if not scaling.limits:
+        return y
+    limits = np.asarray(scaling.limits, dtype=float)
+    if scaling.limit_mode == "clip":
+        return np.clip(y, -limits, limits)
+    return limits * np.tanh(y / limits)
+
+
+def rescaled_reference(y: np.ndarray, scaling: ReferenceScaling) -> np.ndarray:
+    """The reference at `scaling` of a reference at the default scaling: y (..., 6) times
+    `ReferenceScaling.factors` per channel, then the limits. Exact: the default scaling is
+    linear in the vehicle's motion and has no limits."""
+    y = np.asarray(y, dtype=float) * np.asarray(scaling.factors())
+    return _limited(y, scaling)
 
 
 def scaled_reference_sample(omega, f, scaling: ReferenceScaling) -> list[float]:
@@ -117,6 +163,17 @@ def scaled_reference_sample(omega, f, scaling: ReferenceScaling) -> list[float]:
     50 us, these float operations a few."""
     sw, sf = scaling.angular_scale, scaling.force_scale
     y = [sw * omega[0], sw * omega[1], sw * omega[2], sf * f[0], sf * f[1], sf * (f[2] - GRAVITY)]
+    return _limited_sample(y, scaling)
+
+
+def rescaled_reference_sample(y, factors, scaling: ReferenceScaling) -> list[float]:
+    """`rescaled_reference` of one sample in Python floats (the live loop's path): y (6
+    floats at the default scaling), `factors` = `scaling.factors()` (computed once)."""
+    return _limited_sample([v * k for v, k in zip(y, factors, strict=True)], scaling)
+
+
+def _limited_sample(y: list[float], scaling: ReferenceScaling) -> list[float]:
+    """`_limited` of one sample in Python floats."""
     if not scaling.limits:
         return y
     if scaling.limit_mode == "clip":

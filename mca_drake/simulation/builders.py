@@ -22,7 +22,7 @@ from mca_drake.cueing.plausibility import PlausibilityConfig
 from mca_drake.platforms.demo_motion import demo_joint_motion
 from mca_drake.platforms.leg_platform import LegPlatform
 from mca_drake.platforms.serial import SerialChain
-from mca_drake.references.reference import Reference
+from mca_drake.references.reference import Reference, ReferenceScaling
 from mca_drake.safety import substep_position_coefficient
 from mca_drake.systems import MotionCueingPlant, ReferenceSource
 from mca_drake.systems.comfort_bound import CabinComfortBound
@@ -31,6 +31,7 @@ from mca_drake.systems.meshcat_legs import MeshcatLegs
 from mca_drake.systems.meshcat_traces import MeshcatOutputTraces
 from mca_drake.systems.nmpc import NmpcController
 from mca_drake.systems.plausibility import ReferenceGuard
+from mca_drake.systems.reference_scaling import AddReferenceScaling
 from mca_drake.systems.station import AddStation, StationConfig
 from mca_drake.systems.washout import ClassicalWashout
 
@@ -149,10 +150,11 @@ def AddReferenceGuard(
     return guard.GetOutputPort("guarded_reference"), guard
 
 
-def _add_source_and_mca(builder, reference, mca, robot, plausibility=None):
-    """ReferenceSource and the MCA, wired together through the reference guard; returns
-    (source, mca, initial_state, guard): the robot starts at rest at the MCA's home pose
-    (q = 0 unless the MCA has one); guard None where `plausibility` disables it."""
+def _add_source_and_mca(builder, reference, mca, robot, plausibility=None, scaling=None):
+    """ReferenceSource and the MCA, wired together through the reference guard and the
+    scenario's scaling (`AddReferenceScaling`); returns (source, mca, initial_state, guard):
+    the robot starts at rest at the MCA's home pose (q = 0 unless the MCA has one); guard
+    None where `plausibility` disables it."""
     controller = AddMca(builder, mca, robot, reference.time_step)
     preview = controller.preview_samples if hasattr(controller, "preview_samples") else 0
     source = builder.AddNamedSystem(
@@ -161,11 +163,12 @@ def _add_source_and_mca(builder, reference, mca, robot, plausibility=None):
     guarded, guard = AddReferenceGuard(
         builder, source.GetOutputPort("reference"), plausibility, reference.time_step
     )
+    # a known future: the MCA reads it (the NMPC at its grid's nodes)
+    preview_port = source.GetOutputPort("reference_preview") if preview else None
+    guarded, preview_port = AddReferenceScaling(builder, guarded, scaling, preview_port)
     builder.Connect(guarded, controller.GetInputPort("reference"))
-    if preview:  # a known future: the MCA reads it (the NMPC at its grid's nodes)
-        builder.Connect(
-            source.GetOutputPort("reference_preview"), controller.GetInputPort("reference_preview")
-        )
+    if preview:
+        builder.Connect(preview_port, controller.GetInputPort("reference_preview"))
     home = getattr(controller, "home_position", robot.home)
     return source, controller, np.concatenate([home, np.zeros_like(home)]), guard
 
@@ -239,8 +242,10 @@ def MakeAnalyticalClosedLoop(
     robot: SerialChain,
     plausibility: PlausibilityConfig | None = None,
     comfort: ComfortConfig | None = None,
+    scaling: ReferenceScaling | None = None,
 ) -> tuple[Diagram, dict]:
-    """ReferenceSource -> ReferenceGuard -> MCA -> (CabinComfortBound) -> MotionCueingPlant,
+    """ReferenceSource -> ReferenceGuard -> (ReferenceScaler) -> MCA -> (CabinComfortBound)
+    -> MotionCueingPlant,
     the MCA fed the plant state, with logs.
 
     The control period is the reference's time step. Logs (VectorLogSinks at the control
@@ -255,6 +260,8 @@ def MakeAnalyticalClosedLoop(
         plausibility: the reference guard's settings (default PlausibilityConfig();
             `enabled: false` leaves it out).
         comfort: the cabin comfort bound (`mca_drake.comfort`; None or disabled: none).
+        scaling: the scaling the MCA cues at (`ReferenceScaler`; `reference` is at the
+            default scaling; None or the default: no scaler).
 
     Returns:
         (diagram, handles) with the systems `source`, `guard` (None without one), `mca`,
@@ -265,7 +272,7 @@ def MakeAnalyticalClosedLoop(
     time_step = reference.time_step
     builder = DiagramBuilder()
     source, controller, initial_state, guard = _add_source_and_mca(
-        builder, reference, mca, robot, plausibility
+        builder, reference, mca, robot, plausibility, scaling
     )
     plant = builder.AddNamedSystem(
         "plant", MotionCueingPlant(robot=robot, time_step=time_step, initial_state=initial_state)
@@ -309,8 +316,10 @@ def MakeMultibodyClosedLoop(
     visualization: VisualizationConfig | None = None,
     plausibility: PlausibilityConfig | None = None,
     comfort: ComfortConfig | None = None,
+    scaling: ReferenceScaling | None = None,
 ) -> tuple[Diagram, dict]:
-    """ReferenceSource -> ReferenceGuard -> MCA -> (CabinComfortBound) -> SerialChain
+    """ReferenceSource -> ReferenceGuard -> (ReferenceScaler) -> MCA -> (CabinComfortBound)
+    -> SerialChain
     station (MultibodyPlant, inverse dynamics, head IMU), the MCA fed the station's
     measured state (and measured y where it reads one).
 
@@ -333,6 +342,8 @@ def MakeMultibodyClosedLoop(
             `enabled: false` leaves it out).
         comfort: the cabin comfort bound (`mca_drake.comfort`; None or disabled: none), on
             the station's measured state.
+        scaling: the scaling the MCA cues at (`ReferenceScaler`; `reference` is at the
+            default scaling; None or the default: no scaler).
 
     Returns:
         (diagram, handles): handles has `source`, `guard` (None without one), `mca`,
@@ -343,7 +354,7 @@ def MakeMultibodyClosedLoop(
     time_step = reference.time_step
     builder = DiagramBuilder()
     source, controller, initial_state, guard = _add_source_and_mca(
-        builder, reference, mca, robot, plausibility
+        builder, reference, mca, robot, plausibility, scaling
     )
     station_handles = AddStation(
         builder,

@@ -36,7 +36,7 @@ from mca_drake.perception.scores import perceived_run
 from mca_drake.platforms.kinematics import head_pose, plant_output
 from mca_drake.platforms.serial import SerialChain
 from mca_drake.platforms.usage import joint_range_used, joint_usage
-from mca_drake.references.reference import Reference
+from mca_drake.references.reference import Reference, ReferenceScaling
 from mca_drake.simulation.builders import MakeAnalyticalClosedLoop, MakeMultibodyClosedLoop
 from mca_drake.systems.station import StationConfig
 
@@ -199,6 +199,7 @@ def run_closed_loop(
     perception: PerceptionConfig | None = None,
     plausibility: PlausibilityConfig | None = None,
     comfort: ComfortConfig | None = None,
+    scaling: ReferenceScaling | None = None,
 ) -> ClosedLoopResult:
     """Runs the closed loop of an MCA over `reference` on the analytical or multibody plant.
 
@@ -228,6 +229,9 @@ def run_closed_loop(
         plausibility: the reference guard in front of the MCA (`cueing.plausibility`;
             default PlausibilityConfig()); its counts are the summary's `plausibility`
             block (absent where `enabled` is false).
+        scaling: the scaling the MCA cues at (`references.reference.ReferenceScaling`;
+            default: the default scaling; `reference` is at the default scaling, and the run
+            is scored against it); the summary's `scaling` block records it.
         comfort: the cabin comfort bound between the MCA and the robot (`mca_drake.comfort`;
             default none); where it acts, the summary's `comfort` block counts the periods
             it scaled and those over it.
@@ -250,7 +254,9 @@ def run_closed_loop(
     if plant == "analytical":
         if meshcat is not None or station is not None or visualization is not None:
             raise ValueError("meshcat, visualization and station need plant 'multibody'")
-        diagram, handles = MakeAnalyticalClosedLoop(reference, config, robot, plausibility, comfort)
+        diagram, handles = MakeAnalyticalClosedLoop(
+            reference, config, robot, plausibility, comfort, scaling
+        )
     else:
         station = station if station is not None else StationConfig()
         diagram, handles = MakeMultibodyClosedLoop(
@@ -262,6 +268,7 @@ def run_closed_loop(
             visualization=visualization,
             plausibility=plausibility,
             comfort=comfort,
+            scaling=scaling,
         )
     simulator = Simulator(diagram)
     if simulator_config is not None:
@@ -284,6 +291,7 @@ def run_closed_loop(
     )
     if random_seed is not None:
         result.summary["random_seed"] = int(random_seed)
+    result.summary["scaling"] = (scaling or ReferenceScaling()).record()
     guard = handles.get("guard")
     if guard is not None:
         result.summary["plausibility"] = guard.summary(guard.GetMyContextFromRoot(context))

@@ -13,10 +13,12 @@ from mca_drake.app.cli.closed_loop_flags import (
 )
 from mca_drake.app.cli.flags import (
     ADDRESS_HELP,
+    SCALING_FLAGS,
     add_comfort_flag,
     add_config_flags,
     add_platform_flag,
     add_quiet,
+    add_scaling_flags,
     add_trajectory_flag,
     check_outputs,
     given_fields,
@@ -96,6 +98,7 @@ def add_parser(commands) -> None:
     parser.add_argument("--plot", help="PNG of target versus achieved outputs")
     add_trajectory_flag(parser)
     add_comfort_flag(parser)
+    add_scaling_flags(parser)
     add_quiet(parser)
     parser.set_defaults(func=run)
 
@@ -126,6 +129,12 @@ def run_suite(args: argparse.Namespace) -> int:
     """The evaluation suite over the cases and MCAs the flags choose; prints its report."""
     if args.max_force_change is not None:
         raise ValueError("--max-force-change is for one run: the suite cues without the bound")
+    scaled = [f"--{f.replace('_', '-')}" for f in given_fields(args, SCALING_FLAGS)]
+    if scaled:
+        raise ValueError(
+            f"{', '.join(scaled)} is for one run: the suite cues at the default scaling, "
+            "so that its figures compare with the published ones"
+        )
     scenario = EvaluationScenario(
         **given_fields(args, [*SUITE_FLAGS, "duration_s", "address", "platform"])
     )

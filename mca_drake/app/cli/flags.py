@@ -19,6 +19,7 @@ from collections.abc import Mapping, Sequence
 
 from mca_drake.atomic_io import check_writable
 from mca_drake.platforms.files import DEFAULT_PLATFORM
+from mca_drake.references.reference import ReferenceScaling
 
 ADDRESS_HELP = (
     "run the tasks on this Ray cluster ('auto', 'ray://host:10001'; default: RAY_ADDRESS, "
@@ -185,3 +186,24 @@ def add_trajectory_flag(parser: argparse.ArgumentParser) -> None:
         "plausibility guard did (live: and the supervisor's health) (docs: "
         "concepts/metrics.md)",
     )
+
+
+# ReferenceScaling fields with a flag (--angular-scale, --force-scale); the limits take --set.
+SCALING_FLAGS = ("angular_scale", "force_scale")
+
+
+def add_scaling_flags(parser: argparse.ArgumentParser) -> None:
+    """--angular-scale S and --force-scale S: the scaling the MCA cues at
+    (`references.reference.ReferenceScaling`; the run is scored at the default)."""
+    add_config_flags(
+        parser,
+        ReferenceScaling(),
+        SCALING_FLAGS,
+        help_suffix={f: "the run is scored at the default" for f in SCALING_FLAGS},
+    )
+
+
+def apply_scaling_flags(args: argparse.Namespace, scaling: ReferenceScaling) -> None:
+    """Sets the fields of `scaling` whose flag was given."""
+    for field, value in given_fields(args, SCALING_FLAGS).items():
+        setattr(scaling, field, value)

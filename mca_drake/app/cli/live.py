@@ -13,7 +13,9 @@ from mca_drake.app.cli.closed_loop_flags import add_mca_flags
 from mca_drake.app.cli.flags import (
     add_comfort_flag,
     add_config_flags,
+    add_scaling_flags,
     add_trajectory_flag,
+    apply_scaling_flags,
     given_fields,
 )
 from mca_drake.app.cli.report import format_pi, hold_meshcat, policy_lines
@@ -63,6 +65,7 @@ def add_parser(commands) -> None:
     parser.add_argument("--json", help="result summary with its live block")
     add_trajectory_flag(parser)
     add_comfort_flag(parser)
+    add_scaling_flags(parser)
     parser.add_argument(
         "--control-port",
         help="HOST:PORT: a UDP port for the operator's commands while the run goes on "
@@ -154,6 +157,7 @@ def _scenario_from_flags(args: argparse.Namespace) -> LiveScenario:
         scenario.controls.keyboard = False
     if args.max_force_change is not None:
         scenario.comfort.max_force_change = args.max_force_change
+    apply_scaling_flags(args, scenario.scaling)
     if args.rig:
         scenario.rig.url = args.rig
     if args.pose_stream:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
+from mca_drake.app.cli.closed_loop_flags import add_flight_flags, flight_from_flags
 from mca_drake.app.cli.flags import (
     add_config_flags,
     add_platform_flag,
@@ -31,15 +32,13 @@ OPTIMAL_FLAGS = {
 
 def add_parser(commands) -> None:
     """Adds `optimal` to the sub-command parsers `commands`."""
-    flight = FlightSpec()
     parser = commands.add_parser(
         "optimal",
         help="the offline-optimal bound: the best cue the robot can give a whole recording "
         "with perfect preview, under every limit (analytical plant); prints a result table",
     )
     parser.add_argument("--reference", help="recording CSV (default: the built-in flight)")
-    parser.add_argument("--vehicle", help=f"built-in flight's aircraft (default {flight.vehicle})")
-    parser.add_argument("--seed", type=int, help=f"built-in flight's seed (default {flight.seed})")
+    add_flight_flags(parser)
     parser.add_argument(
         "--duration",
         dest="duration_s",
@@ -62,13 +61,7 @@ def add_parser(commands) -> None:
 def run(args: argparse.Namespace) -> int:
     """Solves the bound the flags describe; prints its result table."""
     check_outputs(args.json)
-    flight = FlightSpec()
-    if args.reference:
-        flight.recording = args.reference
-    if args.vehicle is not None:
-        flight.vehicle = args.vehicle
-    if args.seed is not None:
-        flight.seed = args.seed
+    flight = flight_from_flags(args, FlightSpec())
     flight.validate()
     duration = args.duration_s
     if duration is None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from mca_drake.app.cli.closed_loop_flags import (
+    add_flight_flags,
     add_mca_flags,
     closed_loop_scenario_from_flags,
 )
@@ -13,6 +14,7 @@ from mca_drake.app.cli.flags import (
     add_config_flags,
     add_platform_flag,
     add_quiet,
+    add_scaling_flags,
     add_trajectory_flag,
 )
 from mca_drake.app.cli.report import format_closed_loop_report, hold_meshcat
@@ -33,12 +35,16 @@ def add_parser(commands) -> None:
     add_config_flags(
         parser,
         defaults,
-        {"duration_s": "--duration", "random_seed": "--seed"},
-        help_suffix={"duration_s": "a --reference recording: whole"},
+        {"duration_s": "--duration", "random_seed": "--noise-seed"},
+        help_suffix={
+            "duration_s": "a --reference recording: whole",
+            "random_seed": "the default station has no noise",
+        },
     )
     add_mca_flags(parser, defaults.mca)
     add_platform_flag(parser)
     parser.add_argument("--reference", help="recording CSV (default: the built-in flight)")
+    add_flight_flags(parser)
     parser.add_argument(
         "--json",
         help=f"result summary JSON (default {defaults.output_dir}/summary.json; '' for none)",
@@ -59,6 +65,7 @@ def add_parser(commands) -> None:
     )
     add_trajectory_flag(parser)
     add_comfort_flag(parser)
+    add_scaling_flags(parser)
     add_quiet(parser)
     parser.set_defaults(func=run)
 
