@@ -5,7 +5,8 @@ and adds `reference/cli.md` to the build: for every command its usage, its help 
 description, and every argument with its flags, help text, choices and default. Only the
 entry point `build_parser` and argparse's own structures are used (`parser._actions`,
 `argparse._SubParsersAction`), so the page follows the parser wherever its commands live.
-Nothing is written to docs/: the page exists only in the build.
+Nothing is written to docs/: the committed page there is a placeholder for readers of the
+repository, replaced in the build.
 """
 
 from __future__ import annotations
@@ -87,7 +88,8 @@ def _subcommands(parser: argparse.ArgumentParser) -> list[tuple[str, str, argpar
     return found
 
 
-def _arguments_table(parser: argparse.ArgumentParser) -> list[str]:
+def arguments_table(parser: argparse.ArgumentParser) -> list[str]:
+    """The Markdown table lines of a parser's arguments: flags, help, choices, default."""
     rows = []
     for action in parser._actions:
         if isinstance(action, argparse._HelpAction | argparse._SubParsersAction):
@@ -112,7 +114,7 @@ def _command_section(
     for text in dict.fromkeys(t for t in (summary, parser.description) if t):
         lines += [_cell(text), ""]
     lines += ["```text", _usage(parser), "```", ""]
-    lines += _arguments_table(parser)
+    lines += arguments_table(parser)
     subcommands = _subcommands(parser)
     if subcommands:
         lines += ["Commands:", ""]
@@ -161,8 +163,10 @@ def _load_parser(root: Path) -> argparse.ArgumentParser:
 
 def on_files(files, config):
     """Adds the generated `reference/cli.md` to the build."""
-    if files.get_file_from_path(PAGE) is not None:
-        raise PluginError(f"cli_reference hook: docs/{PAGE} is generated; delete the file")
+    # the committed page is a placeholder for readers of the repository: the build's replaces it
+    placeholder = files.get_file_from_path(PAGE)
+    if placeholder is not None:
+        files.remove(placeholder)
     root = Path(config.config_file_path).resolve().parent
     content = render_cli_reference(_load_parser(root))
     files.append(File.generated(config, PAGE, content=content))

@@ -6,7 +6,8 @@ they were measured with). The script is not part of the package, so it is loaded
 path. The page is added to the build as `results.md`; every file it links under
 benchmarks/results/ (the plots) is copied into the build beside the page, as
 `results/<path>`, and the link rewritten to it, so that MkDocs checks it like any other.
-Nothing is written to docs/: the page exists only in the build.
+Nothing is written to docs/: the committed page there is a placeholder for readers of the
+repository, replaced in the build.
 """
 
 from __future__ import annotations
@@ -108,8 +109,10 @@ def link_results_files(markdown: str, results: Path) -> tuple[str, dict[str, Pat
 
 def on_files(files, config):
     """Adds the generated `results.md` and the files it links to the build."""
-    if files.get_file_from_path(PAGE) is not None:
-        raise PluginError(f"results_page hook: docs/{PAGE} is generated; delete the file")
+    # the committed page is a placeholder for readers of the repository: the build's replaces it
+    placeholder = files.get_file_from_path(PAGE)
+    if placeholder is not None:
+        files.remove(placeholder)
     root = Path(config.config_file_path).resolve().parent
     results = root / RESULTS
     markdown = _render(_load_renderer(root), results)
