@@ -404,3 +404,25 @@ def test_suite_cases_choose_exactly_their_flights(tmp_path, monkeypatch, capsys)
     capsys.readouterr()
     assert cli.main(["evaluate", "--report-only", "--reference", "x.csv"]) == 2
     assert "add --suite" in capsys.readouterr().err
+
+
+def test_simulate_and_optimal_choose_the_built_in_flight(tmp_path, capsys):
+    """--vehicle, --flight-seed and --pilot pick the flight the summary names; a recording
+    cannot take them."""
+    out = tmp_path / "run.json"
+    args = ["simulate", "--plant", "analytical", "--mca", "washout", "--duration", "0.5"]
+    flight = ["--vehicle", "jet", "--flight-seed", "2001", "--pilot", "route"]
+    assert cli.main([*args, *flight, "--json", str(out), "--plots", "", "--quiet"]) == 0
+    assert json.loads(out.read_text())["reference"] == "built-in jet flight, seed 2001, route pilot"
+    bound = tmp_path / "bound.json"
+    optimal = ["optimal", "--duration", "0.5", "--max-iterations", "2", "--json", str(bound)]
+    assert cli.main([*optimal, "--vehicle", "jet", "--flight-seed", "2001", "--quiet"]) == 0
+    assert json.loads(bound.read_text())["reference"] == "built-in jet flight, seed 2001"
+    recording = tmp_path / "flight.csv"
+    recording.write_text("t,omega_x,omega_y,omega_z,f_x,f_y,f_z\n")
+    assert cli.main([*args, "--reference", str(recording), "--flight-seed", "3"]) == 2
+    assert "--flight-seed choose a built-in flight" in capsys.readouterr().err
+    # the IMU noise's seed has its own name; --seed is no flag of simulate
+    assert cli.main([*args, "--noise-seed", "4", "--json", "", "--plots", "", "--quiet"]) == 0
+    with pytest.raises(SystemExit):
+        cli.main([*args, "--seed", "4"])

@@ -467,6 +467,28 @@ def make_tuning(out: Path) -> None:
         shutil.copy(Path(tmp) / "convergence.png", out / "tuning_convergence.png")
 
 
+# The training guide's quick path: a small dataset and a small policy, a few minutes.
+QUICK_DATASET = (
+    *("dataset", "closed-loop", "--vehicle", "light", "--flights", "6", "--first-seed", "100"),
+    *("--minutes", "3", "--horizon", "128"),
+)
+QUICK_TRAINING = (
+    *("train-policy", "--hidden", "64", "--horizons", "128,256", "--max-epochs", "200"),
+    *("--learning-rate", "0.003"),
+)
+
+
+def make_training(out: Path) -> None:
+    """The training guide's quick path (about 7 minutes on two cores): its loss curves."""
+    with tempfile.TemporaryDirectory() as tmp:
+        _mca_drake(*QUICK_DATASET, "--out-dir", f"{tmp}/quick", "--quiet")
+        _mca_drake(
+            *QUICK_TRAINING,
+            *("--dataset", f"{tmp}/quick/dataset.npz", "--out-dir", f"{tmp}/policy", "--quiet"),
+        )
+        shutil.copy(Path(tmp) / "policy" / "policy_loss.png", out / "training_loss.png")
+
+
 def make_suite(out: Path) -> None:
     """The suite's box plot of PIs per case and MCA, from its current result file."""
     import json
@@ -524,6 +546,7 @@ GROUPS = {
     "ray": make_ray,
     "suite": make_suite,
     "tuning": make_tuning,
+    "training": make_training,
 }
 
 
