@@ -563,10 +563,13 @@ def forward_kinematics(
             break  # a step left the mechanism's reach
         if np.max(np.abs(error)) <= tolerance:
             return pose
-        step = np.linalg.solve(leg_jacobian(pose, geometry), error)
+        try:
+            step = np.linalg.solve(leg_jacobian(pose, geometry), error)
+        except np.linalg.LinAlgError:
+            break  # a singular pose: Newton's method cannot go on from it
         pose = pose - step
     error = np.max(np.abs(actuator_positions(pose, geometry) - target))
-    if error <= 1e3 * tolerance:
+    if np.isfinite(error) and error <= 1e3 * tolerance:
         return pose  # converged to the precision the positions carry
     raise ValueError(
         f"forward kinematics did not converge in {max_iterations} iterations (actuator "
