@@ -2,7 +2,8 @@
 
     .venv/bin/python docs/images/make_figures.py [--only NAME,...]
 
-writes every PNG of this folder (a few minutes on two cores; `--only platforms` one group).
+writes every figure of this folder (about ten minutes on two cores, most of it the quick
+training; `--only platforms` one group), and `meshcat_replay.html`, a Meshcat recording.
 The platforms are rendered by Drake (RenderEngineVtk, the geometry Meshcat draws) with the
 frames and legs drawn over them; the runs are the package's own plots of short runs; the
 diagrams are laid out from the Drake diagrams the runs build (their systems and
@@ -489,6 +490,28 @@ def make_training(out: Path) -> None:
         shutil.copy(Path(tmp) / "policy" / "policy_loss.png", out / "training_loss.png")
 
 
+def make_meshcat(out: Path) -> None:
+    """A Meshcat view to open in the browser: 10 s of the main job on the station, recorded
+    and saved by Drake as one self-contained HTML file (`Meshcat.StaticHtml`)."""
+    from pydrake.geometry import Meshcat, MeshcatParams
+
+    from mca_drake.platforms.files import load_platform
+    from mca_drake.simulation.builders import default_visualization
+    from mca_drake.simulation.closed_loop import run_closed_loop
+
+    meshcat = Meshcat(MeshcatParams(host="localhost", port=0))
+    run_closed_loop(
+        mca="dpc",
+        reference=_flight(10.0),
+        robot=load_platform("kr500"),
+        plant="multibody",
+        meshcat=meshcat,
+        visualization=default_visualization(),
+        progress=False,
+    )
+    (out / "meshcat_replay.html").write_text(meshcat.StaticHtml())
+
+
 def make_suite(out: Path) -> None:
     """The suite's box plot of PIs per case and MCA, from its current result file."""
     import json
@@ -547,6 +570,7 @@ GROUPS = {
     "suite": make_suite,
     "tuning": make_tuning,
     "training": make_training,
+    "meshcat": make_meshcat,
 }
 
 
