@@ -438,3 +438,15 @@ def test_a_live_run_cues_its_scaling_and_is_scored_at_the_default():
     # the surge it was sent (0.75 m/s^2 amplitude at the default scaling) is all error
     assert summary["rmse"][3] == pytest.approx(0.75 / np.sqrt(2), rel=0.1)
     assert summary["pi"] == pytest.approx(summary["pi_zero_motion"], abs=1e-6)
+
+
+def test_a_predictive_nmpc_cues_live():
+    """The predictive NMPC's forecast runs in the live loop's phase: it cues the stream's
+    surge (its shape followed) within every limit."""
+    summary = live_with_sender(
+        partial(stream, gap=(9.0, 9.0), nan_at=-1.0), 3.0, "nmpc-rti-predictive", 3.0
+    )
+    assert summary["mca"] == "nmpc-rti-predictive"
+    assert summary["live"]["packets"] > 150
+    assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    assert summary["cc"][3] > 0.8  # f_x, the surge oscillation sent

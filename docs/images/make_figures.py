@@ -177,6 +177,16 @@ def _flight(seconds=FLIGHT_SECONDS, vehicle="light", seed=1000):
     return flight_reference(FlightSpec(vehicle=vehicle, seed=seed), seconds)
 
 
+def _finish(fig, axes, title: str, path: Path, **legend) -> None:
+    """A figure of stacked panels over time: legend and title on the first, the time axis on
+    the last; saved to `path`."""
+    axes[0].legend(fontsize=8, **legend)
+    axes[0].set_title(title)
+    axes[-1].set_xlabel("t, s")
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
 def make_runs(out: Path) -> None:
     """The main job's three plots (a 40 s cut of its flight, analytical plant), and the
     three MCAs on the same flight side by side."""
@@ -204,11 +214,8 @@ def make_runs(out: Path) -> None:
             ax.plot(times, result.outputs[:, channel], lw=1.2, label=f"{mca} (PI {pi:.2f})")
         ax.set_ylabel(unit)
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=8, ncol=2)
-    axes[0].set_title("Surge force and pitch rate: the three MCAs on one flight")
-    axes[1].set_xlabel("t, s")
-    fig.tight_layout()
-    save_figure(fig, out / "mcas_compared.png")
+    title = "Surge force and pitch rate: the three MCAs on one flight"
+    _finish(fig, axes, title, out / "mcas_compared.png", ncol=2)
 
 
 def make_recording(out: Path) -> None:
@@ -284,11 +291,8 @@ def make_bound(out: Path) -> None:
         )
         ax.set_ylabel(unit)
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=8)
-    axes[0].set_title("Roll and pitch rate: the bound knows the whole flight")
-    axes[1].set_xlabel("t, s")
-    fig.tight_layout()
-    save_figure(fig, out / "bound.png")
+    title = "Roll and pitch rate: the bound knows the whole flight"
+    _finish(fig, axes, title, out / "bound.png")
 
 
 def make_drive(out: Path) -> None:
@@ -490,6 +494,34 @@ def make_training(out: Path) -> None:
         shutil.copy(Path(tmp) / "policy" / "policy_loss.png", out / "training_loss.png")
 
 
+def make_prediction(out: Path) -> None:
+    """What the predictors see and forecast at a few instants of the main job's flight."""
+    from mca_drake.cueing.predictor import (
+        constant_forecast,
+        load_linear_predictor,
+        predictor_file,
+    )
+
+    model = load_linear_predictor(predictor_file("linear"))
+    y = _flight(120.0).y
+    h = 0.01
+    fig, axes = plt.subplots(2, 1, figsize=(8.0, 5.0), sharex=True)
+    for ax, channel, unit in zip(axes, (4, 0), ("f_y, m/s²", "w_x, rad/s"), strict=True):
+        ax.plot(np.arange(y.shape[0]) * h, y[:, channel], color="black", lw=1.6, label="reference")
+        for i, k in enumerate(range(2000, 11000, 1500)):
+            history = y[k - model.history + 1 : k + 1]
+            times = (k + np.arange(1, 256)) * h
+            linear = model.forecast(history, 255)[:, channel]
+            constant = constant_forecast(history, 255)[:, channel]
+            ax.plot(times, constant, color="#999999", lw=1.2, label="constant" if i == 0 else None)
+            ax.plot(times, linear, color="#d62728", lw=1.4, label="linear" if i == 0 else None)
+        ax.set_ylabel(unit)
+        ax.grid(alpha=0.3)
+        ax.set_xlim(15, 115)
+    title = "2.56 s forecasts from the past alone, every 15 s of the main job's flight"
+    _finish(fig, axes, title, out / "prediction.png", loc="upper left")
+
+
 def make_meshcat(out: Path) -> None:
     """A Meshcat view to open in the browser: 10 s of the main job on the station, recorded
     and saved by Drake as one self-contained HTML file (`Meshcat.StaticHtml`)."""
@@ -571,6 +603,7 @@ GROUPS = {
     "tuning": make_tuning,
     "training": make_training,
     "meshcat": make_meshcat,
+    "prediction": make_prediction,
 }
 
 

@@ -493,8 +493,11 @@ class LiveScenario:
                 self.rsi.axis_map(robot.joint_kinds, robot.home)
             except ValueError as err:
                 raise ValueError(f"platform {robot.name!r} over RSI: {err}") from None
-        if getattr(self.mca, "preview_steps", 0):
-            raise ValueError("live telemetry has no future: the NMPC's preview_steps must be 0")
+        if getattr(self.mca, "preview_steps", 0) and not getattr(self.mca, "predictor", ""):
+            raise ValueError(
+                "live telemetry has no future: the NMPC's preview_steps must be 0, or come "
+                "from a predictor (nmpc-rti-predictive)"
+            )
         self.mca.validate()
         if isinstance(self.mca, DpcConfig):
             _, metadata = load_policy_arrays(

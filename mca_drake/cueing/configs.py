@@ -5,12 +5,15 @@ Every motion cueing algorithm is chosen and configured by its typed dataclass: `
 by its tag and sets any of its fields (`mca: !NmpcConfig {mode: rti, washout_weight: 0.3}`).
 The names `dpc`, `nmpc-rti`, `nmpc-converged` and `washout` are shorthands for the default
 config of each (`--mca nmpc-rti`), and name an MCA in summaries and reports; the NMPC's
-names take `-perceived` for its perceived objective (`nmpc-rti-perceived`). Any name takes a
+names take `-perceived` for its perceived objective (`nmpc-rti-perceived`) and
+`-predictive` for a forecast of the reference as its preview (`nmpc-rti-predictive`,
+`mca_drake.cueing.predictor`). Any name takes a
 shipped profile's suffix for that profile's settings (`washout-ground`, `nmpc-rti-ground`,
 `dpc-ground`; `mca_drake.cueing.profiles`).
 """
 
 import dataclasses
+from pathlib import Path
 from typing import Union
 
 from mca_drake.cueing.dpc import DpcConfig
@@ -33,6 +36,8 @@ MCA_NAMES = (
     "washout",
     "nmpc-rti-perceived",
     "nmpc-converged-perceived",
+    "nmpc-rti-predictive",
+    "nmpc-converged-predictive",
 )
 
 
@@ -50,7 +55,13 @@ def mca_config_from_name(name: str, platform: str = "") -> McaConfig:
     if tuned is not None and base in MCA_NAMES and base != "dpc":
         default = mca_config_from_name(base)
         if isinstance(default, NmpcConfig):
-            return dataclasses.replace(tuned.nmpc, mode=default.mode, objective=default.objective)
+            return dataclasses.replace(
+                tuned.nmpc,
+                mode=default.mode,
+                objective=default.objective,
+                preview_steps=default.preview_steps,
+                predictor=default.predictor,
+            )
         return tuned.washout
     if profile:
         if base not in MCA_NAMES:
@@ -61,13 +72,22 @@ def mca_config_from_name(name: str, platform: str = "") -> McaConfig:
         default = mca_config_from_name(base)
         config = profile_config(type(default), profile)
         if isinstance(config, NmpcConfig):
-            config = dataclasses.replace(config, mode=default.mode, objective=default.objective)
+            config = dataclasses.replace(
+                config,
+                mode=default.mode,
+                objective=default.objective,
+                preview_steps=default.preview_steps,
+                predictor=default.predictor,
+            )
         return config
     if name == "dpc":
         return DpcConfig()
     if name in MCA_NAMES and name.startswith("nmpc-"):
-        mode, _, objective = name.removeprefix("nmpc-").partition("-")
-        return NmpcConfig(mode=mode, objective=objective or "inertial")
+        mode, _, variant = name.removeprefix("nmpc-").partition("-")
+        if variant == "predictive":  # the packaged linear forecast over the whole horizon
+            horizon = NmpcConfig().horizon_steps
+            return NmpcConfig(mode=mode, preview_steps=horizon, predictor="linear")
+        return NmpcConfig(mode=mode, objective=variant or "inertial")
     if name == "washout":
         return WashoutConfig()
     raise ValueError(f"unknown MCA '{name}'; valid: {', '.join(MCA_NAMES)}")
@@ -103,16 +123,30 @@ def on_platform(config: McaConfig, platform: str) -> McaConfig:
 def mca_name(config: McaConfig) -> str:
     """The name of the MCA that `config` configures (MCA_NAMES): "nmpc-" plus the NMPC's
     mode (and "-perceived" for its perceived objective, "-previewN" for a preview of N
-    samples), "dpc" or "washout", each with "-<profile>" for a shipped profile's settings."""
+    samples, "-predictive" for a forecast as the preview), "dpc" or "washout", each with
+    "-<profile>" for a shipped profile's settings."""
     if not isinstance(config, MCA_CONFIG_TYPES):
         raise TypeError(f"not an MCA config: {type(config).__name__}")
     profile = f"-{config.profile}" if config.profile else ""
     if isinstance(config, NmpcConfig):
         suffix = "-perceived" if config.objective == "perceived" else ""
-        if config.preview_steps:
+        if config.predictor:
+            suffix += "-predictive" + _predictor_suffix(config)
+        elif config.preview_steps:
             suffix += f"-preview{config.preview_steps}"
         return f"nmpc-{config.mode}{suffix}{profile}"
     return ("dpc" if isinstance(config, DpcConfig) else "washout") + profile
+
+
+def _predictor_suffix(config: NmpcConfig) -> str:
+    """What a predictive NMPC's name adds to "-predictive" where it is not the named MCA's:
+    the predictor if it is not the packaged linear one, the forecast's length if it is not
+    the whole horizon."""
+    predictor = config.predictor
+    suffix = "" if predictor == "linear" else f"-{Path(predictor).stem}"
+    if config.preview_steps != config.horizon_steps:
+        suffix += f"{config.preview_steps}"
+    return suffix
 
 
 def mca_config_record(config: McaConfig) -> dict:

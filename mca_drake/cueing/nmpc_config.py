@@ -6,6 +6,7 @@ installed. The solver that reads it is `mca_drake.cueing.nmpc`.
 import dataclasses
 
 from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.cueing.predictor import check_predictor
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.resources import check_profile
@@ -32,6 +33,12 @@ class NmpcConfig:
     # manoeuvre, a recorded flight) at the grid's nodes, the last held beyond them. Offline
     # only: live telemetry has no future.
     preview_steps: int = 0
+    # A forecast as the preview (`mca_drake.cueing.predictor`): "" none (the known future
+    # above, or the current reference held); "constant" (the current reference held, the
+    # causal NMPC's assumption, as a forecast), "linear" (the packaged linear model fitted
+    # on training flights and drives) or a model file (.npz). With a predictor,
+    # preview_steps is the forecast's length; it reads only the past, so it runs live too.
+    predictor: str = ""
     # The weights below are tuned (the paper's are `NmpcConfig.paper()`):
     #   mca-drake tune --mca nmpc-rti --trials 30 --duration 120 --workers 2 --budget-ms 10
     #       --vehicles light,jet --seeds 100,101,102 --seed 3
@@ -151,6 +158,12 @@ class NmpcConfig:
             raise ValueError(
                 f"preview_steps must be in [0, horizon_steps = {self.horizon_steps}]; got "
                 f"{self.preview_steps}"
+            )
+        check_predictor(self.predictor)
+        if self.predictor and not self.preview_steps:
+            raise ValueError(
+                f"predictor {self.predictor!r} forecasts preview_steps samples: set preview_steps "
+                f"(horizon_steps = {self.horizon_steps} for the whole horizon)"
             )
         if self.horizon_steps < 1 or self.max_iterations < 1:
             raise ValueError("horizon_steps and max_iterations must be at least 1")

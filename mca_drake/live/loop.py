@@ -80,6 +80,7 @@ from mca_drake.simulation.closed_loop import (
 )
 from mca_drake.systems import MotionCueingPlant
 from mca_drake.systems.meshcat_traces import MeshcatOutputTraces
+from mca_drake.systems.predictor import AddReferencePredictor
 from mca_drake.systems.reference_scaling import AddReferenceScaling
 from mca_drake.systems.station import AddStation, StationConfig
 
@@ -243,6 +244,12 @@ def _ConnectMcaToSupervisor(
         guarded = console.GetOutputPort("scaled_reference")
         builder.Connect(console.GetOutputPort("mode"), guard.GetInputPort("operator"))
     builder.Connect(guarded, controller.GetInputPort("reference"))
+    # a predictive MCA's forecast, from what it has read, moved in its own (discrete) phase
+    forecast = AddReferencePredictor(
+        builder, getattr(controller, "config", None), guarded, time_step, "discrete"
+    )
+    if forecast is not None:
+        builder.Connect(forecast, controller.GetInputPort("reference_preview"))
     builder.Connect(robot_ports.state, controller.GetInputPort("state"))
     if controller.HasInputPort("inertial_output"):
         builder.Connect(robot_ports.inertial_output, controller.GetInputPort("inertial_output"))

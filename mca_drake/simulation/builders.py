@@ -31,6 +31,7 @@ from mca_drake.systems.meshcat_legs import MeshcatLegs
 from mca_drake.systems.meshcat_traces import MeshcatOutputTraces
 from mca_drake.systems.nmpc import NmpcController
 from mca_drake.systems.plausibility import ReferenceGuard
+from mca_drake.systems.predictor import AddReferencePredictor
 from mca_drake.systems.reference_scaling import AddReferenceScaling
 from mca_drake.systems.station import AddStation, StationConfig
 from mca_drake.systems.washout import ClassicalWashout
@@ -154,7 +155,9 @@ def _add_source_and_mca(builder, reference, mca, robot, plausibility=None, scali
     """ReferenceSource and the MCA, wired together through the reference guard and the
     scenario's scaling (`AddReferenceScaling`); returns (source, mca, initial_state, guard):
     the robot starts at rest at the MCA's home pose (q = 0 unless the MCA has one); guard
-    None where `plausibility` disables it."""
+    None where `plausibility` disables it. An MCA with a preview reads the recorded future,
+    or, where its config names a predictor, the forecast of a ReferencePredictor
+    (`AddReferencePredictor`) from the reference it has read."""
     controller = AddMca(builder, mca, robot, reference.time_step)
     preview = controller.preview_samples if hasattr(controller, "preview_samples") else 0
     source = builder.AddNamedSystem(
@@ -163,10 +166,14 @@ def _add_source_and_mca(builder, reference, mca, robot, plausibility=None, scali
     guarded, guard = AddReferenceGuard(
         builder, source.GetOutputPort("reference"), plausibility, reference.time_step
     )
+    config = as_mca_config(mca)
+    forecast = bool(getattr(config, "predictor", ""))
     # a known future: the MCA reads it (the NMPC at its grid's nodes)
-    preview_port = source.GetOutputPort("reference_preview") if preview else None
+    preview_port = source.GetOutputPort("reference_preview") if preview and not forecast else None
     guarded, preview_port = AddReferenceScaling(builder, guarded, scaling, preview_port)
     builder.Connect(guarded, controller.GetInputPort("reference"))
+    if forecast:  # a forecast from what the MCA has read so far, in the MCA's own phase
+        preview_port = AddReferencePredictor(builder, config, guarded, reference.time_step)
     if preview:
         builder.Connect(preview_port, controller.GetInputPort("reference_preview"))
     home = getattr(controller, "home_position", robot.home)

@@ -103,6 +103,11 @@ class NmpcController(LeafSystem):
         self._statistics_port = self.DeclareStateOutputPort("statistics", self._statistics_index)
 
     @property
+    def config(self) -> NmpcConfig:
+        """The settings it runs."""
+        return self._config
+
+    @property
     def preview_samples(self) -> int:
         """Samples of `reference_preview` it reads (0: causal, no such port)."""
         return self._preview_samples
