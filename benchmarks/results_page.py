@@ -293,9 +293,7 @@ def _preview(results_dir: Path, data: dict) -> list[str]:
         for mca, m in case["mcas"].items():
             gain = "-"
             if causal and mca != "nmpc-rti":
-                mine = dict(zip(m["seeds"], m["pi"], strict=True))
-                theirs = dict(zip(causal["seeds"], causal["pi"], strict=True))
-                pairs = [theirs[seed] - mine[seed] for seed in mine.keys() & theirs.keys()]
+                pairs = _paired_gains(causal, m)
                 gain = f"{statistics.median(pairs):+.3f}" if pairs else "-"
             rows.append(
                 [
@@ -321,6 +319,38 @@ def _preview(results_dir: Path, data: dict) -> list[str]:
                 ]
             )
     header = ["case", "MCA", "flights", "PI median (IQR)", "perceived PI (zero motion)", "gain"]
+    return [*lines, *_table(header, rows), ""]
+
+
+def _paired_gains(base: dict, other: dict) -> list[float]:
+    """Per flight both ran, `base`'s PI minus `other`'s (positive: `other` is better)."""
+    theirs = dict(zip(base["seeds"], base["pi"], strict=True))
+    mine = dict(zip(other["seeds"], other["pi"], strict=True))
+    return [theirs[seed] - mine[seed] for seed in sorted(mine.keys() & theirs.keys())]
+
+
+def _predictor(results_dir: Path, data: dict) -> list[str]:
+    """The forecast's error against holding the current sample, per horizon and channel."""
+    timing = data["linear"].get("forecast_time")
+    lines = [
+        f"The linear forecast (trained on {data.get('chosen_sources', 'every source')}, ridge "
+        f"{data['chosen_ridge']:g}: the recipe chosen on the validation references) against "
+        f"the constant one on {len(data['validation'])} validation "
+        f"references of {data['duration_s']:.0f} s (flights by the scripted and the "
+        "human-operator pilots, drives): RMS forecast error per channel, linear / constant "
+        "(rad/s, m/s²).",
+        "",
+    ]
+    if timing:
+        lines[0] += (
+            f" A forecast costs {timing['median_s'] * 1e6:.0f} us median, "
+            f"{timing['p99_s'] * 1e6:.0f} us p99 per control step."
+        )
+    rows = []
+    for horizon, linear in data["linear"]["rmse"].items():
+        constant = data["constant"]["rmse"][horizon]
+        rows.append([f"{horizon} s"] + [f"{linear[c]:.3f} / {constant[c]:.3f}" for c in linear])
+    header = ["ahead", *next(iter(data["linear"]["rmse"].values())).keys()]
     return [*lines, *_table(header, rows), ""]
 
 
@@ -1159,6 +1189,13 @@ SECTIONS = (
         "to a loopback listener each period, and the latency from a sample to that message "
         "(`bench_live.py --platform hexapod --rig`)",
         _live,
+    ),
+    Section(
+        "Reference forecasts",
+        "predictor.json",
+        "the linear forecast's error at 0.5, 1 and 2.5 s ahead against holding the current "
+        "sample, on validation flights and drives",
+        _predictor,
     ),
     Section(
         "KUKA RSI driver",
