@@ -322,6 +322,58 @@ def _preview(results_dir: Path, data: dict) -> list[str]:
     return [*lines, *_table(header, rows), ""]
 
 
+def _predictive(results_dir: Path, data: dict) -> list[str]:
+    """Predictive cueing: per case, the causal NMPC-rti, the predictive one and the perfect
+    preview; the share of the preview's gain the forecast captures and the flights it made
+    worse."""
+    lines = [
+        f"NMPC-rti on the evaluation suite's {data['duration_s']:.0f} s flights and drives: "
+        "causal (the reference held over the horizon), predictive (the packaged linear "
+        "forecast over the horizon, from the past alone) and with the recorded future over "
+        "the horizon (the perfect preview). Share: the predictive NMPC's median paired gain "
+        "over the causal one, as a share of the perfect preview's. Worse: flights the "
+        "predictive NMPC scored worse than the causal one on.",
+        "",
+    ]
+    rows = []
+    for case_name, case in data["cases"].items():
+        mcas = case["mcas"]
+        causal = mcas.get("nmpc-rti")
+        predictive = mcas.get("nmpc-rti-predictive")
+        preview = next((m for name, m in mcas.items() if "preview" in name), None)
+        if not (causal and predictive and preview):
+            continue
+        predicted, perfect = _paired_gains(causal, predictive), _paired_gains(causal, preview)
+        share = statistics.median(predicted) / statistics.median(perfect)
+        rows.append(
+            [
+                case_name,
+                fmt_pi(causal["pi_median"]),
+                fmt_pi(predictive["pi_median"]),
+                fmt_pi(preview["pi_median"]),
+                f"{statistics.median(predicted):+.3f}",
+                f"{share:.2f}",
+                f"{sum(g < 0 for g in predicted)} of {len(predicted)}",
+                f"{fmt_pi(causal['perceived_pi_median'])} / "
+                f"{fmt_pi(predictive['perceived_pi_median'])} / "
+                f"{fmt_pi(preview['perceived_pi_median'])}",
+                f"{predictive['step_time_median_s'] * 1e3:.2f} ms",
+            ]
+        )
+    header = [
+        "case",
+        "causal PI",
+        "predictive PI",
+        "perfect preview PI",
+        "gain",
+        "share",
+        "worse",
+        "perceived PI (causal / predictive / preview)",
+        "predictive step median",
+    ]
+    return [*lines, *_table(header, rows), ""]
+
+
 def _paired_gains(base: dict, other: dict) -> list[float]:
     """Per flight both ran, `base`'s PI minus `other`'s (positive: `other` is better)."""
     theirs = dict(zip(base["seeds"], base["pi"], strict=True))
@@ -1189,6 +1241,13 @@ SECTIONS = (
         "to a loopback listener each period, and the latency from a sample to that message "
         "(`bench_live.py --platform hexapod --rig`)",
         _live,
+    ),
+    Section(
+        "Predictive cueing",
+        "evaluation_predictive/evaluation.json",
+        "the NMPC-rti with a forecast of the reference as its preview against the causal "
+        "NMPC-rti and the perfect preview, on the suite's cases A-E",
+        _predictive,
     ),
     Section(
         "Reference forecasts",
