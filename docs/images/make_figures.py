@@ -266,6 +266,7 @@ def make_plausibility(out: Path) -> None:
 def make_bound(out: Path) -> None:
     """The offline-optimal bound against the NMPC-rti on 20 s of the flight."""
     from mca_drake.platforms.files import load_platform
+    from mca_drake.simulation.closed_loop import run_closed_loop
     from mca_drake.simulation.optimal_bound import run_optimal_bound
 
     robot = load_platform("kr500")
@@ -273,7 +274,6 @@ def make_bound(out: Path) -> None:
     bound = run_optimal_bound(
         reference=reference, robot=robot, starts=("nmpc-rti",), progress=False
     )
-    from mca_drake.simulation.closed_loop import run_closed_loop
 
     nmpc = run_closed_loop(
         mca="nmpc-rti", reference=reference, robot=robot, plant="analytical", progress=False

@@ -180,9 +180,6 @@ class TelemetryReceiver(LeafSystem):
     Args:
         decoder: the protocol's decoder (it also moves samples to the head: its `LeverArm`).
         config: address, staleness and timing.
-        scaling: how samples become y_ref (default s_w = s_f = 0.5, as for recordings). The
-            live loop keeps the default here, what its runs are scored against, and cues a
-            scenario's own scaling behind the guard (`systems.reference_scaling`).
 
     Raises:
         ValueError: a bad setting. OSError: the address cannot be bound (in use, say).
@@ -192,13 +189,13 @@ class TelemetryReceiver(LeafSystem):
         self,
         decoder: Decoder,
         config: ReceiverConfig | None = None,
-        scaling: ReferenceScaling | None = None,
     ):
         super().__init__()
         self._config = config or ReceiverConfig()
         self._config.validate()
-        self._scaling = scaling or ReferenceScaling()
-        self._scaling.validate()
+        # the default scaling, what runs are scored against; a scenario's own scaling is
+        # cued behind the guard (`systems.reference_scaling`)
+        self._scaling = ReferenceScaling()
         self._decoder = decoder
         self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._socket.setblocking(False)

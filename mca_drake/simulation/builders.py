@@ -166,7 +166,7 @@ def _add_source_and_mca(builder, reference, mca, robot, plausibility=None, scali
     guarded, guard = AddReferenceGuard(
         builder, source.GetOutputPort("reference"), plausibility, reference.time_step
     )
-    config = as_mca_config(mca)
+    config = getattr(controller, "config", None)  # the settings the MCA runs
     forecast = bool(getattr(config, "predictor", ""))
     # a known future: the MCA reads it (the NMPC at its grid's nodes)
     preview_port = source.GetOutputPort("reference_preview") if preview and not forecast else None
