@@ -189,7 +189,8 @@ def test_the_demo_cues_jsbsims_own_packets():
 def impaired_stream(address, duration_s, seed=0, sent=None):
     """100 Hz telemetry through a bad network: 10 % lost, 0-8 ms jitter, one pair in ten
     swapped, a burst of NaN datagrams at 1.0 s and a 0.5 s stop at 2.0 s (bounded). `sent`
-    (a list) gets the wall time of every usable datagram sent."""
+    (a list) gets the wall time of every datagram sent that the receiver can use: not a NaN
+    one, nor a held one sent after a newer sample (refused as out of order)."""
     rng = np.random.default_rng(seed)
     sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     start, k, held = time.perf_counter(), 0, None
@@ -205,10 +206,12 @@ def impaired_stream(address, duration_s, seed=0, sent=None):
                 held = packet  # sent after the next one: reordered
             else:
                 sender.sendto(packet, address)
+                usable = not packet.startswith(b"nan")
                 if held is not None:
                     sender.sendto(held, address)
+                    usable = usable or not held.startswith(b"nan")  # newest usable after a NaN
                     held = None
-                if sent is not None and not packet.startswith(b"nan"):
+                if sent is not None and usable:
                     sent.append(time.perf_counter())
         time.sleep(max(0.0, start + k / 100 + rng.uniform(0, 0.008) - time.perf_counter()))
     sender.close()
