@@ -244,3 +244,17 @@ def test_a_tune_on_a_platform_scores_its_closed_loops_there(tmp_path):
     assert on["kr500-rail"] != on["kr500"]
     with pytest.raises(FileNotFoundError, match="kr5000"):
         TuningConfig(platform="kr5000").validate()
+
+
+def test_a_platform_file_named_by_a_relative_path_is_tuned(tmp_path, monkeypatch):
+    """Ray Tune runs each trial in a folder of its own: a platform file given relative to
+    the folder the tune was started in must still be found (as `mca-drake tune --platform
+    my-rig.yaml` in the rig guide)."""
+    import shutil
+
+    shutil.copy(REPO / "models" / "rig-3dof.yaml", tmp_path / "my-rig.yaml")
+    monkeypatch.chdir(tmp_path)
+    tuning = TuningConfig(**{**TINY, "trials": 1, "mca": "washout", "platform": "my-rig.yaml"})
+    report = run_tuning(tuning, "tune", progress=False)
+    assert report["platform"] == str(tmp_path / "my-rig.yaml")
+    assert len(load_trials(tmp_path / "tune" / "trials")) == 1

@@ -41,7 +41,12 @@ from mca_drake.atomic_io import (
 )
 from mca_drake.cueing import NmpcConfig, WashoutConfig, mca_config_record
 from mca_drake.input_checks import MAX_DURATION_S, check_config_numbers, check_range
-from mca_drake.platforms.files import DEFAULT_PLATFORM, load_platform
+from mca_drake.platforms.files import (
+    DEFAULT_PLATFORM,
+    load_platform,
+    packaged_platforms,
+    platform_file,
+)
 from mca_drake.plotting import save_figure
 from mca_drake.references.drives import motion_reference, training_spec
 from mca_drake.simulation.closed_loop import run_closed_loop
@@ -365,6 +370,9 @@ def run_tuning(
     tuning.validate()
     if workers < 1:
         raise ValueError(f"workers must be at least 1; got {workers}")
+    if tuning.platform not in packaged_platforms():
+        # a platform file by its path: Ray Tune runs each trial in its own folder
+        tuning = dataclasses.replace(tuning, platform=str(platform_file(tuning.platform).resolve()))
     out = check_writable(Path(out_dir).resolve(), folder=True)
     flights_dir, trials_dir, state = out / "flights", out / "trials", out / "tuning.json"
     identity = {k: v for k, v in dataclasses.asdict(tuning).items() if k != "trials"}
