@@ -24,6 +24,7 @@ from mca_drake.app.scenarios import Scenario
 from mca_drake.cueing import MCA_NAMES
 from mca_drake.live.decoders import PROTOCOLS
 from mca_drake.platforms.files import packaged_platforms
+from mca_drake.references.vehicle_signals import SIGNALS
 from mca_drake.resources import packaged_scenarios
 
 REPO = Path(__file__).resolve().parents[1]
@@ -69,6 +70,7 @@ def test_every_marker_renders_a_table():
         (("mca-names",), "concepts/mcas.md", [f"`{n}`" for n in MCA_NAMES]),
         (("protocols",), "guides/live.md", [f"`{p}`" for p in PROTOCOLS]),
         (("platforms",), "concepts/platforms.md", [f"`{p}`" for p in packaged_platforms()]),
+        (("signals",), "concepts/plant-output.md", [f"`{name}`" for name in SIGNALS]),
         (
             ("notebooks",),
             "getting-started.md",

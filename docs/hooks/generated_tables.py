@@ -269,6 +269,20 @@ def notebooks_table() -> str:
     return _table(("notebook", "what it shows"), rows)
 
 
+def signals_table() -> str:
+    """The optional control and state columns of a recording, their SI unit and meaning."""
+    _code()
+    signals = importlib.import_module("mca_drake.references.vehicle_signals")
+    rows = []
+    for name, (unit, meaning) in signals.SIGNALS.items():
+        others = [u for u in signals.SIGNAL_UNITS[unit] if u and u != unit]
+        units = unit if unit != "1" else "(none)"
+        if others:
+            units += f" (or {', '.join(others)})"
+        rows.append((_code_cell(name), _cell(units), _cell(meaning)))
+    return _table(("column", "unit", "what it is"), rows)
+
+
 RENDERERS = {
     "flags": flags_table,
     "scenario-files": scenario_files_table,
@@ -278,6 +292,7 @@ RENDERERS = {
     "protocols": protocols_table,
     "platforms": platforms_table,
     "notebooks": notebooks_table,
+    "signals": signals_table,
 }
 
 

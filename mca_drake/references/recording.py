@@ -12,7 +12,10 @@ File format (CSV, UTF-8):
     0.00,0.0,0.0,0.0,0.0,0.0,9.81
     ...
 
-Columns may come in any order and extra columns are ignored; units are SI. The loader
+Columns may come in any order; units are SI. Optional columns named for the controls and
+the vehicle's state (`mca_drake.references.vehicle_signals.SIGNALS`: aileron, throttle,
+steering, speed, on_ground, ...) are kept as the recording's `signals`; other extra columns
+are ignored. The loader
 validates everything and resamples to a uniform grid (100 Hz by default); every error names
 the file, the line and the column, and says how to fix it. What it checks:
 
@@ -43,6 +46,7 @@ import numpy as np
 
 from mca_drake.atomic_io import atomic_write_text
 from mca_drake.conventions import GRAVITY
+from mca_drake.references.vehicle_signals import SIGNALS, check_signal, signal_factor
 
 COLUMNS = ("t", "omega_x", "omega_y", "omega_z", "f_x", "f_y", "f_z")
 DEFAULT_RATE_HZ = 100.0
@@ -94,12 +98,15 @@ class Recording:
         omega: angular velocity, rad/s, shape (T, 3).
         f: specific force, m/s^2, shape (T, 3) (level flight: (0, 0, 9.81)).
         metadata: free-form string key/values (vehicle, seed, source, ...).
+        signals: optional controls and vehicle state on the same times, SI, each shape (T,)
+            (`vehicle_signals.SIGNALS`: {"throttle": ..., "speed": ...}; empty: none).
     """
 
     t: np.ndarray
     omega: np.ndarray
     f: np.ndarray
     metadata: dict[str, str] = dataclasses.field(default_factory=dict)
+    signals: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.t = np.asarray(self.t, dtype=float)
@@ -117,6 +124,17 @@ class Recording:
         if np.any(np.diff(self.t) <= 0):
             k = int(np.argmax(np.diff(self.t) <= 0))
             raise RecordingError(f"recording times must increase; t[{k + 1}] <= t[{k}]")
+        self.signals = {name: np.asarray(v, dtype=float) for name, v in self.signals.items()}
+        for name, values in self.signals.items():
+            if name not in SIGNALS:
+                raise RecordingError(f"unknown signal '{name}'; known: {', '.join(SIGNALS)}")
+            if values.shape != (n,) or not np.all(np.isfinite(values)):
+                raise RecordingError(
+                    f"recording signal {name} must be {n} finite values; got {values.shape}"
+                )
+            why = check_signal(name, values)
+            if why:
+                raise RecordingError(f"recording signal {why}")
 
     @property
     def duration_s(self) -> float:
@@ -152,7 +170,9 @@ class Recording:
             source = self._low_passed(ANTI_ALIAS_CUTOFF_SHARE * rate_hz)
         columns = [np.interp(t, source.t, c) for c in np.column_stack([source.omega, source.f]).T]
         data = np.column_stack(columns)
-        return Recording(t, data[:, :3], data[:, 3:], dict(source.metadata))
+        # the signals interpolated as they are: a control's step is a step, not a vibration
+        signals = {name: np.interp(t, self.t, v) for name, v in self.signals.items()}
+        return Recording(t, data[:, :3], data[:, 3:], dict(source.metadata), signals)
 
     def _low_passed(self, cutoff_hz: float) -> Recording:
         """The recording on its own uniform grid (its mean rate), low-passed at `cutoff_hz`
@@ -169,13 +189,14 @@ class Recording:
         pad = min(3 * (2 * len(sos) + 1), t.size - 1)
         filtered = sosfiltfilt(sos, uniform, axis=0, padlen=pad)
         metadata = {**self.metadata, "anti_alias_cutoff_hz": f"{cutoff_hz:g}"}
-        return Recording(t, filtered[:, :3], filtered[:, 3:], metadata)
+        return Recording(t, filtered[:, :3], filtered[:, 3:], metadata)  # signals: `resampled`
 
     def sliced(self, start_s: float, stop_s: float) -> Recording:
         """Samples with start_s <= t - t0 < stop_s (times keep their values)."""
         rel = self.t - self.t[0]
         keep = (rel >= start_s - 1e-9) & (rel < stop_s - 1e-9)
-        return Recording(self.t[keep], self.omega[keep], self.f[keep], dict(self.metadata))
+        signals = {name: v[keep] for name, v in self.signals.items()}
+        return Recording(self.t[keep], self.omega[keep], self.f[keep], dict(self.metadata), signals)
 
 
 def check_units(recording: Recording, where: str = "recording") -> None:
@@ -265,8 +286,11 @@ def recording_to_csv(recording: Recording) -> str:
     for key, value in recording.metadata.items():
         clean = str(value).replace("\n", " ")
         out.write(f"# {key}: {clean}\n")
-    out.write(",".join(f"{c} [{u}]" for c, u in zip(COLUMNS, SI_UNITS, strict=True)) + "\n")
-    for row in recording.as_array():
+    names = [f"{c} [{u}]" for c, u in zip(COLUMNS, SI_UNITS, strict=True)]
+    names += [f"{name} [{SIGNALS[name][0]}]" for name in recording.signals]
+    out.write(",".join(names) + "\n")
+    table = np.column_stack([recording.as_array(), *recording.signals.values()])
+    for row in table:
         out.write(",".join(repr(float(v)) for v in row) + "\n")
     return out.getvalue()
 
@@ -325,7 +349,12 @@ def _parse_header(
         match = _HEADER_CELL.match(cell)
         name, unit = (match.group(1), match.group(2)) if match else (cell.strip(), None)
         factor = 1.0
-        if unit is not None and name in COLUMNS:
+        if name in SIGNALS:
+            try:
+                factor = signal_factor(name, unit)
+            except ValueError as err:
+                raise RecordingError(f"{path}: line {line_no}, column {name}: {err}") from None
+        elif unit is not None and name in COLUMNS:
             kind = name.split("_")[0]
             if unit not in UNITS[kind]:
                 raise RecordingError(
@@ -418,7 +447,8 @@ def load_recording(
             continue
         if header is None:
             header, factors, declared = _parse_header(path, line_no, row)
-            index = [header.index(c) for c in COLUMNS]
+            kept = [*COLUMNS, *(name for name in header if name in SIGNALS)]
+            index = [header.index(c) for c in kept]
             scale = [factors[i] for i in index]
             continue
         if len(row) != len(header):
@@ -431,7 +461,7 @@ def load_recording(
                 f"{path}: line {line_no}: {len(row)} values for {len(header)} columns{hint}"
             )
         values = []
-        for column, i, factor in zip(COLUMNS, index, scale, strict=True):
+        for column, i, factor in zip(kept, index, scale, strict=True):
             cell = row[i].strip()
             try:
                 value = float(cell)
@@ -464,7 +494,12 @@ def load_recording(
     if t[0] != 0.0:
         metadata["t0_s"] = repr(float(t[0]))
         t = t - t[0]
-    recording = Recording(t, data[:, 1:4], data[:, 4:7], metadata)
+    signals = {name: data[:, 7 + i] for i, name in enumerate(kept[7:])}
+    for name, values in signals.items():
+        why = check_signal(name, values)
+        if why:
+            raise RecordingError(f"{path}: column {why}")
+    recording = Recording(t, data[:, 1:4], data[:, 4:7], metadata, signals)
     if validate_units:
         check_units(recording, where=str(path))
         peak = float(np.max(np.abs(recording.omega)))

@@ -237,14 +237,16 @@ def _run(
 
     Returns:
         imu: JSBSim's eye-point specific force (ft/s^2) and body rates (rad/s), (T, 6).
-        log: roll, pitch, heading (rad), wheel height (m), airspeed (m/s), on ground, (T, 6).
+        log: roll, pitch, heading (rad), wheel height (m), airspeed (m/s), on ground, then
+            the pilot's commands (`Model.read_commands`), (T, 11).
     """
     s = model.state
     imu = [None] * n_samples
     log = [None] * n_samples
     values = model.read_state()
     imu[0] = values[:6]
-    log[0] = (s.phi, s.theta, s.psi, s.h, s.v, s.wow)
+    commands = model.read_commands
+    log[0] = (s.phi, s.theta, s.psi, s.h, s.v, s.wow, *commands())
     flying = pilot.fly()
     # JSBSim's gear dampers are massless: a wheel touching down gives a one- or two-sample
     # spike at the eye point (the jet's nose wheel, about 4 g). So the load factor limit
@@ -266,7 +268,7 @@ def _run(
         if ax * ax + ay * ay + az * az > spike2 or k % CHECK_EVERY == 0:
             model.check(values)
             model.check_load(imu[max(k - CHECK_EVERY + 1, 0) : k + 1])
-        log[k] = (s.phi, s.theta, s.psi, s.h, s.v, s.wow)
+        log[k] = (s.phi, s.theta, s.psi, s.h, s.v, s.wow, *commands())
         if bar is not None and k % 100 == 0:
             bar.update(1)
         if on_sample is not None:
@@ -298,7 +300,18 @@ def _package(
         "from_ground": str(from_ground).lower(),
         "phases": "; ".join(f"{start:.2f} {name}" for start, name in pilot.phases),
     }
-    recording = Recording(t, omega, f, metadata)
+    # the pilot's commands and the aircraft's state (`vehicle_signals`), for predictors
+    signals = {name: log[:, 6 + i] for i, name in enumerate(("aileron", "elevator", "rudder"))}
+    signals |= {
+        "throttle": log[:, 9],
+        "brake": log[:, 10],
+        "speed": log[:, 4],
+        "roll": log[:, 0],
+        "pitch": log[:, 1],
+        "height": log[:, 3] + air.cg_height_on_ground,
+        "on_ground": log[:, 5],
+    }
+    recording = Recording(t, omega, f, metadata, signals)
     flight_log = FlightLog(
         t=t,
         attitude=log[:, 0:3],

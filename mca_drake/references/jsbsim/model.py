@@ -23,6 +23,14 @@ MAX_TOUCHDOWN_SINK = 3.0  # m/s; beyond it a touchdown is a crash (about 600 ft/
 
 # The properties `Model.read_state` returns, in this order; the first six are the eye-point
 # IMU (specific force ft/s^2 and body rates rad/s, JSBSim body axes x fwd, y right, z down).
+# The pilot's commands a recording carries (`read_commands`).
+_COMMAND_PROPERTIES = (
+    "fcs/aileron-cmd-norm",
+    "fcs/elevator-cmd-norm",
+    "fcs/rudder-cmd-norm",
+    "fcs/throttle-cmd-norm[0]",
+    "fcs/left-brake-cmd-norm",
+)
 _STATE_PROPERTIES = (
     "accelerations/a-pilot-x-ft_sec2",
     "accelerations/a-pilot-y-ft_sec2",
@@ -221,6 +229,7 @@ class Model:
 
         self._getters = tuple(node(name).get_double_value for name in _STATE_PROPERTIES)
         self.controls = Controls(node, air.engines)
+        self._commands = tuple(node(name).get_double_value for name in _COMMAND_PROPERTIES)
         self._nose_wow = node("gear/unit[0]/WOW").get_double_value  # unit 0: nose gear
         self._severity = node("atmosphere/turbulence/milspec/severity")
         self._wind_20ft = node("atmosphere/turbulence/milspec/windspeed_at_20ft_AGL-fps")
@@ -326,6 +335,14 @@ class Model:
         s.u = u_fps * FT
         s.stalled = hyst > 0.5
         return values
+
+    def read_commands(self) -> tuple[float, float, float, float, float]:
+        """The pilot's commands as `vehicle_signals` counts them: aileron (positive rolls
+        right), elevator (positive pitches the nose up), rudder (positive yaws the nose
+        right), throttle (the first engine's) and brake (the left wheel's), normalised."""
+        aileron, elevator, rudder, throttle, brake = (g() for g in self._commands)
+        # JSBSim's elevator command is positive nose down, its rudder's positive nose left
+        return aileron, -elevator, -rudder, throttle, brake
 
     def nose_on_ground(self) -> bool:
         """Weight on the nose wheel."""
