@@ -99,3 +99,18 @@ def test_a_jsbsim_flight_records_the_commands_before_the_motion_they_command():
     # elevator: a step up pitches the nose up (a negative omega_y) 0.05 s later
     assert _lagged_correlation(np.diff(s["elevator"]), -np.diff(omega[:, 1]), 5) > 0.2
     assert 20.0 < np.median(s["speed"]) < 80.0  # a light aircraft's airspeed, m/s
+
+
+def test_a_drive_records_the_drivers_controls_before_the_motion():
+    from mca_drake.references.driving.drive import drive
+
+    lane_change = drive("double-lane-change", None, 3)
+    s = lane_change.signals
+    assert {"steering", "throttle", "brake", "speed", "on_ground"} <= set(s)
+    # steering: positive turns left (a positive omega_z), 0.2 s later
+    assert _lagged_correlation(s["steering"], lane_change.omega[:, 2], 20) > 0.8
+    stop = drive("braking", None, 3)
+    s = stop.signals
+    # the brake decelerates (a negative f_x) and the car comes to rest
+    assert _lagged_correlation(s["brake"], -stop.f[:, 0], 10) > 0.8
+    assert s["speed"][0] > 10.0 and s["speed"][-1] == 0.0

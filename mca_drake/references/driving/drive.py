@@ -167,7 +167,7 @@ def drive(
     scale = 1.0
     for _ in range(MAX_ATTEMPTS):
         try:
-            omega, force, travelled, vehicle = _drive_course(
+            omega, force, travelled, vehicle, signals = _drive_course(
                 car, _slower(course, scale), settings.gains, samples, manoeuvre, progress
             )
             break
@@ -193,7 +193,8 @@ def drive(
         "road_class": road_class or "smooth",
         "head_offset_m": " ".join(f"{v:g}" for v in offset),
     }
-    return Recording(t, omega, force, metadata)
+    signals["on_ground"] = np.ones(samples)
+    return Recording(t, omega, force, metadata, signals)
 
 
 # A drive whose car leaves control (the model's state diverges: a spin) is driven again at
@@ -228,18 +229,25 @@ def _slower(course: Course, scale: float) -> Course:
 
 def _drive_course(car: str, course: Course, gains, samples: int, manoeuvre, progress):
     """(omega, f (samples, 3) at the centre of gravity, distance travelled (samples,) m,
-    the car) of one attempt at driving `course`; LostControlError where the model diverges."""
+    the car, the driver's signals) of one attempt at driving `course`; LostControlError
+    where the model diverges. The signals (`vehicle_signals`): steering (the front wheels'
+    angle over full lock), throttle and brake (the longitudinal command over the model's
+    largest acceleration), speed (m/s), each (samples,)."""
     vehicle = _settled(car, float(course.speed[0]))
     driver = Driver(course, vehicle, gains)
     omega = np.zeros((samples, 3))
     force = np.zeros((samples, 3))
     travelled = np.zeros(samples)  # m along the road
+    lock, most = vehicle.params.steering.max, vehicle.params.longitudinal.a_max
+    signals = {name: np.zeros(samples) for name in ("steering", "throttle", "brake", "speed")}
     bar = tqdm(total=samples - 1, unit="sample", desc=f"{manoeuvre} drive") if progress else None
     distance = 0.0
     try:
         for k in range(samples):
             omega[k], force[k], angles = body_motion(vehicle.state, vehicle.derivative)
             travelled[k] = distance
+            signals["steering"][k] = vehicle.steering / lock
+            signals["speed"][k] = vehicle.speed
             _check_control(vehicle, force[k], angles)
             if k == samples - 1:
                 break
@@ -247,8 +255,14 @@ def _drive_course(car: str, course: Course, gains, samples: int, manoeuvre, prog
                 decel = driver.course.stop_deceleration
                 omega[k:], force[k:], rolled = _stop(angles, vehicle.speed, decel, samples - k)
                 travelled[k:] = distance + rolled
+                rolling = np.gradient(rolled, 1.0 / SAMPLE_RATE_HZ)
+                signals["steering"][k:] = vehicle.steering / lock
+                signals["speed"][k:] = np.maximum(rolling, 0.0)
+                signals["brake"][k:] = np.where(rolling > 0.0, min(decel / most, 1.0), 0.0)
                 break
             steering_rate, acceleration = driver.command()
+            signals["throttle"][k] = min(max(acceleration / most, 0.0), 1.0)
+            signals["brake"][k] = min(max(-acceleration / most, 0.0), 1.0)
             for _ in range(SUBSTEPS):
                 vehicle.step(steering_rate, acceleration)
                 distance += max(vehicle.speed, 0.0) * STEP_S
@@ -259,7 +273,8 @@ def _drive_course(car: str, course: Course, gains, samples: int, manoeuvre, prog
     finally:
         if bar is not None:
             bar.close()
-    return omega, force, travelled, vehicle
+    signals["steering"] = np.clip(signals["steering"], -1.0, 1.0)
+    return omega, force, travelled, vehicle, signals
 
 
 # The sprung mass settling on its springs once the car stands: a saloon's body mode
