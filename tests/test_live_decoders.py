@@ -63,13 +63,18 @@ PROPERTIES = (
     "aero/alpha-rad",
     "fcs/elevator-pos-norm",
     "fcs/rudder-pos-norm",
+    "fcs/left-aileron-pos-norm",
+    "position/h-agl-ft",
 )
 
 
-def _fly_and_listen(bank_deg: float, tmp_path) -> list[tuple[bytes, dict[str, float]]]:
+def _fly_and_listen(
+    bank_deg: float, tmp_path, commands=None, steps: int = STEPS
+) -> list[tuple[bytes, dict[str, float]]]:
     """Trims the c172p at 3000 ft and 100 kt (level, or a coordinated turn at `bank_deg`),
-    flies STEPS steps with JSBSim's FLIGHTGEAR output sent to a loopback port, and returns
-    each step's packet with the properties after that step."""
+    flies `steps` steps with JSBSim's FLIGHTGEAR output sent to a loopback port, and returns
+    each step's packet with the properties after that step. `commands`: {step: {property:
+    value}} set before that step."""
     receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     previous_logger = jsbsim.get_logger()
     jsbsim.set_logger(QuietLogger())
@@ -103,7 +108,9 @@ def _fly_and_listen(bank_deg: float, tmp_path) -> list[tuple[bytes, dict[str, fl
         receiver.settimeout(2.0)
         nodes = [fdm.get_property_manager().get_node(name) for name in PROPERTIES]
         flight = []
-        for _ in range(STEPS):
+        for k in range(steps):
+            for name, value in (commands or {}).get(k, {}).items():
+                fdm[name] = value
             fdm.run()
             try:
                 packet = receiver.recv(4096)
@@ -194,6 +201,43 @@ def test_fgnetfdm_layout_matches_jsbsim_properties(flight):
         # cur_time: simulation time in ms, truncated by JSBSim (so up to 1 ms early).
         t_ms = props["simulation/sim-time-sec"] * 1e3
         assert -1e-6 <= t_ms - fields["cur_time"] <= 1.0 + 1e-6
+
+
+def test_fgnetfdm_passes_on_the_controls_and_state_jsbsim_sends(flight):
+    """Oracle: the properties JSBSim filled the packet from, converted to `vehicle_signals`'
+    conventions (knots, feet; its elevator and rudder positive nose down and nose left)."""
+    for packet, props in flight:
+        signals = FgNetFdmDecoder(time_resolution_s=RESOLUTION_S).decode(packet).signals
+        expected = {
+            "aileron": props["fcs/left-aileron-pos-norm"],
+            "elevator": -props["fcs/elevator-pos-norm"],
+            "rudder": -props["fcs/rudder-pos-norm"],
+            "speed": props["velocities/vc-kts"] * 1852 / 3600,
+            "roll": props["attitude/phi-rad"],
+            "pitch": props["attitude/theta-rad"],
+            "height": props["position/h-agl-ft"] * FT,
+            "on_ground": 0.0,
+        }
+        assert signals == pytest.approx(expected, rel=1e-5, abs=1e-6)
+
+
+def test_fgnetfdm_control_signs_are_the_motion_they_command(tmp_path):
+    """Oracle: the aircraft's response. Each surface, commanded from trim for 0.5 s, is
+    decoded with the sign of the rotation it causes: aileron positive and a right roll,
+    elevator positive and the nose up, rudder positive and the nose right."""
+    steps = {
+        10: {"fcs/aileron-cmd-norm": 0.5},
+        60: {"fcs/aileron-cmd-norm": 0.0, "fcs/elevator-cmd-norm": -0.3},
+        110: {"fcs/elevator-cmd-norm": 0.0, "fcs/rudder-cmd-norm": -0.4},
+    }
+    flight = _fly_and_listen(0.0, tmp_path, commands=steps, steps=160)
+    samples = _decode_all(flight)
+    for name, rate, at in (("aileron", 0, 59), ("elevator", 1, 109), ("rudder", 2, 159)):
+        # the change from where the surface was before its command (the elevator is trimmed)
+        change = samples[at].signals[name] - samples[at - 50].signals[name]
+        body_rate = _body_omega(flight[at][1])[rate]  # head axes: x fwd, y left, z up
+        nose_up_or_right = -body_rate if name != "aileron" else body_rate
+        assert change > 0.2 and nose_up_or_right > 0.02, (name, change, body_rate)
 
 
 def test_fgnetfdm_decodes_to_jsbsim_body_rates_and_eye_point_force(flight):

@@ -35,6 +35,12 @@ f = 0.3048 (A_X, -A_Y, -A_Z) m/s^2. The accelerations are at the eye point, so t
 
 FlightGear's own native-fdm output uses the same layout; it fills `cur_time` with Unix time in
 whole seconds, so decode it with `time_resolution_s=None` (arrival times).
+
+A sample also carries what the packet says of the controls and the aircraft's state, as
+`vehicle_signals` counts them: the surface positions JSBSim sends (normalised; its
+`left_aileron` positive rolls right, its `elevator` positive pitches the nose down and its
+`rudder` positive yaws the nose left, so both are negated), `vcas` (kt) as the speed, `phi`
+and `theta` as roll and pitch, `agl` (m) as the height and any `wow` as on the ground.
 """
 
 from __future__ import annotations
@@ -156,6 +162,16 @@ def unpack_fgnetfdm(packet: bytes) -> dict[str, float | int | tuple]:
     return fields
 
 
+def _flat_start(field: str) -> int:
+    """Where `field` (its first element, for an array) sits in the unpacked values."""
+    at = 0
+    for name, _, count in FGNETFDM_LAYOUT:
+        if name == field:
+            return at
+        at += count
+    raise KeyError(field)
+
+
 def _index_of_scalars() -> dict[str, int]:
     index, at = {}, 0
     for name, _, count in FGNETFDM_LAYOUT:
@@ -168,6 +184,12 @@ def _index_of_scalars() -> dict[str, int]:
 # What the decoder reads, as positions in the unpacked tuple: picked in one C call, without
 # the dict of all 100 values (the live loop decodes between a packet and its command).
 _PICK_USED = operator.itemgetter(*(_index_of_scalars()[name] for name in (*_USED, "cur_time")))
+# The controls and state passed on as the sample's signals: the scalar fields, then the
+# first wheel's weight on wheels (the layout's `wow` array starts there).
+_SIGNAL_FIELDS = ("left_aileron", "elevator", "rudder", "vcas", "agl")
+_PICK_SIGNALS = operator.itemgetter(*(_index_of_scalars()[name] for name in _SIGNAL_FIELDS))
+_WOW_AT = _flat_start("wow")
+KT = 1852.0 / 3600.0  # m/s per knot
 
 
 def _unpack_checked(packet: bytes) -> tuple:
@@ -276,7 +298,8 @@ class FgNetFdmDecoder(Decoder):
         super().__init__(lever_arm=lever_arm)
 
     def _decode_at_source(self, packet: bytes, received_s: float) -> TelemetrySample:
-        *used, cur_time = _PICK_USED(_unpack_checked(packet))
+        values = _unpack_checked(packet)
+        *used, cur_time = _PICK_USED(values)
         if not all(map(math.isfinite, used)):
             listed = ", ".join(
                 f"{name} = {value}"
@@ -288,8 +311,33 @@ class FgNetFdmDecoder(Decoder):
         p, q, r = body_rates_from_euler_rates(phi, theta, phidot, thetadot, psidot)
         omega = (p, -q, -r)
         f = (M_PER_FT * a_x, -M_PER_FT * a_y, -M_PER_FT * a_z)
+        signals = _signals(values, phi, theta)
         t_s = math.inf if self.time_resolution_s is None else cur_time * self.time_resolution_s
         if t_s > MAX_SIMULATION_TIME_S:
             # no simulation time (JSBSim's placeholder, FlightGear's Unix time): the arrival's
-            return TelemetrySample(received_s, omega, f, time_source="arrival")
-        return TelemetrySample(t_s, omega, f, time_source="sender")
+            return TelemetrySample(received_s, omega, f, time_source="arrival", signals=signals)
+        return TelemetrySample(t_s, omega, f, time_source="sender", signals=signals)
+
+
+def _signals(values: tuple, phi: float, theta: float) -> dict[str, float]:
+    """The sample's signals from the packet's values (module docstring); a field that is not
+    finite, or a surface position beyond full deflection, is left out."""
+    aileron, elevator, rudder, vcas, agl = _PICK_SIGNALS(values)
+    found = {
+        "aileron": aileron,
+        "elevator": -elevator,
+        "rudder": -rudder,
+        "speed": vcas * KT,
+        "roll": phi,
+        "pitch": theta,
+        "height": agl,
+        "on_ground": float(any(values[_WOW_AT : _WOW_AT + 3])),
+    }
+    return {
+        name: value
+        for name, value in found.items()
+        if math.isfinite(value) and (name not in SURFACES or abs(value) <= 1.0 + 1e-6)
+    }
+
+
+SURFACES = ("aileron", "elevator", "rudder")

@@ -73,6 +73,9 @@ class TelemetrySample:
         f: specific force, m/s^2, 3 floats, head axes (level flight: (0, 0, +9.81)).
         sequence: the packet's sequence or frame counter, None where the protocol has none.
         time_source: "sender" or "arrival".
+        signals: the controls and vehicle state the packet carries, SI, by their
+            `mca_drake.references.vehicle_signals` names ({"aileron": 0.1, "speed": 51.4});
+            empty where the protocol carries none.
 
     omega and f are tuples of Python floats (immutable; `np.asarray` makes arrays): a
     sample is built for every datagram between its arrival and the command, where two numpy
@@ -85,6 +88,7 @@ class TelemetrySample:
     f: Vector3
     sequence: int | None = None
     time_source: str = "sender"
+    signals: dict[str, float] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         t_s = float(self.t_s)
