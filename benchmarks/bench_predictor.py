@@ -1,7 +1,8 @@
-"""The reference predictor: fit the linear model, choose its ridge on validation flights,
-and measure its forecast error against the constant forecast.
+"""The reference predictors: fit the linear model, choose its ridge on validation flights,
+train the learned correction on top of it, and measure their forecast errors against the
+constant forecast.
 
-    python benchmarks/bench_predictor.py [--duration 300] [--ship]
+    python benchmarks/bench_predictor.py [--duration 300] [--cache DIR] [--ship]
 
 Training references (nothing here trains on validation seeds 700+ or evaluation seeds
 1000+): every training aircraft flown by the scripted pilot (seeds 100-103) and by
@@ -11,9 +12,12 @@ the synthetic motion, or the flights alone; the ridge) is the one that forecasts
 validation references, which also give the figures: the training and the validation
 aircraft flown by the scripted and the human-operator pilots (seeds 700-701) and the cars'
 drives (seeds 700-701).
-Writes `results/predictor.json` (forecast RMSE per channel at 0.5, 1 and 2.5 s ahead, both
-predictors, each ridge tried) and, with --ship, the packaged model
-`mca_drake/data/linear_predictor.npz`.
+The learned predictor trains on the chosen recipe's references and keeps the epoch that
+forecasts the validation references best (`mca_drake.learning.predictor_training`).
+Writes `results/predictor.json` (forecast RMSE per channel at 0.5, 1 and 2.5 s ahead, every
+predictor, each ridge tried, the learned one's training time and loss curve) and, with
+--ship, the packaged models `mca_drake/data/linear_predictor.npz` and
+`mca_drake/data/learned_predictor.npz`.
 """
 
 from __future__ import annotations
@@ -26,14 +30,20 @@ from common import default_result_path, print_calibration, result_header, time_c
 
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.conventions import CHANNELS, CONTROL_PERIOD_S
+from mca_drake.cueing.learned_predictor import save_learned_predictor
 from mca_drake.cueing.predictor import (
     DEFAULT_LAGS,
+    PACKAGED_LEARNED_PREDICTOR,
     PACKAGED_LINEAR_PREDICTOR,
     constant_forecast,
     fit_linear_predictor,
     forecast_errors,
     history_samples,
     save_linear_predictor,
+)
+from mca_drake.learning.predictor_training import (
+    LearnedPredictorConfig,
+    train_learned_predictor,
 )
 from mca_drake.references.drives import TRAINING_MANOEUVRES, DriveSpec, motion_reference
 from mca_drake.references.driving.car import CARS
@@ -169,20 +179,38 @@ def main() -> int:
             if best is None or score < best[0]:
                 best = (score, ridge, model, errors, sources)
     score, ridge, model, errors, sources = best
-    # a forecast's cost per control step: what the predictive MCA adds to its step
-    one = next(iter(validation.values()))[: model.history]
-    timings = time_calls(lambda: model.forecast(one, STEPS - 1), repeats=2000)
-    forecast_time = {
-        "median_s": float(np.median(timings)),
-        "p99_s": float(np.percentile(timings, 99)),
-    }
+    learned, report = train_learned_predictor(
+        model,
+        [training[name] for name in model.metadata["training"]],
+        list(validation.values()),
+        LearnedPredictorConfig(),
+        metadata={"command": "python benchmarks/bench_predictor.py --ship"},
+        progress=lambda epoch, train, valid: print(
+            f"learned, epoch {epoch}: loss {train:.4f} training, {valid:.4f} validation",
+            flush=True,
+        ),
+    )
     print(
-        f"forecast per step: median {forecast_time['median_s'] * 1e6:.0f} us, "
-        f"p99 {forecast_time['p99_s'] * 1e6:.0f} us",
+        f"learned: best epoch {report['best_epoch']} of {report['epochs_run']}, "
+        f"{report['seconds']:.0f} s",
         flush=True,
     )
+    learned_errors = forecast_errors(
+        learned.forecast, validation.values(), horizons, history=learned.history
+    )
+    # the linear and constant forecasts scored on the same samples as the learned one
+    # (its longer history starts later in each reference)
+    same_samples = {
+        name: forecast_errors(f, validation.values(), horizons, history=learned.history)
+        for name, f in (
+            ("constant", lambda h: constant_forecast(h, max(horizons))),
+            ("linear", model.forecast),
+        )
+    }
     if args.ship:
         path = save_linear_predictor(data_dir() / PACKAGED_LINEAR_PREDICTOR, model)
+        print(f"packaged model: {path}")
+        path = save_learned_predictor(data_dir() / PACKAGED_LEARNED_PREDICTOR, learned)
         print(f"packaged model: {path}")
     result = {
         "provenance": result_header(calibration),
@@ -197,7 +225,22 @@ def main() -> int:
         "linear": {
             "relative_rmse": score,
             "rmse": errors_table(errors),
-            "forecast_time": forecast_time,
+            "forecast_time": forecast_time(model),
+        },
+        "learned": {
+            "relative_rmse": float(np.mean(learned_errors / same_samples["constant"])),
+            # the linear forecast's on the learned one's samples, to compare like with like
+            "linear_relative_rmse": float(
+                np.mean(same_samples["linear"] / same_samples["constant"])
+            ),
+            "rmse": errors_table(learned_errors),
+            "forecast_time": forecast_time(learned),
+            "training_s": report["seconds"],
+            "best_epoch": report["best_epoch"],
+            "epochs_run": report["epochs_run"],
+            "training_samples": report["training_samples"],
+            "loss": report["loss"],
+            "history_s": learned.history * CONTROL_PERIOD_S,
         },
         "ridges": tried,
     }
@@ -207,7 +250,25 @@ def main() -> int:
             f"{c} {l:.3f}/{k:.3f}" for c, l, k in zip(CHANNELS, row_l, row_c, strict=True)
         )
         print(f"{h:g} s ahead, linear/constant RMSE: {cells}")
+    print(
+        f"relative RMSE on the learned one's samples: learned "
+        f"{result['learned']['relative_rmse']:.3f}, linear "
+        f"{result['learned']['linear_relative_rmse']:.3f}"
+    )
     return 0
+
+
+def forecast_time(model) -> dict:
+    """A forecast's cost per control step (what a predictive MCA adds to its step), s."""
+    history = np.zeros((model.history, len(CHANNELS)))
+    timings = time_calls(lambda: model.forecast(history, STEPS - 1), repeats=2000)
+    found = {"median_s": float(np.median(timings)), "p99_s": float(np.percentile(timings, 99))}
+    print(
+        f"forecast per step: median {found['median_s'] * 1e6:.0f} us, "
+        f"p99 {found['p99_s'] * 1e6:.0f} us",
+        flush=True,
+    )
+    return found
 
 
 if __name__ == "__main__":

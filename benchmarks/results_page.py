@@ -323,15 +323,16 @@ def _preview(results_dir: Path, data: dict) -> list[str]:
 
 
 def _predictive(results_dir: Path, data: dict) -> list[str]:
-    """Predictive cueing: per case, the causal NMPC-rti, the predictive one and the perfect
-    preview; the share of the preview's gain the forecast captures and the flights it made
-    worse."""
+    """Predictive cueing: per case, the causal NMPC-rti, the predictive ones (the learned
+    forecast, and the linear one where it ran) and the perfect preview; the share of the
+    preview's gain each forecast captures and the flights it made worse."""
     lines = [
         f"NMPC-rti on the evaluation suite's {data['duration_s']:.0f} s flights and drives: "
-        "causal (the reference held over the horizon), predictive (the packaged linear "
-        "forecast over the horizon, from the past alone) and with the recorded future over "
-        "the horizon (the perfect preview). Share: the predictive NMPC's median paired gain "
-        "over the causal one, as a share of the perfect preview's. Worse: flights the "
+        "causal (the reference held over the horizon), predictive (nmpc-rti-predictive: the "
+        "packaged learned forecast over the horizon, from the past alone; "
+        "nmpc-rti-predictive-linear: the linear one) and with the recorded future over the "
+        "horizon (the perfect preview). Gain: the median paired gain over the causal "
+        "NMPC-rti; share: that gain as a share of the perfect preview's. Worse: flights the "
         "predictive NMPC scored worse than the causal one on.",
         "",
     ]
@@ -339,29 +340,35 @@ def _predictive(results_dir: Path, data: dict) -> list[str]:
     for case_name, case in data["cases"].items():
         mcas = case["mcas"]
         causal = mcas.get("nmpc-rti")
-        predictive = mcas.get("nmpc-rti-predictive")
         preview = next((m for name, m in mcas.items() if "preview" in name), None)
-        if not (causal and predictive and preview):
+        if not (causal and preview):
             continue
-        predicted, perfect = _paired_gains(causal, predictive), _paired_gains(causal, preview)
-        share = statistics.median(predicted) / statistics.median(perfect)
-        rows.append(
-            [
-                case_name,
-                fmt_pi(causal["pi_median"]),
-                fmt_pi(predictive["pi_median"]),
-                fmt_pi(preview["pi_median"]),
-                f"{statistics.median(predicted):+.3f}",
-                f"{share:.2f}",
-                f"{sum(g < 0 for g in predicted)} of {len(predicted)}",
-                f"{fmt_pi(causal['perceived_pi_median'])} / "
-                f"{fmt_pi(predictive['perceived_pi_median'])} / "
-                f"{fmt_pi(preview['perceived_pi_median'])}",
-                f"{predictive['step_time_median_s'] * 1e3:.2f} ms",
-            ]
-        )
+        perfect = _paired_gains(causal, preview)
+        for name in ("nmpc-rti-predictive", "nmpc-rti-predictive-linear"):
+            predictive = mcas.get(name)
+            if not predictive:
+                continue
+            predicted = _paired_gains(causal, predictive)
+            share = statistics.median(predicted) / statistics.median(perfect)
+            rows.append(
+                [
+                    case_name,
+                    name,
+                    fmt_pi(causal["pi_median"]),
+                    fmt_pi(predictive["pi_median"]),
+                    fmt_pi(preview["pi_median"]),
+                    f"{statistics.median(predicted):+.3f}",
+                    f"{share:.2f}",
+                    f"{sum(g < 0 for g in predicted)} of {len(predicted)}",
+                    f"{fmt_pi(causal['perceived_pi_median'])} / "
+                    f"{fmt_pi(predictive['perceived_pi_median'])} / "
+                    f"{fmt_pi(preview['perceived_pi_median'])}",
+                    f"{predictive['step_time_median_s'] * 1e3:.2f} ms",
+                ]
+            )
     header = [
         "case",
+        "predictive MCA",
         "causal PI",
         "predictive PI",
         "perfect preview PI",
@@ -382,26 +389,43 @@ def _paired_gains(base: dict, other: dict) -> list[float]:
 
 
 def _predictor(results_dir: Path, data: dict) -> list[str]:
-    """The forecast's error against holding the current sample, per horizon and channel."""
-    timing = data["linear"].get("forecast_time")
+    """The forecasts' errors against holding the current sample, per horizon and channel."""
+    learned = data.get("learned")
     lines = [
         f"The linear forecast (trained on {data.get('chosen_sources', 'every source')}, ridge "
-        f"{data['chosen_ridge']:g}: the recipe chosen on the validation references) against "
-        f"the constant one on {len(data['validation'])} validation "
-        f"references of {data['duration_s']:.0f} s (flights by the scripted and the "
-        "human-operator pilots, drives): RMS forecast error per channel, linear / constant "
-        "(rad/s, m/s²).",
+        f"{data['chosen_ridge']:g}: the recipe chosen on the validation references) and the "
+        "learned one (the linear forecast corrected by a network trained on the same "
+        "references) against the constant one on "
+        f"{len(data['validation'])} validation references of {data['duration_s']:.0f} s "
+        "(flights by the scripted and the human-operator pilots, drives): RMS forecast error "
+        "per channel, learned / linear / constant (rad/s, m/s²).",
         "",
     ]
-    if timing:
+    for name, block in (("linear", data["linear"]), ("learned", learned)):
+        timing = (block or {}).get("forecast_time")
+        if timing:
+            lines[0] += (
+                f" A {name} forecast costs {timing['median_s'] * 1e6:.0f} us median, "
+                f"{timing['p99_s'] * 1e6:.0f} us p99 per control step."
+            )
+    if learned:
         lines[0] += (
-            f" A forecast costs {timing['median_s'] * 1e6:.0f} us median, "
-            f"{timing['p99_s'] * 1e6:.0f} us p99 per control step."
+            f" The learned one trained in {learned['training_s']:.0f} s (best epoch "
+            f"{learned['best_epoch']} of {learned['epochs_run']}, "
+            f"{learned['training_samples']} samples); its error relative to the constant "
+            f"forecast's, averaged over channels and horizons, is "
+            f"{learned['relative_rmse']:.3f} against the linear one's "
+            f"{learned['linear_relative_rmse']:.3f} on the same samples."
         )
     rows = []
     for horizon, linear in data["linear"]["rmse"].items():
         constant = data["constant"]["rmse"][horizon]
-        rows.append([f"{horizon} s"] + [f"{linear[c]:.3f} / {constant[c]:.3f}" for c in linear])
+        if learned:
+            ahead = learned["rmse"][horizon]
+            cells = [f"{ahead[c]:.3f} / {linear[c]:.3f} / {constant[c]:.3f}" for c in linear]
+        else:
+            cells = [f"{linear[c]:.3f} / {constant[c]:.3f}" for c in linear]
+        rows.append([f"{horizon} s", *cells])
     header = ["ahead", *next(iter(data["linear"]["rmse"].values())).keys()]
     return [*lines, *_table(header, rows), ""]
 
@@ -1252,8 +1276,8 @@ SECTIONS = (
     Section(
         "Reference forecasts",
         "predictor.json",
-        "the linear forecast's error at 0.5, 1 and 2.5 s ahead against holding the current "
-        "sample, on validation flights and drives",
+        "the learned and the linear forecasts' errors at 0.5, 1 and 2.5 s ahead against "
+        "holding the current sample, on validation flights and drives",
         _predictor,
     ),
     Section(

@@ -181,8 +181,10 @@ def test_a_predictor_never_sees_the_future():
 
 def test_predictive_names_and_live_use():
     config = mca_config_from_name("nmpc-rti-predictive")
-    assert (config.mode, config.predictor, config.preview_steps) == ("rti", "linear", 256)
+    assert (config.mode, config.predictor, config.preview_steps) == ("rti", "learned", 256)
     assert mca_name(config) == "nmpc-rti-predictive"
+    linear = NmpcConfig(mode="rti", preview_steps=256, predictor="linear")
+    assert mca_name(linear) == "nmpc-rti-predictive-linear"
     assert mca_name(mca_config_from_name("nmpc-converged-predictive")) == (
         "nmpc-converged-predictive"
     )

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from mca_drake.cueing.dpc import shipped_policy_path
-from mca_drake.cueing.predictor import PACKAGED_LINEAR_PREDICTOR
+from mca_drake.cueing.predictor import PACKAGED_LEARNED_PREDICTOR, PACKAGED_LINEAR_PREDICTOR
 from mca_drake.platforms.files import model_path, packaged_platforms
 from mca_drake.resources import (
     PROFILES,
@@ -72,7 +72,8 @@ def test_the_wheel_carries_the_models_the_scenarios_the_policies_and_profiles(tm
     """The wheel, built from this checkout, holds copies of models/ (the platforms' URDFs and
     platform files) and diagrams/ where
     `resources` looks in an installed package, the shipped policies, the packaged linear
-    predictor, the profiles' and the packaged platforms' settings, and no other data."""
+    and learned predictors, the profiles' and the packaged platforms' settings, and no other
+    data."""
     source = tmp_path / "source"  # a copy: the build writes build/ into its source
     source.mkdir()
     for name in ("pyproject.toml", "setup.py", "MANIFEST.in", "README.md"):
@@ -94,8 +95,10 @@ def test_the_wheel_carries_the_models_the_scenarios_the_policies_and_profiles(tm
     }
     expected |= {f"mca_drake/data/diagrams/{p.name}" for p in (REPO / "diagrams").glob("*.yaml")}
     expected |= {f"mca_drake/data/{n}.npz" for n in SHIPPED_POLICIES}
-    # the predictive MCAs' packaged forecast (`cueing.predictor`)
-    expected |= {f"mca_drake/data/{PACKAGED_LINEAR_PREDICTOR}"}
+    # the predictive MCAs' packaged forecasts (`cueing.predictor`)
+    expected |= {
+        f"mca_drake/data/{name}" for name in (PACKAGED_LINEAR_PREDICTOR, PACKAGED_LEARNED_PREDICTOR)
+    }
     expected |= {f"mca_drake/data/profiles/{n}.yaml" for n in PROFILES}
     # the packaged platforms' tuned settings (`cueing.profiles.load_platform_settings`)
     settings = {"hexapod", "rig-2dof", "rig-3dof"}

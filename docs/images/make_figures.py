@@ -496,25 +496,26 @@ def make_training(out: Path) -> None:
 
 def make_prediction(out: Path) -> None:
     """What the predictors see and forecast at a few instants of the main job's flight."""
-    from mca_drake.cueing.predictor import (
-        constant_forecast,
-        load_linear_predictor,
-        predictor_file,
-    )
+    from mca_drake.cueing.learned_predictor import load_forecast_model
+    from mca_drake.cueing.predictor import constant_forecast
 
-    model = load_linear_predictor(predictor_file("linear"))
+    linear, learned = load_forecast_model("linear"), load_forecast_model("learned")
     y = _flight(120.0).y
     h = 0.01
     fig, axes = plt.subplots(2, 1, figsize=(8.0, 5.0), sharex=True)
     for ax, channel, unit in zip(axes, (4, 0), ("f_y, m/s²", "w_x, rad/s"), strict=True):
         ax.plot(np.arange(y.shape[0]) * h, y[:, channel], color="black", lw=1.6, label="reference")
         for i, k in enumerate(range(2000, 11000, 1500)):
-            history = y[k - model.history + 1 : k + 1]
+            history = y[k - learned.history + 1 : k + 1]
             times = (k + np.arange(1, 256)) * h
-            linear = model.forecast(history, 255)[:, channel]
-            constant = constant_forecast(history, 255)[:, channel]
-            ax.plot(times, constant, color="#999999", lw=1.2, label="constant" if i == 0 else None)
-            ax.plot(times, linear, color="#d62728", lw=1.4, label="linear" if i == 0 else None)
+            forecasts = (
+                ("constant", constant_forecast(history, 255), "#999999"),
+                ("linear", linear.forecast(history, 255), "#1f77b4"),
+                ("learned", learned.forecast(history, 255), "#d62728"),
+            )
+            for name, forecast, color in forecasts:
+                label = name if i == 0 else None
+                ax.plot(times, forecast[:, channel], color=color, lw=1.3, label=label)
         ax.set_ylabel(unit)
         ax.grid(alpha=0.3)
         ax.set_xlim(15, 115)

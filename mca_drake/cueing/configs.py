@@ -29,6 +29,10 @@ from mca_drake.cueing.washout import WashoutConfig
 # typing.Union, not `|`: Drake's YAML loader reads the members' tags from it.
 McaConfig = Union[DpcConfig, NmpcConfig, WashoutConfig]  # noqa: UP007
 MCA_CONFIG_TYPES = (DpcConfig, NmpcConfig, WashoutConfig)
+# The forecast of the named predictive NMPCs (`nmpc-rti-predictive`): the packaged learned
+# one, which forecasts the validation flights and drives best (benchmarks/bench_predictor.py)
+# and cues the suite's flights best (diagrams/evaluation_predictive.yaml).
+NAMED_PREDICTOR = "learned"
 MCA_NAMES = (
     "dpc",
     "nmpc-rti",
@@ -84,9 +88,9 @@ def mca_config_from_name(name: str, platform: str = "") -> McaConfig:
         return DpcConfig()
     if name in MCA_NAMES and name.startswith("nmpc-"):
         mode, _, variant = name.removeprefix("nmpc-").partition("-")
-        if variant == "predictive":  # the packaged linear forecast over the whole horizon
+        if variant == "predictive":  # the packaged forecast over the whole horizon
             horizon = NmpcConfig().horizon_steps
-            return NmpcConfig(mode=mode, preview_steps=horizon, predictor="linear")
+            return NmpcConfig(mode=mode, preview_steps=horizon, predictor=NAMED_PREDICTOR)
         return NmpcConfig(mode=mode, objective=variant or "inertial")
     if name == "washout":
         return WashoutConfig()
@@ -140,10 +144,10 @@ def mca_name(config: McaConfig) -> str:
 
 def _predictor_suffix(config: NmpcConfig) -> str:
     """What a predictive NMPC's name adds to "-predictive" where it is not the named MCA's:
-    the predictor if it is not the packaged linear one, the forecast's length if it is not
-    the whole horizon."""
+    the predictor if it is not NAMED_PREDICTOR, the forecast's length if it is not the
+    whole horizon."""
     predictor = config.predictor
-    suffix = "" if predictor == "linear" else f"-{Path(predictor).stem}"
+    suffix = "" if predictor == NAMED_PREDICTOR else f"-{Path(predictor).stem}"
     if config.preview_steps != config.horizon_steps:
         suffix += f"{config.preview_steps}"
     return suffix

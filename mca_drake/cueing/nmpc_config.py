@@ -36,7 +36,8 @@ class NmpcConfig:
     # A forecast as the preview (`mca_drake.cueing.predictor`): "" none (the known future
     # above, or the current reference held); "constant" (the current reference held, the
     # causal NMPC's assumption, as a forecast), "linear" (the packaged linear model fitted
-    # on training flights and drives) or a model file (.npz). With a predictor,
+    # on training flights and drives), "learned" (the packaged linear model corrected by a
+    # network trained on the same references) or a model file (.npz). With a predictor,
     # preview_steps is the forecast's length; it reads only the past, so it runs live too.
     predictor: str = ""
     # The weights below are tuned (the paper's are `NmpcConfig.paper()`):

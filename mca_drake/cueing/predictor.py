@@ -9,7 +9,9 @@ control period up to and including the current sample, to the next N samples:
   Per forecast step and channel, the change from the current sample is a linear function of
   the history's changes from it at a few lags and of the current levels of every channel
   (forces return to level flight, turns end): ridge least squares on standardized
-  features, stored as an npz of arrays (`save_linear_predictor`; nothing that executes).
+  features, stored as an npz of arrays (`save_linear_predictor`; nothing that executes);
+- "learned": the linear forecast corrected by a small network trained in torch on the same
+  references (`mca_drake.cueing.learned_predictor`).
 
 A forecast never reads past the current sample: the history is all it has.
 """
@@ -26,9 +28,10 @@ from mca_drake.atomic_io import atomic_write_npz, load_npz_with_metadata
 from mca_drake.conventions import CHANNELS, CONTROL_PERIOD_S
 from mca_drake.resources import data_dir
 
-PREDICTOR_KINDS = ("constant", "linear")
-# The packaged linear model (`benchmarks/bench_predictor.py` fits and measures it).
+PREDICTOR_KINDS = ("constant", "linear", "learned")
+# The packaged models (`benchmarks/bench_predictor.py` fits, trains and measures them).
 PACKAGED_LINEAR_PREDICTOR = "linear_predictor.npz"
+PACKAGED_LEARNED_PREDICTOR = "learned_predictor.npz"
 NUM_CHANNELS = len(CHANNELS)
 # The lags (control periods before the current sample) the linear model reads: dense near
 # now, where the trend is, sparser back to 0.5 s.
@@ -37,10 +40,12 @@ PREDICTOR_FORMAT = "mca-drake-linear-predictor-1"
 
 
 def predictor_file(kind: str) -> Path:
-    """The model file of a linear predictor setting: the packaged one for "linear", else
-    `kind` as a path to an .npz (`save_linear_predictor`)."""
+    """The model file of a predictor setting: the packaged one for "linear" or "learned",
+    else `kind` as a path to an .npz (`save_linear_predictor`, `save_learned_predictor`)."""
     if kind == "linear":
         return data_dir() / PACKAGED_LINEAR_PREDICTOR
+    if kind == "learned":
+        return data_dir() / PACKAGED_LEARNED_PREDICTOR
     return Path(kind)
 
 

@@ -15,7 +15,8 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
 from mca_drake.conventions import CONTROL_PERIOD_S
-from mca_drake.cueing.predictor import constant_forecast, load_linear_predictor, predictor_file
+from mca_drake.cueing.learned_predictor import load_forecast_model
+from mca_drake.cueing.predictor import constant_forecast
 from mca_drake.systems.mca_update import DeclareMcaUpdate
 
 NUM_CHANNELS = 6
@@ -110,8 +111,8 @@ def MakeReferencePredictor(
     update_event: str = "unrestricted",
 ) -> ReferencePredictor:
     """The ReferencePredictor of an NMPC's `predictor` setting (`NmpcConfig.predictor`):
-    "constant", "linear" (the packaged fitted model) or an .npz file of one
-    (`cueing.predictor.load_linear_predictor`), its preview `steps` samples long (the
+    "constant", "linear" or "learned" (the packaged models) or an .npz file of either
+    (`cueing.learned_predictor.load_forecast_model`), its preview `steps` samples long (the
     current one and `steps - 1` forecast).
 
     Raises:
@@ -123,7 +124,7 @@ def MakeReferencePredictor(
         return ReferencePredictor(
             lambda history: constant_forecast(history, ahead), 1, steps, time_step, update_event
         )
-    model = load_linear_predictor(predictor_file(kind))
+    model = load_forecast_model(kind)
     if abs(model.time_step - time_step) > 1e-12:
         raise ValueError(
             f"the predictor was fitted at {model.time_step} s, the control period is {time_step} s"

@@ -1,0 +1,230 @@
+"""The learned reference forecast: the linear one, corrected by a small network.
+
+`LearnedPredictor` forecasts as its `LinearPredictor` does and adds what a network reads
+from a longer history: the changes of every channel from the current sample at `lags`
+(back to 2 s, where a turn's or a braking's shape shows) and the current levels,
+standardized, through two tanh layers to the correction at a few knots of the horizon,
+interpolated linearly between them (the forecast is smooth in time, and the network's last
+layer stays small). Trained in torch (`mca_drake.learning.predictor_training`), it runs here
+in numpy: a forecast is three small products, what a live control step can afford.
+
+The file is an npz of plain arrays (`save_learned_predictor`; nothing that executes): the
+network's, and the linear predictor's under a `linear_` prefix.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+
+from mca_drake.atomic_io import atomic_write_npz, load_npz_with_metadata
+from mca_drake.conventions import CONTROL_PERIOD_S
+from mca_drake.cueing.predictor import (
+    NUM_CHANNELS,
+    PREDICTOR_FORMAT,
+    LinearPredictor,
+    history_samples,
+    load_linear_predictor,
+    predictor_file,
+)
+
+LEARNED_FORMAT = "mca-drake-learned-predictor-1"
+# The lags the network reads: the linear model's and more, back to 2 s.
+LEARNED_LAGS = (1, 2, 3, 5, 8, 12, 20, 30, 50, 75, 100, 150, 200)
+
+
+def knot_basis(knots, steps: int) -> np.ndarray:
+    """(steps, K): row k - 1 interpolates linearly the values at the `knots` (forecast steps
+    1 <= knot <= steps, increasing, the first 1 and the last `steps`) at step k."""
+    knots = np.asarray(knots, dtype=float)
+    if knots[0] != 1 or knots[-1] != steps or np.any(np.diff(knots) <= 0):
+        raise ValueError(f"knots must rise from 1 to {steps}; got {knots.tolist()}")
+    basis = np.zeros((steps, knots.size))
+    for column in range(knots.size):
+        unit = np.zeros(knots.size)
+        unit[column] = 1.0
+        basis[:, column] = np.interp(np.arange(1, steps + 1), knots, unit)
+    return basis
+
+
+def default_knots(steps: int) -> tuple[int, ...]:
+    """Knots dense near now, where the forecast changes fastest: 1, 2, 4, ... doubling, then
+    every 32 steps, and `steps`."""
+    knots = [k for k in (1, 2, 4, 8, 16, 32) if k < steps]
+    knots += list(range(64, steps, 32))
+    return (*knots, steps)
+
+
+def learned_features(history: np.ndarray, lags) -> np.ndarray:
+    """The network's raw features of histories (..., H, 6), the current sample last: the
+    changes from it at `lags`, then its levels: (..., 6 (len(lags) + 1))."""
+    now = history[..., -1, :]
+    changes = [history[..., -1 - lag, :] - now for lag in lags]
+    return np.concatenate([*changes, now], axis=-1)
+
+
+@dataclasses.dataclass
+class LearnedPredictor:
+    """A linear forecast plus a network's correction (module docstring).
+
+    Attributes:
+        linear: the forecast it corrects; its `steps` is this predictor's.
+        lags: control periods before the current sample whose change from it the network
+            reads.
+        mean, scale: the network's feature standardization, shapes (F,), F = 6 (len(lags) + 1).
+        layers: [(W (F, h), b (h,)), (W (h, h), b (h,)), (W (h, 6 K), b (6 K,))]: tanh after
+            the first two.
+        knots: the K forecast steps the network's output sits at (`knot_basis`).
+        output_scale: (6,): the output's unit per channel (a correction of 1 is that much).
+        metadata: where it came from (training references, epochs, date), JSON-ready.
+    """
+
+    linear: LinearPredictor
+    lags: tuple[int, ...]
+    mean: np.ndarray
+    scale: np.ndarray
+    layers: list
+    knots: tuple[int, ...]
+    output_scale: np.ndarray
+    metadata: dict = dataclasses.field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.lags = tuple(int(v) for v in self.lags)
+        self.knots = tuple(int(v) for v in self.knots)
+        self.mean = np.asarray(self.mean, dtype=float)
+        self.scale = np.asarray(self.scale, dtype=float)
+        self.output_scale = np.asarray(self.output_scale, dtype=float)
+        self.layers = [(np.asarray(w, float), np.asarray(b, float)) for w, b in self.layers]
+        features = NUM_CHANNELS * (len(self.lags) + 1)
+        if not self.lags or min(self.lags) < 1:
+            raise ValueError(f"lags must be positive control periods; got {self.lags}")
+        if self.mean.shape != (features,) or self.scale.shape != (features,):
+            raise ValueError(f"mean and scale must be {features} numbers each")
+        if not np.all(self.scale > 0) or self.output_scale.shape != (NUM_CHANNELS,):
+            raise ValueError("scale must be positive and output_scale 6 numbers")
+        widths = [features] + [b.size for _, b in self.layers]
+        if len(self.layers) != 3 or any(
+            w.shape != (a, c)
+            for (w, _), a, c in zip(self.layers, widths[:-1], widths[1:], strict=True)
+        ):
+            raise ValueError(f"layers must be three (W, b) pairs chained from {features} inputs")
+        if widths[-1] != NUM_CHANNELS * len(self.knots):
+            raise ValueError(f"the last layer must give 6 x {len(self.knots)} knot values")
+        arrays = [self.mean, self.scale, self.output_scale, *(a for p in self.layers for a in p)]
+        if not all(np.all(np.isfinite(a)) for a in arrays):
+            raise ValueError("a learned predictor's arrays must be finite")
+        self._basis = knot_basis(self.knots, self.steps)
+
+    @property
+    def steps(self) -> int:
+        """N, the samples it forecasts."""
+        return self.linear.steps
+
+    @property
+    def time_step(self) -> float:
+        """The control period it was trained at, s."""
+        return self.linear.time_step
+
+    @property
+    def history(self) -> int:
+        """Samples of history it reads, the current one included."""
+        return max(history_samples(self.lags), self.linear.history)
+
+    def correction(self, history: np.ndarray) -> np.ndarray:
+        """The network's correction to the linear forecast of histories (..., H, 6):
+        (..., N, 6)."""
+        x = (learned_features(history, self.lags) - self.mean) / self.scale
+        (w1, b1), (w2, b2), (w3, b3) = self.layers
+        out = np.tanh(np.tanh(x @ w1 + b1) @ w2 + b2) @ w3 + b3
+        at_knots = out.reshape(*out.shape[:-1], len(self.knots), NUM_CHANNELS)
+        return np.einsum("nk,...kc->...nc", self._basis, at_knots) * self.output_scale
+
+    def forecast(self, history: np.ndarray, steps: int | None = None) -> np.ndarray:
+        """The next `steps` samples (default and at most N) after histories (..., H, 6):
+        (..., steps, 6)."""
+        steps = self.steps if steps is None else steps
+        history = np.asarray(history, dtype=float)
+        linear = self.linear.forecast(history, steps)
+        return linear + self.correction(history)[..., :steps, :]
+
+
+def save_learned_predictor(path: str | Path, predictor: LearnedPredictor) -> Path:
+    """Writes `predictor` as an npz of plain arrays with its metadata, atomically."""
+    linear = predictor.linear
+    metadata = {
+        **predictor.metadata,
+        "format": LEARNED_FORMAT,
+        "linear_metadata": linear.metadata,
+    }
+    arrays = {
+        "lags": np.asarray(predictor.lags),
+        "mean": predictor.mean,
+        "scale": predictor.scale,
+        "knots": np.asarray(predictor.knots),
+        "output_scale": predictor.output_scale,
+        "linear_lags": np.asarray(linear.lags),
+        "linear_steps": np.asarray(linear.steps),
+        "linear_scale": linear.scale,
+        "linear_weights": linear.weights,
+        "linear_time_step": np.asarray(linear.time_step),
+        "metadata_json": np.array(json.dumps(metadata)),
+    }
+    for i, (w, b) in enumerate(predictor.layers):
+        arrays[f"w{i}"], arrays[f"b{i}"] = w, b
+    return atomic_write_npz(path, arrays)
+
+
+def load_learned_predictor(path: str | Path) -> LearnedPredictor:
+    """A predictor written by `save_learned_predictor` (no pickle: plain arrays only).
+
+    Raises:
+        FileNotFoundError: no such file. ValueError: not a learned predictor's file, or
+            arrays that do not fit together.
+    """
+    names = ("lags", "mean", "scale", "knots", "output_scale", "w0", "b0", "w1", "b1", "w2")
+    names += ("b2", "linear_lags", "linear_steps", "linear_scale", "linear_weights")
+    arrays, metadata = load_npz_with_metadata(
+        path, "learned predictor", names=frozenset((*names, "linear_time_step"))
+    )
+    if metadata.get("format") != LEARNED_FORMAT:
+        raise ValueError(
+            f"{path} is not a learned predictor file: format {metadata.get('format')!r}"
+        )
+    try:
+        linear = LinearPredictor(
+            lags=tuple(int(v) for v in arrays["linear_lags"]),
+            steps=int(arrays["linear_steps"]),
+            scale=arrays["linear_scale"],
+            weights=arrays["linear_weights"],
+            time_step=float(arrays.get("linear_time_step", CONTROL_PERIOD_S)),
+            metadata=metadata.pop("linear_metadata", {}),
+        )
+        return LearnedPredictor(
+            linear=linear,
+            lags=tuple(int(v) for v in arrays["lags"]),
+            mean=arrays["mean"],
+            scale=arrays["scale"],
+            layers=[(arrays[f"w{i}"], arrays[f"b{i}"]) for i in range(3)],
+            knots=tuple(int(v) for v in arrays["knots"]),
+            output_scale=arrays["output_scale"],
+            metadata=metadata,
+        )
+    except KeyError as missing:
+        raise ValueError(f"{path} is not a learned predictor file: no {missing}") from None
+
+
+def load_forecast_model(kind: str) -> LinearPredictor | LearnedPredictor:
+    """The model of a predictor setting other than "constant": "linear", "learned" (the
+    packaged ones) or an .npz file of either kind, told apart by its format.
+
+    Raises:
+        FileNotFoundError: no such file. ValueError: a file of neither format.
+    """
+    path = predictor_file(kind)
+    _, metadata = load_npz_with_metadata(path, "predictor")
+    if metadata.get("format") == PREDICTOR_FORMAT:
+        return load_linear_predictor(path)
+    return load_learned_predictor(path)
