@@ -375,6 +375,27 @@ def test_xplane_level_flight_reads_gravity(version):
     assert sample.time_source == "arrival"
 
 
+def test_xplane_passes_on_speed_attitude_and_height_where_ticked():
+    """Oracle: the Data Output rows as X-Plane documents them (3: speeds, kias first; 17:
+    pitch, roll, headings in degrees; 20: lat, lon, altitude MSL, AGL in feet), converted
+    by hand."""
+    rows = {4: _load_row(1.0, 0.0, 0.0), 16: [0.0] * 8}
+    rows[3] = [120.0, 118.0, 125.0, 130.0, -999.0, 138.0, 144.0, 150.0]
+    rows[17] = [5.0, -30.0, 90.0, 92.0, -999.0, -999.0, -999.0, -999.0]
+    rows[20] = [47.0, 8.0, 3500.0, 1000.0, -999.0, -999.0, -999.0, -999.0]
+    sample = XPlaneDecoder(version=12).decode(_xplane_packet(rows))
+    assert sample.signals == pytest.approx(
+        {
+            "speed": 120.0 * 1852 / 3600,
+            "pitch": math.radians(5.0),
+            "roll": math.radians(-30.0),
+            "height": 304.8,
+        }
+    )
+    bare = XPlaneDecoder(version=12).decode(_xplane_packet({4: rows[4], 16: rows[16]}))
+    assert bare.signals == {}
+
+
 def test_xplane_rows_round_trip_per_version(rng):
     """X-Plane 11 sends Q, P, R in rad/s; X-Plane 12 P, Q, R in deg/s: both decode to the same
     head-frame omega = (P, -Q, -R) rad/s, and f = g (-axial, -side, normal)."""

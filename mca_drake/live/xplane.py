@@ -21,6 +21,12 @@ f = g (-axial, -side, normal) and omega = (P, -Q, -R), in rad/s. Level flight, n
 head's offset from it in a `LeverArm`.
 
 The packet has no sender time: the sample time is the arrival time.
+
+Rows the decoder also reads where they are ticked, as the sample's `signals`
+(`mca_drake.references.vehicle_signals`): row 3, "speeds", slot 0 the indicated airspeed in
+knots (`speed`); row 17, "pitch, roll, headings", slots 0 and 1 the pitch and roll in degrees
+(`pitch`, `roll`); row 20, "lat, lon, altitude", slot 3 the height above ground in feet
+(`height`). A value there that is not finite is left out.
 """
 
 from __future__ import annotations
@@ -46,6 +52,13 @@ RATE_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0}
 
 # Names of the rows the decoder reads, for messages.
 GROUP_NAMES = {4: "Mach, VVI, g-load", 16: "angular velocities"}
+# The optional rows passed on as signals: signal -> (row, slot, factor to SI).
+SIGNAL_SLOTS = {
+    "speed": (3, 0, 1852.0 / 3600.0),  # indicated airspeed, kt
+    "pitch": (17, 0, math.pi / 180.0),  # deg
+    "roll": (17, 1, math.pi / 180.0),  # deg
+    "height": (20, 3, 0.3048),  # above ground, ft
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -194,4 +207,9 @@ class XPlaneDecoder(Decoder):
         scale = RATE_UNITS[layout.rate_unit]
         p, q, r = (scale * rates[s] for s in layout.rate_slots)
         omega = (p, -q, -r)
-        return TelemetrySample(received_s, omega, f, time_source="arrival")
+        signals = {
+            name: rows[row][slot] * factor
+            for name, (row, slot, factor) in SIGNAL_SLOTS.items()
+            if row in rows and math.isfinite(rows[row][slot])
+        }
+        return TelemetrySample(received_s, omega, f, time_source="arrival", signals=signals)

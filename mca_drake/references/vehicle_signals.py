@@ -27,7 +27,7 @@ SIGNALS = {
     "throttle": ("1", "throttle, 0 (idle) ... 1 (full)"),
     "brake": ("1", "brake, 0 (off) ... 1 (full)"),
     "steering": ("1", "steering, -1 ... 1 of full lock, positive turns left"),
-    "speed": ("m/s", "speed over ground (a car) or calibrated airspeed (an aircraft)"),
+    "speed": ("m/s", "speed over ground (a car) or airspeed, calibrated or indicated"),
     "roll": ("rad", "roll angle, positive right side down"),
     "pitch": ("rad", "pitch angle, positive nose up"),
     "height": ("m", "height of the vehicle's reference point above the ground"),
