@@ -208,7 +208,8 @@ def _scenario_shrink(name: str) -> str:
     if name.startswith("evaluation"):
         return "{duration_s: 3, workers: 1, cases: [{name: A, vehicle: light, seeds: [1000]}]}"
     if name == "dataset":
-        return "{flight_seeds: [100], flight_duration_s: 18, horizon: 256, workers: 1}"
+        seconds = 60 * float(DATASET_MINUTES)
+        return f"{{flight_seeds: [100], flight_duration_s: {seconds:g}, horizon: 256, workers: 1}}"
     return f"{{duration_s: {SHRUNK_FLAGS['--duration']}}}"
 
 
@@ -246,18 +247,20 @@ def made_stand_ins(tmp_path_factory) -> Path:
 # list of argument lists in (a `$(cat FILE)` word is FILE's text, read when its command
 # runs), one line per command out: its exit status and seconds.
 DRIVER = """
-import json, re, sys, time
+import contextlib, io, json, re, sys, time
 from pathlib import Path
 from mca_drake.app import cli
 for argv in json.load(open(sys.argv[1])):
     words = [Path(m.group(1)).read_text() if (m := re.fullmatch(r"\\$\\(cat ([^)]+)\\)", w))
              else w for w in argv[1:]]
-    start = time.perf_counter()
-    try:
-        rc = cli.main(words)
-    except SystemExit as exit:
-        rc = exit.code
-    print("RESULT " + json.dumps([rc, time.perf_counter() - start]), flush=True)
+    start, errors = time.perf_counter(), io.StringIO()
+    with contextlib.redirect_stderr(errors):
+        try:
+            rc = cli.main(words)
+        except SystemExit as exit:
+            rc = exit.code
+    last = errors.getvalue().strip().splitlines()[-1:] if rc else []
+    print("RESULT " + json.dumps([rc, time.perf_counter() - start, last]), flush=True)
 """
 
 
@@ -289,11 +292,13 @@ def test_a_pages_command_lines_run_shrunk(page, lines, made_stand_ins, tmp_path)
         timeout=1800,
     )
     results = [json.loads(r[7:]) for r in done.stdout.splitlines() if r.startswith("RESULT ")]
-    for line, (rc, seconds) in zip(runnable, results, strict=False):
-        print(f"{seconds:6.1f} s  exit {rc}  {line}")
+    for line, (rc, seconds, error) in zip(runnable, results, strict=False):
+        print(f"{seconds:6.1f} s  exit {rc}  {line}", *error)
     expected = [next((rc for part, rc in FAILING.items() if part in line), 0) for line in runnable]
     failed = [
-        line for line, (rc, _), want in zip(runnable, results, expected, strict=False) if rc != want
+        (line, error)
+        for line, (rc, _, error), want in zip(runnable, results, expected, strict=False)
+        if rc != want
     ]
     assert len(results) == len(runnable), done.stderr[-3000:]
     assert failed == [], done.stderr[-3000:]
