@@ -27,6 +27,7 @@ from mca_drake.cueing.predictor import (
     PREDICTOR_FORMAT,
     LinearPredictor,
     history_samples,
+    lag_features,
     load_linear_predictor,
     predictor_file,
 )
@@ -56,14 +57,6 @@ def default_knots(steps: int) -> tuple[int, ...]:
     knots = [k for k in (1, 2, 4, 8, 16, 32) if k < steps]
     knots += list(range(64, steps, 32))
     return (*knots, steps)
-
-
-def learned_features(history: np.ndarray, lags) -> np.ndarray:
-    """The network's raw features of histories (..., H, 6), the current sample last: the
-    changes from it at `lags`, then its levels: (..., 6 (len(lags) + 1))."""
-    now = history[..., -1, :]
-    changes = [history[..., -1 - lag, :] - now for lag in lags]
-    return np.concatenate([*changes, now], axis=-1)
 
 
 @dataclasses.dataclass
@@ -136,7 +129,7 @@ class LearnedPredictor:
     def correction(self, history: np.ndarray) -> np.ndarray:
         """The network's correction to the linear forecast of histories (..., H, 6):
         (..., N, 6)."""
-        x = (learned_features(history, self.lags) - self.mean) / self.scale
+        x = (lag_features(history, self.lags) - self.mean) / self.scale
         (w1, b1), (w2, b2), (w3, b3) = self.layers
         out = np.tanh(np.tanh(x @ w1 + b1) @ w2 + b2) @ w3 + b3
         at_knots = out.reshape(*out.shape[:-1], len(self.knots), NUM_CHANNELS)

@@ -67,6 +67,15 @@ def history_samples(lags=DEFAULT_LAGS) -> int:
     return int(max(lags)) + 1
 
 
+def lag_features(history: np.ndarray, lags) -> np.ndarray:
+    """The features a forecast reads from histories (..., H, 6), the current sample last:
+    every channel's change from it at each of `lags` (control periods back), then its
+    levels: (..., 6 (len(lags) + 1))."""
+    now = history[..., -1, :]
+    changes = [history[..., -1 - lag, :] - now for lag in lags]
+    return np.concatenate([*changes, now], axis=-1)
+
+
 @dataclasses.dataclass
 class LinearPredictor:
     """A fitted linear forecast (module docstring).
@@ -114,9 +123,7 @@ class LinearPredictor:
     def features(self, history: np.ndarray) -> np.ndarray:
         """The features of histories (..., H, 6), oldest first, the current sample last
         (H >= `history`): (..., F)."""
-        now = history[..., -1, :]
-        changes = [history[..., -1 - lag, :] - now for lag in self.lags]
-        return np.concatenate([*changes, now], axis=-1)
+        return lag_features(history, self.lags)
 
     def forecast(self, history: np.ndarray, steps: int | None = None) -> np.ndarray:
         """The next `steps` samples (default and at most `self.steps`) after histories

@@ -21,9 +21,8 @@ from mca_drake.cueing.learned_predictor import (
     LearnedPredictor,
     default_knots,
     knot_basis,
-    learned_features,
 )
-from mca_drake.cueing.predictor import NUM_CHANNELS, LinearPredictor
+from mca_drake.cueing.predictor import NUM_CHANNELS, LinearPredictor, lag_features
 
 
 @dataclasses.dataclass
@@ -67,7 +66,7 @@ def forecast_pairs(
     windows = y[ends[:, None] + np.arange(-history, 1)[None, :]]
     future = y[ends[:, None] + 1 + read[None, :]]
     residuals = future - linear.forecast(windows)[:, read]
-    return learned_features(windows, lags), residuals
+    return lag_features(windows, lags), residuals
 
 
 class _Network(torch.nn.Module):

@@ -50,6 +50,7 @@ import operator
 import struct
 
 from mca_drake.live.telemetry import BadPacket, Decoder, LeverArm, TelemetrySample
+from mca_drake.references.vehicle_signals import signal_factor, within_bounds
 
 FGNETFDM_VERSION = 24
 # sizeof(FGNetFDM) for version 24: 8 (version, padding) + 3 doubles + 90 four-byte fields.
@@ -189,7 +190,7 @@ _PICK_USED = operator.itemgetter(*(_index_of_scalars()[name] for name in (*_USED
 _SIGNAL_FIELDS = ("left_aileron", "elevator", "rudder", "vcas", "agl")
 _PICK_SIGNALS = operator.itemgetter(*(_index_of_scalars()[name] for name in _SIGNAL_FIELDS))
 _WOW_AT = _flat_start("wow")
-KT = 1852.0 / 3600.0  # m/s per knot
+_KT = signal_factor("speed", "kt")
 
 
 def _unpack_checked(packet: bytes) -> tuple:
@@ -321,13 +322,13 @@ class FgNetFdmDecoder(Decoder):
 
 def _signals(values: tuple, phi: float, theta: float) -> dict[str, float]:
     """The sample's signals from the packet's values (module docstring); a field that is not
-    finite, or a surface position beyond full deflection, is left out."""
+    finite, or a surface position beyond full deflection (`within_bounds`), is left out."""
     aileron, elevator, rudder, vcas, agl = _PICK_SIGNALS(values)
     found = {
         "aileron": aileron,
         "elevator": -elevator,
         "rudder": -rudder,
-        "speed": vcas * KT,
+        "speed": vcas * _KT,
         "roll": phi,
         "pitch": theta,
         "height": agl,
@@ -336,8 +337,5 @@ def _signals(values: tuple, phi: float, theta: float) -> dict[str, float]:
     return {
         name: value
         for name, value in found.items()
-        if math.isfinite(value) and (name not in SURFACES or abs(value) <= 1.0 + 1e-6)
+        if math.isfinite(value) and within_bounds(name, value)
     }
-
-
-SURFACES = ("aileron", "elevator", "rudder")

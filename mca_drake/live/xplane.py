@@ -38,6 +38,7 @@ import struct
 from mca_drake.conventions import GRAVITY
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.telemetry import BadPacket, Decoder, LeverArm, TelemetrySample
+from mca_drake.references.vehicle_signals import signal_factor
 
 XPLANE_HEADER = b"DATA"
 # Header: "DATA" and X-Plane's internal byte.
@@ -54,10 +55,10 @@ RATE_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0}
 GROUP_NAMES = {4: "Mach, VVI, g-load", 16: "angular velocities"}
 # The optional rows passed on as signals: signal -> (row, slot, factor to SI).
 SIGNAL_SLOTS = {
-    "speed": (3, 0, 1852.0 / 3600.0),  # indicated airspeed, kt
-    "pitch": (17, 0, math.pi / 180.0),  # deg
-    "roll": (17, 1, math.pi / 180.0),  # deg
-    "height": (20, 3, 0.3048),  # above ground, ft
+    "speed": (3, 0, signal_factor("speed", "kt")),  # indicated airspeed
+    "pitch": (17, 0, signal_factor("pitch", "deg")),
+    "roll": (17, 1, signal_factor("roll", "deg")),
+    "height": (20, 3, signal_factor("height", "ft")),  # above ground
 }
 
 

@@ -134,7 +134,7 @@ class Recording:
                 )
             why = check_signal(name, values)
             if why:
-                raise RecordingError(f"recording signal {why}")
+                raise RecordingError(f"column {why}")
 
     @property
     def duration_s(self) -> float:
@@ -495,11 +495,10 @@ def load_recording(
         metadata["t0_s"] = repr(float(t[0]))
         t = t - t[0]
     signals = {name: data[:, 7 + i] for i, name in enumerate(kept[7:])}
-    for name, values in signals.items():
-        why = check_signal(name, values)
-        if why:
-            raise RecordingError(f"{path}: column {why}")
-    recording = Recording(t, data[:, 1:4], data[:, 4:7], metadata, signals)
+    try:
+        recording = Recording(t, data[:, 1:4], data[:, 4:7], metadata, signals)
+    except RecordingError as err:  # a signal out of its bounds: name the file
+        raise RecordingError(f"{path}: {err}") from None
     if validate_units:
         check_units(recording, where=str(path))
         peak = float(np.max(np.abs(recording.omega)))

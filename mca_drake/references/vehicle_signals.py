@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 # name: (unit written in a header, what it is)
 SIGNALS = {
     "aileron": ("1", "roll command, -1 ... 1, positive rolls right"),
@@ -71,14 +73,23 @@ def signal_factor(name: str, unit: str | None) -> float:
     return SIGNAL_UNITS[si][unit]
 
 
+def within_bounds(name: str, low: float, high: float | None = None) -> bool:
+    """Whether values from `low` to `high` (default `low`: one value) fit signal `name`'s
+    bounds (`CONTROL_BOUNDS`; a signal without bounds fits any)."""
+    bounds = CONTROL_BOUNDS.get(name)
+    high = low if high is None else high
+    return bounds is None or (low >= bounds[0] - BOUND_SLACK and high <= bounds[1] + BOUND_SLACK)
+
+
 def check_signal(name: str, values) -> str | None:
     """Why `values` (SI) cannot be signal `name`, or None: a normalised control outside its
     bounds (a column in percent, say)."""
-    bounds = CONTROL_BOUNDS.get(name)
-    if bounds is None or len(values) == 0:
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
         return None
-    low, high = min(values), max(values)
-    if low < bounds[0] - BOUND_SLACK or high > bounds[1] + BOUND_SLACK:
+    low, high = float(values.min()), float(values.max())
+    bounds = CONTROL_BOUNDS.get(name)
+    if not within_bounds(name, low, high):
         return (
             f"{name} spans {low:.6g} ... {high:.6g}, outside {bounds[0]:g} ... {bounds[1]:g} "
             "(a normalised control; is it in percent?)"
