@@ -396,6 +396,18 @@ def test_xplane_passes_on_speed_attitude_and_height_where_ticked():
     assert bare.signals == {}
 
 
+def test_xplane_passes_on_the_pilots_controls_where_ticked():
+    """Oracle: rows 8 (joystick: elev, ailrn, ruddr ratios) and 25 (commanded throttle per
+    engine) as X-Plane lists them; a ratio outside its range is left out."""
+    rows = {4: _load_row(1.0, 0.0, 0.0), 16: [0.0] * 8}
+    rows[8] = [0.25, -0.5, 0.125, -999.0, -999.0, -999.0, -999.0, -999.0]
+    rows[25] = [0.75, 0.7, -999.0, -999.0, -999.0, -999.0, -999.0, -999.0]
+    sample = XPlaneDecoder(version=12).decode(_xplane_packet(rows))
+    assert sample.signals == {"elevator": 0.25, "aileron": -0.5, "rudder": 0.125, "throttle": 0.75}
+    rows[25][0] = 75.0  # a percentage is not a ratio
+    assert "throttle" not in XPlaneDecoder(version=12).decode(_xplane_packet(rows)).signals
+
+
 def test_xplane_rows_round_trip_per_version(rng):
     """X-Plane 11 sends Q, P, R in rad/s; X-Plane 12 P, Q, R in deg/s: both decode to the same
     head-frame omega = (P, -Q, -R) rad/s, and f = g (-axial, -side, normal)."""

@@ -424,6 +424,13 @@ def test_jsbsims_stream_scores_as_offline_cueing_of_the_samples_received(tmp_pat
     ).summary
     assert offline["pi_zero_motion"] == pytest.approx(summary["pi_zero_motion"], abs=1e-9)
     assert abs(summary["pi"] - offline["pi"]) < 0.1, (summary["pi"], offline["pi"])
+    # the controls and state FGNetFDM carries ride along, one row per period's sample
+    span = slice(first, last + 1)
+    for name in ("aileron", "elevator", "rudder", "speed", "roll", "pitch", "height"):
+        assert np.isfinite(rows[name][span]).all(), name
+    assert (rows["speed"][span] > 20.0).all()  # m/s: the light aircraft in flight
+    assert np.abs(rows["aileron"][span]).max() <= 1.0
+    assert (rows["on_ground"][span] == 0.0).all()
 
 
 def test_a_live_run_cues_its_scaling_and_is_scored_at_the_default():

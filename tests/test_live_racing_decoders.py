@@ -55,6 +55,21 @@ def test_beamng_level_car_at_rest_reads_gravity():
     assert sample.t_s == 2.5 and sample.time_source == "arrival"
 
 
+def test_beamng_passes_on_speed_and_attitude():
+    """Oracle: the documented velX, velY, velZ (world m/s; the packet's (25, 1, 0)) and
+    rollPos, pitchPos (rad), with the decoder's default signs and switched ones."""
+    packet = beamng_packet(angles=(0.125, -0.25, 2.0))
+    sample = BeamNGDecoder().decode(packet, received_s=0.0)
+    speed = math.hypot(25.0, 1.0)
+    assert sample.signals == pytest.approx({"speed": speed, "roll": 0.125, "pitch": -0.25})
+    flipped = BeamNGDecoder(
+        config=BeamNGConfig(
+            roll_angle_positive_right_down=False, pitch_angle_positive_nose_up=False
+        )
+    ).decode(packet, received_s=0.0)
+    assert flipped.signals == pytest.approx({"speed": speed, "roll": -0.125, "pitch": 0.25})
+
+
 @pytest.mark.parametrize(
     "packet, omega, f",
     [
@@ -128,9 +143,11 @@ def test_beamng_bad_packets_raise_bad_packet():
 # Vel (3 float each), Pos (3 int32, 1 m = 65536), [int32 ID]; world axes, Z up.
 
 
-def outsim_main(*, ang_vel=(0.0, 0.0, 0.0), angles=(0.0, 0.0, 0.0), accel=(0.0, 0.0, 0.0)):
+def outsim_main(
+    *, ang_vel=(0.0, 0.0, 0.0), angles=(0.0, 0.0, 0.0), accel=(0.0, 0.0, 0.0), vel=(0.0, 0.0, 0.0)
+):
     """OutSimMain: AngVel, Heading, Pitch, Roll, Accel, Vel, Pos (60 bytes)."""
-    vel, pos = (0.0, 0.0, 0.0), (65536 * 100, -65536 * 40, 65536 * 2)
+    pos = (65536 * 100, -65536 * 40, 65536 * 2)
     return struct.pack("<3f3f3f3f3i", *ang_vel, *angles, *accel, *vel, *pos)
 
 
@@ -224,6 +241,24 @@ def test_outsim_rotates_any_attitude_like_the_oracle(rng):
         np.testing.assert_allclose(sample.omega, car_to_head(r_wc.T @ ang_vel), atol=1e-9)
         f_world = accel + np.array([0.0, 0.0, G])
         np.testing.assert_allclose(sample.f, car_to_head(r_wc.T @ f_world), atol=1e-9)
+
+
+def test_outsim_passes_on_speed_attitude_and_pedals():
+    """Oracle: OutSimMain's Vel (world m/s), Pitch and Roll (rad), and OutSimInputs'
+    Throttle and Brake (the first two of its five floats), as LFS documents them."""
+    main = outsim_main(angles=(0.5, 0.125, -0.25), vel=(3.0, -4.0, 12.0))
+    classic = OutSimDecoder().decode(struct.pack("<I", 1000) + main)
+    assert classic.signals == pytest.approx({"speed": 13.0, "pitch": 0.125, "roll": -0.25})
+    opts = 0x4 | 0x8 | 0x10  # Time, OutSimMain, inputs
+    inputs = struct.pack("<5f", 0.75, 0.25, -0.3, 0.0, 1.0)
+    packet = struct.pack("<I", 1000) + main + inputs
+    sample = OutSimDecoder(config=OutSimConfig(opts=opts)).decode(packet)
+    assert sample.signals == pytest.approx(
+        {"speed": 13.0, "pitch": 0.125, "roll": -0.25, "throttle": 0.75, "brake": 0.25}
+    )
+    odd = struct.pack("<I", 1000) + main + struct.pack("<5f", math.nan, 80.0, 0.0, 0.0, 0.0)
+    bare = OutSimDecoder(config=OutSimConfig(opts=opts)).decode(odd)
+    assert "throttle" not in bare.signals and "brake" not in bare.signals
 
 
 def test_outsim2_layouts_follow_the_option_bits():
@@ -420,12 +455,47 @@ def test_f1_config_switches_signs_and_is_checked():
             F1Decoder(config=F1Config(**bad))
 
 
+def f1_car_telemetry(t_s=10.0, *, controls=(180, 0.75, 0.5, 0.25), player=5, **header):
+    """A Car Telemetry packet (id 6, 1352 bytes): 22 CarTelemetryData of 60 bytes, the
+    player's with `controls` (speed km/h, throttle, steer, brake), every other car full
+    throttle, full right lock and no brake; then the three MFD bytes."""
+    cars = []
+    for index in range(22):
+        speed, throttle, steer, brake = controls if index == player else (300, 1.0, 1.0, 0.0)
+        cars.append(
+            struct.pack("<H3fBbHBBH", speed, throttle, steer, brake, 0, 7, 11000, 0, 80, 0)
+            + struct.pack("<4H4B4BH4f4B", *[900] * 4, *[90] * 8, 100, *[23.0] * 4, *[0] * 4)
+        )
+    return f1_header(6, t_s, player=player, **header) + b"".join(cars) + bytes((255, 255, 0))
+
+
+def test_f1_passes_on_the_players_speed_and_controls():
+    """Oracle: CarTelemetryData as EA's specification lays it out (speed uint16 km/h, then
+    throttle, steer -1 full left ... 1 full right, brake), the steering turned to ISO 8855's
+    positive left; the controls ride on the samples of their session and time window."""
+    decoder = F1Decoder()
+    telemetry = f1_car_telemetry()
+    assert len(telemetry) == 1352
+    with pytest.raises(BadPacket, match="controls ride on the motion samples"):
+        decoder.decode(telemetry)
+    first, second = f1_pair(decoder)
+    expected = {"speed": 50.0, "throttle": 0.75, "steering": -0.5, "brake": 0.25}
+    assert first.signals == pytest.approx(expected) and second.signals == first.signals
+    with pytest.raises(BadPacket):
+        decoder.decode(f1_car_telemetry(controls=(90, 2.0, math.nan, 0.5)))
+    _, held = f1_pair(decoder)
+    assert held.signals == pytest.approx({"speed": 25.0, "brake": 0.5})  # the rest refused
+    _, later = f1_pair(decoder, t_s=11.0)  # the controls are a second old: not passed on
+    assert later.signals == {}
+
+
 def test_f1_bad_packets_raise_bad_packet():
     decoder = F1Decoder()
     f1_pair(decoder)
-    telemetry = f1_header(6, 10.0) + bytes(1323)  # Car Telemetry, another packet of the game
+    lap_data = f1_header(2, 10.0) + bytes(1256)  # Lap Data, another packet of the game
     cases = {
-        "packet id 6 \\(Car Telemetry\\)": telemetry,
+        "packet id 2 \\(Lap Data\\)": lap_data,
+        "Car Telemetry packet of 1351 bytes": f1_car_telemetry()[:-1],
         "shorter than the 29-byte header": f1_motion()[:20],
         "Motion packet of 1348 bytes": f1_motion()[:-1],
         "version 2": f1_motion(version=2),

@@ -196,7 +196,8 @@ def mca_names_table() -> str:
         differs = {
             f.name: getattr(config, f.name)
             for f in dataclasses.fields(config)
-            if f.name in ("mode", "objective", "profile") and getattr(config, f.name)
+            if f.name in ("mode", "objective", "profile", "preview_steps", "predictor")
+            and getattr(config, f.name)
         }
         spelt = ", ".join(f"{k}: {v}" for k, v in differs.items())
         tag = f"!{type(config).__name__}" + (f" {{{spelt}}}" if spelt else "")

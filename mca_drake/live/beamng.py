@@ -46,7 +46,12 @@ each sign, and the guide (docs/guides/driving.md, "Racing simulators") says how 
 once on the road. BeamNG smooths every field as its protocol smoothing settings ask: set
 them to 0 for the raw motion.
 
-The position, velocity, up vector, yaw angle and angular accelerations are not used. The
+Signals (`mca_drake.references.vehicle_signals`) every sample carries: `speed`, the length
+of the world velocity (m/s), and `roll` and `pitch`, the angles phi and theta above (rad).
+The packet carries no controls (OutGauge, BeamNG's other protocol, sends the pedals on a port
+of its own).
+
+The position, up vector, yaw angle and angular accelerations are not used. The
 packet has no time: the sample time is the arrival time. The values are at BeamNG's
 reference node, not the driver's head: give the head's offset in a `LeverArm`.
 """
@@ -181,4 +186,5 @@ class BeamNGDecoder(Decoder):
             -acc_z + GRAVITY * cos_theta * math.cos(phi),
         )
         omega = tuple(s * r for s, r in zip(self._rate_signs, values[_RATES], strict=True))
-        return TelemetrySample(received_s, omega, f, time_source="arrival")
+        signals = {"speed": math.hypot(*values[3:6]), "roll": phi, "pitch": theta}
+        return TelemetrySample(received_s, omega, f, time_source="arrival", signals=signals)

@@ -57,6 +57,20 @@ the components but gives no sign for them; the defaults (each switchable in `F1C
   x is left and the rates follow the right-hand rule: omega = (w_z, w_x, w_y). For
   left-handed local axes (x right) the roll and yaw rates change sign.
 
+Car Telemetry (id 6), 1352 bytes in both formats: the header, 22 CarTelemetryData of 60
+bytes (the player's at 29 + 60 * m_playerCarIndex), then three bytes of MFD state. The
+decoder reads the first four fields of the player's:
+
+    +0   m_speed                       uint16     km/h
+    +2   m_throttle                    float32    0 ... 1
+    +6   m_steer                       float32    -1 (full lock left) ... 1 (full lock right)
+    +10  m_brake                       float32    0 ... 1
+
+and holds them as the signals (`mca_drake.references.vehicle_signals`: `speed` in m/s,
+`throttle`, `brake`, `steering` = -m_steer, positive left) of the samples that follow from
+the same session within `pairing_window_s`; the packet itself gives no sample (it counts as
+refused). A value that is not finite or outside its range is left out.
+
 The guide (docs/guides/driving.md, "Racing simulators") says how to check the signs once.
 Positions, velocities, direction vectors and angles are not used. The values are at the
 car's reference point: give the head's offset in a `LeverArm`.
@@ -77,6 +91,7 @@ from mca_drake.live.telemetry import (
     TelemetrySample,
 )
 from mca_drake.references.recording import MAX_SPECIFIC_FORCE
+from mca_drake.references.vehicle_signals import signal_factor, within_bounds
 
 F1_PACKET_FORMATS = (2023, 2024)
 F1_HEADER = struct.Struct("<HBBBBBQfIIBB")
@@ -89,6 +104,11 @@ CAR_MOTION = struct.Struct("<6f6h6f")
 assert CAR_MOTION.size == 60
 MOTION_SIZE = F1_HEADER.size + F1_CARS * CAR_MOTION.size  # 1349
 MOTION_EX_SIZES = {2023: 217, 2024: 237}
+CAR_TELEMETRY_ID = 6
+# m_speed, m_throttle, m_steer, m_brake: the start of the 60-byte CarTelemetryData
+CAR_CONTROLS = struct.Struct("<H3f")
+CAR_TELEMETRY_DATA_SIZE = 60
+CAR_TELEMETRY_SIZE = F1_HEADER.size + F1_CARS * CAR_TELEMETRY_DATA_SIZE + 3  # 1352
 # Offset of m_angularVelocityX in the Motion Ex packet: header, 8 x 4 wheel floats,
 # m_heightOfCOGAboveGround, m_localVelocity[3].
 ANGULAR_VELOCITY_AT = F1_HEADER.size + 4 * (32 + 1 + 3)
@@ -162,7 +182,8 @@ def _sign(positive: bool) -> float:
 
 class F1Decoder(Decoder):
     """Decodes the F1 games' Motion (id 0) and Motion Ex (id 13) packets into head-frame
-    samples of the player's car (module docstring: layouts, pairing, signs). The sample time
+    samples of the player's car, with the speed and controls of its Car Telemetry (id 6)
+    packets as their signals (module docstring: layouts, pairing, signs). The sample time
     is the header's session time.
 
     Args:
@@ -190,12 +211,14 @@ class F1Decoder(Decoder):
         # The newest part of each kind: (session UID, session time, vector in head axes).
         self._f: tuple[int, float, tuple[float, float, float]] | None = None
         self._omega: tuple[int, float, tuple[float, float, float]] | None = None
+        # The newest controls: (session UID, session time, signals).
+        self._controls: tuple[int, float, dict[str, float]] | None = None
         super().__init__(lever_arm=lever_arm)
 
     def reset(self) -> None:
         """Forgets the stream's history: the held parts and the lever arm's last sample."""
         super().reset()
-        self._f = self._omega = None
+        self._f = self._omega = self._controls = None
 
     def _decode_at_source(self, packet: bytes, received_s: float) -> TelemetrySample:
         if len(packet) < F1_HEADER.size:
@@ -211,13 +234,15 @@ class F1Decoder(Decoder):
                 f"f1 packet has format {packet_format}; the decoder reads {expected}: set the "
                 f"game's UDP Format to {expected}, or F1Config.packet_format (--f1-format)"
             )
-        if packet_id not in (MOTION_ID, MOTION_EX_ID):
+        if packet_id not in (MOTION_ID, MOTION_EX_ID, CAR_TELEMETRY_ID):
             name = PACKET_NAMES.get(packet_id, "unknown")
             raise BadPacket(
-                f"f1 packet id {packet_id} ({name}); the decoder reads Motion (0) and Motion Ex "
-                "(13) only"
+                f"f1 packet id {packet_id} ({name}); the decoder reads Motion (0), Motion Ex "
+                "(13) and Car Telemetry (6) only"
             )
-        size = MOTION_SIZE if packet_id == MOTION_ID else self._motion_ex_size
+        size = {MOTION_ID: MOTION_SIZE, CAR_TELEMETRY_ID: CAR_TELEMETRY_SIZE}.get(
+            packet_id, self._motion_ex_size
+        )
         if len(packet) != size:
             raise BadPacket(
                 f"f1 {PACKET_NAMES[packet_id]} packet of {len(packet)} bytes; format "
@@ -230,6 +255,9 @@ class F1Decoder(Decoder):
             )
         if not math.isfinite(t_s):
             raise BadPacket(f"f1 packet has session time {t_s}")
+        if packet_id == CAR_TELEMETRY_ID:
+            self._controls = (session, t_s, self._player_controls(packet, player))
+            raise BadPacket("f1 Car Telemetry packet: its controls ride on the motion samples")
         if packet_id == MOTION_ID:
             self._f = (session, t_s, self._player_specific_force(packet, player))
         else:
@@ -244,7 +272,33 @@ class F1Decoder(Decoder):
                 f"within {self.config.pairing_window_s} s (the newest is at {other[1]:.3f} s): "
                 "the game sends both each frame"
             )
-        return TelemetrySample(t_s, self._omega[2], self._f[2], time_source="sender")
+        controls = self._controls
+        signals = {}
+        if controls and controls[0] == session:
+            if abs(controls[1] - t_s) <= self.config.pairing_window_s:
+                signals = dict(controls[2])
+        return TelemetrySample(
+            t_s, self._omega[2], self._f[2], time_source="sender", signals=signals
+        )
+
+    def _player_controls(self, packet: bytes, player: int) -> dict[str, float]:
+        """The player's speed and controls in a Car Telemetry packet, as signals (module
+        docstring); a value that is not finite or outside its range is left out."""
+        if player >= F1_CARS:
+            raise BadPacket(f"f1 Car Telemetry packet has player car index {player}")
+        at = F1_HEADER.size + CAR_TELEMETRY_DATA_SIZE * player
+        speed, throttle, steer, brake = CAR_CONTROLS.unpack_from(packet, at)
+        values = {
+            "speed": speed * signal_factor("speed", "km/h"),
+            "throttle": throttle,
+            "steering": -steer + 0.0,  # ISO 8855: positive turns left; + 0.0: no -0.0
+            "brake": brake,
+        }
+        return {
+            name: value
+            for name, value in values.items()
+            if math.isfinite(value) and within_bounds(name, value)
+        }
 
     def _player_specific_force(self, packet: bytes, player: int) -> tuple[float, float, float]:
         if player >= F1_CARS:

@@ -18,6 +18,7 @@ from mca_drake.live.supervisor import HEALTH_STATES
 from mca_drake.live.telemetry import Decoder
 from mca_drake.platforms.kinematics import plant_output
 from mca_drake.platforms.serial import SerialChain
+from mca_drake.references.vehicle_signals import SIGNALS
 from mca_drake.simulation.closed_loop import (
     check_alignment,
     closed_loop_summary,
@@ -144,7 +145,9 @@ def live_signals(handles: dict, plant: str, robot: SerialChain, h: float):
 def live_trajectory(handles: dict, plant: str, robot: SerialChain, h: float) -> str:
     """The recorded run's time series as trajectory CSV text (`simulation.trajectory`), with
     the supervisor's health, the operator's mode and the intensity in effect in each
-    period (`LIVE_COLUMNS`)."""
+    period (`LIVE_COLUMNS`), then the controls and vehicle state of each period's sample
+    where the protocol carried them (a column per `vehicle_signals.SIGNALS` name, SI, nan
+    for a sample without it)."""
     reference, outputs, states, accelerations = live_signals(handles, plant, robot, h)
     rows = handles["recorder"].rows
     n = reference.shape[0]
@@ -156,6 +159,10 @@ def live_trajectory(handles: dict, plant: str, robot: SerialChain, h: float) -> 
     else:
         live["mode"], live["intensity"] = ["run"] * n, ["1.0"] * n
     reactions = rows("reaction")[:n, 0] if handles.get("reference_guard") is not None else None
+    signals = rows("signals")[:n]
+    for i, name in enumerate(SIGNALS):  # those the protocol carried, NaN where a sample lacked
+        if np.isfinite(signals[:, i]).any():
+            live[name] = [repr(float(v)) for v in signals[:, i]]
     return trajectory_csv(
         robot, np.arange(n) * h, reference, outputs, states, accelerations, reactions, live
     )

@@ -245,9 +245,7 @@ def _ConnectMcaToSupervisor(
         builder.Connect(console.GetOutputPort("mode"), guard.GetInputPort("operator"))
     builder.Connect(guarded, controller.GetInputPort("reference"))
     # a predictive MCA's forecast, from what it has read, moved in its own (discrete) phase
-    forecast = AddReferencePredictor(
-        builder, getattr(controller, "config", None), guarded, time_step, "discrete"
-    )
+    forecast = AddReferencePredictor(builder, controller, guarded, time_step, "discrete")
     if forecast is not None:
         builder.Connect(forecast, controller.GetInputPort("reference_preview"))
     builder.Connect(robot_ports.state, controller.GetInputPort("state"))
@@ -383,7 +381,12 @@ def MakeLiveClosedLoop(
         "statistics": controller.GetOutputPort("statistics"),
         "health": guard.GetOutputPort("health"),
     }
-    after_command = {"reference": reference, "command": command}
+    # the reference and the controls and vehicle state of the sample it came from
+    after_command = {
+        "reference": reference,
+        "command": command,
+        "signals": source.GetOutputPort("signals"),
+    }
     if handles["reference_guard"] is not None:  # what the guard did in the period
         after_command["reaction"] = handles["reference_guard"].GetOutputPort("reaction")
     if console is not None:  # the operator's settings and mode in the period

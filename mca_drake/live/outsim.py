@@ -46,7 +46,13 @@ of a car at rest is zero). The specific force is f = R_WC^T (Accel + (0, 0, g)),
 m/s^2: a level car at rest reads f = (0, 0, +9.81). The guide's check (a car parked on the
 level reads f_z = +9.81, not 0 or 19.6) confirms this once.
 
-Vel, Pos and the other OutSim 2 parts are not used. The values are at the car's reference
+Signals (`mca_drake.references.vehicle_signals`) every sample carries: `speed`, the length of
+Vel (m/s), `pitch` and `roll` (rad, the conventions above); with OSO_INPUTS also `throttle`
+and `brake` (OutSimInputs: Throttle, Brake, InputSteer, Clutch, Handbrake, float32 each,
+the pedals 0 ... 1). InputSteer is an angle in radians, not a share of the lock, and is not
+passed on. A value that is not finite or outside its range is left out.
+
+Pos and the other OutSim 2 parts are not used. The values are at the car's reference
 point (LFS does not document it as the driver's head): give the head's offset in a
 `LeverArm`.
 """
@@ -59,6 +65,7 @@ import struct
 
 from mca_drake.conventions import GRAVITY
 from mca_drake.live.telemetry import BadPacket, Decoder, LeverArm, TelemetrySample
+from mca_drake.references.vehicle_signals import within_bounds
 
 OUTSIM_HEADER = b"LFST"
 # The classic OutSimPack, without and with its trailing ID.
@@ -91,6 +98,8 @@ OUTSIM_MAX_SIZE = sum(size for _, _, size in OSO_PARTS)
 # OutSimMain: AngVel, Heading, Pitch, Roll, Accel, Vel (floats), Pos (ints).
 _MAIN = struct.Struct("<12f3i")
 _TIME = struct.Struct("<I")
+# Throttle and Brake, the first two floats of OutSimInputs (OSO_INPUTS).
+_PEDALS = struct.Struct("<2f")
 # Names of the floats of OutSimMain, for messages.
 MAIN_FIELDS = (
     "AngVel.x",
@@ -185,7 +194,9 @@ class OutSimDecoder(Decoder):
             self._sizes = (outsim_packet_size(opts),)
             self._main_at = _part_offset(opts, OSO_MAIN)
             self._time_at = _part_offset(opts, OSO_TIME) if opts & OSO_TIME else None
+            self._inputs_at = _part_offset(opts, OSO_INPUTS) if opts & OSO_INPUTS else None
         else:
+            self._inputs_at = None
             self._sizes = (OUTSIM_PACK_SIZE, OUTSIM_PACK_ID_SIZE)
             self._main_at, self._time_at = 4, 0
         super().__init__(lever_arm=lever_arm)
@@ -223,7 +234,19 @@ class OutSimDecoder(Decoder):
         f_right, f_forward, f_up = to_car((a_x, a_y, a_z + GRAVITY))
         omega = (w_forward, -w_right, w_up)
         f = (f_forward, -f_right, f_up)
+        signals = self._signals(packet, floats)
         if self._time_at is None:
-            return TelemetrySample(received_s, omega, f, time_source="arrival")
+            return TelemetrySample(received_s, omega, f, time_source="arrival", signals=signals)
         (time_ms,) = _TIME.unpack_from(packet, self._time_at)
-        return TelemetrySample(time_ms * 1e-3, omega, f, time_source="sender")
+        return TelemetrySample(time_ms * 1e-3, omega, f, time_source="sender", signals=signals)
+
+    def _signals(self, packet: bytes, main: tuple) -> dict[str, float]:
+        """The sample's signals (module docstring) from the packet and its OutSimMain
+        floats `main` (finite, checked)."""
+        signals = {"speed": math.hypot(*main[9:12]), "pitch": main[4], "roll": main[5]}
+        if self._inputs_at is not None:
+            throttle, brake = _PEDALS.unpack_from(packet, self._inputs_at)
+            for name, value in (("throttle", throttle), ("brake", brake)):
+                if math.isfinite(value) and within_bounds(name, value):
+                    signals[name] = value
+        return signals

@@ -23,6 +23,10 @@ The held sample leaves as the reference through the same scaling as recordings
 (`scaled_reference_sample`, computed once per sample at the poll and held as state, so
 that reading the reference costs the MCA nothing).
 
+The held sample's controls and vehicle state (`TelemetrySample.signals`, what the protocol
+carries) leave on the `signals` port, one value per `vehicle_signals.SIGNALS` name in its
+order, NaN for a signal the newest sample lacks; the live loop records them.
+
 The poll is an unrestricted update at the control instant t_k. Drake runs an instant's
 unrestricted updates before its discrete ones, so an MCA whose step is a discrete update
 (`AddMca(..., update_event="discrete")`, as the live loop builds it) computes its command
@@ -54,7 +58,10 @@ from mca_drake.live.socket_stamps import (
 )
 from mca_drake.live.telemetry import BadPacket, Decoder
 from mca_drake.references.reference import ReferenceScaling, scaled_reference_sample
+from mca_drake.references.vehicle_signals import SIGNALS
 
+# The `signals` output of a sample that carries none.
+_NO_SIGNALS = [math.nan] * len(SIGNALS)
 # The `telemetry` output port, in this order.
 TELEMETRY_FIELDS = (
     "age_s",  # wall-clock time since the held sample reached the socket, s (inf: none yet)
@@ -173,9 +180,12 @@ class TelemetryReceiver(LeafSystem):
         output_ports:
         - reference
         - telemetry
+        - signals
 
     `reference` (6): y_ref of the held sample (zero, the neutral pose, until the first one).
     `telemetry` (len(TELEMETRY_FIELDS)): the stream's health and counters.
+    `signals` (len(SIGNALS)): the held sample's controls and vehicle state, SI, NaN where
+    it carries none (all NaN until the first sample).
 
     Args:
         decoder: the protocol's decoder (it also moves samples to the head: its `LeverArm`).
@@ -221,6 +231,7 @@ class TelemetryReceiver(LeafSystem):
         self._reference_index = self.DeclareDiscreteState(
             scaled_reference_sample(initial[_OMEGA], initial[_F], self._scaling)
         )
+        self._signals_index = self.DeclareDiscreteState(np.full(len(SIGNALS), np.nan))
         period = self._config.time_step
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._poll)
         self.DeclareStateOutputPort("reference", self._reference_index)
@@ -231,6 +242,7 @@ class TelemetryReceiver(LeafSystem):
             self._calc_telemetry,
             {self.xd_ticket(), self.time_ticket()},
         )
+        self.DeclareStateOutputPort("signals", self._signals_index)
 
     @property
     def address(self) -> tuple[str, int]:
@@ -282,6 +294,7 @@ class TelemetryReceiver(LeafSystem):
         x = context.get_discrete_state(self._state_index).value().tolist()
         polled = time.perf_counter()
         new_sample = False
+        signals = None
         receive, decode = self._socket.recvmsg, self._decoder.decode
         for _ in range(self._config.max_datagrams_per_poll):
             try:
@@ -315,10 +328,13 @@ class TelemetryReceiver(LeafSystem):
             x[_T_S], x[_ARRIVAL], x[_POLL] = sample.t_s, arrival, polled
             x[_SEQUENCE] = math.nan if sample.sequence is None else sample.sequence
             new_sample = True
+            signals = sample.signals
         discrete = state.get_mutable_discrete_state()
         if new_sample:
             y_ref = scaled_reference_sample(x[_OMEGA], x[_F], self._scaling)
             discrete.set_value(self._reference_index, np.array(y_ref))
+            held = [signals.get(name, math.nan) for name in SIGNALS] if signals else _NO_SIGNALS
+            discrete.set_value(self._signals_index, np.array(held))
         else:
             x[_STALE] += 1
         discrete.set_value(self._state_index, np.array(x))

@@ -26,7 +26,11 @@ Rows the decoder also reads where they are ticked, as the sample's `signals`
 (`mca_drake.references.vehicle_signals`): row 3, "speeds", slot 0 the indicated airspeed in
 knots (`speed`); row 17, "pitch, roll, headings", slots 0 and 1 the pitch and roll in degrees
 (`pitch`, `roll`); row 20, "lat, lon, altitude", slot 3 the height above ground in feet
-(`height`). A value there that is not finite is left out.
+(`height`); row 8, "joystick ail/elv/rud", slots 0, 1 and 2 the pilot's yoke ratios
+(`elevator`, `aileron`, `rudder`, -1 ... 1, positive pulling, rolling right and yawing right,
+X-Plane's `sim/joystick/yoke_*_ratio`); row 25, "throttle (commanded)", slot 0 the first
+engine's throttle ratio 0 ... 1 (`throttle`). A value there that is not finite, or a control
+outside its range, is left out.
 """
 
 from __future__ import annotations
@@ -38,7 +42,7 @@ import struct
 from mca_drake.conventions import GRAVITY
 from mca_drake.input_checks import check_config_numbers
 from mca_drake.live.telemetry import BadPacket, Decoder, LeverArm, TelemetrySample
-from mca_drake.references.vehicle_signals import signal_factor
+from mca_drake.references.vehicle_signals import signal_factor, within_bounds
 
 XPLANE_HEADER = b"DATA"
 # Header: "DATA" and X-Plane's internal byte.
@@ -59,6 +63,10 @@ SIGNAL_SLOTS = {
     "pitch": (17, 0, signal_factor("pitch", "deg")),
     "roll": (17, 1, signal_factor("roll", "deg")),
     "height": (20, 3, signal_factor("height", "ft")),  # above ground
+    "elevator": (8, 0, 1.0),  # the yoke's ratios, pilot's signs
+    "aileron": (8, 1, 1.0),
+    "rudder": (8, 2, 1.0),
+    "throttle": (25, 0, 1.0),  # the first engine's commanded ratio
 }
 
 
@@ -211,6 +219,8 @@ class XPlaneDecoder(Decoder):
         signals = {
             name: rows[row][slot] * factor
             for name, (row, slot, factor) in SIGNAL_SLOTS.items()
-            if row in rows and math.isfinite(rows[row][slot])
+            if row in rows
+            and math.isfinite(rows[row][slot])
+            and within_bounds(name, rows[row][slot] * factor)
         }
         return TelemetrySample(received_s, omega, f, time_source="arrival", signals=signals)

@@ -166,14 +166,13 @@ def _add_source_and_mca(builder, reference, mca, robot, plausibility=None, scali
     guarded, guard = AddReferenceGuard(
         builder, source.GetOutputPort("reference"), plausibility, reference.time_step
     )
-    config = getattr(controller, "config", None)  # the settings the MCA runs
-    forecast = bool(getattr(config, "predictor", ""))
+    forecast = bool(getattr(controller, "predictor", ""))
     # a known future: the MCA reads it (the NMPC at its grid's nodes)
     preview_port = source.GetOutputPort("reference_preview") if preview and not forecast else None
     guarded, preview_port = AddReferenceScaling(builder, guarded, scaling, preview_port)
     builder.Connect(guarded, controller.GetInputPort("reference"))
     if forecast:  # a forecast from what the MCA has read so far, in the MCA's own phase
-        preview_port = AddReferencePredictor(builder, config, guarded, reference.time_step)
+        preview_port = AddReferencePredictor(builder, controller, guarded, reference.time_step)
     if preview:
         builder.Connect(preview_port, controller.GetInputPort("reference_preview"))
     home = getattr(controller, "home_position", robot.home)

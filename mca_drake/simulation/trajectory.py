@@ -8,8 +8,9 @@ the platform, by its joint names; `plausibility`, what the guard did in that per
 (`cueing.plausibility.REACTIONS`; "off" without a guard); and for live runs `health`, the
 supervisor's state in that period, `mode`, the operator's (`live.controls.MODES`), and
 `intensity`, the share of the reference cued (the operator's intensity times the fade of
-a pause; the channels' gains are the summary's `controls` block). Floats are written with
-repr, so the file round-trips.
+a pause; the channels' gains are the summary's `controls` block), then a column per
+control or vehicle state the stream carried (`references.vehicle_signals.SIGNALS` names, SI,
+`nan` where a sample lacked it). Floats are written with repr, so the file round-trips.
 """
 
 import csv

@@ -113,6 +113,12 @@ class NmpcController(LeafSystem):
         return self._preview_samples
 
     @property
+    def predictor(self) -> str:
+        """The forecast its preview reads (`NmpcConfig.predictor`; "": the recorded
+        future, or none for a causal NMPC)."""
+        return self._config.predictor
+
+    @property
     def ocp(self) -> MotionCueingOcp:
         """The optimal control problem this controller solves."""
         return self._ocp

@@ -142,20 +142,22 @@ def MakeReferencePredictor(
 
 def AddReferencePredictor(
     builder,
-    mca,
+    controller,
     reference_port,
     time_step: float = CONTROL_PERIOD_S,
     update_event: str = "unrestricted",
 ):
-    """The forecast an MCA's config asks for (an NmpcConfig with a `predictor`): a
-    ReferencePredictor named "predictor" reading `reference_port`, updated in the MCA's
-    phase `update_event`; returns its `reference_preview` port, or None (and adds nothing)
-    for an MCA without a predictor."""
-    kind = getattr(mca, "predictor", "")
+    """The forecast a predictive MCA reads: for a `controller` (an MCA system) whose
+    `predictor` names one (an NMPC's `NmpcConfig.predictor`, a DPC's `DpcConfig.predictor`),
+    a ReferencePredictor named "predictor" reading `reference_port`, updated in the MCA's
+    phase `update_event`, as long as the controller's `preview_samples`; returns its
+    `reference_preview` port, or None (and adds nothing) for an MCA without a predictor."""
+    kind = getattr(controller, "predictor", "")
     if not kind:
         return None
     predictor = builder.AddNamedSystem(
-        "predictor", MakeReferencePredictor(kind, mca.preview_steps, time_step, update_event)
+        "predictor",
+        MakeReferencePredictor(kind, controller.preview_samples, time_step, update_event),
     )
     builder.Connect(reference_port, predictor.GetInputPort("reference"))
     return predictor.GetOutputPort("reference_preview")
