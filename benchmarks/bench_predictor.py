@@ -14,6 +14,10 @@ aircraft flown by the scripted and the human-operator pilots (seeds 700-701) and
 drives (seeds 700-701).
 The learned predictor trains on the chosen recipe's references and keeps the epoch that
 forecasts the validation references best (`mca_drake.learning.predictor_training`).
+The flights and drives carry their pilots' and drivers' controls and the vehicle's speed
+and attitude (`Reference.signals`): the learned forecast reads them where given, and is
+scored both ways, with the validation references' signals and with none (a source that
+sends the motion alone).
 Writes `results/predictor.json` (forecast RMSE per channel at 0.5, 1 and 2.5 s ahead, every
 predictor, each ridge tried, the learned one's training time and loss curve) and, with
 --ship, the packaged models `mca_drake/data/linear_predictor.npz` and
@@ -49,6 +53,7 @@ from mca_drake.references.drives import TRAINING_MANOEUVRES, DriveSpec, motion_r
 from mca_drake.references.driving.car import CARS
 from mca_drake.references.flights import FlightSpec, flight_reference
 from mca_drake.references.jsbsim import TRAINING_VEHICLES, VALIDATION_VEHICLES
+from mca_drake.references.reference import Reference
 from mca_drake.references.synthetic import ENVELOPES, SyntheticConfig, synthetic_reference
 from mca_drake.resources import data_dir
 
@@ -57,9 +62,9 @@ STEPS = 256  # the NMPC's horizon, 2.56 s
 RIDGES = (1e-2, 1e-1, 1.0)
 
 
-def training_references(duration: float, cache=None) -> dict[str, np.ndarray]:
-    """{name: y (T, 6)} of the training sources (module docstring); flights and drives kept
-    in `cache` (a folder; None: none)."""
+def training_references(duration: float, cache=None) -> dict[str, Reference]:
+    """{name: reference} of the training sources (module docstring); flights and drives
+    kept in `cache` (a folder; None: none)."""
     found = {}
     for vehicle in TRAINING_VEHICLES:
         for seed in range(100, 104):
@@ -78,10 +83,7 @@ def training_references(duration: float, cache=None) -> dict[str, np.ndarray]:
         for seed in range(100, 104):
             spec = DriveSpec(manoeuvre=TRAINING_MANOEUVRES[seed % 2], seed=seed, car=car)
             found[f"{car} {seed}"] = motion_reference(spec, duration, cache_dir=cache)
-    return {
-        name: reference.y if hasattr(reference, "y") else reference
-        for name, reference in found.items()
-    }
+    return found
 
 
 def training_sets(training: dict) -> dict[str, list[str]]:
@@ -95,8 +97,8 @@ def training_sets(training: dict) -> dict[str, list[str]]:
     }
 
 
-def validation_references(duration: float, cache=None) -> dict[str, np.ndarray]:
-    """{name: y (T, 6)} of the validation sources (module docstring), kept in `cache`."""
+def validation_references(duration: float, cache=None) -> dict[str, Reference]:
+    """{name: reference} of the validation sources (module docstring), kept in `cache`."""
     found = {}
     for vehicle in (*TRAINING_VEHICLES, *VALIDATION_VEHICLES):
         for pilot in ("scripted", "human"):
@@ -104,11 +106,11 @@ def validation_references(duration: float, cache=None) -> dict[str, np.ndarray]:
                 spec = FlightSpec(vehicle=vehicle, seed=seed, pilot=pilot)
                 found[f"{vehicle} {seed} {pilot}"] = flight_reference(
                     spec, duration, cache_dir=cache
-                ).y
+                )
     for car in CARS:
         for seed in (700, 701):
             spec = DriveSpec(manoeuvre="lap", seed=seed, car=car)
-            found[f"{car} {seed}"] = motion_reference(spec, duration, cache_dir=cache).y
+            found[f"{car} {seed}"] = motion_reference(spec, duration, cache_dir=cache)
     return found
 
 
@@ -138,11 +140,9 @@ def main() -> int:
     )
     horizons = [round(h / CONTROL_PERIOD_S) for h in HORIZONS_S]
     history = history_samples(DEFAULT_LAGS)
+    motion = [reference.y for reference in validation.values()]
     constant = forecast_errors(
-        lambda h: constant_forecast(h, max(horizons)),
-        validation.values(),
-        horizons,
-        history=history,
+        lambda h: constant_forecast(h, max(horizons)), motion, horizons, history=history
     )
     tried = {}
     best = None
@@ -150,7 +150,7 @@ def main() -> int:
         for ridge in RIDGES:
             fit_start = time.perf_counter()
             model = fit_linear_predictor(
-                [training[name] for name in names],
+                [training[name].y for name in names],
                 STEPS,
                 ridge=ridge,
                 metadata={
@@ -160,7 +160,7 @@ def main() -> int:
                 },
             )
             fit_s = time.perf_counter() - fit_start
-            errors = forecast_errors(model.forecast, validation.values(), horizons, history=history)
+            errors = forecast_errors(model.forecast, motion, horizons, history=history)
             # the recipe that forecasts best relative to holding the sample, over every
             # channel and horizon (each channel counts alike, as in the PI)
             score = float(np.mean(errors / constant))
@@ -195,15 +195,25 @@ def main() -> int:
         f"{report['seconds']:.0f} s",
         flush=True,
     )
+    ahead = max(horizons)
     learned_errors = forecast_errors(
-        learned.forecast, validation.values(), horizons, history=learned.history
+        lambda h, s: learned.forecast(h, ahead, s),
+        validation.values(),
+        horizons,
+        history=learned.history,
+        signals=learned.signals,
+        signal_history=learned.signal_history,
+    )
+    # the same forecast where the source sends the motion alone
+    motion_only_errors = forecast_errors(
+        lambda h: learned.forecast(h, ahead), motion, horizons, history=learned.history
     )
     # the linear and constant forecasts scored on the same samples as the learned one
     # (its longer history starts later in each reference)
     same_samples = {
-        name: forecast_errors(f, validation.values(), horizons, history=learned.history)
+        name: forecast_errors(f, motion, horizons, history=learned.history)
         for name, f in (
-            ("constant", lambda h: constant_forecast(h, max(horizons))),
+            ("constant", lambda h: constant_forecast(h, ahead)),
             ("linear", model.forecast),
         )
     }
@@ -234,6 +244,12 @@ def main() -> int:
                 np.mean(same_samples["linear"] / same_samples["constant"])
             ),
             "rmse": errors_table(learned_errors),
+            "signals": list(learned.signals),
+            # reading no signals: where a source sends the motion alone
+            "motion_only_relative_rmse": float(
+                np.mean(motion_only_errors / same_samples["constant"])
+            ),
+            "motion_only_rmse": errors_table(motion_only_errors),
             "forecast_time": forecast_time(learned),
             "training_s": report["seconds"],
             "best_epoch": report["best_epoch"],
@@ -252,7 +268,8 @@ def main() -> int:
         print(f"{h:g} s ahead, linear/constant RMSE: {cells}")
     print(
         f"relative RMSE on the learned one's samples: learned "
-        f"{result['learned']['relative_rmse']:.3f}, linear "
+        f"{result['learned']['relative_rmse']:.3f} "
+        f"({result['learned']['motion_only_relative_rmse']:.3f} reading no signals), linear "
         f"{result['learned']['linear_relative_rmse']:.3f}"
     )
     return 0
@@ -261,7 +278,11 @@ def main() -> int:
 def forecast_time(model) -> dict:
     """A forecast's cost per control step (what a predictive MCA adds to its step), s."""
     history = np.zeros((model.history, len(CHANNELS)))
-    timings = time_calls(lambda: model.forecast(history, STEPS - 1), repeats=2000)
+    if getattr(model, "signals", ()):  # with every signal it reads given
+        signals = np.zeros((model.signal_history, len(model.signals)))
+        timings = time_calls(lambda: model.forecast(history, STEPS - 1, signals), repeats=2000)
+    else:
+        timings = time_calls(lambda: model.forecast(history, STEPS - 1), repeats=2000)
     found = {"median_s": float(np.median(timings)), "p99_s": float(np.percentile(timings, 99))}
     print(
         f"forecast per step: median {found['median_s'] * 1e6:.0f} us, "

@@ -417,6 +417,13 @@ def _predictor(results_dir: Path, data: dict) -> list[str]:
             f"{learned['relative_rmse']:.3f} against the linear one's "
             f"{learned['linear_relative_rmse']:.3f} on the same samples."
         )
+        if learned.get("signals"):
+            lines[0] += (
+                f" It reads the controls and vehicle state the references carry "
+                f"({', '.join(learned['signals'])}); given none, as from a source that sends "
+                f"the motion alone, its relative error is "
+                f"{learned['motion_only_relative_rmse']:.3f}."
+            )
     rows = []
     for horizon, linear in data["linear"]["rmse"].items():
         constant = data["constant"]["rmse"][horizon]

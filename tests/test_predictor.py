@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from forecast_helpers import perfect_predictor
+from forecast_helpers import smooth_flight as flight
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput
@@ -104,37 +106,10 @@ def test_the_predictor_system_forecasts_from_what_it_has_read(rng):
         np.testing.assert_allclose(previews[k], expected, atol=1e-12)
 
 
-def flight(seconds=8.0):
-    """A smooth reference whose w_x channel is unique at every sample (the perfect
-    forecaster below finds its place by it)."""
-    t = np.arange(round(seconds / H) + 1) * H
-    y = np.stack(
-        [
-            0.02 + 1e-4 * t,
-            0.04 * np.sin(0.7 * t),
-            0.05 * np.sin(0.3 * t),
-            0.8 * np.sin(0.5 * t),
-            0.5 * np.sin(0.9 * t + 1.0),
-            0.3 * np.sin(1.3 * t),
-        ],
-        axis=1,
-    )
-    return Reference(y, H, "smooth")
-
-
 def test_the_predictive_nmpc_with_the_recorded_future_is_the_preview_nmpc(monkeypatch):
     reference = flight()
     steps = NmpcConfig().horizon_steps
-
-    def perfect(kind, preview, time_step, update_event):
-        def forecast(history):
-            k = int(np.flatnonzero(reference.y[:, 0] == history[-1, 0])[0])
-            rows = np.minimum(np.arange(k + 1, k + preview), reference.y.shape[0] - 1)
-            return reference.y[rows]
-
-        return ReferencePredictor(forecast, 1, preview, time_step, update_event)
-
-    monkeypatch.setattr(predictor_systems, "MakeReferencePredictor", perfect)
+    monkeypatch.setattr(predictor_systems, "MakeReferencePredictor", perfect_predictor(reference))
     predictive = run_closed_loop(
         mca=NmpcConfig(preview_steps=steps, predictor="constant"),
         reference=reference,

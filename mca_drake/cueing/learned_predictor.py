@@ -31,10 +31,54 @@ from mca_drake.cueing.predictor import (
     load_linear_predictor,
     predictor_file,
 )
+from mca_drake.references.vehicle_signals import SIGNALS
 
 LEARNED_FORMAT = "mca-drake-learned-predictor-1"
 # The lags the network reads: the linear model's and more, back to 2 s.
 LEARNED_LAGS = (1, 2, 3, 5, 8, 12, 20, 30, 50, 75, 100, 150, 200)
+# The controls and vehicle state a learned forecast may read where its source carries them
+# (`references.vehicle_signals`): what the pilot or driver commands comes before the motion
+# it causes; the speed and attitude say what motion is possible.
+PREDICTOR_SIGNALS = (
+    "aileron",
+    "elevator",
+    "rudder",
+    "throttle",
+    "brake",
+    "steering",
+    "speed",
+    "roll",
+    "pitch",
+)
+# The lags (control periods) at which it reads each signal's change from its current value.
+SIGNAL_LAGS = (5, 20, 50)
+
+
+def signal_features(signals: np.ndarray, lags) -> tuple[np.ndarray, np.ndarray]:
+    """(values (..., S (len(lags) + 1)), present (..., S)) of signal histories (..., H, S),
+    the current sample last, NaN where absent: each signal's current value, then its
+    changes from it at each of `lags`; a signal is present where all of those are finite."""
+    now = signals[..., -1, :]
+    changes = [signals[..., -1 - lag, :] - now for lag in lags]
+    values = np.concatenate([now, *changes], axis=-1)
+    width = signals.shape[-1]
+    finite = np.isfinite(values).reshape(*values.shape[:-1], len(lags) + 1, width)
+    return values, finite.all(axis=-2)
+
+
+def network_inputs(
+    motion: np.ndarray, mean, scale, values=None, present=None, signal_mean=None, signal_scale=None
+) -> np.ndarray:
+    """The network's input: the standardized motion features (..., F), then, for a forecast
+    that reads signals, their standardized `values` (..., S (L + 1)) with an absent
+    signal's at zero (its mean) and the presence flags (..., S) (`signal_features`)."""
+    x = (motion - mean) / scale
+    if values is None:
+        return x
+    repeat = values.shape[-1] // present.shape[-1]
+    mask = np.tile(present, repeat)
+    standardized = np.where(mask, (np.nan_to_num(values) - signal_mean) / signal_scale, 0.0)
+    return np.concatenate([x, standardized, present.astype(float)], axis=-1)
 
 
 def knot_basis(knots, steps: int) -> np.ndarray:
@@ -73,6 +117,12 @@ class LearnedPredictor:
         knots: the K forecast steps the network's output sits at (`knot_basis`).
         output_scale: (6,): the output's unit per channel (a correction of 1 is that much).
         metadata: where it came from (training references, epochs, date), JSON-ready.
+        signals: the controls and state it reads where given (`PREDICTOR_SIGNALS` names;
+            empty: the motion alone), each at `signal_lags`.
+        signal_lags: control periods before the current sample at which it reads each
+            signal's change.
+        signal_mean, signal_scale: the signal features' standardization,
+            (S (len(signal_lags) + 1),) each (`signal_features`).
     """
 
     linear: LinearPredictor
@@ -83,6 +133,10 @@ class LearnedPredictor:
     knots: tuple[int, ...]
     output_scale: np.ndarray
     metadata: dict = dataclasses.field(default_factory=dict)
+    signals: tuple[str, ...] = ()
+    signal_lags: tuple[int, ...] = ()
+    signal_mean: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    signal_scale: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
 
     def __post_init__(self) -> None:
         self.lags = tuple(int(v) for v in self.lags)
@@ -91,6 +145,10 @@ class LearnedPredictor:
         self.scale = np.asarray(self.scale, dtype=float)
         self.output_scale = np.asarray(self.output_scale, dtype=float)
         self.layers = [(np.asarray(w, float), np.asarray(b, float)) for w, b in self.layers]
+        self.signals = tuple(str(v) for v in self.signals)
+        self.signal_lags = tuple(int(v) for v in self.signal_lags)
+        self.signal_mean = np.asarray(self.signal_mean, dtype=float)
+        self.signal_scale = np.asarray(self.signal_scale, dtype=float)
         features = NUM_CHANNELS * (len(self.lags) + 1)
         if not self.lags or min(self.lags) < 1:
             raise ValueError(f"lags must be positive control periods; got {self.lags}")
@@ -98,6 +156,19 @@ class LearnedPredictor:
             raise ValueError(f"mean and scale must be {features} numbers each")
         if not np.all(self.scale > 0) or self.output_scale.shape != (NUM_CHANNELS,):
             raise ValueError("scale must be positive and output_scale 6 numbers")
+        unknown = [name for name in self.signals if name not in SIGNALS]
+        if unknown or len(set(self.signals)) != len(self.signals):
+            raise ValueError(f"signals must be distinct names of {', '.join(SIGNALS)}")
+        if self.signals and (not self.signal_lags or min(self.signal_lags) < 1):
+            raise ValueError(
+                f"signal_lags must be positive control periods; got {self.signal_lags}"
+            )
+        signal_width = len(self.signals) * (len(self.signal_lags) + 1)
+        if self.signal_mean.shape != (signal_width,) or self.signal_scale.shape != (signal_width,):
+            raise ValueError(f"signal_mean and signal_scale must be {signal_width} numbers each")
+        if not np.all(self.signal_scale > 0):
+            raise ValueError("signal_scale must be positive")
+        features += signal_width + len(self.signals)  # the values and the presence flags
         widths = [features] + [b.size for _, b in self.layers]
         if len(self.layers) != 3 or any(
             w.shape != (a, c)
@@ -107,6 +178,7 @@ class LearnedPredictor:
         if widths[-1] != NUM_CHANNELS * len(self.knots):
             raise ValueError(f"the last layer must give 6 x {len(self.knots)} knot values")
         arrays = [self.mean, self.scale, self.output_scale, *(a for p in self.layers for a in p)]
+        arrays += [self.signal_mean, self.signal_scale]
         if not all(np.all(np.isfinite(a)) for a in arrays):
             raise ValueError("a learned predictor's arrays must be finite")
         self._basis = knot_basis(self.knots, self.steps)
@@ -126,22 +198,40 @@ class LearnedPredictor:
         """Samples of history it reads, the current one included."""
         return max(history_samples(self.lags), self.linear.history)
 
-    def correction(self, history: np.ndarray) -> np.ndarray:
-        """The network's correction to the linear forecast of histories (..., H, 6):
-        (..., N, 6)."""
-        x = (lag_features(history, self.lags) - self.mean) / self.scale
+    @property
+    def signal_history(self) -> int:
+        """Samples of signal history it reads, the current one included (0: none)."""
+        return history_samples(self.signal_lags) if self.signals else 0
+
+    def correction(self, history: np.ndarray, signals: np.ndarray | None = None) -> np.ndarray:
+        """The network's correction to the linear forecast of histories (..., H, 6), and,
+        for a forecast that reads signals, of their histories `signals` (..., H_s, S) in
+        the order of `self.signals`, NaN where absent (None: all absent): (..., N, 6)."""
+        motion = lag_features(history, self.lags)
+        if self.signals:
+            if signals is None:
+                shape = (*history.shape[:-2], self.signal_history, len(self.signals))
+                signals = np.full(shape, np.nan)
+            values, present = signal_features(np.asarray(signals, float), self.signal_lags)
+            x = network_inputs(
+                motion, self.mean, self.scale, values, present, self.signal_mean, self.signal_scale
+            )
+        else:
+            x = network_inputs(motion, self.mean, self.scale)
         (w1, b1), (w2, b2), (w3, b3) = self.layers
         out = np.tanh(np.tanh(x @ w1 + b1) @ w2 + b2) @ w3 + b3
         at_knots = out.reshape(*out.shape[:-1], len(self.knots), NUM_CHANNELS)
         return np.einsum("nk,...kc->...nc", self._basis, at_knots) * self.output_scale
 
-    def forecast(self, history: np.ndarray, steps: int | None = None) -> np.ndarray:
-        """The next `steps` samples (default and at most N) after histories (..., H, 6):
-        (..., steps, 6)."""
+    def forecast(
+        self, history: np.ndarray, steps: int | None = None, signals: np.ndarray | None = None
+    ) -> np.ndarray:
+        """The next `steps` samples (default and at most N) after histories (..., H, 6),
+        reading the signal histories `signals` (`correction`) where given: (..., steps, 6)."""
         steps = self.steps if steps is None else steps
         history = np.asarray(history, dtype=float)
         linear = self.linear.forecast(history, steps)
-        return linear + self.correction(history)[..., :steps, :]
+        return linear + self.correction(history, signals)[..., :steps, :]
 
 
 def save_learned_predictor(path: str | Path, predictor: LearnedPredictor) -> Path:
@@ -165,6 +255,13 @@ def save_learned_predictor(path: str | Path, predictor: LearnedPredictor) -> Pat
         "linear_time_step": np.asarray(linear.time_step),
         "metadata_json": np.array(json.dumps(metadata)),
     }
+    if predictor.signals:  # the signal part (a motion-only file has none)
+        arrays |= {
+            "signals": np.array(predictor.signals),
+            "signal_lags": np.asarray(predictor.signal_lags),
+            "signal_mean": predictor.signal_mean,
+            "signal_scale": predictor.signal_scale,
+        }
     for i, (w, b) in enumerate(predictor.layers):
         arrays[f"w{i}"], arrays[f"b{i}"] = w, b
     return atomic_write_npz(path, arrays)
@@ -179,8 +276,9 @@ def load_learned_predictor(path: str | Path) -> LearnedPredictor:
     """
     names = ("lags", "mean", "scale", "knots", "output_scale", "w0", "b0", "w1", "b1", "w2")
     names += ("b2", "linear_lags", "linear_steps", "linear_scale", "linear_weights")
+    optional = ("linear_time_step", "signals", "signal_lags", "signal_mean", "signal_scale")
     arrays, metadata = load_npz_with_metadata(
-        path, "learned predictor", names=frozenset((*names, "linear_time_step"))
+        path, "learned predictor", names=frozenset((*names, *optional))
     )
     if metadata.get("format") != LEARNED_FORMAT:
         raise ValueError(
@@ -204,6 +302,10 @@ def load_learned_predictor(path: str | Path) -> LearnedPredictor:
             knots=tuple(int(v) for v in arrays["knots"]),
             output_scale=arrays["output_scale"],
             metadata=metadata,
+            signals=tuple(str(v) for v in arrays.get("signals", ())),
+            signal_lags=tuple(int(v) for v in arrays.get("signal_lags", ())),
+            signal_mean=arrays.get("signal_mean", np.zeros(0)),
+            signal_scale=arrays.get("signal_scale", np.zeros(0)),
         )
     except KeyError as missing:
         raise ValueError(f"{path} is not a learned predictor file: no {missing}") from None

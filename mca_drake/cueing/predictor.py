@@ -206,21 +206,42 @@ def fit_linear_predictor(
 
 
 def forecast_errors(
-    predict, references, horizons, *, stride: int = 10, history: int = 1
+    predict,
+    references,
+    horizons,
+    *,
+    stride: int = 10,
+    history: int = 1,
+    signals: tuple[str, ...] = (),
+    signal_history: int = 1,
 ) -> np.ndarray:
     """RMS forecast error per horizon and channel, shape (len(horizons), 6): `predict`
     maps histories (M, H, 6) to forecasts (M, max(horizons), 6), scored at every
-    `stride`-th sample of `references` with `history` samples before it and the horizons
-    after it against what came."""
+    `stride`-th sample of `references` (arrays y (T, 6), or references with `y` and
+    `signals`) with `history` samples before it and the horizons after it against what
+    came. With `signals` named, `predict` also reads their histories (M, signal_history,
+    len(signals)), NaN for those a reference does not carry."""
     horizons = np.asarray(horizons, dtype=int)
     squared, count = np.zeros((horizons.size, NUM_CHANNELS)), 0
+    first = max(history, signal_history if signals else 1) - 1
     lags = np.arange(history - 1, -1, -1)
-    for y in references:
-        y = np.asarray(y, dtype=float)
-        ends = np.arange(history - 1, y.shape[0] - horizons.max(), stride)
+    signal_lags = np.arange(signal_history - 1, -1, -1)
+    for reference in references:
+        y = np.asarray(getattr(reference, "y", reference), dtype=float)
+        ends = np.arange(first, y.shape[0] - horizons.max(), stride)
         if ends.size == 0:
             continue
-        forecast = predict(y[ends[:, None] - lags[None, :]])
+        if signals:
+            carried = getattr(reference, "signals", {})
+            matrix = np.full((y.shape[0], len(signals)), np.nan)
+            for i, name in enumerate(signals):
+                if name in carried:
+                    matrix[:, i] = carried[name]
+            forecast = predict(
+                y[ends[:, None] - lags[None, :]], matrix[ends[:, None] - signal_lags[None, :]]
+            )
+        else:
+            forecast = predict(y[ends[:, None] - lags[None, :]])
         truth = y[ends[:, None] + horizons[None, :]]
         squared += ((forecast[:, horizons - 1] - truth) ** 2).sum(axis=0)
         count += ends.size

@@ -6,6 +6,13 @@ linear forecast on the training references, in units of each channel's residual 
 starts from the linear forecast, and the epoch kept is the one that forecasts the
 validation references best: a learned forecast is never worse there than the linear one
 it corrects (when no epoch helps, the correction stays zero).
+
+Where the references carry controls and vehicle state (`Reference.signals`), the network
+also reads those of `LearnedPredictorConfig.signals` with presence flags. It must forecast
+as well from what any source sends, from every signal to none: each training pair shows it
+a random part of its reference's signals (`signal_keep`), and a share of the pairs none at
+all (`signal_dropout`), and the epoch kept is the one with the least validation error
+averaged over the pairs with all their signals and with none.
 """
 
 from __future__ import annotations
@@ -18,9 +25,12 @@ import torch
 
 from mca_drake.cueing.learned_predictor import (
     LEARNED_LAGS,
+    PREDICTOR_SIGNALS,
+    SIGNAL_LAGS,
     LearnedPredictor,
     default_knots,
     knot_basis,
+    signal_features,
 )
 from mca_drake.cueing.predictor import NUM_CHANNELS, LinearPredictor, lag_features
 
@@ -46,15 +56,51 @@ class LearnedPredictorConfig:
     # the forecast steps the loss reads (every `loss_stride`-th, and the last)
     loss_stride: int = 4
     seed: int = 0
+    # the controls and state it reads where the references carry them (empty: motion only)
+    signals: tuple[str, ...] = PREDICTOR_SIGNALS
+    # the lags at which it reads each signal's change, control periods
+    signal_lags: tuple[int, ...] = SIGNAL_LAGS
+    # share of the training pairs shown none of their signals (a source that sends none)
+    signal_dropout: float = 0.3
+    # in the others, the chance each signal a reference carries is shown
+    signal_keep: float = 0.7
+
+
+def signal_matrix(signals: dict, names, length: int) -> np.ndarray:
+    """(length, len(names)): a reference's signals (name -> (T,)) in the order `names`, NaN
+    columns for those it does not carry."""
+    out = np.full((length, len(names)), np.nan)
+    for i, name in enumerate(names):
+        if name in signals:
+            out[:, i] = np.asarray(signals[name], dtype=float)
+    return out
+
+
+def as_reference(item) -> tuple[np.ndarray, dict]:
+    """(y (T, 6), signals {name: (T,)}) of a training or validation item: a `Reference`
+    (its `signals`), a (y, signals) pair or an array y (no signals)."""
+    if hasattr(item, "y"):
+        return np.asarray(item.y, dtype=float), dict(getattr(item, "signals", {}))
+    if isinstance(item, tuple):
+        return np.asarray(item[0], dtype=float), dict(item[1])
+    return np.asarray(item, dtype=float), {}
 
 
 def forecast_pairs(
-    y: np.ndarray, linear: LinearPredictor, lags, stride: int, read=None
-) -> tuple[np.ndarray, np.ndarray]:
+    y: np.ndarray,
+    linear: LinearPredictor,
+    lags,
+    stride: int,
+    read=None,
+    signals: np.ndarray | None = None,
+    signal_lags=(),
+) -> tuple:
     """(raw features (M, F), residuals (M, S, 6)) of reference y (T, 6): at every
     `stride`-th sample with the longest history either model reads and N samples after it,
     the network's features and what came less the linear forecast, at the forecast steps
-    `read` (0-based indices into the N; default all, S = N)."""
+    `read` (0-based indices into the N; default all, S = N). Given `signals` (T, K; NaN
+    where absent), also their raw values (M, K (L + 1)) and presence (M, K) at those
+    samples (`learned_predictor.signal_features` at `signal_lags`)."""
     y = np.asarray(y, dtype=float)
     history = max(max(lags), linear.history - 1)
     steps = linear.steps
@@ -66,7 +112,11 @@ def forecast_pairs(
     windows = y[ends[:, None] + np.arange(-history, 1)[None, :]]
     future = y[ends[:, None] + 1 + read[None, :]]
     residuals = future - linear.forecast(windows)[:, read]
-    return lag_features(windows, lags), residuals
+    if signals is None:
+        return lag_features(windows, lags), residuals
+    back = np.arange(-max(signal_lags), 1)
+    values, present = signal_features(signals[ends[:, None] + back[None, :]], signal_lags)
+    return lag_features(windows, lags), residuals, values, present
 
 
 class _Network(torch.nn.Module):
@@ -96,10 +146,11 @@ def train_learned_predictor(
     progress=None,
 ) -> tuple[LearnedPredictor, dict]:
     """The learned forecast that corrects `linear`, trained on `training` references and
-    kept at its best epoch on `validation` ones (arrays (T, 6) at the linear model's
-    control period). Returns it and a report: per-epoch training and validation loss
-    (mean squared residual in units of each channel's spread; the linear forecast's is the
-    loss at epoch 0), the best epoch, seconds.
+    kept at its best epoch on `validation` ones (each a `Reference`, a (y, signals) pair or
+    an array y (T, 6), at the linear model's control period). Returns it and a report:
+    per-epoch training and validation loss (mean squared residual in units of each
+    channel's spread; the linear forecast's is the loss at epoch 0), the best epoch,
+    seconds.
 
     `progress(epoch, train_loss, validation_loss)` is called after every epoch."""
     config = config or LearnedPredictorConfig()
@@ -108,13 +159,22 @@ def train_learned_predictor(
     rng = np.random.default_rng(config.seed)
     knots = default_knots(linear.steps)
     read = np.unique(np.r_[np.arange(0, linear.steps, config.loss_stride), linear.steps - 1])
-    pairs = [forecast_pairs(y, linear, config.lags, config.stride, read) for y in training]
-    held = [forecast_pairs(y, linear, config.lags, config.stride, read) for y in validation]
-    x_train = np.concatenate([p[0] for p in pairs])
-    r_train = np.concatenate([p[1] for p in pairs])
-    x_valid = np.concatenate([p[0] for p in held])
-    r_valid = np.concatenate([p[1] for p in held])
-    del pairs, held
+    names = tuple(config.signals)
+
+    def pairs_of(items):
+        found = []
+        for item in items:
+            y, signals = as_reference(item)
+            matrix = signal_matrix(signals, names, y.shape[0]) if names else None
+            found.append(
+                forecast_pairs(
+                    y, linear, config.lags, config.stride, read, matrix, config.signal_lags
+                )
+            )
+        return [np.concatenate(part) for part in zip(*found, strict=True)]
+
+    train_parts, valid_parts = pairs_of(training), pairs_of(validation)
+    (x_train, r_train), x_valid = train_parts[:2], valid_parts[0]
     if x_train.shape[0] < 10 * x_train.shape[1] or x_valid.shape[0] == 0:
         raise ValueError(
             f"{x_train.shape[0]} training and {x_valid.shape[0]} validation samples: give "
@@ -126,15 +186,42 @@ def train_learned_predictor(
     output_scale = np.sqrt((r_train**2).mean(axis=(0, 1)))
     output_scale = np.where(output_scale > 1e-12, output_scale, 1.0)
     basis = torch.as_tensor(knot_basis(knots, linear.steps)[read], dtype=torch.float32)
+    signal_mean, signal_scale = np.zeros(0), np.zeros(0)
+    if names:  # each signal feature standardized over the samples that carry it
+        values, present = train_parts[2], train_parts[3]
+        mask = np.tile(present, len(config.signal_lags) + 1)
+        counts = np.maximum(mask.sum(axis=0), 1)
+        clean = np.where(mask, np.nan_to_num(values), 0.0)
+        signal_mean = clean.sum(axis=0) / counts
+        spread = np.sqrt((np.where(mask, clean - signal_mean, 0.0) ** 2).sum(axis=0) / counts)
+        signal_scale = np.where(spread > 1e-12, spread, 1.0)
 
-    def tensors(x, r):
+    def tensors(parts):
+        x, r = parts[0], parts[1]
         features = torch.as_tensor((x - mean) / scale, dtype=torch.float32)
         targets = torch.as_tensor(r / output_scale, dtype=torch.float32)
-        return features, targets
+        if not names:
+            return features, targets, None, None
+        standardized = (np.nan_to_num(parts[2]) - signal_mean) / signal_scale
+        flags = parts[3]
+        standardized = np.where(np.tile(flags, len(config.signal_lags) + 1), standardized, 0.0)
+        as_float = lambda a: torch.as_tensor(a, dtype=torch.float32)  # noqa: E731
+        return features, targets, as_float(standardized), torch.as_tensor(flags)
 
-    x_t, r_t = tensors(x_train, r_train)
-    x_v, r_v = tensors(x_valid, r_valid)
-    network = _Network(x_t.shape[1], config.hidden, NUM_CHANNELS * len(knots))
+    x_t, r_t, s_t, p_t = tensors(train_parts)
+    x_v, r_v, s_v, p_v = tensors(valid_parts)
+    del train_parts, valid_parts
+    repeat = len(config.signal_lags) + 1
+
+    def inputs(x, values, flags, shown):
+        """The network's input with the signals `shown` (a bool mask like `flags`)."""
+        if values is None:
+            return x
+        shown = shown & flags
+        return torch.cat([x, values * shown.repeat(1, repeat), shown.float()], dim=1)
+
+    width = x_t.shape[1] + (s_t.shape[1] + p_t.shape[1] if names else 0)
+    network = _Network(width, config.hidden, NUM_CHANNELS * len(knots))
     optimizer = torch.optim.AdamW(
         network.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay
     )
@@ -144,9 +231,23 @@ def train_learned_predictor(
         return ((torch.einsum("nk,bkc->bnc", basis, at_knots) - targets) ** 2).mean()
 
     def validation_loss() -> float:
+        """Averaged over the validation pairs with all their signals and with none."""
+        cases = [True, False] if names else [True]
+        total = 0.0
         with torch.no_grad():
-            batches = zip(x_v.split(4096), r_v.split(4096), strict=True)
-            return float(sum(loss_of(f, t) * f.shape[0] for f, t in batches) / x_v.shape[0])
+            for show in cases:
+                for batch in torch.arange(x_v.shape[0]).split(4096):
+                    flags = None if p_v is None else p_v[batch]
+                    shown = None if flags is None else torch.full_like(flags, show)
+                    features = inputs(x_v[batch], None if s_v is None else s_v[batch], flags, shown)
+                    total += float(loss_of(features, r_v[batch])) * batch.numel()
+        return total / (x_v.shape[0] * len(cases))
+
+    def shown_in_training(flags):
+        """Which signals a batch's pairs show (class docstring of the config)."""
+        keep = torch.rand(flags.shape) < config.signal_keep
+        none = torch.rand(flags.shape[0], 1) < config.signal_dropout
+        return keep & ~none
 
     history = {"train": [float((r_t**2).mean())], "validation": [validation_loss()]}
     best = (history["validation"][0], 0, _state(network))
@@ -156,7 +257,12 @@ def train_learned_predictor(
         total = 0.0
         for batch in order.split(config.batch_size):
             optimizer.zero_grad()
-            loss = loss_of(x_t[batch], r_t[batch])
+            if names:
+                flags = p_t[batch]
+                features = inputs(x_t[batch], s_t[batch], flags, shown_in_training(flags))
+            else:
+                features = x_t[batch]
+            loss = loss_of(features, r_t[batch])
             loss.backward()
             optimizer.step()
             total += float(loss.detach()) * batch.numel()
@@ -169,13 +275,12 @@ def train_learned_predictor(
             best = (history["validation"][-1], epoch, _state(network))
         elif epoch - best[1] >= config.patience:
             break
-    layers = best[2]
     predictor = LearnedPredictor(
         linear=linear,
         lags=config.lags,
         mean=mean,
         scale=scale,
-        layers=layers,
+        layers=best[2],
         knots=knots,
         output_scale=output_scale,
         metadata={
@@ -184,6 +289,10 @@ def train_learned_predictor(
             "best_epoch": best[1],
             "training_samples": int(x_t.shape[0]),
         },
+        signals=names,
+        signal_lags=config.signal_lags if names else (),
+        signal_mean=signal_mean,
+        signal_scale=signal_scale,
     )
     report = {
         "loss": history,

@@ -245,7 +245,14 @@ def _ConnectMcaToSupervisor(
         builder.Connect(console.GetOutputPort("mode"), guard.GetInputPort("operator"))
     builder.Connect(guarded, controller.GetInputPort("reference"))
     # a predictive MCA's forecast, from what it has read, moved in its own (discrete) phase
-    forecast = AddReferencePredictor(builder, controller, guarded, time_step, "discrete")
+    forecast = AddReferencePredictor(
+        builder,
+        controller,
+        guarded,
+        time_step,
+        "discrete",
+        signals_port=source.GetOutputPort("signals"),
+    )
     if forecast is not None:
         builder.Connect(forecast, controller.GetInputPort("reference_preview"))
     builder.Connect(robot_ports.state, controller.GetInputPort("state"))

@@ -21,6 +21,7 @@ import numpy as np
 
 from mca_drake.conventions import CHANNELS, GRAVITY
 from mca_drake.references.recording import DEFAULT_RATE_HZ, Recording
+from mca_drake.references.vehicle_signals import SIGNALS
 
 DEFAULT_ANGULAR_SCALE = 0.5
 DEFAULT_FORCE_SCALE = 0.5
@@ -90,12 +91,17 @@ class Reference:
         vehicle: the vehicle flown or driven, as `FlightSpec.vehicle` or `DriveSpec.car`
             name it; "" where it is not known (a recording file, live telemetry). The DPC
             picks its policy by it (`mca_drake.cueing.dpc.vehicle_policy_name`).
+        signals: the controls and vehicle state on the same samples, SI, each shape (T,)
+            (`mca_drake.references.vehicle_signals.SIGNALS` names; a recording's, unscaled);
+            empty where the source carries none. A predictor reads them
+            (`mca_drake.cueing.learned_predictor`).
     """
 
     y: np.ndarray
     time_step: float = 1.0 / DEFAULT_RATE_HZ
     name: str = ""
     vehicle: str = ""
+    signals: dict = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.y = np.asarray(self.y, dtype=float)
@@ -105,6 +111,15 @@ class Reference:
             raise ValueError("reference y has non-finite values")
         if not self.time_step > 0:
             raise ValueError(f"time_step must be positive; got {self.time_step}")
+        self.signals = {name: np.asarray(v, dtype=float) for name, v in self.signals.items()}
+        for name, values in self.signals.items():
+            if name not in SIGNALS:
+                raise ValueError(f"unknown reference signal '{name}'; known: {', '.join(SIGNALS)}")
+            if values.shape != (self.y.shape[0],):
+                raise ValueError(
+                    f"reference signal {name} must have {self.y.shape[0]} samples; got "
+                    f"{values.shape}"
+                )
 
     @property
     def times(self) -> np.ndarray:
@@ -119,7 +134,8 @@ class Reference:
     def truncated(self, duration_s: float) -> "Reference":
         """The first `duration_s` seconds (all of it if shorter)."""
         n = min(round(duration_s / self.time_step) + 1, self.y.shape[0])
-        return Reference(self.y[:n], self.time_step, self.name, self.vehicle)
+        signals = {name: v[:n] for name, v in self.signals.items()}
+        return Reference(self.y[:n], self.time_step, self.name, self.vehicle, signals)
 
 
 def scaled_reference(omega: np.ndarray, f: np.ndarray, scaling: ReferenceScaling) -> np.ndarray:
@@ -204,4 +220,4 @@ def reference_from_recording(
     # The mean step, to the nanosecond: single steps of epoch time stamps carry their
     # 2.4e-7 s resolution, and no control period needs finer than 1 ns.
     time_step = round(float((recording.t[-1] - recording.t[0]) / (recording.t.size - 1)), 9)
-    return Reference(y, time_step, label, vehicle)
+    return Reference(y, time_step, label, vehicle, dict(recording.signals))

@@ -172,7 +172,13 @@ def _add_source_and_mca(builder, reference, mca, robot, plausibility=None, scali
     guarded, preview_port = AddReferenceScaling(builder, guarded, scaling, preview_port)
     builder.Connect(guarded, controller.GetInputPort("reference"))
     if forecast:  # a forecast from what the MCA has read so far, in the MCA's own phase
-        preview_port = AddReferencePredictor(builder, controller, guarded, reference.time_step)
+        preview_port = AddReferencePredictor(
+            builder,
+            controller,
+            guarded,
+            reference.time_step,
+            signals_port=source.GetOutputPort("signals"),
+        )
     if preview:
         builder.Connect(preview_port, controller.GetInputPort("reference_preview"))
     home = getattr(controller, "home_position", robot.home)

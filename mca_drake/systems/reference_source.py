@@ -6,6 +6,10 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
 from mca_drake.references.reference import Reference
+from mca_drake.references.vehicle_signals import SIGNALS
+
+# Each signal's place in the `signals` output.
+SIGNALS_ORDER = {name: i for i, name in enumerate(SIGNALS)}
 
 
 class ReferenceSource(LeafSystem):
@@ -17,11 +21,15 @@ class ReferenceSource(LeafSystem):
         output_ports:
         - reference
         - reference_preview
+        - signals
 
     At time t the sample index is k = floor(t / time_step) (with a tolerance for rounding
     at sample instants). `reference` (6) is y_ref[k]; `reference_preview` (6 N) holds the N
     samples y_ref[k], y_ref[k + 1], ..., y_ref[k + N - 1] stacked sample after sample
     (reshape to (N, 6)); samples past the end hold the last value, as does `reference`.
+    `signals` (len(SIGNALS)): the reference's controls and vehicle state at sample k, one
+    per `vehicle_signals.SIGNALS` name in its order, NaN for one it does not carry (as the
+    live receiver's port).
 
     Args:
         reference: the reference to play.
@@ -30,6 +38,10 @@ class ReferenceSource(LeafSystem):
 
     def __init__(self, reference: Reference, preview_samples: int = 1):
         super().__init__()
+        # (T, len(SIGNALS)), NaN columns for the signals the reference does not carry
+        self._signals = np.full((reference.y.shape[0], len(SIGNALS)), np.nan)
+        for name, values in reference.signals.items():
+            self._signals[:, SIGNALS_ORDER[name]] = values
         if preview_samples < 1:
             raise ValueError(f"preview_samples must be at least 1; got {preview_samples}")
         self._y = np.array(reference.y)
@@ -44,6 +56,9 @@ class ReferenceSource(LeafSystem):
             6 * self._preview_samples,
             self._calc_preview,
             prerequisites_of_calc={self.time_ticket()},
+        )
+        self.DeclareVectorOutputPort(
+            "signals", len(SIGNALS), self._calc_signals, prerequisites_of_calc={self.time_ticket()}
         )
 
     @property
@@ -68,3 +83,6 @@ class ReferenceSource(LeafSystem):
         k = self.sample_index(context.get_time())
         rows = np.minimum(np.arange(k, k + self._preview_samples), self._y.shape[0] - 1)
         output.SetFromVector(self._y[rows].reshape(-1))
+
+    def _calc_signals(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._signals[self.sample_index(context.get_time())])
