@@ -323,30 +323,38 @@ def _preview(results_dir: Path, data: dict) -> list[str]:
 
 
 def _predictive(results_dir: Path, data: dict) -> list[str]:
-    """Predictive cueing: per case, the causal NMPC-rti, the predictive ones (the learned
-    forecast, and the linear one where it ran) and the perfect preview; the share of the
-    preview's gain each forecast captures and the flights it made worse."""
+    """Predictive cueing: per case, each predictive MCA (the NMPC-rti with the learned and
+    the linear forecast, the predictive DPC) against its causal twin and the NMPC-rti's
+    perfect preview; the share of the preview's gain each captures and the flights it made
+    worse."""
     lines = [
-        f"NMPC-rti on the evaluation suite's {data['duration_s']:.0f} s flights and drives: "
-        "causal (the reference held over the horizon), predictive (nmpc-rti-predictive: the "
-        "packaged learned forecast over the horizon, from the past alone; "
-        "nmpc-rti-predictive-linear: the linear one) and with the recorded future over the "
-        "horizon (the perfect preview). Gain: the median paired gain over the causal "
-        "NMPC-rti; share: that gain as a share of the perfect preview's. Worse: flights the "
-        "predictive NMPC scored worse than the causal one on.",
+        f"The evaluation suite's {data['duration_s']:.0f} s flights and drives, cued by the "
+        "NMPC-rti causal (the reference held over the horizon), predictive "
+        "(nmpc-rti-predictive: the packaged learned forecast over the horizon, from the past "
+        "alone; nmpc-rti-predictive-linear: the linear one) and with the recorded future over "
+        "the horizon (the perfect preview), and by the DPC causal and predictive "
+        "(dpc-predictive: the shipped predictive policy reading the learned forecast). Gain: "
+        "the median paired gain over the causal twin; share: that gain as a share of the "
+        "NMPC-rti's perfect preview's over the causal NMPC-rti (for the DPC, the same "
+        "yardstick: no DPC reads the recorded future). Worse: flights the predictive MCA "
+        "scored worse than its causal twin on.",
         "",
     ]
     rows = []
+    twins = (
+        ("nmpc-rti", "nmpc-rti-predictive"),
+        ("nmpc-rti", "nmpc-rti-predictive-linear"),
+        ("dpc", "dpc-predictive"),
+    )
     for case_name, case in data["cases"].items():
         mcas = case["mcas"]
-        causal = mcas.get("nmpc-rti")
         preview = next((m for name, m in mcas.items() if "preview" in name), None)
-        if not (causal and preview):
+        if not (mcas.get("nmpc-rti") and preview):
             continue
-        perfect = _paired_gains(causal, preview)
-        for name in ("nmpc-rti-predictive", "nmpc-rti-predictive-linear"):
-            predictive = mcas.get(name)
-            if not predictive:
+        perfect = _paired_gains(mcas["nmpc-rti"], preview)
+        for causal_name, name in twins:
+            causal, predictive = mcas.get(causal_name), mcas.get(name)
+            if not (causal and predictive):
                 continue
             predicted = _paired_gains(causal, predictive)
             share = statistics.median(predicted) / statistics.median(perfect)
@@ -369,9 +377,9 @@ def _predictive(results_dir: Path, data: dict) -> list[str]:
     header = [
         "case",
         "predictive MCA",
-        "causal PI",
+        "causal twin's PI",
         "predictive PI",
-        "perfect preview PI",
+        "NMPC-rti perfect preview PI",
         "gain",
         "share",
         "worse",
@@ -379,6 +387,33 @@ def _predictive(results_dir: Path, data: dict) -> list[str]:
         "predictive step median",
     ]
     return [*lines, *_table(header, rows), ""]
+
+
+def _predictive_step(results_dir: Path, data: dict) -> list[str]:
+    """Each predictive MCA's step time, the forecast included, beside its causal twin's."""
+    flight = data["flight"]
+    lines = [
+        f"One {data['duration_s']:.0f} s flight of the {flight['vehicle']} (seed "
+        f"{flight['seed']}, the {flight['pilot']} pilot; it carries "
+        f"{', '.join(data['signals'])}), analytical plant: the MCA's compute time per "
+        "control step, the forecast included for a predictive MCA; the median over the runs, "
+        f"the range across them in brackets. Live budget: p99 within "
+        f"{data['budget_p99_s'] * 1e3:.0f} ms at 100 Hz.",
+        "",
+    ]
+    rows = []
+    for mca, m in data["mcas"].items():
+        low, high = m["median_range_s"]
+        p_low, p_high = m["p99_range_s"]
+        rows.append(
+            [
+                mca,
+                f"{m['median_s'] * 1e3:.2f} ms ({low * 1e3:.2f}-{high * 1e3:.2f})",
+                f"{m['p99_s'] * 1e3:.2f} ms ({p_low * 1e3:.2f}-{p_high * 1e3:.2f})",
+                f"{m['within_budget_runs']} of {m['runs']}",
+            ]
+        )
+    return [*lines, *_table(["MCA", "step median", "step p99", "p99 within budget"], rows), ""]
 
 
 def _paired_gains(base: dict, other: dict) -> list[float]:
@@ -1279,6 +1314,13 @@ SECTIONS = (
         "the NMPC-rti with a forecast of the reference as its preview against the causal "
         "NMPC-rti and the perfect preview, on the suite's cases A-E",
         _predictive,
+    ),
+    Section(
+        "Predictive step time",
+        "predictive_step.json",
+        "each predictive MCA's step time with its forecast, beside its causal twin's "
+        "(`bench_predictive_step.py`)",
+        _predictive_step,
     ),
     Section(
         "Reference forecasts",

@@ -29,6 +29,8 @@ SHIPPED_POLICIES = (
     "ground_policy",
     "light_policy",
     "transport_policy",
+    "predictive_policy",
+    "ground_predictive_policy",
     *(f"{platform}_{name}" for platform in PLATFORMS_WITH_POLICIES for name in MOVED_POLICIES),
     *(f"{platform}_default_policy" for platform in PLATFORMS_WITH_OWN_POLICY),
 )

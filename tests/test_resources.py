@@ -59,6 +59,8 @@ def test_bad_names_are_refused():
         "ground_policy.npz",
         "light_policy.npz",
         "transport_policy.npz",
+        "predictive_policy.npz",
+        "ground_predictive_policy.npz",
         *(
             f"{platform}_{name}.npz"
             for platform in ("kr500-rail", "fanuc-m900ib700")

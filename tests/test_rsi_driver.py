@@ -282,8 +282,8 @@ def test_the_emulator_stops_a_correction_beyond_the_limits(robot):
         RsiDriverConfig(axis_signs=[1, 1, 1, 1, 1, 2]).validate()
 
 
-def live_run_with_emulator(tmp_path, sender, robot, emulator_args):
-    """`run_live` of the washout for 3 s on `robot` with a robot over RSI: telemetry from
+def live_run_with_emulator(tmp_path, sender, robot, emulator_args, mca="washout"):
+    """`run_live` of `mca` for 3 s on `robot` with a robot over RSI: telemetry from
     `sender(address, 3.2)` in a thread, the driver in its process and the emulator
     (`emulator_args` added to its command) in another, both started once the loop listens.
     Returns the live summary, the emulator's report and its recording."""
@@ -301,7 +301,7 @@ def live_run_with_emulator(tmp_path, sender, robot, emulator_args):
 
     summary = run_live(
         CsvDecoder(),
-        "washout",
+        mca,
         3.0,
         receiver=ReceiverConfig(port=0),
         on_listening=start,
@@ -337,6 +337,23 @@ def test_a_live_run_drives_the_emulated_robot_through_a_telemetry_stop(tmp_path)
     assert np.abs(axes).max() > 0.5  # it moved (the surge oscillation)
     on_time = np.isfinite(recording["latency_s"])
     np.testing.assert_array_equal(axes[on_time][-1], axes[on_time][-10])  # at rest at the end
+
+
+def test_a_predictive_mca_drives_the_emulated_robot(tmp_path):
+    """The predictive NMPC-rti (the learned forecast beside it, in the live loop's phase)
+    over RSI: every period's segment sent and followed, no limit met, at rest at the end."""
+    home_deg = np.degrees(KR500.home)
+    emulator = ["--start-deg", ",".join(repr(float(v)) for v in home_deg)]
+    summary, report, recording = live_run_with_emulator(
+        tmp_path, stream, KR500, emulator, mca="nmpc-rti-predictive"
+    )
+    driver = summary["rsi"]
+    assert summary["mca"] == "nmpc-rti-predictive"
+    assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
+    assert driver["segments"] == driver["segments_sent"] >= 299 and driver["segments_unsent"] == 0
+    assert driver["bad_state"] == 0 and driver["bad_segments"] == 0 and report["bad_replies"] == 0
+    assert report["on_time"] >= ON_TIME_SHARE * report["cycles"], report
+    assert np.abs(recording["axes_deg"] - home_deg).max() > 0.5  # it moved
 
 
 class FakePacer:

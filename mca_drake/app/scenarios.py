@@ -503,9 +503,10 @@ class LiveScenario:
             _, metadata = load_policy_arrays(
                 self.mca.policy_path(load_platform(self.platform).name)
             )
-            if policy_preview_steps(metadata):
+            if policy_preview_steps(metadata) and not self.mca.predictor:
                 raise ValueError(
-                    "live telemetry has no future: the DPC policy reads a reference preview"
+                    "live telemetry has no future: the DPC policy reads a reference preview; "
+                    "name a predictor to forecast it (dpc-predictive)"
                 )
 
 

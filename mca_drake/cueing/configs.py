@@ -7,7 +7,8 @@ The names `dpc`, `nmpc-rti`, `nmpc-converged` and `washout` are shorthands for t
 config of each (`--mca nmpc-rti`), and name an MCA in summaries and reports; the NMPC's
 names take `-perceived` for its perceived objective (`nmpc-rti-perceived`) and
 `-predictive` for a forecast of the reference as its preview (`nmpc-rti-predictive`,
-`mca_drake.cueing.predictor`). Any name takes a
+`mca_drake.cueing.predictor`); `dpc-predictive` runs the shipped predictive policy on that
+forecast. Any name takes a
 shipped profile's suffix for that profile's settings (`washout-ground`, `nmpc-rti-ground`,
 `dpc-ground`; `mca_drake.cueing.profiles`).
 """
@@ -42,6 +43,7 @@ MCA_NAMES = (
     "nmpc-converged-perceived",
     "nmpc-rti-predictive",
     "nmpc-converged-predictive",
+    "dpc-predictive",
 )
 
 
@@ -56,7 +58,7 @@ def mca_config_from_name(name: str, platform: str = "") -> McaConfig:
     """
     base, profile = split_profile(name)
     tuned = load_platform_settings(platform) if not profile else None
-    if tuned is not None and base in MCA_NAMES and base != "dpc":
+    if tuned is not None and base in MCA_NAMES and not base.startswith("dpc"):
         default = mca_config_from_name(base)
         if isinstance(default, NmpcConfig):
             return dataclasses.replace(
@@ -75,6 +77,8 @@ def mca_config_from_name(name: str, platform: str = "") -> McaConfig:
             )
         default = mca_config_from_name(base)
         config = profile_config(type(default), profile)
+        if isinstance(config, DpcConfig):  # the profile's predictive policy for a predictor
+            config = dataclasses.replace(config, predictor=default.predictor)
         if isinstance(config, NmpcConfig):
             config = dataclasses.replace(
                 config,
@@ -86,6 +90,8 @@ def mca_config_from_name(name: str, platform: str = "") -> McaConfig:
         return config
     if name == "dpc":
         return DpcConfig()
+    if name == "dpc-predictive":  # the shipped predictive policy on the packaged forecast
+        return DpcConfig(predictor=NAMED_PREDICTOR)
     if name in MCA_NAMES and name.startswith("nmpc-"):
         mode, _, variant = name.removeprefix("nmpc-").partition("-")
         if variant == "predictive":  # the packaged forecast over the whole horizon
@@ -139,6 +145,10 @@ def mca_name(config: McaConfig) -> str:
         elif config.preview_steps:
             suffix += f"-preview{config.preview_steps}"
         return f"nmpc-{config.mode}{suffix}{profile}"
+    if isinstance(config, DpcConfig) and config.predictor:
+        predictor = config.predictor
+        forecast = "" if predictor == NAMED_PREDICTOR else f"-{Path(predictor).stem}"
+        return f"dpc-predictive{forecast}{profile}"
     return ("dpc" if isinstance(config, DpcConfig) else "washout") + profile
 
 

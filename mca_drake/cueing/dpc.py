@@ -21,6 +21,7 @@ from scipy.special import erf
 
 from mca_drake.atomic_io import load_npz_with_metadata
 from mca_drake.conventions import NUM_CHANNELS
+from mca_drake.cueing.predictor import check_predictor
 from mca_drake.cueing.recognition import RECOGNITION_REASONS, RECOGNIZED_POLICIES
 from mca_drake.cueing.reference_range import (
     ReferenceRange,
@@ -154,11 +155,18 @@ class DpcConfig:
     # throw the cabin before the car was recognized; clipped, it reads the strongest
     # lateral force it knows (decision 0025).
     range_clip: str = "unnamed"
+    # The forecast of the reference a policy with a preview reads (`cueing.predictor`:
+    # "linear", "learned" or a model file), for live use, where nobody knows the future;
+    # "": a preview policy reads the recorded future. With `policy` and `profile` empty it
+    # runs the shipped predictive policy (`PREDICTIVE_POLICY`), trained on that forecast:
+    # `dpc-predictive`.
+    predictor: str = ""
 
     def validate(self) -> None:
         """Raises ValueError for an unknown profile or `unnamed`, FileNotFoundError when the
         policy file does not exist."""
         check_profile(self.profile)
+        check_predictor(self.predictor)
         if self.unnamed not in UNNAMED_CHOICES:
             raise ValueError(
                 f"DpcConfig.unnamed must be one of {', '.join(UNNAMED_CHOICES)}; got "
@@ -186,16 +194,23 @@ class DpcConfig:
         """
         if self.policy:
             return Path(self.policy)
+        if self.predictor:
+            return predictive_policy_path(platform, self.cues_ground())
         if self.profile:
             name = f"{check_profile(self.profile)}_policy"
         else:
             name = vehicle_policy_name(self.vehicle)
         return _platform_policy_path(platform, name)
 
+    def cues_ground(self) -> bool:
+        """Whether the config is the ground profile's or names a car (`GROUND_VEHICLES`)."""
+        return self.profile == "ground" or self.vehicle in GROUND_VEHICLES
+
     def recognizes(self) -> bool:
         """Whether the policy is recognized from the reference: nothing names the policy, the
         profile or the vehicle, and `unnamed` is "recognize"."""
-        return not (self.policy or self.profile or self.vehicle) and self.unnamed == "recognize"
+        named = self.policy or self.profile or self.vehicle or self.predictor
+        return not named and self.unnamed == "recognize"
 
     def clips_reference(self) -> bool:
         """Whether the network reads the reference clipped into its policy's training range
@@ -209,6 +224,28 @@ class DpcConfig:
         if not self.recognizes():
             return None
         return tuple(_platform_policy_path(platform, name) for name in RECOGNIZED_POLICIES)
+
+
+# The shipped policies of `dpc-predictive` (a DpcConfig with a predictor and no policy), for
+# flight and, for a car or the ground profile, for the ground: the default and the ground
+# policy each widened to read a preview and fine-tuned reading the packaged learned forecast
+# (docs/guides/training.md, "the predictive policies").
+PREDICTIVE_POLICY = "predictive_policy"
+GROUND_PREDICTIVE_POLICY = "ground_predictive_policy"
+
+
+def predictive_policy_path(platform: str, ground: bool = False) -> Path:
+    """The shipped predictive policy (`PREDICTIVE_POLICY`, or `GROUND_PREDICTIVE_POLICY`
+    where `ground`) on the platform named `platform`; FileNotFoundError, with the commands
+    that make one, on a platform that ships none (only the KR500 does)."""
+    if platform != UNNAMED_POLICY_PLATFORM:
+        raise FileNotFoundError(
+            f"no predictive policy is shipped for platform '{platform}': train one with "
+            "`mca-drake train-policy --preview-steps 256 --preview-predictor learned "
+            f"--time-stretch-fraction 0 --platform {platform}` and pass it as --policy with "
+            "the predictor"
+        )
+    return shipped_policy_path(GROUND_PREDICTIVE_POLICY if ground else PREDICTIVE_POLICY)
 
 
 def _platform_policy_path(platform: str, name: str) -> Path:
@@ -278,6 +315,9 @@ def policy_choice(config: DpcConfig, platform: str) -> tuple[Path, str]:
     path = config.policy_path(platform)
     if config.policy:
         return path, "given as DpcConfig.policy"
+    if config.predictor:
+        kind = "ground's" if config.cues_ground() else "flight"
+        return path, f"the {kind} predictive policy, reading the {config.predictor} forecast"
     if config.profile:
         return path, f"the {config.profile} profile's"
     return path, _vehicle_policy(config.vehicle)[1]

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from mca_drake.cueing import NmpcConfig
 from mca_drake.cueing.nmpc_config import OBJECTIVES
+from mca_drake.cueing.predictor import check_predictor
 from mca_drake.perception.models import PerceptionConfig
 from mca_drake.platforms.files import DEFAULT_PLATFORM
 
@@ -125,10 +126,16 @@ class DpcTrainingConfig:
     # Vestibular model of the perceived tracking term: "telban-cardullo" or "ormsby".
     perception_model: str = _NMPC.perception_model
     # Reference preview of the policy, control periods: 0 (causal) or N, a policy that also
-    # reads the reference at 4 instants over the next N periods (a known future: offline
-    # use only; live runs refuse such a policy). Rollouts read it from their own targets,
-    # the last held beyond the window.
+    # reads the reference at 4 instants over the next N periods. Rollouts read it from their
+    # own targets, the last held beyond the window (a known future: offline use only), or
+    # from `preview_predictor`'s forecast.
     preview_steps: int = 0
+    # The forecast the preview reads in training (`mca_drake.cueing.predictor`: "linear",
+    # "learned" or a model file), what the policy will read live (`DpcConfig.predictor`):
+    # each flight's forecast from its own history, as the predictor runs beside the MCA,
+    # mirrored with its window. "": the recorded future. Needs time_stretch_fraction 0 (a
+    # stretched window's forecast is not its forecast stretched).
+    preview_predictor: str = ""
     # Weight of the state-prediction term ||x_hat_(t+1) - x_(t+1)||^2 (paper: 1).
     state_estimate_weight: float = 1.0
     # Weight of ||u_t||^2, (rad/s^2)^-2: the tuned NMPC's (paper: 0.1).
@@ -298,6 +305,18 @@ class DpcTrainingConfig:
         PerceptionConfig(model=self.perception_model).validate()
         if isinstance(self.preview_steps, bool) or self.preview_steps < 0:
             raise ValueError(f"preview_steps must be a whole number >= 0; got {self.preview_steps}")
+        if self.preview_predictor:
+            check_predictor(self.preview_predictor)
+            if not self.preview_steps:
+                raise ValueError(
+                    f"preview_predictor {self.preview_predictor!r} forecasts the preview: set "
+                    "preview_steps > 0"
+                )
+            if self.time_stretch_fraction > 0:
+                raise ValueError(
+                    "a forecast preview (preview_predictor) needs time_stretch_fraction 0: a "
+                    "stretched window's forecast is not its forecast stretched"
+                )
         weights = self.tracking_channel_weights
         if isinstance(weights, str):
             if weights not in ("uniform", "normalized"):

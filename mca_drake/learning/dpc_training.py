@@ -63,6 +63,7 @@ from mca_drake.cueing.reference_range import (
 )
 from mca_drake.learning.checkpoint import CheckpointError, load_checkpoint, load_state_into
 from mca_drake.learning.configs import DpcTrainingConfig
+from mca_drake.learning.forecast_previews import FORECAST_PREVIEW_ARRAY, forecast_preview_array
 from mca_drake.learning.legs import LegLimits
 from mca_drake.learning.output_models import PAPER_PLATFORM, MixedAnalyticalOutput
 from mca_drake.learning.perception import TorchVestibularFilter
@@ -71,6 +72,7 @@ from mca_drake.learning.policy_network import (
     load_policy_network,
     save_policy,
     transfer_policy_network,
+    with_preview,
 )
 from mca_drake.learning.state_models import Node2State
 from mca_drake.learning.torch_plant import TorchPlant, viable_acceleration_bounds_torch
@@ -179,14 +181,18 @@ def closed_loop_rollout(
     y0: torch.Tensor,
     targets: torch.Tensor,
     cell=None,
+    previews: torch.Tensor | None = None,
 ) -> Rollout:
     """Runs policy and plant in a cycle over targets (B, T, 6) from x0 (B, 2n), y0 (B, 6).
 
-    `cell` may be a compiled `rollout_cell(policy, plant)`."""
+    `cell` may be a compiled `rollout_cell(policy, plant)`. A policy with a preview reads
+    `previews` (B, T, 6 PREVIEW_POINTS; a forecast's, `learning.forecast_previews`) or, where
+    None, the targets ahead (`rollout_previews`)."""
     cell = cell or rollout_cell(policy, plant)
     x, y = x0, y0
     U, X, X_hat, Y = [], [x0], [], []
-    previews = rollout_previews(targets, policy.preview_steps)
+    if previews is None or not policy.preview_steps:
+        previews = rollout_previews(targets, policy.preview_steps)
     for t in range(targets.shape[1]):
         preview = None if previews is None else previews[:, t]
         u, x_hat, y, x = cell(y, x, targets[:, t], preview)
@@ -303,15 +309,26 @@ def mirror_signs(
 
 
 def mirror_some_windows(
-    x0: torch.Tensor, y0: torch.Tensor, targets: torch.Tensor, fraction: float, robot: SerialChain
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    x0: torch.Tensor,
+    y0: torch.Tensor,
+    targets: torch.Tensor,
+    fraction: float,
+    robot: SerialChain,
+    previews: torch.Tensor | None = None,
+):
     """(x0 (B, 2n), y0 (B, 6), targets (B, T, 6)) with a random `fraction` of the windows
-    replaced by their mirror images (torch's global generator; see `mirror_fraction`)."""
+    replaced by their mirror images (torch's global generator; see `mirror_fraction`);
+    given forecast `previews` (B, T, 6 P), also those, mirrored channel by channel with
+    their windows, as a fourth element."""
     chosen = torch.rand(x0.shape[0], 1, device=x0.device) < fraction
     _, state_signs, channel_signs = mirror_signs(robot, x0.dtype, x0.device)
     x_signs = torch.where(chosen, state_signs, torch.ones_like(state_signs))
     y_signs = torch.where(chosen, channel_signs, torch.ones_like(channel_signs))
-    return x0 * x_signs, y0 * y_signs, targets * y_signs[:, None]
+    mirrored = x0 * x_signs, y0 * y_signs, targets * y_signs[:, None]
+    if previews is None:
+        return mirrored
+    points = previews.shape[-1] // y_signs.shape[-1]
+    return (*mirrored, previews * y_signs.repeat(1, points)[:, None])
 
 
 def _symmetry_error(plant: RolloutPlant, map_x, map_u, map_y, samples: int = 64) -> float:
@@ -503,10 +520,16 @@ def dpc_objective(
             cell = rollout_cell(policy, plant)
             cells[id(policy)] = torch.compile(cell) if config.compile else cell
         targets, x0, y0 = batch[key], batch["X"][:, 0], batch["Y"][:, 0]
+        previews = batch.get(FORECAST_PREVIEW_ARRAY)  # a forecast preview's, where trained on
         if policy.training and config.mirror_fraction > 0:
-            x0, y0, targets = mirror_some_windows(
-                x0, y0, targets, config.mirror_fraction, plant.robot
-            )
+            if previews is None:
+                x0, y0, targets = mirror_some_windows(
+                    x0, y0, targets, config.mirror_fraction, plant.robot
+                )
+            else:
+                x0, y0, targets, previews = mirror_some_windows(
+                    x0, y0, targets, config.mirror_fraction, plant.robot, previews
+                )
         if policy.training and config.yaw_shift_fraction > 0:
             x0 = shift_base_yaw(x0, config.yaw_shift_fraction, plant.q_min, plant.q_max)
         if policy.training and config.time_stretch_fraction > 0:
@@ -515,7 +538,7 @@ def dpc_objective(
             )
         if policy.training and config.perturbed_fraction > 0:
             x0 = perturb_initial_states(x0, policy, config)
-        rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)])
+        rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)], previews)
         weights_here = None if channel_weights is None else channel_weights.to(targets)
         if "S" in batch:  # the windows' achievable-cost weights, (B, 1, 1)
             window = batch["S"][:, :1]
@@ -570,16 +593,25 @@ def own_closed_loop_states(
     loop over its targets `key`, from the first segment's state and output, behind the
     plant's clamp; a gap in a flight starts a new run from the state after it. All runs fly
     in one batch (shorter ones hold their last target beyond their end; those steps are
-    dropped). `cell` may be a compiled `rollout_cell(policy, plant)`.
+    dropped). `cell` may be a compiled `rollout_cell(policy, plant)`. Where `data` holds
+    forecast previews (`FORECAST_PREVIEW_ARRAY`), a preview policy reads those.
     """
     n_p = data.horizon
     runs = consecutive_runs(data)
     longest = max(len(run) for run in runs) * n_p
     targets = np.empty((len(runs), longest, 6), dtype=np.float32)
+    forecasts = data.arrays.get(FORECAST_PREVIEW_ARRAY)
+    previews = None
+    if forecasts is not None:
+        previews = np.empty((len(runs), longest, forecasts.shape[-1]), dtype=np.float32)
     for i, run in enumerate(runs):
         joined = data.arrays[key][run].reshape(-1, 6)
         targets[i, : len(joined)] = joined
         targets[i, len(joined) :] = joined[-1]
+        if previews is not None:
+            ahead = forecasts[run].reshape(len(joined), -1)
+            previews[i, : len(joined)] = ahead
+            previews[i, len(joined) :] = ahead[-1]
     first = np.array([run[0] for run in runs])
     as_tensor = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)  # noqa: E731
     was_training = policy.training
@@ -592,6 +624,7 @@ def own_closed_loop_states(
             as_tensor(data.arrays["Y"][first, 0]),
             as_tensor(targets),
             cell,
+            None if previews is None else as_tensor(previews),
         )
     policy.train(was_training)
     states, outputs = rollout.X[:, :-1].numpy(), rollout.Y.numpy()
@@ -678,6 +711,10 @@ def train_policy(
         data = flights_of_vehicles(data, config.vehicles, dataset)
     if config.achievable_cost_floor > 0:
         data.arrays[RECORDED_ERRORS] = recorded_squared_errors(data, target_array(config))
+    if config.preview_predictor:  # what the policy will read live, once for every segment
+        data.arrays[FORECAST_PREVIEW_ARRAY] = forecast_preview_array(
+            data, target_array(config), config.preview_predictor, config.preview_steps
+        )
     if config.window_segments > 1:
         splits = long_windows(data, config.window_segments)
     else:
@@ -696,6 +733,8 @@ def train_policy(
     torch.manual_seed(config.seed)
     if config.initial_policy:
         policy = initial_policy_network(config.initial_policy, robot)
+        if not policy.preview_steps and config.preview_steps:
+            policy = with_preview(policy, robot, config.preview_steps)
         if (policy.hidden, policy.preview_steps) != (config.hidden, config.preview_steps):
             raise ValueError(
                 f"initial_policy {config.initial_policy} has {policy.hidden} hidden neurons "
@@ -735,6 +774,8 @@ def train_policy(
         "reference_range": _learned_range(config, dataset, train_targets).record(),
     }
     names = ("X", "Y", "U") + (("R",) if config.targets == "reference" else ())
+    if config.preview_predictor:
+        names += (FORECAST_PREVIEW_ARRAY,)
     if config.achievable_cost_floor > 0:
         achievable_cost_weights(splits, channel_weights, config.achievable_cost_floor)
         names += ("S",)

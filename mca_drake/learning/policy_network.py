@@ -157,6 +157,29 @@ def load_policy_network(path, robot: SerialChain) -> PolicyNetwork:
     return policy
 
 
+def with_preview(policy: PolicyNetwork, robot: SerialChain, preview_steps: int) -> PolicyNetwork:
+    """A network reading a reference preview of `preview_steps` periods that acts exactly
+    as the causal `policy` (for `robot`'s platform) does: its weights, with zero weights on
+    the preview's inputs, so that fine-tuning starts from what the causal policy does and
+    learns what the preview adds."""
+    if policy.preview_steps:
+        raise ValueError(f"the policy reads a preview of {policy.preview_steps} steps already")
+    if preview_steps < 1:
+        raise ValueError(f"preview_steps must be at least 1; got {preview_steps}")
+    wider = PolicyNetwork(
+        robot,
+        hidden=policy.hidden,
+        output_scale=policy.input_scale[:6].double().numpy(),
+        preview_steps=preview_steps,
+    )
+    with torch.no_grad():
+        first = wider.f_pi.net[0].weight
+        first.zero_()
+        first[:, : policy.f_pi.net[0].weight.shape[1]] = policy.f_pi.net[0].weight
+        wider.f_pi.net[2].weight.copy_(policy.f_pi.net[2].weight)
+    return wider
+
+
 def policy_joint_names(metadata: dict) -> tuple[str, ...]:
     """The joint names, base to tip, of the platform a policy file was trained for: its
     platform record's `joints`, or, for a record without them, those of the packaged

@@ -121,6 +121,7 @@ def AddMca(
                 update_event,
                 recognized=config.recognized_policy_paths(robot.name),
                 range_clip=config.clips_reference(),
+                predictor=config.predictor,
             ),
         )
     if isinstance(config, WashoutConfig):

@@ -76,6 +76,10 @@ class DpcPolicy(LeafSystem):
             of the references it was trained on (`cueing.reference_range`;
             `DpcConfig.range_clip`); a policy given as arrays, or without a range, reads it
             as it is.
+        predictor: the forecast a policy with a preview reads (`DpcConfig.predictor`:
+            "linear", "learned" or a model file), which the diagram feeds to
+            `reference_preview` (`systems.predictor.AddReferencePredictor`); "": the
+            recorded future, or none for a causal policy.
     """
 
     def __init__(
@@ -88,6 +92,7 @@ class DpcPolicy(LeafSystem):
         recognized: tuple | None = None,
         recognition: RecognitionConfig | None = None,
         range_clip: bool = False,
+        predictor: str = "",
     ):
         super().__init__()
         self._robot = robot
@@ -112,6 +117,12 @@ class DpcPolicy(LeafSystem):
         # a policy with a preview reads the reference at its offsets ahead, from a preview
         # of offsets[-1] + 1 samples (the current one first)
         self._offsets = preview_offsets(preview_steps) if preview_steps else None
+        if predictor and self._offsets is None:
+            raise ValueError(
+                f"predictor {predictor!r} forecasts a preview, but the policy reads none: "
+                "run a policy trained with a preview (train-policy --preview-steps)"
+            )
+        self._predictor = predictor
         self._preview_port = None
         if self._offsets is not None:
             self._preview_port = self.DeclareVectorInputPort(
@@ -136,6 +147,11 @@ class DpcPolicy(LeafSystem):
     def preview_samples(self) -> int:
         """Samples of `reference_preview` the policy reads (0: causal, no such port)."""
         return 0 if self._offsets is None else int(self._offsets[-1]) + 1
+
+    @property
+    def predictor(self) -> str:
+        """The forecast its preview reads ("": the recorded future, or no preview)."""
+        return self._predictor
 
     def statistics(self, context: Context) -> dict[str, float]:
         """The `statistics` values in `context`, by name."""

@@ -24,7 +24,11 @@ def add_mca_flags(parser: argparse.ArgumentParser, default_mca, *, policy: bool 
         f"{mca_name(default_mca)})",
     )
     if policy:
-        parser.add_argument("--policy", help="policy file for --mca dpc (default: the shipped one)")
+        parser.add_argument(
+            "--policy",
+            help="policy file for --mca dpc (default: the shipped one), or for --mca "
+            "dpc-predictive a policy trained with a preview, which reads the forecast",
+        )
 
 
 # FlightSpec fields with a flag: the built-in flight a command cues. `--seed` is kept for the
@@ -61,7 +65,7 @@ def mca_from_flags(args: argparse.Namespace, default):
     if args.policy is not None:
         if not isinstance(mca, DpcConfig):
             raise ValueError("--policy is the policy file of --mca dpc")
-        mca = DpcConfig(policy=args.policy, profile=mca.profile)
+        mca = DpcConfig(policy=args.policy, profile=mca.profile, predictor=mca.predictor)
     return mca
 
 

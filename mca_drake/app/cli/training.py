@@ -34,6 +34,7 @@ POLICY_FLAGS = {
     "tracking_signals": "",
     "perception_model": "",
     "preview_steps": "",
+    "preview_predictor": "",
     "plant": "",
     "learned_output_weights": "",
     "window_segments": "",
