@@ -370,10 +370,12 @@ def test_live_cueing_scores_as_offline_cueing_of_the_same_samples(tmp_path):
         command = [sys.executable, "-c", RECORDING_STREAM_PROCESS, str(path), *map(str, address)]
         processes.append(subprocess.Popen(command))
 
+    # the loop outlasts the stream by more than the sender's start (its imports and the
+    # recording's load take over a second on a busy machine)
     summary = run_live(
         CsvDecoder(),
         "dpc",
-        seconds + 1.0,
+        seconds + 3.0,
         receiver=ReceiverConfig(port=0),
         on_listening=start,
         robot=KR500,
