@@ -31,6 +31,8 @@ SHIPPED_POLICIES = (
     "transport_policy",
     "predictive_policy",
     "ground_predictive_policy",
+    "light_predictive_policy",
+    "transport_predictive_policy",
     *(f"{platform}_{name}" for platform in PLATFORMS_WITH_POLICIES for name in MOVED_POLICIES),
     *(f"{platform}_default_policy" for platform in PLATFORMS_WITH_OWN_POLICY),
 )

@@ -180,6 +180,17 @@ def test_names_and_refusals(widened):
     car = dataclasses.replace(config, vehicle="bmw-320i")
     for ground_config in (ground, car):
         assert ground_config.cues_ground() and not config.cues_ground()
+    # each causal policy the DPC picks by vehicle has its predictive twin
+    for vehicle, twin in (("", "predictive"), ("light", "light_predictive")):
+        named = dataclasses.replace(config, vehicle=vehicle)
+        assert named.policy_path("kr500").name == f"{twin}_policy.npz"
+        assert (
+            DpcConfig(vehicle=vehicle).policy_path("kr500").name
+            == (twin.replace("predictive", "").rstrip("_") or "default") + "_policy.npz"
+        )
+    assert dataclasses.replace(config, vehicle="B747").policy_path("kr500").name == (
+        "transport_predictive_policy.npz"
+    )
     with pytest.raises(ValueError, match="unknown predictor"):
         DpcConfig(predictor="oracle").validate()
     with pytest.raises(ValueError, match="reads none"):

@@ -61,6 +61,8 @@ def test_bad_names_are_refused():
         "transport_policy.npz",
         "predictive_policy.npz",
         "ground_predictive_policy.npz",
+        "light_predictive_policy.npz",
+        "transport_predictive_policy.npz",
         *(
             f"{platform}_{name}.npz"
             for platform in ("kr500-rail", "fanuc-m900ib700")

@@ -195,7 +195,7 @@ class DpcConfig:
         if self.policy:
             return Path(self.policy)
         if self.predictor:
-            return predictive_policy_path(platform, self.cues_ground())
+            return predictive_policy_path(platform, predictive_policy_name(self))
         if self.profile:
             name = f"{check_profile(self.profile)}_policy"
         else:
@@ -226,18 +226,33 @@ class DpcConfig:
         return tuple(_platform_policy_path(platform, name) for name in RECOGNIZED_POLICIES)
 
 
-# The shipped policies of `dpc-predictive` (a DpcConfig with a predictor and no policy), for
-# flight and, for a car or the ground profile, for the ground: the default and the ground
-# policy each widened to read a preview and fine-tuned reading the packaged learned forecast
+# The shipped policies of `dpc-predictive` (a DpcConfig with a predictor and no policy), one
+# for each causal policy the DPC picks by vehicle: the default, the light aircraft's and the
+# transports' (`ENVELOPE_POLICIES`) and, for a car or the ground profile, the ground's; each
+# that policy widened to read a preview and fine-tuned reading the packaged learned forecast
 # (docs/guides/training.md, "the predictive policies").
 PREDICTIVE_POLICY = "predictive_policy"
 GROUND_PREDICTIVE_POLICY = "ground_predictive_policy"
+PREDICTIVE_ENVELOPE_POLICIES = {
+    "light": "light_predictive_policy",
+    "transport": "transport_predictive_policy",
+}
 
 
-def predictive_policy_path(platform: str, ground: bool = False) -> Path:
-    """The shipped predictive policy (`PREDICTIVE_POLICY`, or `GROUND_PREDICTIVE_POLICY`
-    where `ground`) on the platform named `platform`; FileNotFoundError, with the commands
-    that make one, on a platform that ships none (only the KR500 does)."""
+def predictive_policy_name(config: "DpcConfig") -> str:
+    """The shipped predictive policy for `config`'s vehicle (or profile): the ground's for a
+    car or the ground profile, that of its flight envelope where it has one, else the
+    default's."""
+    if config.cues_ground():
+        return GROUND_PREDICTIVE_POLICY
+    envelope = VEHICLE_ENVELOPES.get(config.vehicle, "")
+    return PREDICTIVE_ENVELOPE_POLICIES.get(envelope, PREDICTIVE_POLICY)
+
+
+def predictive_policy_path(platform: str, name: str = PREDICTIVE_POLICY) -> Path:
+    """The shipped predictive policy `name` (`predictive_policy_name`) on the platform named
+    `platform`; FileNotFoundError, with the commands that make one, on a platform that
+    ships none (only the KR500 does)."""
     if platform != UNNAMED_POLICY_PLATFORM:
         raise FileNotFoundError(
             f"no predictive policy is shipped for platform '{platform}': train one with "
@@ -245,7 +260,7 @@ def predictive_policy_path(platform: str, ground: bool = False) -> Path:
             f"--time-stretch-fraction 0 --platform {platform}` and pass it as --policy with "
             "the predictor"
         )
-    return shipped_policy_path(GROUND_PREDICTIVE_POLICY if ground else PREDICTIVE_POLICY)
+    return shipped_policy_path(name)
 
 
 def _platform_policy_path(platform: str, name: str) -> Path:
@@ -316,8 +331,11 @@ def policy_choice(config: DpcConfig, platform: str) -> tuple[Path, str]:
     if config.policy:
         return path, "given as DpcConfig.policy"
     if config.predictor:
-        kind = "ground's" if config.cues_ground() else "flight"
-        return path, f"the {kind} predictive policy, reading the {config.predictor} forecast"
+        if config.cues_ground():
+            why = "a car or the ground profile: the ground policy"
+        else:
+            why = _vehicle_policy(config.vehicle)[1]
+        return path, f"{why} (its predictive twin, reading the {config.predictor} forecast)"
     if config.profile:
         return path, f"the {config.profile} profile's"
     return path, _vehicle_policy(config.vehicle)[1]
