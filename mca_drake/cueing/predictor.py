@@ -26,6 +26,7 @@ import numpy as np
 
 from mca_drake.atomic_io import atomic_write_npz, load_npz_with_metadata
 from mca_drake.conventions import CHANNELS, CONTROL_PERIOD_S
+from mca_drake.references.vehicle_signals import signal_matrix
 from mca_drake.resources import data_dir
 
 PREDICTOR_KINDS = ("constant", "linear", "learned")
@@ -232,11 +233,7 @@ def forecast_errors(
         if ends.size == 0:
             continue
         if signals:
-            carried = getattr(reference, "signals", {})
-            matrix = np.full((y.shape[0], len(signals)), np.nan)
-            for i, name in enumerate(signals):
-                if name in carried:
-                    matrix[:, i] = carried[name]
+            matrix = signal_matrix(getattr(reference, "signals", {}), signals, y.shape[0])
             forecast = predict(
                 y[ends[:, None] - lags[None, :]], matrix[ends[:, None] - signal_lags[None, :]]
             )

@@ -33,6 +33,7 @@ from mca_drake.cueing.learned_predictor import (
     signal_features,
 )
 from mca_drake.cueing.predictor import NUM_CHANNELS, LinearPredictor, lag_features
+from mca_drake.references.vehicle_signals import signal_matrix
 
 
 @dataclasses.dataclass
@@ -64,16 +65,6 @@ class LearnedPredictorConfig:
     signal_dropout: float = 0.3
     # in the others, the chance each signal a reference carries is shown
     signal_keep: float = 0.7
-
-
-def signal_matrix(signals: dict, names, length: int) -> np.ndarray:
-    """(length, len(names)): a reference's signals (name -> (T,)) in the order `names`, NaN
-    columns for those it does not carry."""
-    out = np.full((length, len(names)), np.nan)
-    for i, name in enumerate(names):
-        if name in signals:
-            out[:, i] = np.asarray(signals[name], dtype=float)
-    return out
 
 
 def as_reference(item) -> tuple[np.ndarray, dict]:

@@ -95,3 +95,13 @@ def check_signal(name: str, values) -> str | None:
             "(a normalised control; is it in percent?)"
         )
     return None
+
+
+def signal_matrix(signals: dict, names, length: int) -> np.ndarray:
+    """(length, len(names)): the signals of a recording or reference (name -> (T,)) in the
+    order `names`, NaN columns for those it does not carry."""
+    out = np.full((length, len(names)), np.nan)
+    for i, name in enumerate(names):
+        if name in signals:
+            out[:, i] = np.asarray(signals[name], dtype=float)
+    return out

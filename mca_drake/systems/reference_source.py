@@ -6,10 +6,7 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 
 from mca_drake.references.reference import Reference
-from mca_drake.references.vehicle_signals import SIGNALS
-
-# Each signal's place in the `signals` output.
-SIGNALS_ORDER = {name: i for i, name in enumerate(SIGNALS)}
+from mca_drake.references.vehicle_signals import SIGNALS, signal_matrix
 
 
 class ReferenceSource(LeafSystem):
@@ -39,9 +36,7 @@ class ReferenceSource(LeafSystem):
     def __init__(self, reference: Reference, preview_samples: int = 1):
         super().__init__()
         # (T, len(SIGNALS)), NaN columns for the signals the reference does not carry
-        self._signals = np.full((reference.y.shape[0], len(SIGNALS)), np.nan)
-        for name, values in reference.signals.items():
-            self._signals[:, SIGNALS_ORDER[name]] = values
+        self._signals = signal_matrix(reference.signals, tuple(SIGNALS), reference.y.shape[0])
         if preview_samples < 1:
             raise ValueError(f"preview_samples must be at least 1; got {preview_samples}")
         self._y = np.array(reference.y)
