@@ -96,7 +96,9 @@ def live_with_sender(sender, sender_seconds, mca, seconds, **options):
 
 
 def test_a_live_run_survives_a_stop_and_bad_packets():
-    summary = live_with_sender(stream_process, 3.2, "washout", 3.0)
+    # the sender outlasts the loop by a second: it starts while the loop still collects
+    # its garbage (up to a few tenths of a second on a busy machine) and must not end first
+    summary = live_with_sender(stream_process, 4.0, "washout", 3.0)
     live = summary["live"]
     assert summary["violations"] == {"q": 0, "qd": 0, "qdd": 0}
     assert live["packets"] > 200 and live["bad"] >= 2
@@ -345,6 +347,8 @@ from mca_drake.live.csv_udp import encode_csv_sample
 from mca_drake.references.recording import load_recording
 recording = load_recording(sys.argv[1])
 sender, address = socket.socket(socket.AF_INET, socket.SOCK_DGRAM), (sys.argv[2], int(sys.argv[3]))
+print("ready", flush=True)
+time.sleep(1.0)  # the loop's clock starts after its garbage collection, within this second
 start = time.perf_counter()
 for t, omega, f in zip(recording.t - recording.t[0], recording.omega, recording.f):
     time.sleep(max(0.0, start + t - time.perf_counter()))
@@ -368,10 +372,12 @@ def test_live_cueing_scores_as_offline_cueing_of_the_same_samples(tmp_path):
 
     def start(address):
         command = [sys.executable, "-c", RECORDING_STREAM_PROCESS, str(path), *map(str, address)]
-        processes.append(subprocess.Popen(command))
+        processes.append(subprocess.Popen(command, stdout=subprocess.PIPE, text=True))
+        # the loop's clock starts once this returns: the sender's imports and the
+        # recording's load (seconds on a busy machine) are behind it by then
+        processes[0].stdout.readline()
 
-    # the loop outlasts the stream by more than the sender's start (its imports and the
-    # recording's load take over a second on a busy machine)
+    # the loop outlasts the stream by the sender's one-second wait and then some
     summary = run_live(
         CsvDecoder(),
         "dpc",
@@ -381,6 +387,7 @@ def test_live_cueing_scores_as_offline_cueing_of_the_same_samples(tmp_path):
         robot=KR500,
     )
     processes[0].wait(timeout=30)
+    processes[0].stdout.close()
     first, last = summary["scored_span_s"]
     assert first < 1.0 and abs(last - first - seconds) < 0.1  # the stream, not the tail
     offline = run_closed_loop(
