@@ -70,7 +70,7 @@ def test_the_operator_page_turns_the_intensity_down_smoothly_and_stops_the_robot
         operator.start()
         summary = live_with_sender(
             stream_process,
-            6.2,
+            7.0,  # outlasts the loop, whose clock starts after the sender's
             "dpc",
             6.0,
             controls=ControlsConfig(ramp_s=ramp_s),
