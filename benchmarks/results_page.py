@@ -323,15 +323,16 @@ def _preview(results_dir: Path, data: dict) -> list[str]:
 
 
 def _predictive(results_dir: Path, data: dict) -> list[str]:
-    """Predictive cueing: per case, each predictive MCA (the NMPC-rti with the learned and
-    the linear forecast, the predictive DPC) against its causal twin and the NMPC-rti's
+    """Predictive cueing: per case, each predictive MCA (the NMPC-rti with the learned
+    forecast, with the linear one where the file has it, the predictive DPC) against its
+    causal twin and the NMPC-rti's
     perfect preview; the share of the preview's gain each captures and the flights it made
     worse."""
     lines = [
         f"The evaluation suite's {data['duration_s']:.0f} s flights and drives, cued by the "
         "NMPC-rti causal (the reference held over the horizon), predictive "
         "(nmpc-rti-predictive: the packaged learned forecast over the horizon, from the past "
-        "alone; nmpc-rti-predictive-linear: the linear one) and with the recorded future over "
+        "alone) and with the recorded future over "
         "the horizon (the perfect preview), and by the DPC causal and predictive "
         "(dpc-predictive: the shipped predictive policy reading the learned forecast). Gain: "
         "the median paired gain over the causal twin; share: that gain as a share of the "

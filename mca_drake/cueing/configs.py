@@ -32,7 +32,7 @@ McaConfig = Union[DpcConfig, NmpcConfig, WashoutConfig]  # noqa: UP007
 MCA_CONFIG_TYPES = (DpcConfig, NmpcConfig, WashoutConfig)
 # The forecast of the named predictive NMPCs (`nmpc-rti-predictive`): the packaged learned
 # one, which forecasts the validation flights and drives best (benchmarks/bench_predictor.py)
-# and cues the suite's flights best (diagrams/evaluation_predictive.yaml).
+# and cued the suite's flights better than the linear one (decision 0033).
 NAMED_PREDICTOR = "learned"
 MCA_NAMES = (
     "dpc",
