@@ -232,21 +232,21 @@ class DpcConfig:
 # that policy widened to read a preview and fine-tuned reading the packaged learned forecast
 # (docs/guides/training.md, "the predictive policies").
 PREDICTIVE_POLICY = "predictive_policy"
-GROUND_PREDICTIVE_POLICY = "ground_predictive_policy"
-PREDICTIVE_ENVELOPE_POLICIES = {
-    "light": "light_predictive_policy",
-    "transport": "transport_predictive_policy",
+# Each causal policy the DPC picks (`vehicle_policy_name`) and its predictive twin.
+PREDICTIVE_TWINS = {
+    "default_policy": PREDICTIVE_POLICY,
+    "light_policy": "light_predictive_policy",
+    "transport_policy": "transport_predictive_policy",
+    "ground_policy": "ground_predictive_policy",
 }
 
 
 def predictive_policy_name(config: "DpcConfig") -> str:
-    """The shipped predictive policy for `config`'s vehicle (or profile): the ground's for a
-    car or the ground profile, that of its flight envelope where it has one, else the
-    default's."""
-    if config.cues_ground():
-        return GROUND_PREDICTIVE_POLICY
-    envelope = VEHICLE_ENVELOPES.get(config.vehicle, "")
-    return PREDICTIVE_ENVELOPE_POLICIES.get(envelope, PREDICTIVE_POLICY)
+    """The predictive twin of the shipped policy `dpc` would run for `config`'s vehicle or
+    profile: the ground's for a car or the ground profile, that of its flight envelope where
+    it has one, else the default's."""
+    causal = "ground_policy" if config.cues_ground() else vehicle_policy_name(config.vehicle)
+    return PREDICTIVE_TWINS[causal]
 
 
 def predictive_policy_path(platform: str, name: str = PREDICTIVE_POLICY) -> Path:
