@@ -269,8 +269,7 @@ def test_a_policy_file_keeps_the_predictive_dpcs_forecast(widened):
 
 
 def test_every_policy_dpc_picks_by_vehicle_has_a_predictive_twin():
-    from mca_drake.cueing.dpc import ENVELOPE_POLICIES, PREDICTIVE_TWINS
-    from mca_drake.resources import shipped_policy_path
+    from mca_drake.cueing.dpc import ENVELOPE_POLICIES, PREDICTIVE_TWINS, shipped_policy_path
 
     for causal in ("default_policy", "ground_policy", *ENVELOPE_POLICIES.values()):
         assert shipped_policy_path(PREDICTIVE_TWINS[causal]).is_file()
