@@ -3,6 +3,7 @@
     python benchmarks/bench_platform_suites.py [--flights 2] [--duration 120]
         [--mcas dpc,nmpc-rti,washout] [--platforms kr500,kr500-rail,fanuc-m900ib700]
         [--workers 1] [--runs-dir results/platform_suites] [--json results/platform_suites.json]
+        [--keep-others]
 
 Runs the suite's cases A-E (`mca_drake.studies.evaluation_cases.default_cases`: the light
 aircraft, the jet, aircraft neither trained nor tuned on, drives, the route pilot's flights)
@@ -16,13 +17,17 @@ flight, flights better than zero motion, joint range used, violations and safety
 interventions; and per platform and MCA the median PI and perceived PI over every flight
 (a platform that ships no DPC policy runs without the DPC: `skipped`); with the date,
 command, machine and calibration, to `--json` (default
-`benchmarks/results/platform_suites.json`).
+`benchmarks/results/platform_suites.json`). With `--keep-others` the platforms not run keep
+their entries from that file, each with the date and calibration of the run that made it
+(`run`): the figures are deterministic, so a platform whose policy or settings changed is
+rerun alone.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
@@ -95,6 +100,28 @@ def platform_suite(platform: str, args, runs_dir: Path) -> dict:
     return result
 
 
+def kept_platforms(args) -> dict:
+    """The entries of the platforms this run does not run, from the existing `--json` file
+    (made with the same flights and duration, else ValueError)."""
+    path = Path(args.json)
+    if not path.is_file():
+        return {}
+    old = json.loads(path.read_text())
+    if (old["flights_per_case"], old["duration_s"]) != (args.flights, args.duration):
+        raise ValueError(
+            f"{path} holds {old['flights_per_case']} flights of {old['duration_s']} s per "
+            f"case, not {args.flights} of {args.duration} s: rerun every platform"
+        )
+    date = old["provenance"]["date"]
+    calibration = old["provenance"]["calibration"]
+    run = set(args.platforms.split(","))
+    return {
+        name: {"run": {"date": date, "calibration": calibration}, **entry}
+        for name, entry in old["platforms"].items()
+        if name not in run
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--flights", type=int, default=2, help="first seeds of each case")
@@ -104,13 +131,18 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=1, help="CPUs of a local Ray")
     parser.add_argument("--runs-dir", default="results/platform_suites")
     parser.add_argument("--json", default=default_result_path("platform_suites.json"))
+    parser.add_argument(
+        "--keep-others", action="store_true", help="keep the --json file's other platforms"
+    )
     args = parser.parse_args()
     calibration = print_calibration()
+    header = result_header(calibration)
     runs_dir = Path(args.runs_dir).resolve()
-    results = {}
+    results = kept_platforms(args) if args.keep_others else {}
     for platform in args.platforms.split(","):
         results[platform] = {
             "platform": load_platform(platform).summary(),
+            "run": {"date": header["date"], "calibration": header["calibration"]},
             **platform_suite(platform, args, runs_dir),
         }
     print()
@@ -128,7 +160,7 @@ def main() -> None:
     atomic_write_json(
         args.json,
         {
-            "provenance": result_header(calibration),
+            "provenance": header,
             "flights_per_case": args.flights,
             "duration_s": args.duration,
             "platforms": results,

@@ -19,9 +19,10 @@ PACKAGED_FOLDERS = ("models", "diagrams")
 PLATFORMS_WITH_POLICIES = ("kr500-rail", "fanuc-m900ib700")
 MOVED_POLICIES = ("default_policy", "light_policy", "transport_policy", "ground_policy")
 # The packaged platforms whose joints no KR500 policy shares (a legged platform's pose
-# coordinates) that ship one policy trained on them, <platform>_default_policy, which stands
-# for every one of the KR500's there.
-PLATFORMS_WITH_OWN_POLICY = ("hexapod",)
+# coordinates) that ship policies trained on them, <platform>_<name>, by the KR500's policy
+# names they ship (`MOVED_POLICIES`); the first, <platform>_default_policy, stands for every
+# other one of the KR500's there (`cueing.dpc.platform_policy_name`).
+PLATFORMS_WITH_OWN_POLICY = {"hexapod": ("default_policy", "ground_policy")}
 # Policy files shipped with the package (mca_drake/data/<name>.npz).
 SHIPPED_POLICIES = (
     "default_policy",
@@ -34,7 +35,11 @@ SHIPPED_POLICIES = (
     "light_predictive_policy",
     "transport_predictive_policy",
     *(f"{platform}_{name}" for platform in PLATFORMS_WITH_POLICIES for name in MOVED_POLICIES),
-    *(f"{platform}_default_policy" for platform in PLATFORMS_WITH_OWN_POLICY),
+    *(
+        f"{platform}_{name}"
+        for platform, names in PLATFORMS_WITH_OWN_POLICY.items()
+        for name in names
+    ),
 )
 # MCA profiles shipped for vehicle motion other than flight (`mca_drake.cueing.profiles`): the
 # NMPC's and washout's settings in data/profiles/<name>.yaml, the DPC's policy

@@ -16,6 +16,7 @@ from mca_drake.cueing.dpc import (
     policy_platform,
     shipped_policy_path,
 )
+from mca_drake.cueing.recognition import RECOGNIZED_POLICIES
 from mca_drake.learning.configs import DpcTrainingConfig, TrainConfig
 from mca_drake.learning.dpc_training import train_policy
 from mca_drake.learning.policy_network import (
@@ -115,7 +116,7 @@ def test_a_policy_trains_on_the_rail_from_the_kr500s_and_records_it(tmp_path):
 
 def test_each_platform_picks_its_own_shipped_policy():
     """Each packaged platform runs the KR500's choice of policy (by envelope, by profile)
-    moved onto its joints, or the one policy trained on it (the hexapod); a platform that
+    moved onto its joints, or those trained on it (the hexapod, the rigs); a platform that
     ships none says how to make one."""
     assert DpcConfig().policy_path("kr500") == default_policy_path()
     for name in ("kr500-rail", "fanuc-m900ib700"):
@@ -129,13 +130,28 @@ def test_each_platform_picks_its_own_shipped_policy():
             path = config.policy_path(name)
             assert path.name == f"{name}_{kr500_policy}.npz"
             assert policy_platform(load_policy_arrays(path)[1]) == name
-    # the hexapod's joints are its pose coordinates: one policy trained on it stands for all
-    for config in (DpcConfig(), DpcConfig(vehicle="light"), DpcConfig(profile="ground")):
-        path = config.policy_path("hexapod")
-        assert path.name == "hexapod_default_policy.npz"
+    # a legged platform's joints are its pose coordinates: policies trained on it; the
+    # hexapod's default stands for the flight envelopes, its ground policy for cars, and a
+    # rig's one policy (trained on flights and drives) for all
+    own = (
+        ("hexapod", DpcConfig(), "default_policy", 6),
+        ("hexapod", DpcConfig(vehicle="light"), "default_policy", 6),
+        ("hexapod", DpcConfig(vehicle="787-8"), "default_policy", 6),
+        ("hexapod", DpcConfig(profile="ground"), "ground_policy", 6),
+        ("hexapod", DpcConfig(vehicle="ford-escort"), "ground_policy", 6),
+    )
+    for platform, config, name, dof in own:
+        path = config.policy_path(platform)
+        assert path.name == f"{platform}_{name}.npz"
         arrays, metadata = load_policy_arrays(path)
-        assert policy_platform(metadata) == "hexapod" and arrays["W2"].shape[0] == 3 * 6
-        assert "train-policy --platform hexapod" in metadata["command"]
+        assert policy_platform(metadata) == platform and arrays["W2"].shape[0] == 3 * dof
+        assert f"train-policy --platform {platform}" in metadata["command"]
+    # an unnamed reference on the hexapod: the recognizer hands a car to its ground policy
+    recognized = [p.name for p in DpcConfig().recognized_policy_paths("hexapod")]
+    assert recognized == [
+        f"hexapod_{name if name == 'ground_policy' else 'default_policy'}.npz"
+        for name in RECOGNIZED_POLICIES
+    ]
     with pytest.raises(FileNotFoundError, match=r"train-policy --platform rig-2dof"):
         DpcConfig().policy_path("rig-2dof")
     with pytest.raises(FileNotFoundError, match=r"transfer-policy .* --platform my-robot"):

@@ -69,6 +69,7 @@ def test_bad_names_are_refused():
             for name in ("default_policy", "light_policy", "transport_policy", "ground_policy")
         ),
         "hexapod_default_policy.npz",
+        "hexapod_ground_policy.npz",
     ]
 
 

@@ -284,13 +284,15 @@ def platform_policy_name(platform: str, name: str) -> str:
     KR500's moved onto its joints (`mca-drake transfer-policy`), chosen as the KR500's are.
     Moved, they cued validation flights better than the KR500 default fine-tuned on a
     dataset made on the platform (docs/concepts/platforms.md; decision 0022). A platform
-    whose joints no KR500 policy shares ships one policy trained on it
-    (`PLATFORMS_WITH_OWN_POLICY`: "<platform>_default_policy"), which stands for every name.
+    whose joints no KR500 policy shares ships policies trained on it
+    (`PLATFORMS_WITH_OWN_POLICY`): "<platform>_<name>" where it ships that one, else its
+    "<platform>_default_policy", which stands for every other name.
     FileNotFoundError, with the commands that make one, for a platform that ships none."""
     if name not in MOVED_POLICIES:
         raise ValueError(f"'{name}' is not one of the policies platforms carry: {MOVED_POLICIES}")
     if platform in PLATFORMS_WITH_OWN_POLICY:
-        return f"{platform}_default_policy"
+        own = PLATFORMS_WITH_OWN_POLICY[platform]
+        return f"{platform}_{name if name in own else 'default_policy'}"
     if platform not in PLATFORMS_WITH_POLICIES:
         raise FileNotFoundError(
             f"no policy is shipped for platform '{platform}': move the KR500's onto it with "
