@@ -17,10 +17,11 @@ flight, flights better than zero motion, joint range used, violations and safety
 interventions; and per platform and MCA the median PI and perceived PI over every flight
 (a platform that ships no DPC policy runs without the DPC: `skipped`); with the date,
 command, machine and calibration, to `--json` (default
-`benchmarks/results/platform_suites.json`). With `--keep-others` the platforms not run keep
-their entries from that file, each with the date and calibration of the run that made it
-(`run`): the figures are deterministic, so a platform whose policy or settings changed is
-rerun alone.
+`benchmarks/results/platform_suites.json`). With `--keep-others` what this run does not
+run keeps its figures from that file: the platforms not run, each with the date and
+calibration of the run that made it (`run`), and on a platform run again the MCAs not run
+(`kept_mcas`). The figures are deterministic, so an MCA whose policy or settings changed is
+rerun alone (`--platforms hexapod --mcas dpc --keep-others`).
 """
 
 from __future__ import annotations
@@ -101,8 +102,8 @@ def platform_suite(platform: str, args, runs_dir: Path) -> dict:
 
 
 def kept_platforms(args) -> dict:
-    """The entries of the platforms this run does not run, from the existing `--json` file
-    (made with the same flights and duration, else ValueError)."""
+    """Every platform's entry in the existing `--json` file (made with the same flights and
+    duration, else ValueError), each with the date and calibration of its run."""
     path = Path(args.json)
     if not path.is_file():
         return {}
@@ -114,12 +115,26 @@ def kept_platforms(args) -> dict:
         )
     date = old["provenance"]["date"]
     calibration = old["provenance"]["calibration"]
-    run = set(args.platforms.split(","))
     return {
         name: {"run": {"date": date, "calibration": calibration}, **entry}
         for name, entry in old["platforms"].items()
-        if name not in run
     }
+
+
+def with_kept_mcas(entry: dict, old: dict | None) -> dict:
+    """A platform's new `entry` with the MCAs of its `old` entry that this run did not run
+    (per case and over every flight), named in `kept_mcas` with the date of their run."""
+    if old is None:
+        return entry
+    kept = sorted(set(old["all"]) - set(entry["all"]))
+    for name, case in entry["cases"].items():
+        for mca in kept:
+            if mca in old["cases"][name]["mcas"]:
+                case["mcas"][mca] = old["cases"][name]["mcas"][mca]
+    entry["all"] |= {mca: old["all"][mca] for mca in kept}
+    entry["skipped"] = sorted(set(entry["skipped"]) - set(kept))
+    entry["kept_mcas"] = {mca: old["run"]["date"] for mca in kept}
+    return entry
 
 
 def main() -> None:
@@ -140,11 +155,12 @@ def main() -> None:
     runs_dir = Path(args.runs_dir).resolve()
     results = kept_platforms(args) if args.keep_others else {}
     for platform in args.platforms.split(","):
-        results[platform] = {
+        entry = {
             "platform": load_platform(platform).summary(),
             "run": {"date": header["date"], "calibration": header["calibration"]},
             **platform_suite(platform, args, runs_dir),
         }
+        results[platform] = with_kept_mcas(entry, results.get(platform))
     print()
     for platform, figures in results.items():
         for mca, entry in figures["all"].items():

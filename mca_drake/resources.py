@@ -22,7 +22,11 @@ MOVED_POLICIES = ("default_policy", "light_policy", "transport_policy", "ground_
 # coordinates) that ship policies trained on them, <platform>_<name>, by the KR500's policy
 # names they ship (`MOVED_POLICIES`); the first, <platform>_default_policy, stands for every
 # other one of the KR500's there (`cueing.dpc.platform_policy_name`).
-PLATFORMS_WITH_OWN_POLICY = {"hexapod": ("default_policy", "ground_policy")}
+PLATFORMS_WITH_OWN_POLICY = {
+    "hexapod": ("default_policy", "ground_policy"),
+    "rig-2dof": ("default_policy",),
+    "rig-3dof": ("default_policy",),
+}
 # Policy files shipped with the package (mca_drake/data/<name>.npz).
 SHIPPED_POLICIES = (
     "default_policy",

@@ -139,6 +139,11 @@ def test_each_platform_picks_its_own_shipped_policy():
         ("hexapod", DpcConfig(vehicle="787-8"), "default_policy", 6),
         ("hexapod", DpcConfig(profile="ground"), "ground_policy", 6),
         ("hexapod", DpcConfig(vehicle="ford-escort"), "ground_policy", 6),
+        *(
+            (rig, config, "default_policy", dof)
+            for rig, dof in (("rig-2dof", 2), ("rig-3dof", 3))
+            for config in (DpcConfig(), DpcConfig(vehicle="jet"), DpcConfig(profile="ground"))
+        ),
     )
     for platform, config, name, dof in own:
         path = config.policy_path(platform)
@@ -152,8 +157,6 @@ def test_each_platform_picks_its_own_shipped_policy():
         f"hexapod_{name if name == 'ground_policy' else 'default_policy'}.npz"
         for name in RECOGNIZED_POLICIES
     ]
-    with pytest.raises(FileNotFoundError, match=r"train-policy --platform rig-2dof"):
-        DpcConfig().policy_path("rig-2dof")
     with pytest.raises(FileNotFoundError, match=r"transfer-policy .* --platform my-robot"):
         DpcConfig().policy_path("my-robot")
 

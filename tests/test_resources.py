@@ -70,6 +70,8 @@ def test_bad_names_are_refused():
         ),
         "hexapod_default_policy.npz",
         "hexapod_ground_policy.npz",
+        "rig-2dof_default_policy.npz",
+        "rig-3dof_default_policy.npz",
     ]
 
 
