@@ -26,9 +26,10 @@ from pathlib import Path
 
 import numpy as np
 from bench_platforms import FIRST_SEED, VEHICLES
+from bench_validation import finished_run
 from common import default_result_path, print_calibration, result_header
 
-from mca_drake.atomic_io import atomic_write_json, file_sha256
+from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing import DpcConfig, mca_config_from_name
 from mca_drake.cueing.configs import on_platform
 from mca_drake.platforms.files import load_platform
@@ -36,6 +37,7 @@ from mca_drake.references.drives import is_car, motion_reference, training_spec
 from mca_drake.references.driving import CARS
 from mca_drake.references.flights import FlightSpec
 from mca_drake.simulation.closed_loop import run_closed_loop
+from mca_drake.studies.evaluation import policy_fingerprint
 
 FLIGHTS = tuple((VEHICLES[i % len(VEHICLES)], FIRST_SEED + i) for i in range(4))
 DRIVES = tuple((car, FIRST_SEED + i) for car in CARS for i in range(2))
@@ -55,14 +57,10 @@ def run_once(label, policy, platform, robot, vehicle, seed, args, out: Path) -> 
     """One run's figures, from out/<label>_<vehicle>_<seed>.json when it is there for the
     same policy file."""
     config = mca_for(label, policy, platform, vehicle)
-    fingerprint = ""
-    if isinstance(config, DpcConfig):
-        fingerprint = file_sha256(config.policy_path(platform))
+    fingerprint = policy_fingerprint(config, platform)
     path = out / f"{label}_{vehicle}_{seed}.json"
-    if path.is_file():
-        kept = json.loads(path.read_text())
-        if kept.get("policy_sha256") == fingerprint:
-            return kept
+    if finished_run(path, fingerprint):
+        return json.loads(path.read_text())
     spec = (
         training_spec(vehicle, seed) if is_car(vehicle) else FlightSpec(vehicle=vehicle, seed=seed)
     )

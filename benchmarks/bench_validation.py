@@ -83,7 +83,7 @@ def run_flights(
             # the DPC's policy is the vehicle's where its config names none
             named = configs[label] if unnamed else for_vehicle(configs[label], vehicle)
             fingerprint = policy_fingerprint(named, KR500.name)
-            if not _finished(path, fingerprint):
+            if not finished_run(path, fingerprint):
                 if reference is None:
                     spec = (
                         training_spec(vehicle, seed)
@@ -105,7 +105,7 @@ def run_flights(
     return results
 
 
-def _finished(path: Path, fingerprint: str) -> bool:
+def finished_run(path: Path, fingerprint: str) -> bool:
     """Whether `path` holds a run of the same policy file (by SHA-256; "" for an MCA that is
     not a DPC): a label that now names another policy is flown again, not reused."""
     if not path.is_file():
