@@ -121,6 +121,22 @@ def test_fast_pulls_are_never_a_light_aircrafts_and_end_its_policy():
     assert chosen[-1] == 0
 
 
+def test_pulls_that_swing_about_the_ratio_leave_the_light_policy_once_for_good():
+    """Slow pulls bring the light policy; fast ones of more than half their time end it
+    (by the ratio: fewer seconds of fast pulls than of slow ones); the slow pulls that
+    follow, twice as long as all fast ones again, do not bring it back, however often the
+    two alternate: each decision against a kind is final, so the change record (at most
+    default, transport, default, light, default, ground) never overflows."""
+    # 0.1 rad/s at 2 m/s^2 (20 m/s, a light single's pull) and 0.06 rad/s at 4 m/s^2 (67
+    # m/s, a trainer's): 4 s slow, 4 s fast, then twice as much slow as fast, eight times
+    slow, fast = _pull(400, 0.1, 2.0), _pull(400, 0.06, 4.0)
+    quiet = np.zeros((2500, 6))
+    state, chosen = _run(np.vstack((quiet, slow, fast, *([slow, slow, slow, fast] * 8))))
+    assert [i for _, i in policy_changes(state)] == [TRANSPORT, 0, LIGHT, 0]
+    left = round(policy_changes(state)[-1][0] / DT)
+    assert left <= 2500 + 800 and LIGHT not in chosen[left:]
+
+
 def test_the_light_bounds_are_the_light_envelopes_yaw_and_surge_on_the_reference():
     assert CONFIG.light_yaw_rate == pytest.approx(0.5 * 20.0 * math.pi / 180.0, rel=1e-12)
     # 0.3 g and a third more, times the force scale 0.5, with g = 9.81 m/s^2

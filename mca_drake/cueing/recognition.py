@@ -20,8 +20,9 @@ recording, so each decision against a kind is final:
   n g takes V = g (n - 1) / q, on the reference a_z / -w_y. Once the transport is ruled
   out and the reference's pulls have been slow (below `light_pull_speed`) for
   `light_pull_s` and twice as long as the fast ones, inside a light aircraft's roll and
-  yaw rates, surge and sideslip force, the light policy runs; leaving those bounds or
-  pulling fast for longer than slow ends it for good. (The median pull speeds of the
+  yaw rates, surge and sideslip force, the light policy runs; leaving those bounds,
+  pulling fast for longer than slow, or fast pulls of more than half the slow pulls'
+  time ends it for good. (The median pull speeds of the
   training and validation flights: light singles and Twin Otter 29-42 m/s, jet trainer
   62-84, transports 70-101, fighters 85-146.)
 - **ground**: a car corners with a lateral specific force that no aircraft in coordinated
@@ -119,8 +120,8 @@ class RecognitionConfig:
     # the jet trainer's 62-84, the transports' 70-101, the fighters' 85-146.
     light_pull_speed: float = 50.0
     # The light policy runs once slow pulls have lasted this long (s) and this many times
-    # as long as the fast ones; fast pulls longer than this and than the slow ones rule a
-    # light aircraft out.
+    # as long as the fast ones, and ends for good when they no longer are; fast pulls
+    # longer than this and than the slow ones rule a light aircraft out from the start.
     light_pull_s: float = 3.0
     light_pull_ratio: float = 2.0
     # Whether a light aircraft is recognized (False: only transports and cars are).
@@ -170,7 +171,8 @@ _TIME, _GROUND_HELD, _NOT_TRANSPORT, _NOT_GROUND, _POLICY, _PREVIOUS, _SINCE, _N
 # and in fast pulls (`pull_speed`)
 _PITCH, _VERTICAL, _SLOW_PULLS, _FAST_PULLS = range(14, 18)
 # then the changes of policy, (time s, index in RECOGNIZED_POLICIES) each, NaN where there
-# were fewer: each kind is taken at most once and a car's comes last, so at most
+# were fewer: each kind is taken at most once (leaving one rules it out) and a car's
+# comes last, so at most
 # default -> transport -> default -> light -> default -> ground
 MAX_CHANGES = 5
 _FIRST_CHANGE = 18
@@ -241,6 +243,12 @@ def recognition_step(
         chosen = LIGHT
     else:
         chosen = DEFAULT
+    if chosen != policy and policy == LIGHT:
+        # leaving the light policy is a decision against a light aircraft, final as every
+        # other: pulls whose speeds swing about the ratio would otherwise hand the policy
+        # back and forth (two of six Twin Otter flights of the human-operator pilot went
+        # light - default - light - default - light and on, past the change record)
+        state[_NOT_LIGHT] = 1.0
     if chosen != policy:
         state[_PREVIOUS], state[_POLICY], state[_SINCE] = policy, chosen, now
         # the first free slot (MAX_CHANGES is the most the transitions allow)
