@@ -21,9 +21,10 @@ is the suite's (`--suite`, its runs of the same flights and duration; the NMPC d
 read the vehicle's name, and for the drives also the ground profile's `nmpc-rti-ground`).
 Runs are resumable (`--runs-dir`, one JSON per flight and DPC). Prints and writes per case:
 the median PI of each DPC and of the NMPC-rti, the paired difference DPC - NMPC-rti
-(median, worst flight), flights better than zero motion, and which policy each flight
-ended with; with the date, command, machine and calibration, to `--json` (default
-`benchmarks/results/unnamed.json`).
+(median, worst flight, and the worst among the flights whose report does not suggest the
+NMPC: outside the training range at most `OUT_OF_RANGE_NOTICE` of the time), flights better
+than zero motion, and which policy each flight ended with; with the date, command, machine
+and calibration, to `--json` (default `benchmarks/results/unnamed.json`).
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from pathlib import Path
 import numpy as np
 from common import default_result_path, print_calibration, result_header
 
+from mca_drake.app.cli.report import OUT_OF_RANGE_NOTICE
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing.configs import mca_config_from_name
 from mca_drake.cueing.dpc import DpcConfig
@@ -99,6 +101,7 @@ def case_figures(results: dict, suite_case: dict | None, seeds) -> dict:
         pis = np.array([runs[s]["pi"] for s in seeds])
         zero = np.array([runs[s]["pi_zero_motion"] for s in seeds])
         shares = [(runs[s]["out_of_distribution"] or {"share": np.nan})["share"] for s in seeds]
+        flagged = np.array(shares) > OUT_OF_RANGE_NOTICE
         entry = {
             "pi_median": float(np.median(pis)),
             "better_than_zero_motion": int(np.sum(pis < zero)),
@@ -109,6 +112,9 @@ def case_figures(results: dict, suite_case: dict | None, seeds) -> dict:
             # range (`out_of_distribution`), median and largest over the flights
             "out_of_distribution_median": float(np.median(shares)),
             "out_of_distribution_max": float(np.max(shares)),
+            # flights whose report suggests the NMPC (outside the range more than
+            # OUT_OF_RANGE_NOTICE of the time): the guard a user sees
+            "flagged": int(np.sum(flagged)),
         }
         for nmpc in NMPCS:
             other = (suite_case or {}).get("mcas", {}).get(nmpc)
@@ -125,6 +131,11 @@ def case_figures(results: dict, suite_case: dict | None, seeds) -> dict:
                 "worst_difference": float(diff[worst]),
                 "worst_seed": int(seeds[worst]),
                 "behind_by_more_than_0.2": int(np.sum(diff > 0.2)),
+                # the same among the flights the guard did not flag (None: it flagged all)
+                "worst_difference_unflagged": (
+                    float(np.max(diff[~flagged])) if np.any(~flagged) else None
+                ),
+                "behind_by_more_than_0.2_unflagged": int(np.sum(diff[~flagged] > 0.2)),
             }
         figures[label] = entry
     return figures
@@ -212,7 +223,8 @@ def main() -> None:
         header["suite"] = {"file": str(named), "date": suite["provenance"]["date"]}
     name = f"unnamed_{args.pilot}.json" if args.pilot else "unnamed.json"
     out = args.json or default_result_path(name)
-    atomic_write_json(out, {"provenance": header, "duration_s": args.duration, "cases": figures})
+    record = {"provenance": header, "duration_s": args.duration, "cases": figures}
+    atomic_write_json(out, record | {"out_of_range_notice": OUT_OF_RANGE_NOTICE})
 
 
 if __name__ == "__main__":

@@ -766,10 +766,13 @@ def _unnamed(results_dir: Path, data: dict) -> list[str]:
             "policy throughout, against the suite's NMPC-rti on the same flights (for the "
             "drives also its ground profile)."
         )
+    notice = data.get("out_of_range_notice", 0.05)
     lines = [
         f"{flights} Difference: DPC - NMPC-rti, median and worst flight (lower is "
         "better); flights better than zero motion; the share of the time the reference lay "
-        "outside the running policy's training range; the policy each flight ended with.",
+        "outside the running policy's training range, and on how many flights that share "
+        f"passed {notice:.0%}, where the run's report suggests the NMPC (with the worst "
+        "difference among the other flights); the policy each flight ended with.",
         "",
     ]
     rows = []
@@ -793,13 +796,25 @@ def _unnamed(results_dir: Path, data: dict) -> list[str]:
                     f"{entry['better_than_zero_motion']}/{len(case['seeds'])}",
                     f"{entry['out_of_distribution_median']:.1%} "
                     f"({entry['out_of_distribution_max']:.1%})",
+                    _flagged(entry, versus),
                     ended,
                 ]
             )
     header = ["case", "DPC", "median PI", "NMPC-rti", "difference", "worst"]
     header += ["vs NMPC-rti ground", "better than zero motion"]
-    header += ["outside the training range, median (largest)", "ended with"]
+    header += ["outside the training range, median (largest)"]
+    header += ["NMPC suggested (worst of the others)", "ended with"]
     return [*lines, *_table(header, rows), ""]
+
+
+def _flagged(entry: dict, versus: dict) -> str:
+    """How many flights' reports suggested the NMPC (outside the training range more than
+    the file's `out_of_range_notice` of the time) and the worst difference to the NMPC-rti
+    among the others; "-" for a file from before the count was kept."""
+    if "flagged" not in entry:
+        return "-"
+    worst = versus.get("worst_difference_unflagged") if versus else None
+    return f"{entry['flagged']}" + (f" ({worst:+.3f})" if worst is not None else "")
 
 
 def _selection(results_dir: Path, data: dict) -> list[str]:
