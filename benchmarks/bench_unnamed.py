@@ -22,7 +22,7 @@ read the vehicle's name, and for the drives also the ground profile's `nmpc-rti-
 Runs are resumable (`--runs-dir`, one JSON per flight and DPC). Prints and writes per case:
 the median PI of each DPC and of the NMPC-rti, the paired difference DPC - NMPC-rti
 (median, worst flight, and the worst among the flights whose report does not suggest the
-NMPC: outside the training range at most `OUT_OF_RANGE_NOTICE` of the time), flights better
+NMPC: `report.suggests_nmpc`), flights better
 than zero motion, and which policy each flight ended with; with the date, command, machine
 and calibration, to `--json` (default `benchmarks/results/unnamed.json`).
 """
@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 from common import default_result_path, print_calibration, result_header
 
-from mca_drake.app.cli.report import OUT_OF_RANGE_NOTICE
+from mca_drake.app.cli.report import OUT_OF_RANGE_NOTICE, suggests_nmpc
 from mca_drake.atomic_io import atomic_write_json
 from mca_drake.cueing.configs import mca_config_from_name
 from mca_drake.cueing.dpc import DpcConfig
@@ -101,7 +101,7 @@ def case_figures(results: dict, suite_case: dict | None, seeds) -> dict:
         pis = np.array([runs[s]["pi"] for s in seeds])
         zero = np.array([runs[s]["pi_zero_motion"] for s in seeds])
         shares = [(runs[s]["out_of_distribution"] or {"share": np.nan})["share"] for s in seeds]
-        flagged = np.array(shares) > OUT_OF_RANGE_NOTICE
+        flagged = np.array([suggests_nmpc(runs[s]["out_of_distribution"]) for s in seeds])
         entry = {
             "pi_median": float(np.median(pis)),
             "better_than_zero_motion": int(np.sum(pis < zero)),
@@ -112,8 +112,7 @@ def case_figures(results: dict, suite_case: dict | None, seeds) -> dict:
             # range (`out_of_distribution`), median and largest over the flights
             "out_of_distribution_median": float(np.median(shares)),
             "out_of_distribution_max": float(np.max(shares)),
-            # flights whose report suggests the NMPC (outside the range more than
-            # OUT_OF_RANGE_NOTICE of the time): the guard a user sees
+            # flights whose report suggests the NMPC (`suggests_nmpc`): the guard a user sees
             "flagged": int(np.sum(flagged)),
         }
         for nmpc in NMPCS:

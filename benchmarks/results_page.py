@@ -766,7 +766,7 @@ def _unnamed(results_dir: Path, data: dict) -> list[str]:
             "policy throughout, against the suite's NMPC-rti on the same flights (for the "
             "drives also its ground profile)."
         )
-    notice = data.get("out_of_range_notice", 0.05)
+    notice = data["out_of_range_notice"]
     lines = [
         f"{flights} Difference: DPC - NMPC-rti, median and worst flight (lower is "
         "better); flights better than zero motion; the share of the time the reference lay "
@@ -810,9 +810,7 @@ def _unnamed(results_dir: Path, data: dict) -> list[str]:
 def _flagged(entry: dict, versus: dict) -> str:
     """How many flights' reports suggested the NMPC (outside the training range more than
     the file's `out_of_range_notice` of the time) and the worst difference to the NMPC-rti
-    among the others; "-" for a file from before the count was kept."""
-    if "flagged" not in entry:
-        return "-"
+    among the others."""
     worst = versus.get("worst_difference_unflagged") if versus else None
     return f"{entry['flagged']}" + (f" ({worst:+.3f})" if worst is not None else "")
 

@@ -13,7 +13,7 @@ import json
 import numpy as np
 import pytest
 
-from mca_drake.app.cli.report import policy_lines
+from mca_drake.app.cli.report import OUT_OF_RANGE_NOTICE, policy_lines, suggests_nmpc
 from mca_drake.conventions import CHANNELS
 from mca_drake.cueing.dpc import DpcConfig, load_policy_arrays, shipped_policy_path
 from mca_drake.cueing.reference_range import (
@@ -111,6 +111,19 @@ def test_a_run_says_how_much_of_its_reference_its_policy_never_saw(tmp_path):
         mca=DpcConfig(profile="ground"), reference=_cornering(3.0), robot=KR500, progress=False
     )
     assert ground.summary["out_of_distribution"]["channels"]["f_y"] == 0.0
+
+
+def test_the_report_suggests_the_nmpc_above_the_notice_share_only():
+    """At the notice share the report keeps quiet, just above it says to compare the NMPC;
+    a policy without a range (None) never does; the report's line and `suggests_nmpc`
+    agree."""
+    for share, expected in ((OUT_OF_RANGE_NOTICE, False), (OUT_OF_RANGE_NOTICE + 1e-9, True)):
+        outside = {"share": share, "channels": dict.fromkeys(CHANNELS, share)}
+        assert suggests_nmpc(outside) is expected
+        summary = {"policy_file": "p.npz", "policy_reason": "r", "out_of_distribution": outside}
+        said = any("compare --mca nmpc-rti" in line for line in policy_lines(summary))
+        assert said is expected
+    assert not suggests_nmpc(None)
 
 
 def _policy_file(tmp_path, ranges: ReferenceRange):

@@ -59,6 +59,12 @@ def format_closed_loop_report(result) -> str:
 OUT_OF_RANGE_NOTICE = 0.05
 
 
+def suggests_nmpc(outside: dict | None) -> bool:
+    """Whether a DPC run's report says to compare the NMPC: its `out_of_distribution`
+    share above OUT_OF_RANGE_NOTICE (False for a policy without a range: None)."""
+    return outside is not None and outside["share"] > OUT_OF_RANGE_NOTICE
+
+
 def policy_lines(summary: dict) -> list[str]:
     """The DPC's policy in words, for a report: which file and why, its changes of policy
     (a vehicle recognized from the reference) and the share of the time the reference lay
@@ -82,7 +88,7 @@ def policy_lines(summary: dict) -> list[str]:
             f"reference outside the policy's training range {outside['share']:.1%} of the "
             f"time" + (f" (most: {most})" if most else "")
         )
-        if outside["share"] > OUT_OF_RANGE_NOTICE:
+        if suggests_nmpc(outside):
             line += "; the policy was not trained on such motion: compare --mca nmpc-rti"
         lines.append(line)
     elif "out_of_distribution" in summary:
