@@ -81,11 +81,16 @@ def selections() -> dict[str, Selection]:
             ("light", "DHC6"),
             (("light", _policy(shipped_policy_path("light_policy"))), ("default", default)),
         ),
-        # the transports' policy over the default (decision 0020)
+        # the transports' policy over their first step (decision 0038) and the default
+        # (decision 0020)
         "transport": Selection(
-            "docs/decisions/0020-transports-fly-the-default-fine-tuned-on-the-wide-body.md",
+            "docs/decisions/0038-fine-tunes-average-their-last-epochs.md",
             ("jet", "A320", "787-8"),
-            (("transport", _policy(shipped_policy_path("transport_policy"))), ("default", default)),
+            (
+                ("transport", _policy(shipped_policy_path("transport_policy"))),
+                ("step1", _policy(STEPS / "transport_step1.npz")),
+                ("default", default),
+            ),
         ),
         # the ground policy over the flight policy it was fine-tuned from (decision 0013)
         "ground": Selection(

@@ -600,12 +600,15 @@ def _training_recipe(results_dir: Path, data: dict) -> list[str]:
                 ]
             )
     total, target = data["training_wall_s_total"], data["target_wall_s"]
-    verdict = "within" if total <= target else "over"
+    covered = data["training_wall_s_target_steps"]
+    verdict = "within" if covered <= target else "over"
     lines = _table(["step", "rollout steps", "epochs (best)", "wall time"], rows)
     lines += [
         "",
-        f"Whole recipe: {total / 60:.1f} min, {verdict} its {target / 60:.0f}-minute target "
-        f"(dataset `{data['dataset']}`).",
+        f"Whole recipe: {total / 60:.1f} min; the steps of the default and light policies "
+        f"({', '.join(data['target_steps'])}) {covered / 60:.1f} min, {verdict} their "
+        f"{target / 60:.0f}-minute target (dataset `{data['dataset']}`; the transports' last "
+        f"step on `{data['styles_dataset']}`).",
     ]
     return [*lines, ""]
 

@@ -1,6 +1,7 @@
 """Writes the shipped DPC policies' reference ranges (mca_drake/data/policy_reference_ranges.json).
 
     .venv/bin/python scripts/policy_reference_ranges.py [--cache-dir results/training_flights]
+        [--policies default_policy,light_policy,transport_policy,ground_policy]
 
 Each shipped policy was last trained on a dataset of the training guide (its metadata's
 `dataset`), on the flights of the vehicles its `dpc_config.vehicles` names (all where it
@@ -9,13 +10,18 @@ range covers both. This flies or drives those flights again (the dataset's seeds
 pilot, 5 minutes each: `references.drives.training_spec`, as `mca-drake dataset
 closed-loop` does; of the drives, the first six) and writes each policy's `ReferenceRange`
 (mirrored, as training mirrored half its windows). Flights are cached (`--cache-dir`): a
-killed run resumes. A drive takes minutes, a flight seconds.
+killed run resumes. A drive takes minutes, a flight seconds. A policy whose file carries its
+own range (`train-policy` records it) is written with that range, the one its runs read
+(`reference_range.policy_reference_range`), so that the platforms' moved copies, which
+carry none, read the same. `--policies` writes only the ranges of those policies (one
+trained again), keeping the file's others.
 """
 
 from __future__ import annotations
 
 import argparse
 import datetime
+import json
 from pathlib import Path
 
 from mca_drake.atomic_io import atomic_write_json
@@ -56,11 +62,22 @@ def dataset_flights(dataset: str) -> list[tuple[str, int]]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cache-dir", default="results/training_flights")
+    parser.add_argument("--policies", default=",".join(POLICIES))
     args = parser.parse_args()
     cache = Path(args.cache_dir)
-    records = {}
-    for name in POLICIES:
+    chosen = args.policies.split(",")
+    unknown = sorted(set(chosen) - set(POLICIES))
+    if unknown:
+        raise SystemExit(f"--policies: {', '.join(unknown)} not among {', '.join(POLICIES)}")
+    path = data_dir() / SHIPPED_RANGES_FILE
+    kept = json.loads(path.read_text())["policies"] if path.is_file() else {}
+    records = {name: kept[name] for name in POLICIES if name not in chosen and name in kept}
+    for name in chosen:
         _, metadata = load_policy_arrays(shipped_policy_path(name))
+        if "reference_range" in metadata:
+            records[name] = metadata["reference_range"]
+            print(f"{name}: the range its file carries", flush=True)
+            continue
         dataset = metadata["dataset"]
         vehicles = metadata.get("dpc_config", {}).get("vehicles") or ()
         flights = [(v, s) for v, s in dataset_flights(dataset) if not vehicles or v in vehicles]
@@ -80,12 +97,12 @@ def main() -> None:
             source += f"; of {dataset}'s drives the first six"
         records[name] = reference_range(references, mirrored=True, source=source).record()
     atomic_write_json(
-        data_dir() / SHIPPED_RANGES_FILE,
+        path,
         {
             "command": "python scripts/policy_reference_ranges.py",
             "date": datetime.date.today().isoformat(),
             "duration_s": DURATION_S,
-            "policies": records,
+            "policies": {name: records[name] for name in POLICIES if name in records},
         },
     )
 

@@ -268,3 +268,51 @@ def test_batches_with_a_non_finite_gradient_are_skipped_and_too_many_stop(tiny_s
         every.fit(train, validation, progress=False)
     # the command line reports it as an error the user can act on, not as a bug
     assert isinstance(raised.value, RuntimeError) and isinstance(raised.value, FloatingPointError)
+
+
+def test_weight_averaging_ends_each_step_on_the_mean_of_its_last_epochs(tiny_split, tmp_path):
+    """The oracle: the weights after each epoch, copied by a callback and averaged here."""
+    train, validation = tiny_split
+    torch.manual_seed(0)
+    model = make_state_model("nssm")
+    after_epoch: list[dict] = []
+
+    def keep(record):
+        after_epoch.append({k: v.detach().clone() for k, v in model.state_dict().items()})
+
+    # patience 0 would stop a run without averaging after its first epoch that does not
+    # improve: an averaging step runs all its epochs
+    config = _config(max_epochs=6, horizons=(16,), average_epochs=3, early_stopping_patience=0)
+    trainer = CurriculumTrainer(
+        model, state_objective, config, tmp_path / "avg.pt", callbacks=[keep]
+    )
+    result = trainer.fit(train, validation, progress=False)
+    assert len(after_epoch) == 6
+    from mca_drake.learning.data import to_tensors
+
+    for key, value in result.model.state_dict().items():
+        mean = sum(state[key].double() for state in after_epoch[3:]) / 3
+        torch.testing.assert_close(value, mean.to(value.dtype), rtol=1e-6, atol=1e-7)
+        assert not torch.equal(value, after_epoch[-1][key])  # not the last epoch's own
+    stage = result.stages[0]
+    assert stage.best_epoch == 6 and stage.epochs == 6
+    assert stage.best_validation_loss == pytest.approx(trainer.evaluate(to_tensors(validation)))
+
+
+def test_a_run_killed_while_averaging_resumes_to_the_same_mean(tiny_split, tmp_path):
+    train, validation = tiny_split
+    averaging = dict(max_epochs=6, horizons=(16,), average_epochs=4)
+    reference = _run(tmp_path, "a.pt", train, validation, **averaging)
+    with pytest.raises(SimulatedKillError):
+        _run(tmp_path, "b.pt", train, validation, kill_at=4, **averaging)
+    payload, _ = load_checkpoint(tmp_path / "b.pt")
+    assert payload["progress"]["averaged"] == 2  # epochs 3 and 4 of 6 summed when killed
+    resumed = _run(tmp_path, "b.pt", train, validation, resume=True, **averaging)
+    for key, value in reference.model.state_dict().items():
+        torch.testing.assert_close(resumed.model.state_dict()[key], value, rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("average_epochs", [-1, 7])
+def test_averaging_more_epochs_than_a_step_runs_is_refused(average_epochs):
+    with pytest.raises(ValueError, match="average_epochs"):
+        _config(max_epochs=6, average_epochs=average_epochs).validate()

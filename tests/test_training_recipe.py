@@ -31,8 +31,9 @@ def _guide_train_commands() -> list[list[str]]:
 
 
 def _flags(arguments: list[str]) -> dict[str, str]:
-    """--flag value pairs of an argument list; the folders (--out-dir, --init-policy) left
-    out, since the guide and the benchmark write to their own."""
+    """--flag value pairs of an argument list (a flag given twice: its last value, as the
+    command line reads it); the folders (--out-dir, --init-policy) left out, since the
+    guide and the benchmark write to their own."""
     pairs = dict(zip(arguments[1::2], arguments[2::2], strict=True))
     assert arguments[0] == "train-policy" and all(k.startswith("--") for k in pairs), arguments
     return {k: v for k, v in pairs.items() if k not in ("--out-dir", "--init-policy")}
@@ -41,21 +42,22 @@ def _flags(arguments: list[str]) -> dict[str, str]:
 def test_guide_and_benchmark_train_the_same_steps():
     bench = load_benchmark("bench_training_recipe")
     guide = _guide_train_commands()
-    assert len(guide) == len(bench.STEPS) == 4
+    assert len(guide) == len(bench.STEPS) == 5
     for (name, extra), command in zip(bench.STEPS, guide, strict=True):
-        ours = bench.step_command(name, extra, "datasets/mixed_t37/dataset.npz", Path("r"))
+        dataset = "mixed_tr" if name in bench.STYLES_STEPS else "mixed_t37"
+        ours = bench.step_command(name, extra, f"datasets/{dataset}/dataset.npz", Path("r"))
         assert _flags(ours) == _flags(command), name
-    # Steps 2 and the light step start from step 1's result in both; the transports' step
-    # from step 2's.
+    # Steps 2 and the light step start from step 1's result in both; the transports' first
+    # step from step 2's, their last from their first.
     outs = [command[command.index("--out-dir") + 1] for command in guide]
-    for later, step, origin in zip(guide[1:], bench.STEPS[1:], (0, 0, 1), strict=True):
+    for later, step, origin in zip(guide[1:], bench.STEPS[1:], (0, 0, 1, 3), strict=True):
         assert later[later.index("--init-policy") + 1] == f"{outs[origin]}/policy.npz"
         ours = bench.step_command(*step, "d.npz", Path("r"))
         origin_name = bench.STEPS[origin][0]
         assert ours[ours.index("--init-policy") + 1] == str(Path("r") / origin_name / "policy.npz")
 
 
-@pytest.mark.parametrize("step", ["step2", "light", "transport"])
+@pytest.mark.parametrize("step", ["step2", "light", "transport_styles"])
 def test_each_shipped_flight_policy_was_trained_with_its_recipe_step(step):
     bench = load_benchmark("bench_training_recipe")
     _, metadata = load_policy_arrays(shipped_policy_path(bench.SHIPPED[step]))
@@ -77,3 +79,8 @@ def test_each_shipped_flight_policy_was_trained_with_its_recipe_step(step):
     # the default policy's file is older than the field: it trained on every flight
     wanted = flags["--vehicles"].split(",") if "--vehicles" in flags else []
     assert config.get("vehicles", []) == wanted
+    averaged = int(flags.get("--average-epochs", 0))
+    assert config["train"].get("average_epochs", 0) == averaged
+    assert [s["horizon"] for s in metadata["stages"]] == [
+        int(h) for h in flags["--horizons"].split(",")
+    ]

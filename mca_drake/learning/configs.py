@@ -53,10 +53,22 @@ class TrainConfig:
     # Clip the gradient's global norm to this value (0: no clipping). Long closed-loop
     # rollouts (DPC) can produce exploding gradients that throw the network into saturation.
     gradient_clip_norm: float = 0.0
+    # Stochastic weight averaging: each curriculum step runs all its max_epochs (no early
+    # stopping) and ends on the mean of the weights after each of its last `average_epochs`
+    # epochs; 0: on its best validation weights. A DPC fine-tune's single epochs, which the
+    # validation loss does not tell apart, differ by up to 0.1 PI on a flight in closed
+    # loop, and two seeds' best epochs as much; the means of two seeds agree within 0.05
+    # (docs/decisions/0038-fine-tunes-average-their-last-epochs.md).
+    average_epochs: int = 0
 
     def validate(self) -> None:
         if min(self.batch_size, self.max_epochs) < 1 or not self.horizons:
             raise ValueError("batch_size, max_epochs and horizons must be positive / non-empty")
+        if not 0 <= self.average_epochs <= self.max_epochs:
+            raise ValueError(
+                f"average_epochs must be in [0, max_epochs = {self.max_epochs}]; got "
+                f"{self.average_epochs}"
+            )
         if not (self.learning_rate > 0 and 0 < self.plateau_factor < 1):
             raise ValueError("learning_rate must be > 0 and plateau_factor in (0, 1)")
         if self.device not in ("auto", "cpu", "cuda"):

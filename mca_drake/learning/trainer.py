@@ -201,10 +201,14 @@ class CurriculumTrainer:
                 count += n
         return total / max(count, 1)
 
-    def _state(self, progress: dict, optimiser, scheduler, best_state, generator) -> dict:
+    def _state(
+        self, progress: dict, optimiser, scheduler, best_state, generator, average=None
+    ) -> dict:
         return {
             "model": self.model.state_dict(),
             "best_model": best_state,
+            # the sum of the weights averaged so far (`TrainConfig.average_epochs`)
+            "average_model": average,
             "optimiser": optimiser.state_dict(),
             "scheduler": scheduler.state_dict(),
             "generator": generator.get_state(),
@@ -323,12 +327,16 @@ class CurriculumTrainer:
         best_state = {k: v.clone() for k, v in self.model.state_dict().items()}
         best_val, best_epoch, stage_start = math.inf, -1, time.perf_counter()
         epoch = 0
+        # weight averaging: the sum of the weights after each epoch from `average_from` on
+        average_from = cfg.max_epochs - cfg.average_epochs
+        average, averaged = None, 0
         if saved is not None:
             p = saved["progress"]
             optimiser.load_state_dict(saved["optimiser"])
             scheduler.load_state_dict(saved["scheduler"])
             best_state = saved["best_model"]
             best_val, best_epoch, epoch = p["best_validation"], p["best_epoch"], p["epoch"]
+            average, averaged = saved.get("average_model"), p.get("averaged", 0)
             stage_start -= p["stage_wall_s"]
         last_save = time.perf_counter()
         bar = tqdm(
@@ -338,13 +346,18 @@ class CurriculumTrainer:
             disable=not progress,
             leave=False,
         )
-        while epoch < cfg.max_epochs and epoch - best_epoch <= cfg.early_stopping_patience:
+        while epoch < cfg.max_epochs and (
+            cfg.average_epochs or epoch - best_epoch <= cfg.early_stopping_patience
+        ):
             train_loss, skipped = self._train_epoch(train_t, optimiser, generator, horizon, epoch)
             scheduler.step(train_loss)
             val_loss = self.evaluate(val_t)
             if val_loss < best_val:
                 best_val, best_epoch = val_loss, epoch
                 best_state = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
+            if cfg.average_epochs and epoch >= average_from:
+                average = _add_weights(average, self.model.state_dict())
+                averaged += 1
             epoch += 1
             record = EpochRecord(
                 stage,
@@ -361,17 +374,21 @@ class CurriculumTrainer:
             bar.set_postfix(train=f"{train_loss:.3g}", val=f"{val_loss:.3g}")
             if time.perf_counter() - last_save > cfg.checkpoint_interval_s:
                 progress_state = self._progress(
-                    stage, epoch, best_val, best_epoch, stage_start, history, stages
+                    stage, epoch, best_val, best_epoch, stage_start, history, stages, averaged
                 )
-                self._save(
-                    self._state(progress_state, optimiser, scheduler, best_state, generator),
-                    history,
-                    stages,
+                state = self._state(
+                    progress_state, optimiser, scheduler, best_state, generator, average
                 )
+                self._save(state, history, stages)
                 last_save = time.perf_counter()
             for callback in self.callbacks:
                 callback(record)
         bar.close()
+        if averaged:
+            # the step's result is the mean of its last epochs' weights, scored like an epoch
+            best_state = _mean_weights(average, averaged, self.model.state_dict())
+            self.model.load_state_dict(best_state)
+            best_val, best_epoch = self.evaluate(val_t), epoch - 1
         self.model.load_state_dict(best_state)
         stages.append(
             StageResult(horizon, best_val, best_epoch + 1, epoch, time.perf_counter() - stage_start)
@@ -426,12 +443,15 @@ class CurriculumTrainer:
         return total / count, skipped
 
     @staticmethod
-    def _progress(stage, epoch, best_val, best_epoch, stage_start, history, stages) -> dict:
+    def _progress(
+        stage, epoch, best_val, best_epoch, stage_start, history, stages, averaged=0
+    ) -> dict:
         return {
             "stage": stage,
             "epoch": epoch,
             "best_validation": best_val,
             "best_epoch": best_epoch,
+            "averaged": averaged,
             "stage_wall_s": time.perf_counter() - stage_start,
             "history": [dataclasses.asdict(r) for r in history],
             "stages": [dataclasses.asdict(s) for s in stages],
@@ -444,3 +464,21 @@ class CurriculumTrainer:
         from mca_drake.plotting import plot_loss_curves, save_figure
 
         save_figure(plot_loss_curves(history, title=self.metadata.get("model", "")), self.plot_path)
+
+
+def _add_weights(total: dict | None, state: dict) -> dict:
+    """`total` (None: nothing yet) plus the floating-point weights of `state`, in float64 so
+    that a long average loses nothing to round-off."""
+    weights = {k: v.detach().to(torch.float64) for k, v in state.items() if v.is_floating_point()}
+    if total is None:
+        return {k: v.clone() for k, v in weights.items()}
+    return {k: total[k] + v for k, v in weights.items()}
+
+
+def _mean_weights(total: dict, count: int, state: dict) -> dict:
+    """The state dict `state` with each floating-point entry replaced by `total / count`, in
+    its own dtype (other entries, e.g. counters, as they are in `state`)."""
+    return {
+        k: (total[k] / count).to(v.dtype) if k in total else v.detach().clone()
+        for k, v in state.items()
+    }

@@ -66,6 +66,7 @@ POLICY_TRAIN_FLAGS = {
     "learning_rate": "",
     "batch_size": "",
     "device": "",
+    "average_epochs": "",
 }
 
 
