@@ -429,3 +429,24 @@ def test_a_scenario_spells_the_suites_cases_as_one_list(tmp_path):
     assert [case.vehicle_of(s) for s in case.seeds] == ["f16", "DHC6", "f16"]
     with pytest.raises(ValueError, match=r"unknown field 'jet_seeds'.*cases: \[\{name: A"):
         load_scenario("evaluation", "{jet_seeds: [2000]}")
+
+
+def test_a_recorded_config_is_the_same_one_across_fields_added_at_their_defaults():
+    """A report written before a config field existed still stands in for that MCA while
+    the field is at its default; not once it is set, nor for a changed value or pose."""
+    from mca_drake.cueing import WashoutConfig
+    from mca_drake.studies.evaluation_report import same_config
+
+    home = load_platform("kr500").washout_home
+    nmpc = NmpcConfig(mode="rti")
+    older = {k: v for k, v in mca_config_record(nmpc).items() if k != "predictor"}
+    assert same_config(older, nmpc, home)
+    assert not same_config(older, dataclasses.replace(nmpc, predictor="linear"), home)
+    assert not same_config({**older, "washout_weight": 0.123}, nmpc, home)
+    assert not same_config({**older, "retired_field": 1}, nmpc, home)
+    assert not same_config(None, nmpc, home)
+    washout = WashoutConfig()
+    written_out = {**mca_config_record(washout), "home_position": [float(v) for v in home]}
+    assert same_config(written_out, washout, home)
+    moved = {**written_out, "home_position": [0.0] * len(home)}
+    assert not same_config(moved, washout, home)

@@ -179,6 +179,7 @@ def kept_entries(config: EvaluationConfig, runs: dict, previous: dict) -> dict:
             f"'{platform}': its entries cannot stand in for runs"
         )
     recorded = previous.get("mca_configs", {})
+    robot = load_platform(config.platform)
     kept = {}
     for case in config.cases:
         old = previous.get("cases", {}).get(case.name, {}).get("mcas", {})
@@ -186,9 +187,32 @@ def kept_entries(config: EvaluationConfig, runs: dict, previous: dict) -> dict:
             name = mca_name(m)
             if isinstance(m, DpcConfig) or runs[(case.name, name)] or name not in old:
                 continue
-            if recorded.get(name) == mca_config_record(m):
+            if same_config(recorded.get(name), m, robot.washout_home):
                 kept[(case.name, name)] = old[name]
     return kept
+
+
+def same_config(recorded: dict | None, config, washout_home=()) -> bool:
+    """Whether a report's `recorded` config (`mca_config_record`) is `config` as it runs:
+    equal field by field, where a field the record lacks (added to the class since) counts
+    as equal at its default, which keeps the behaviour it names, and a washout's empty
+    `home_position` (the platform's `washout_home`) equals that pose written out."""
+    if not isinstance(recorded, dict):
+        return False
+    current = mca_config_record(config)
+    defaults = mca_config_record(type(config)())
+    for key, value in current.items():
+        if key not in recorded:
+            if value != defaults[key]:
+                return False
+        elif recorded[key] != value and not (
+            key == "home_position"
+            and not value
+            and np.allclose(recorded[key], washout_home)
+            and len(recorded[key]) == len(washout_home)
+        ):
+            return False
+    return all(key in current for key in recorded)
 
 
 def _stand_in_runs(entry: dict) -> dict:
