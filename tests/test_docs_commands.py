@@ -41,6 +41,7 @@ SHRUNK_FLAGS = {
     "--flights": "1",
     "--trials": "2",
     "--max-epochs": "1",
+    "--average-epochs": "1",
     "--workers": "1",
 }
 # Seconds of a live run (the demo's JSBSim needs a second to start streaming).
