@@ -5,6 +5,7 @@ profile; references carry their vehicle to it, and training can keep one class's
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -29,6 +30,7 @@ from mca_drake.segments import SOURCE_COLUMNS, SegmentDataset, core_shapes
 from mca_drake.simulation.closed_loop import run_closed_loop
 
 KR500 = load_platform("kr500")
+DATA = Path(__file__).parent / "data"
 
 LIGHT = ("light", "DHC6")
 TRANSPORT = ("jet", "A320", "787-8", "MD11", "B747")
@@ -71,6 +73,52 @@ def test_a_named_policy_or_profile_wins_over_the_vehicle():
     assert DpcConfig(policy=str(v6), vehicle="light").policy_path("kr500") == v6
     ground = DpcConfig(profile="ground", vehicle="light").policy_path("kr500")
     assert ground == shipped_policy_path("ground_policy")
+
+
+def test_a_replaced_default_runs_wherever_the_default_would():
+    """`default_policy` stands for the shipped default policy: for an unnamed, unknown or
+    fighter vehicle, as the recognizer's fallback, with `unnamed` "default"; the envelope
+    policies, the ground's and a named policy are untouched."""
+    v11 = str(DATA / "policy_v11.npz")
+    replaced = DpcConfig(default_policy=v11)
+    for vehicle in ("", "f16", "no-such-aircraft"):
+        config = DpcConfig(default_policy=v11, vehicle=vehicle)
+        assert config.policy_path("kr500") == Path(v11), vehicle
+    assert DpcConfig(default_policy=v11, unnamed="default").policy_path("kr500") == Path(v11)
+    for vehicle, policy in (("light", "light_policy"), ("B747", "transport_policy")):
+        config = DpcConfig(default_policy=v11, vehicle=vehicle)
+        assert config.policy_path("kr500") == shipped_policy_path(policy)
+    assert DpcConfig(default_policy=v11, profile="ground").policy_path("kr500") == (
+        shipped_policy_path("ground_policy")
+    )
+    v6 = shipped_policy_path("policy_v6")
+    assert DpcConfig(default_policy=v11, policy=str(v6)).policy_path("kr500") == v6
+    assert replaced.recognizes()
+    shipped = DpcConfig().recognized_policy_paths("kr500")
+    assert shipped[0] == default_policy_path()
+    assert replaced.recognized_policy_paths("kr500") == (Path(v11), *shipped[1:])
+
+
+def test_a_replaced_default_must_exist_and_be_causal(tmp_path):
+    with pytest.raises(FileNotFoundError, match="default_policy"):
+        DpcConfig(default_policy=str(tmp_path / "missing.npz")).validate()
+    v11 = str(DATA / "policy_v11.npz")
+    with pytest.raises(ValueError, match="predictor"):
+        DpcConfig(default_policy=v11, predictor="learned").validate()
+    DpcConfig(default_policy=v11).validate()
+
+
+def test_a_replaced_default_flies_as_that_file_named_outright():
+    """Array for array, the DPC with `default_policy` on an unnamed reference with
+    `unnamed` "default" is the run of that file named as `policy`."""
+    v11 = str(DATA / "policy_v11.npz")
+    replaced = DpcConfig(default_policy=v11, unnamed="default")
+    runs = [
+        run_closed_loop(mca=config, reference=_reference(""), progress=False, robot=KR500)
+        for config in (replaced, DpcConfig(policy=v11))
+    ]
+    np.testing.assert_array_equal(runs[0].outputs, runs[1].outputs)
+    assert runs[0].summary["policy_file"] == "policy_v11.npz"
 
 
 def test_for_vehicle_fills_only_a_dpc_without_a_vehicle():

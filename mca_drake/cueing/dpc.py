@@ -161,6 +161,13 @@ class DpcConfig:
     # runs the shipped predictive policy (`PREDICTIVE_POLICY`), trained on that forecast:
     # `dpc-predictive`.
     predictor: str = ""
+    # A policy file that stands for the shipped default policy wherever that would run: a
+    # reference the recognizer recognizes nothing in, a vehicle outside every envelope, or
+    # `unnamed` "default". Empty: the shipped one. For trying a retrained default inside the
+    # DPC that recognizes the others (the transports', the light aircraft's, the ground's),
+    # as its selection does (`benchmarks/bench_selection.py`); not with a `predictor`, whose
+    # policies are the shipped predictive twins.
+    default_policy: str = ""
 
     def validate(self) -> None:
         """Raises ValueError for an unknown profile or `unnamed`, FileNotFoundError when the
@@ -179,6 +186,16 @@ class DpcConfig:
             )
         if self.policy and not Path(self.policy).is_file():
             raise FileNotFoundError(f"DpcConfig.policy: policy file {self.policy!r} not found")
+        if self.default_policy:
+            if self.predictor:
+                raise ValueError(
+                    "DpcConfig.default_policy replaces a causal policy; a predictor runs the "
+                    "shipped predictive twins: give one or the other"
+                )
+            if not Path(self.default_policy).is_file():
+                raise FileNotFoundError(
+                    f"DpcConfig.default_policy: policy file {self.default_policy!r} not found"
+                )
         if self.profile and not self.policy:
             # the profile's shipped policy: ValueError or FileNotFoundError
             self.policy_path(UNNAMED_POLICY_PLATFORM)
@@ -200,6 +217,13 @@ class DpcConfig:
             name = f"{check_profile(self.profile)}_policy"
         else:
             name = vehicle_policy_name(self.vehicle)
+        return self._policy_file(platform, name)
+
+    def _policy_file(self, platform: str, name: str) -> Path:
+        """The shipped policy `name` on `platform`, or `default_policy` in the default's
+        place."""
+        if name == "default_policy" and self.default_policy:
+            return Path(self.default_policy)
         return _platform_policy_path(platform, name)
 
     def cues_ground(self) -> bool:
@@ -223,7 +247,7 @@ class DpcConfig:
         first); None where the config names what runs (`recognizes`)."""
         if not self.recognizes():
             return None
-        return tuple(_platform_policy_path(platform, name) for name in RECOGNIZED_POLICIES)
+        return tuple(self._policy_file(platform, name) for name in RECOGNIZED_POLICIES)
 
 
 # The shipped policies of `dpc-predictive` (a DpcConfig with a predictor and no policy), one
