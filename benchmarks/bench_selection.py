@@ -65,15 +65,21 @@ def selections() -> dict[str, Selection]:
     is an install error, not an import error)."""
     default = _policy(default_policy_path())
     return {
-        # the recipe's second step over its first (v11) and the same within 0.6 rad (v13)
+        # the default policy over the recipe's step 2 it fine-tunes, each in its place inside
+        # the recognizing DPC, on unnamed flights of the aircraft it cues: the light aircraft's
+        # first 20 s and what follows their light phase, the trainers and fighters
+        # (decision 0039)
         "default": Selection(
-            "docs/guides/training.md#recipe-the-shipped-policy",
-            ("A4", "F4N"),
+            "docs/decisions/0039-the-default-policy-learns-pilots-of-drawn-styles.md",
+            ("light", "DHC6", "T37", "A4", "F4N", "f16"),
             (
-                ("default", default),
-                ("step1_v11", _policy(STEPS / "policy_v11.npz")),
-                ("step2_v13", _policy(STEPS / "policy_v13.npz")),
+                ("recognized", DpcConfig()),
+                (
+                    "recognized_step2",
+                    DpcConfig(default_policy=str(STEPS / "default_step2.npz")),
+                ),
             ),
+            unnamed=True,
         ),
         # the light aircraft's own policy over the default (decision 0016)
         "light": Selection(

@@ -1,18 +1,21 @@
 """The shipped flight policies' training recipe, run and timed: the `train-policy` steps of
 the training guide ("Recipe: the shipped policy") on this machine (step 1, then from it the
-default and the light aircraft's policies, then from the default the transports' first
-step and from it their policy), each curriculum step's epochs, best epoch and wall time,
-and the whole recipe's wall time against its target (30 minutes on 2 CPU cores for the
-first four steps, which make the default and light policies; the transports' last step on
-top).
+default's second step and the light aircraft's policy, then from that step the
+transports' first step and from it their policy, and the default policy), each curriculum
+step's epochs, best epoch and wall time, and the whole recipe's wall time against its
+target (30 minutes on 2 CPU cores for the first four steps; the two steps that learn
+pilots of drawn styles on top).
 
 python benchmarks/bench_training_recipe.py [--dataset datasets/mixed_t37/dataset.npz]
-    [--styles-dataset datasets/mixed_tr/dataset.npz] [--out-dir results/recipe]
+    [--styles-dataset datasets/mixed_tr/dataset.npz]
+    [--default-styles-dataset datasets/mixed_all/dataset.npz] [--out-dir results/recipe]
     [--json benchmarks/results/training_recipe.json]
 
 Each step trains in its own folder under --out-dir (`step1`, `step2`, `light`,
-`transport`, `transport_styles`; the last on --styles-dataset, the flight dataset joined
-with the wide-body's flights by pilots of drawn styles). A folder that holds the step's
+`transport`, `transport_styles`, `default_styles`): `transport_styles` on
+--styles-dataset, the flight dataset joined with the wide-body's flights by pilots of
+drawn styles, `default_styles` on --default-styles-dataset, joined with the flights of
+every training aircraft by pilots of drawn styles. A folder that holds the step's
 policy.npz is read, not trained again (its recorded times stand); one with only a
 checkpoint is resumed (`train-policy --resume`), so a killed run continues. The figures
 are the trainer's own wall times (dataset loading and the policy export excluded) and, for
@@ -54,7 +57,9 @@ CURRICULUM = ("--horizons", "256,1024")
 # flights alone, from near neutral (decision 0016). The transports' first step fine-tunes
 # the default policy on the wide-body's flights alone (decision 0020); their policy
 # fine-tunes that at the long horizon on the wide-body's flights by the scripted pilot and
-# by pilots of drawn styles, ending on the mean of its last 60 epochs (decision 0038).
+# by pilots of drawn styles, ending on the mean of its last 60 epochs (decision 0038). The
+# default policy is step 2 fine-tuned the same way on every training aircraft's flights by
+# the scripted pilot and by pilots of drawn styles (decision 0039).
 FINE_TUNING_FLAGS = (
     "--correlation-weight",
     "1",
@@ -135,17 +140,46 @@ STEPS = (
             "787-8",
         ),
     ),
+    (
+        "default_styles",
+        (
+            "--horizons",
+            "1024",
+            "--max-start-position",
+            "1.0",
+            "--init-policy",
+            "{step2}/policy.npz",
+            *FINE_TUNING_FLAGS,
+            "--achievable-cost-floor",
+            "0.003",
+            "--max-epochs",
+            "160",
+            "--average-epochs",
+            "60",
+            "--learning-rate",
+            "0.002",
+        ),
+    ),
 )
-# The steps whose dataset is --styles-dataset (with the drawn-style pilots' flights).
-STYLES_STEPS = ("transport_styles",)
-# The steps the 30-minute target covers (those of the default and light policies).
+# The steps trained on a dataset with the drawn-style pilots' flights, and the command-line
+# option (attribute of the parsed arguments) that names it.
+STYLES_STEPS = {
+    "transport_styles": "styles_dataset",
+    "default_styles": "default_styles_dataset",
+}
+# The steps the 30-minute target covers (all but the two that learn drawn-style pilots).
 TARGET_STEPS = ("step1", "step2", "light", "transport")
-# The shipped policy file each step after the first gives (`mca_drake.resources`); the
-# transports' first step is kept as tests/data/transport_step1.npz.
+# The shipped policy file each step after the first gives (`mca_drake.resources`).
 SHIPPED = {
-    "step2": "default_policy",
     "light": "light_policy",
     "transport_styles": "transport_policy",
+    "default_styles": "default_policy",
+}
+# The steps a shipped policy fine-tunes further, kept in tests/data (the selection compares
+# them, `bench_selection.py`).
+KEPT = {
+    "step2": "default_step2.npz",
+    "transport": "transport_step1.npz",
 }
 
 
@@ -200,10 +234,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--dataset", default="datasets/mixed_t37/dataset.npz")
     parser.add_argument("--styles-dataset", default="datasets/mixed_tr/dataset.npz")
+    parser.add_argument("--default-styles-dataset", default="datasets/mixed_all/dataset.npz")
     parser.add_argument("--out-dir", default="results/recipe", help="the steps' folders")
     parser.add_argument("--json", default=default_result_path("training_recipe.json"))
     args = parser.parse_args()
-    for dataset in (args.dataset, args.styles_dataset):
+    for dataset in (args.dataset, args.styles_dataset, args.default_styles_dataset):
         if not Path(dataset).is_file():
             raise SystemExit(
                 f"dataset {dataset} not found: the training guide's recipe makes it "
@@ -213,7 +248,7 @@ def main() -> None:
     out_dir = Path(args.out_dir)
     steps = {}
     for name, extra in STEPS:
-        dataset = args.styles_dataset if name in STYLES_STEPS else args.dataset
+        dataset = getattr(args, STYLES_STEPS[name]) if name in STYLES_STEPS else args.dataset
         command = step_command(name, extra, dataset, out_dir)
         print(f"{name}: mca-drake {shlex.join(command)}", flush=True)
         steps[name] = step_figures(out_dir / name, command, run_step(command, out_dir / name))
@@ -227,7 +262,7 @@ def main() -> None:
     target = sum(steps[name]["training_wall_s"] for name in TARGET_STEPS)
     met = "met" if target <= TARGET_WALL_S else "not met"
     print(
-        f"recipe: {total:.0f} s ({total / 60:.1f} min); the default and light policies' steps "
+        f"recipe: {total:.0f} s ({total / 60:.1f} min); its first four steps "
         f"{target:.0f} s ({target / 60:.1f} min), target {TARGET_WALL_S / 60:.0f} min: {met}"
     )
     atomic_write_json(
@@ -236,6 +271,7 @@ def main() -> None:
             "provenance": result_header(calibration),
             "dataset": args.dataset,
             "styles_dataset": args.styles_dataset,
+            "default_styles_dataset": args.default_styles_dataset,
             "steps": steps,
             "training_wall_s_total": total,
             "target_steps": list(TARGET_STEPS),

@@ -309,8 +309,114 @@ def test_an_unnamed_car_reference_runs_the_ground_policy_and_says_so():
     assert "car" in summary["policy_reason"]
 
 
+def _run_named(named: int, samples: np.ndarray) -> tuple[list, list]:
+    """The policy a DPC that starts in `named` has chosen after each of `samples`, and its
+    changes of policy."""
+    state = initial_recognition_state(named)
+    chosen = []
+    for sample in samples:
+        recognition_step(state, sample, DT, CONFIG)
+        chosen.append(recognized_policy(state))
+    return chosen, policy_changes(state)
+
+
+def test_a_named_light_aircraft_starts_in_its_policy_and_hands_back_once_for_good():
+    """No settling and no pulls needed: a named light aircraft runs the light policy from
+    the first sample; a roll rate beyond the light bound hands back to the default at the
+    sample where its smoothed magnitude passes the bound, and a gentle reference after it
+    does not bring the light policy back."""
+    assert policy_weights(initial_recognition_state(LIGHT), CONFIG) == (LIGHT, -1, 1.0)
+    gentle = np.tile([0.1, 0.0, 0.05, 0.5, 0.2, 0.3], (2500, 1))
+    chosen, changes = _run_named(LIGHT, gentle)
+    assert set(chosen) == {LIGHT} and changes == []
+    roll = np.zeros((1000, 6))
+    roll[:, 0] = 0.6
+    chosen, changes = _run_named(LIGHT, np.vstack([roll, gentle]))
+    crossing = _first_crossing(0.6, CONFIG.light_roll_rate)
+    assert chosen[crossing - 2] == LIGHT and chosen[crossing - 1] == 0
+    assert set(chosen[crossing - 1 :]) == {0}
+    assert changes == [(pytest.approx(crossing * DT), 0)]
+
+
+def test_a_named_transport_hands_back_on_a_fighters_pitch_rate_and_is_never_a_car():
+    pitch = np.zeros((800, 6))
+    pitch[:, 1] = -3.0 * CONFIG.transport_rates[1]
+    chosen, changes = _run_named(TRANSPORT, pitch)
+    crossing = _first_crossing(3.0 * CONFIG.transport_rates[1], CONFIG.transport_rates[1])
+    assert chosen[crossing - 2] == TRANSPORT and chosen[crossing - 1] == 0
+    assert changes == [(pytest.approx(crossing * DT), 0)]
+    # a car's evidence (level lateral force without roll) on a named transport: its bounds
+    # hold (2 m/s^2 is inside its sideslip) and it stays the transport policy
+    car = np.zeros((600, 6))
+    car[:, 4] = 2.0
+    chosen, _ = _run_named(TRANSPORT, car)
+    assert set(chosen) == {TRANSPORT}
+    with pytest.raises(ValueError, match="named"):
+        initial_recognition_state(GROUND)
+
+
+def test_a_named_envelope_vehicle_hands_back_unless_told_not_to():
+    light = DpcConfig(vehicle="DHC6")
+    assert light.hands_back() and light.first_policy() == LIGHT
+    assert light.recognized_policy_paths("kr500") == DpcConfig().recognized_policy_paths("kr500")
+    assert DpcConfig(vehicle="MD11").first_policy() == TRANSPORT
+    # the hexapod's default policy stands for the light one: one policy, nothing handed
+    assert light.recognized_policy_paths("hexapod") is None
+    assert len(set(light.recognized_policy_paths("kr500-rail"))) == 4
+    assert not light.recognizes() and not light.clips_reference()
+    for config in (
+        DpcConfig(vehicle="DHC6", envelope_handback=False),
+        DpcConfig(vehicle="f16"),
+        DpcConfig(vehicle="light", profile="ground"),
+        DpcConfig(vehicle="light", predictor="learned"),
+        DpcConfig(vehicle="bmw-320i"),
+    ):
+        assert not config.hands_back(), config
+        assert config.recognized_policy_paths("kr500") is None, config
+        assert config.first_policy() == 0
+    with pytest.raises(ValueError, match="envelope_handback"):
+        DpcConfig(envelope_handback="yes").validate()
+
+
+def test_a_named_light_aircraft_rolled_hard_is_handed_to_the_default_and_says_so():
+    """Closed loop: the named Twin Otter's run starts in the light policy (its first
+    second array for array the light policy's run named outright) and, rolled beyond a
+    light aircraft's bounds, ends in the default policy, its summary saying why."""
+    t = np.arange(0.0, 4.0, DT)
+    samples = np.zeros((t.size, 6))
+    share = np.clip((t - 1.0) / 0.5, 0.0, 1.0)  # rolling in over 0.5 s from t = 1 s
+    samples[:, 0] = 0.8 * share * share * (3.0 - 2.0 * share)
+    reference = Reference(y=samples, name="flight", vehicle="DHC6")
+    robot = load_platform("kr500")
+    runs = [
+        run_closed_loop(mca=config, reference=reference, robot=robot, progress=False)
+        for config in (DpcConfig(), DpcConfig(envelope_handback=False))
+    ]
+    summary = runs[0].summary
+    assert summary["policy_file"] == "default_policy.npz"
+    assert "left a light aircraft's bounds" in summary["policy_reason"]
+    changes = summary["policy_changes"]
+    assert [c["policy_file"] for c in changes] == ["default_policy.npz"]
+    # the first-order low-pass the recognizer smooths with, run on the samples: the sample
+    # (1-based, as the recognizer's clock counts) where it first passes the light bound
+    alpha = DT / (CONFIG.smoothing_s + DT)
+    smoothed = 0.0
+    crossing = None
+    for step, w_x in enumerate(samples[:, 0], start=1):
+        smoothed += alpha * (abs(w_x) - smoothed)
+        if smoothed > CONFIG.light_roll_rate:
+            crossing = step
+            break
+    assert changes[0]["t_s"] == pytest.approx(crossing * DT)
+    assert runs[1].summary["policy_file"] == "light_policy.npz"
+    assert "policy_changes" not in runs[1].summary
+    np.testing.assert_array_equal(runs[0].outputs[:100], runs[1].outputs[:100])
+    assert not np.array_equal(runs[0].outputs[-50:], runs[1].outputs[-50:])
+
+
 def test_a_named_vehicle_or_the_default_setting_runs_one_policy():
     assert DpcConfig(vehicle="c172x").recognized_policy_paths("kr500") is None
+    assert DpcConfig(vehicle="t6texan2").recognized_policy_paths("kr500") is None
     assert DpcConfig(unnamed="default").recognized_policy_paths("kr500") is None
     record = policy_record(DpcConfig(unnamed="default"), "kr500")
     assert record == {

@@ -42,25 +42,36 @@ def _flags(arguments: list[str]) -> dict[str, str]:
 def test_guide_and_benchmark_train_the_same_steps():
     bench = load_benchmark("bench_training_recipe")
     guide = _guide_train_commands()
-    assert len(guide) == len(bench.STEPS) == 5
+    assert len(guide) == len(bench.STEPS) == 6
+    datasets = {"transport_styles": "mixed_tr", "default_styles": "mixed_all"}
+    assert set(datasets) == set(bench.STYLES_STEPS)
     for (name, extra), command in zip(bench.STEPS, guide, strict=True):
-        dataset = "mixed_tr" if name in bench.STYLES_STEPS else "mixed_t37"
+        dataset = datasets.get(name, "mixed_t37")
         ours = bench.step_command(name, extra, f"datasets/{dataset}/dataset.npz", Path("r"))
         assert _flags(ours) == _flags(command), name
     # Steps 2 and the light step start from step 1's result in both; the transports' first
-    # step from step 2's, their last from their first.
+    # step and the default's last from step 2's, the transports' last from their first.
     outs = [command[command.index("--out-dir") + 1] for command in guide]
-    for later, step, origin in zip(guide[1:], bench.STEPS[1:], (0, 0, 1, 3), strict=True):
+    for later, step, origin in zip(guide[1:], bench.STEPS[1:], (0, 0, 1, 3, 1), strict=True):
         assert later[later.index("--init-policy") + 1] == f"{outs[origin]}/policy.npz"
         ours = bench.step_command(*step, "d.npz", Path("r"))
         origin_name = bench.STEPS[origin][0]
         assert ours[ours.index("--init-policy") + 1] == str(Path("r") / origin_name / "policy.npz")
 
 
-@pytest.mark.parametrize("step", ["step2", "light", "transport_styles"])
-def test_each_shipped_flight_policy_was_trained_with_its_recipe_step(step):
+@pytest.mark.parametrize(
+    "step", ["step2", "light", "transport", "transport_styles", "default_styles"]
+)
+def test_each_shipped_or_kept_flight_policy_was_trained_with_its_recipe_step(step):
+    """The shipped policies and the earlier steps kept in tests/data (which the selection
+    compares them with) record the flags of their recipe step."""
     bench = load_benchmark("bench_training_recipe")
-    _, metadata = load_policy_arrays(shipped_policy_path(bench.SHIPPED[step]))
+    assert set(bench.SHIPPED).isdisjoint(bench.KEPT)
+    if step in bench.SHIPPED:
+        path = shipped_policy_path(bench.SHIPPED[step])
+    else:
+        path = REPO / "tests" / "data" / bench.KEPT[step]
+    _, metadata = load_policy_arrays(path)
     flags = _flags(bench.step_command(step, dict(bench.STEPS)[step], "d.npz", Path("r")))
     config = metadata["dpc_config"]
     assert config["correlation_weight"] == pytest.approx(float(flags["--correlation-weight"]))

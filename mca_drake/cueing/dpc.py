@@ -22,7 +22,11 @@ from scipy.special import erf
 from mca_drake.atomic_io import load_npz_with_metadata
 from mca_drake.conventions import NUM_CHANNELS
 from mca_drake.cueing.predictor import check_predictor
-from mca_drake.cueing.recognition import RECOGNITION_REASONS, RECOGNIZED_POLICIES
+from mca_drake.cueing.recognition import (
+    HANDBACK_REASONS,
+    RECOGNITION_REASONS,
+    RECOGNIZED_POLICIES,
+)
 from mca_drake.cueing.reference_range import (
     ReferenceRange,
     policy_reference_range,
@@ -168,6 +172,13 @@ class DpcConfig:
     # as its selection does (`benchmarks/bench_selection.py`); not with a `predictor`, whose
     # policies are the shipped predictive twins.
     default_policy: str = ""
+    # A vehicle named of the light or transport envelope runs its envelope's policy while
+    # the reference stays inside that envelope's bounds (the recognizer's,
+    # `cueing.recognition`) and hands back to the default policy for good once it leaves
+    # them (smoothly, as a recognized policy does): a hand-flown light aircraft pulled
+    # beyond what its policy was trained on is cued better by the default, trained on every
+    # aircraft (decision 0039). False: the envelope's policy throughout.
+    envelope_handback: bool = True
 
     def validate(self) -> None:
         """Raises ValueError for an unknown profile or `unnamed`, FileNotFoundError when the
@@ -178,6 +189,10 @@ class DpcConfig:
             raise ValueError(
                 f"DpcConfig.unnamed must be one of {', '.join(UNNAMED_CHOICES)}; got "
                 f"{self.unnamed!r}"
+            )
+        if not isinstance(self.envelope_handback, bool):
+            raise ValueError(
+                f"DpcConfig.envelope_handback must be true or false; got {self.envelope_handback!r}"
             )
         if self.range_clip not in RANGE_CLIP_CHOICES:
             raise ValueError(
@@ -236,6 +251,22 @@ class DpcConfig:
         named = self.policy or self.profile or self.vehicle or self.predictor
         return not named and self.unnamed == "recognize"
 
+    def hands_back(self) -> bool:
+        """Whether the vehicle is named, of an envelope with its own policy (light,
+        transport), nothing else names the policy, and `envelope_handback` hands that
+        policy back to the default when the reference leaves the envelope."""
+        named = self.policy or self.profile or self.predictor
+        envelope_policy = vehicle_policy_name(self.vehicle) in ENVELOPE_POLICIES.values()
+        return bool(self.vehicle) and envelope_policy and not named and self.envelope_handback
+
+    def first_policy(self) -> int:
+        """The index in `recognition.RECOGNIZED_POLICIES` of the policy a DPC with
+        `recognized_policy_paths` starts in: the named vehicle's envelope policy where it
+        `hands_back`, else the default."""
+        if self.hands_back():
+            return RECOGNIZED_POLICIES.index(vehicle_policy_name(self.vehicle))
+        return 0
+
     def clips_reference(self) -> bool:
         """Whether the network reads the reference clipped into its policy's training range
         (`range_clip`)."""
@@ -244,10 +275,14 @@ class DpcConfig:
     def recognized_policy_paths(self, platform: str) -> tuple[Path, ...] | None:
         """The shipped policies the recognizer chooses between on the platform named
         `platform`, in the order of `cueing.recognition.RECOGNIZED_POLICIES` (the default
-        first); None where the config names what runs (`recognizes`)."""
-        if not self.recognizes():
+        first), where it `recognizes` the vehicle or a named one `hands_back` to another
+        file; else None (one policy runs throughout)."""
+        if not (self.recognizes() or self.hands_back()):
             return None
-        return tuple(self._policy_file(platform, name) for name in RECOGNIZED_POLICIES)
+        paths = tuple(self._policy_file(platform, name) for name in RECOGNIZED_POLICIES)
+        if not self.recognizes() and paths[self.first_policy()] == paths[0]:
+            return None  # a platform whose default stands for the envelope's: nothing to hand
+        return paths
 
 
 # The shipped policies of `dpc-predictive` (a DpcConfig with a predictor and no policy), one
@@ -384,16 +419,21 @@ def policy_record(
         record = {"policy_file": path.name, "policy_reason": why}
         segments = [(0.0, path)]
     else:
-        last = changes[-1][1] if changes else 0
+        first = config.first_policy()
+        last = changes[-1][1] if changes else first
+        if config.hands_back():
+            reasons = {first: _vehicle_policy(config.vehicle)[1], 0: HANDBACK_REASONS[first]}
+        else:
+            reasons = dict(enumerate(RECOGNITION_REASONS))
         record = {
             "policy_file": paths[last].name,
-            "policy_reason": RECOGNITION_REASONS[last],
+            "policy_reason": reasons[last],
             "policy_changes": [
-                {"t_s": round(t, 6), "policy_file": paths[i].name, "reason": RECOGNITION_REASONS[i]}
+                {"t_s": round(t, 6), "policy_file": paths[i].name, "reason": reasons[i]}
                 for t, i in changes
             ],
         }
-        segments = [(0.0, paths[0]), *((t, paths[i]) for t, i in changes)]
+        segments = [(0.0, paths[first]), *((t, paths[i]) for t, i in changes)]
     if reference is not None:
         ranges = [(t, _policy_range(str(path))) for t, path in segments]
         record["out_of_distribution"] = run_outside(np.asarray(reference), ranges, time_step)

@@ -33,6 +33,14 @@ recording, so each decision against a kind is final:
   for good. On the training flights no aircraft held that evidence for more than 0.6 s.
 - otherwise the **default** policy.
 
+A vehicle named a light aircraft or a transport (`DpcConfig.vehicle`) starts in its
+envelope's policy at once (`initial_recognition_state(named=...)`: nothing to recognize,
+the other kinds ruled out) and keeps it while the reference stays inside that envelope's
+bounds above; once it leaves them, the default policy runs for good
+(`DpcConfig.envelope_handback`): a hand-flown light aircraft pulled beyond what its
+policy was trained on is cued better by the default policy, trained on every aircraft,
+than by a policy that extrapolates.
+
 Every change of policy is handed over smoothly: the command blends from the old policy's
 to the new one's with a smoothstep weight (no step in the command, nor in its rate), over
 `handover_s`, and back to the default over the shorter `handback_s`: the evidence for a
@@ -61,6 +69,13 @@ RECOGNITION_REASONS = (
     "aircraft's roll, yaw, surge and sideslip)",
     "no vehicle named: recognized as a car (lateral force without roll, level)",
 )
+# Why a named vehicle's envelope policy handed back to the default.
+HANDBACK_REASONS = {
+    TRANSPORT: "the reference left the transport envelope (rotation rates, 2.5 g or 0.6 g of "
+    "surge): the default policy",
+    LIGHT: "the reference left a light aircraft's bounds (roll, yaw, surge, sideslip or fast "
+    "pulls): the default policy",
+}
 
 
 def _transport_rates() -> tuple[float, float, float]:
@@ -170,21 +185,36 @@ _TIME, _GROUND_HELD, _NOT_TRANSPORT, _NOT_GROUND, _POLICY, _PREVIOUS, _SINCE, _N
 # the pitch rate and vertical force smoothed with their signs, and the time spent in slow
 # and in fast pulls (`pull_speed`)
 _PITCH, _VERTICAL, _SLOW_PULLS, _FAST_PULLS = range(14, 18)
+# the named vehicle's policy the state started in (0: none named, recognized from the
+# default)
+_NAMED = 18
 # then the changes of policy, (time s, index in RECOGNIZED_POLICIES) each, NaN where there
 # were fewer: each kind is taken at most once (leaving one rules it out) and a car's
 # comes last, so at most
 # default -> transport -> default -> light -> default -> ground
 MAX_CHANGES = 5
-_FIRST_CHANGE = 18
+_FIRST_CHANGE = 19
 RECOGNITION_STATE_SIZE = _FIRST_CHANGE + 2 * MAX_CHANGES
 
 
-def initial_recognition_state() -> list[float]:
-    """The recognizer's state before the first sample: the default policy, from t = 0."""
+def initial_recognition_state(named: int = DEFAULT) -> list[float]:
+    """The recognizer's state before the first sample: the default policy, from t = 0; or,
+    with `named` TRANSPORT or LIGHT (a vehicle named of that envelope), that policy from
+    t = 0 with every other kind ruled out, handed back to the default once the reference
+    leaves the envelope. ValueError for another `named`."""
+    if named not in (DEFAULT, TRANSPORT, LIGHT):
+        raise ValueError(
+            f"named: {RECOGNIZED_POLICIES[TRANSPORT]} or {RECOGNIZED_POLICIES[LIGHT]} "
+            f"(or {RECOGNIZED_POLICIES[DEFAULT]}: none); got {named!r}"
+        )
     state = [0.0] * RECOGNITION_STATE_SIZE
     state[_PREVIOUS] = -1.0  # nothing to hand over from
     state[_SINCE] = -math.inf
     state[_FIRST_CHANGE:] = [math.nan] * (2 * MAX_CHANGES)
+    if named != DEFAULT:
+        state[_POLICY] = state[_NAMED] = float(named)
+        state[_NOT_GROUND] = 1.0
+        state[_NOT_LIGHT if named == TRANSPORT else _NOT_TRANSPORT] = 1.0
     return state
 
 
@@ -231,15 +261,21 @@ def recognition_step(
     ground_like = ground_like and a_z < config.ground_vertical
     state[_GROUND_HELD] = state[_GROUND_HELD] + time_step if ground_like else 0.0
     policy = int(state[_POLICY])
+    # a named vehicle needs no evidence for its own kind, only stays inside its bounds
+    named = state[_NAMED] != 0.0
     if policy == GROUND:
         chosen = GROUND
     elif not state[_NOT_GROUND] and state[_GROUND_HELD] >= config.ground_hold_s - 1e-9:
         chosen = GROUND
-    elif now < config.settle_s - 1e-9:
+    elif now < config.settle_s - 1e-9 and not named:
         chosen = DEFAULT
     elif not state[_NOT_TRANSPORT]:
         chosen = TRANSPORT
-    elif config.recognize_light and not state[_NOT_LIGHT] and _slow_pulls(state, config):
+    elif (
+        (named or config.recognize_light)
+        and not state[_NOT_LIGHT]
+        and (named or _slow_pulls(state, config))
+    ):
         chosen = LIGHT
     else:
         chosen = DEFAULT
@@ -299,13 +335,15 @@ def recognized_policy(state) -> int:
 
 def policy_changes(state) -> list[tuple[float, int]]:
     """(time s, index in RECOGNIZED_POLICIES) of each change of policy, in time order (the
-    default runs from 0 before the first)."""
+    policy `initial_recognition_state` started in runs from 0 before the first: the
+    default, or a named vehicle's)."""
     changes = [float(v) for v in state[_FIRST_CHANGE:]]
     pairs = zip(changes[::2], changes[1::2], strict=True)
     return [(t, int(i)) for t, i in pairs if math.isfinite(t)]
 
 
 __all__ = [
+    "HANDBACK_REASONS",
     "RECOGNITION_REASONS",
     "RECOGNITION_STATE_SIZE",
     "RECOGNIZED_POLICIES",

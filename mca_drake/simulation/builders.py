@@ -120,6 +120,7 @@ def AddMca(
                 time_step,
                 update_event,
                 recognized=config.recognized_policy_paths(robot.name),
+                first_policy=config.first_policy(),
                 range_clip=config.clips_reference(),
                 predictor=config.predictor,
             ),

@@ -72,6 +72,10 @@ class DpcPolicy(LeafSystem):
             is recognized from the reference as it goes and each change of policy handed
             over smoothly (`recognition.policy_weights`). None: `policy` throughout.
         recognition: the recognizer's settings (default `RecognitionConfig()`).
+        first_policy: with `recognized`, the index of the policy it starts in: 0, the
+            default; a named light aircraft's or transport's (`DpcConfig.first_policy`),
+            handed back to the default once the reference leaves its envelope
+            (`recognition.initial_recognition_state`).
         range_clip: each policy file's network reads the reference clipped into the range
             of the references it was trained on (`cueing.reference_range`;
             `DpcConfig.range_clip`); a policy given as arrays, or without a range, reads it
@@ -91,6 +95,7 @@ class DpcPolicy(LeafSystem):
         preview_steps: int = 0,
         recognized: tuple | None = None,
         recognition: RecognitionConfig | None = None,
+        first_policy: int = 0,
         range_clip: bool = False,
         predictor: str = "",
     ):
@@ -137,7 +142,7 @@ class DpcPolicy(LeafSystem):
         self._recognition_index = None
         if self._inferences is not None:
             self._recognition_index = self.DeclareDiscreteState(
-                np.array(initial_recognition_state())
+                np.array(initial_recognition_state(first_policy))
             )
         DeclareMcaUpdate(self, time_step, self._update, update_event)
         self.DeclareStateOutputPort("joint_acceleration", self._command_index)
