@@ -71,6 +71,23 @@ FINE_TUNING_FLAGS = (
     "1.0",
 )
 STEP2_FLAGS = ("--init-policy", "{step1}/policy.npz", *FINE_TUNING_FLAGS)
+# The steps that learn pilots of drawn styles: step 2's loss at the long horizon, 160 epochs
+# at a learning rate of 0.002 ending on the mean of the last 60 (decisions 0038, 0039).
+STYLES_FLAGS = (
+    "--horizons",
+    "1024",
+    "--max-start-position",
+    "1.0",
+    *FINE_TUNING_FLAGS,
+    "--achievable-cost-floor",
+    "0.003",
+    "--max-epochs",
+    "160",
+    "--average-epochs",
+    "60",
+    "--learning-rate",
+    "0.002",
+)
 STEPS = (
     ("step1", (*CURRICULUM, "--max-start-position", "0.6", "--max-epochs", "300")),
     (
@@ -120,46 +137,9 @@ STEPS = (
     ),
     (
         "transport_styles",
-        (
-            "--horizons",
-            "1024",
-            "--max-start-position",
-            "1.0",
-            "--init-policy",
-            "{transport}/policy.npz",
-            *FINE_TUNING_FLAGS,
-            "--achievable-cost-floor",
-            "0.003",
-            "--max-epochs",
-            "160",
-            "--average-epochs",
-            "60",
-            "--learning-rate",
-            "0.002",
-            "--vehicles",
-            "787-8",
-        ),
+        ("--init-policy", "{transport}/policy.npz", *STYLES_FLAGS, "--vehicles", "787-8"),
     ),
-    (
-        "default_styles",
-        (
-            "--horizons",
-            "1024",
-            "--max-start-position",
-            "1.0",
-            "--init-policy",
-            "{step2}/policy.npz",
-            *FINE_TUNING_FLAGS,
-            "--achievable-cost-floor",
-            "0.003",
-            "--max-epochs",
-            "160",
-            "--average-epochs",
-            "60",
-            "--learning-rate",
-            "0.002",
-        ),
-    ),
+    ("default_styles", ("--init-policy", "{step2}/policy.npz", *STYLES_FLAGS)),
 )
 # The steps trained on a dataset with the drawn-style pilots' flights, and the command-line
 # option (attribute of the parsed arguments) that names it.
