@@ -81,16 +81,21 @@ def selections() -> dict[str, Selection]:
             ),
             unnamed=True,
         ),
-        # the light aircraft's own policy over the default (decision 0016)
+        # the light aircraft's own policy over the default it fine-tunes (decision 0040) and
+        # the recipe's light step of decision 0016
         "light": Selection(
-            "docs/decisions/0016-flight-policies-by-envelope.md",
+            "docs/decisions/0040-the-envelope-policies-learn-pilots-of-drawn-styles.md",
             ("light", "DHC6"),
-            (("light", _policy(shipped_policy_path("light_policy"))), ("default", default)),
+            (
+                ("light", _policy(shipped_policy_path("light_policy"))),
+                ("step3", _policy(STEPS / "light_step1.npz")),
+                ("default", default),
+            ),
         ),
-        # the transports' policy over their first step (decision 0038) and the default
+        # the transports' policy over their first step (decisions 0038, 0040) and the default
         # (decision 0020)
         "transport": Selection(
-            "docs/decisions/0038-fine-tunes-average-their-last-epochs.md",
+            "docs/decisions/0040-the-envelope-policies-learn-pilots-of-drawn-styles.md",
             ("jet", "A320", "787-8"),
             (
                 ("transport", _policy(shipped_policy_path("transport_policy"))),

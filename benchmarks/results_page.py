@@ -605,10 +605,11 @@ def _training_recipe(results_dir: Path, data: dict) -> list[str]:
     lines = _table(["step", "rollout steps", "epochs (best)", "wall time"], rows)
     lines += [
         "",
-        f"Whole recipe: {total / 60:.1f} min; the steps of the default and light policies "
+        f"Whole recipe: {total / 60:.1f} min; its first steps "
         f"({', '.join(data['target_steps'])}) {covered / 60:.1f} min, {verdict} their "
         f"{target / 60:.0f}-minute target (dataset `{data['dataset']}`; the transports' last "
-        f"step on `{data['styles_dataset']}`).",
+        f"step on `{data['styles_dataset']}`, the default's and the light aircraft's on "
+        f"`{data['default_styles_dataset']}`).",
     ]
     return [*lines, ""]
 
