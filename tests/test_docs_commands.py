@@ -11,6 +11,7 @@ status 2). What the commands print is checked by test_docs.py, on the blocks tha
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 import shlex
@@ -111,6 +112,24 @@ def page_commands() -> dict[str, list[str]]:
     return commands
 
 
+@functools.cache
+def _tracked_files() -> frozenset[str] | None:
+    """The repository's files under version control (None where git cannot say)."""
+    done = subprocess.run(["git", "ls-files"], cwd=REPO, capture_output=True, text=True)
+    return frozenset(done.stdout.splitlines()) if done.returncode == 0 else None
+
+
+def _is_repository_file(word: str) -> bool:
+    """Whether a command's word names a file or folder the repository ships: a scenario, a
+    packaged policy, test data. Data a checkout made for itself (datasets/, results/) is
+    not: a page's command reads the page folder's stand-in or what an earlier line wrote."""
+    if not (REPO / word).exists():
+        return False
+    tracked = _tracked_files()
+    folder = word.rstrip("/") + "/"
+    return tracked is None or word in tracked or any(f.startswith(folder) for f in tracked)
+
+
 def shrink(words: list[str]) -> list[str]:
     """A command's words made short to run: long values cut (`SHRUNK_FLAGS`), live runs a
     few seconds on loopback, scenarios cut by a last `--set`, a suite to one case. Paths to
@@ -145,9 +164,8 @@ def shrink(words: list[str]) -> list[str]:
             i += 2
             continue
         previous = out[-1]
-        repository_file = REPO / word
-        if not previous.startswith("--out") and "/" in word and repository_file.exists():
-            word = str(repository_file)
+        if not previous.startswith("--out") and "/" in word and _is_repository_file(word):
+            word = str(REPO / word)
         out.append(word)
         i += 1
     flags = set(out)
@@ -176,6 +194,10 @@ def shrink(words: list[str]) -> list[str]:
             out += ["--flights", str(max(1, len(vehicles)))]
         out += [] if "--minutes" in flags else ["--minutes", DATASET_MINUTES]
         out += [] if "--horizon" in flags else ["--horizon", "256"]
+    if command == "dataset" and out[2] == "bound":
+        # each flight's bound is a Gauss-Newton solve of minutes; two iterations run the same
+        # code path (its result is written whether or not it converged)
+        out += [] if "--max-iterations" in flags else ["--max-iterations", "2"]
     if command == "train-policy":
         out += [] if "--max-epochs" in flags else ["--max-epochs", "1"]
         out += [] if "--horizons" in flags else ["--horizons", "128,256"]
