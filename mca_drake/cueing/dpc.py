@@ -457,12 +457,12 @@ def for_vehicle(config, vehicle: str):
 
 # The shipped policy for the aircraft of a flight envelope (`VEHICLE_ENVELOPES`): one
 # policy trained on every training flight balances the fighters' and trainers' large,
-# fast manoeuvres against the light aircraft's small forces, which a policy trained on the
-# light aircraft's flights alone renders better
-# (docs/decisions/0016-flight-policies-by-envelope.md). The transports fly the recipe's
-# step 2 fine-tuned on the wide-body's flights, which renders every transport's validation
-# flights better than the default (decision 0020). The aerobatic trainers and the fighters
-# fly the default policy.
+# fast manoeuvres against the light aircraft's small forces, which the default fine-tuned on
+# the light aircraft's flights alone renders better (docs/decisions/0016-flight-policies-by-
+# envelope.md, 0040). The transports fly the recipe's step 2 fine-tuned on the wide-body's
+# flights, its slow forces weighed twice the NMPC's, which renders every transport's
+# validation flights better than the default (decisions 0020, 0038, 0040). The aerobatic
+# trainers and the fighters fly the default policy.
 ENVELOPE_POLICIES = {"light": "light_policy", "transport": "transport_policy"}
 # Vehicles cued by the ground policy: the cars `mca-drake drive` drives (their names are in
 # its recordings' headers) and "car", what a racing simulator's stream or a recording of a
