@@ -82,6 +82,8 @@ def _pull(samples: int, pitch_rate: float, vertical: float) -> np.ndarray:
 
 
 def test_a_slow_pull_beyond_a_transports_rates_brings_the_light_policy_a_fast_roll_ends_it():
+    """The transport ruled out by a pull at a light aircraft's speed, inside a light
+    aircraft's bounds: the light policy at once; a trainer's roll ends it for good."""
     transport, light = CONFIG.transport_rates[1], CONFIG.light_roll_rate
     quiet = np.zeros((2500, 6))
     # 2 x the transport's pitch rate at 2 m/s^2: a pull at 2 / 0.105 = 19 m/s, a light
@@ -91,50 +93,67 @@ def test_a_slow_pull_beyond_a_transports_rates_brings_the_light_policy_a_fast_ro
     roll[:, 0] = 2.0 * light  # a roll rate of a trainer or a fighter
     state, chosen = _run(np.vstack((quiet, pull, roll, quiet)))
     not_transport = 2500 + _first_crossing(2.0 * transport, transport)
-    assert chosen[not_transport - 2] == TRANSPORT and chosen[not_transport - 1] == 0
-    # a pull from where both smoothed signals pass their thresholds, for light_pull_s
-    pulling = max(
-        _first_crossing(2.0 * transport, CONFIG.pull_pitch_rate),
-        _first_crossing(2.0, CONFIG.pull_vertical),
-    )
-    to_light = 2500 + pulling + round(CONFIG.light_pull_s / DT) - 1
-    assert chosen[to_light - 2] == 0 and chosen[to_light - 1] == LIGHT
+    assert chosen[not_transport - 2] == TRANSPORT and chosen[not_transport - 1] == LIGHT
     to_default = 3100 + _first_crossing(2.0 * light, light)
     assert chosen[to_default - 2] == LIGHT and chosen[to_default - 1] == 0
     assert set(chosen[to_default - 1 :]) == {0}  # the quiet that follows does not return it
     assert policy_changes(state) == [
         (pytest.approx(CONFIG.settle_s), TRANSPORT),
-        (pytest.approx(not_transport * DT), 0),
-        (pytest.approx(to_light * DT), LIGHT),
+        (pytest.approx(not_transport * DT), LIGHT),
         (pytest.approx(to_default * DT), 0),
     ]
 
 
+def test_the_light_policy_can_wait_for_seconds_of_slow_pulls():
+    """With `light_needs_slow_pulls` the default runs from the transport's end until the
+    pulls have been slow for `light_pull_s`."""
+    config = RecognitionConfig(light_needs_slow_pulls=True)
+    transport = config.transport_rates[1]
+    quiet = np.zeros((2500, 6))
+    state, chosen = _run(np.vstack((quiet, _pull(600, 2.0 * transport, 2.0), quiet)), config)
+    not_transport = 2500 + _first_crossing(2.0 * transport, transport, config)
+    assert chosen[not_transport - 2] == TRANSPORT and chosen[not_transport - 1] == 0
+    # a pull from where both smoothed signals pass their thresholds, for light_pull_s
+    pulling = max(
+        _first_crossing(2.0 * transport, config.pull_pitch_rate, config),
+        _first_crossing(2.0, config.pull_vertical, config),
+    )
+    to_light = 2500 + pulling + round(config.light_pull_s / DT) - 1
+    assert chosen[to_light - 2] == 0 and chosen[to_light - 1] == LIGHT
+    assert [i for _, i in policy_changes(state)] == [TRANSPORT, 0, LIGHT]
+
+
 def test_fast_pulls_are_never_a_light_aircrafts_and_end_its_policy():
-    # 0.06 rad/s at 4 m/s^2: 67 m/s, a trainer's or a fighter's pull
+    # 0.06 rad/s at 4 m/s^2: 67 m/s, a trainer's or a fighter's pull, beyond the
+    # transport's pitch rate: the pulls so far are fast when the transport is ruled out
     _, chosen = _run(np.vstack((np.zeros((2500, 6)), _pull(3000, 0.06, 4.0))))
     assert LIGHT not in chosen and chosen[-1] == 0
-    # a slow pull brings the light policy; fast pulls lasting longer end it for good
+    # a slow pull brings the light policy; fast pulls of more than half its time end it
     mixed = np.vstack((_pull(500, 0.1, 2.0), np.zeros((300, 6)), _pull(800, 0.06, 4.0)))
     state, chosen = _run(np.vstack((np.zeros((2500, 6)), mixed, np.zeros((1000, 6)))))
-    assert [i for _, i in policy_changes(state)] == [TRANSPORT, 0, LIGHT, 0]
+    assert [i for _, i in policy_changes(state)] == [TRANSPORT, LIGHT, 0]
     assert chosen[-1] == 0
 
 
-def test_pulls_that_swing_about_the_ratio_leave_the_light_policy_once_for_good():
-    """Slow pulls bring the light policy; fast ones of more than half their time end it
-    (by the ratio: fewer seconds of fast pulls than of slow ones); the slow pulls that
-    follow, twice as long as all fast ones again, do not bring it back, however often the
-    two alternate: each decision against a kind is final, so the change record (at most
-    default, transport, default, light, default, ground) never overflows."""
+def test_pulls_that_swing_about_the_ratio_keep_the_light_policy_until_fast_ones_outlast():
+    """Slow pulls bring the light policy; once it runs it stays, as a named light
+    aircraft's does, while fast pulls last no longer than the slow ones, however often the
+    two alternate; fast pulls outlasting them end it for good: the slow pulls that follow
+    do not bring it back, so the change record (at most default, transport, default,
+    light, default, ground) never overflows."""
     # 0.1 rad/s at 2 m/s^2 (20 m/s, a light single's pull) and 0.06 rad/s at 4 m/s^2 (67
-    # m/s, a trainer's): 4 s slow, 4 s fast, then twice as much slow as fast, eight times
+    # m/s, a trainer's): 4 s slow, 4 s fast, then three times as much slow as fast, 8 times
     slow, fast = _pull(400, 0.1, 2.0), _pull(400, 0.06, 4.0)
     quiet = np.zeros((2500, 6))
-    state, chosen = _run(np.vstack((quiet, slow, fast, *([slow, slow, slow, fast] * 8))))
-    assert [i for _, i in policy_changes(state)] == [TRANSPORT, 0, LIGHT, 0]
+    swinging = np.vstack((quiet, slow, fast, *([slow, slow, slow, fast] * 8)))
+    state, chosen = _run(swinging)
+    assert [i for _, i in policy_changes(state)] == [TRANSPORT, LIGHT]
+    assert chosen[-1] == LIGHT
+    # about 100 s of slow pulls against 36 s of fast ones: 120 s more of fast outlast them
+    state, chosen = _run(np.vstack((swinging, _pull(12000, 0.06, 4.0), *([slow] * 10))))
+    assert [i for _, i in policy_changes(state)] == [TRANSPORT, LIGHT, 0]
     left = round(policy_changes(state)[-1][0] / DT)
-    assert left <= 2500 + 800 and LIGHT not in chosen[left:]
+    assert len(swinging) < left < len(swinging) + 12000 and LIGHT not in chosen[left:]
 
 
 def test_the_light_bounds_are_the_light_envelopes_yaw_and_surge_on_the_reference():
@@ -201,7 +220,8 @@ def test_the_hand_over_is_a_smoothstep_over_its_time():
 
 
 def test_the_hand_back_to_the_default_takes_its_own_shorter_time():
-    config = RecognitionConfig(settle_s=0.5, handover_s=0.4, handback_s=0.1)
+    # light aircraft not recognized: the roll's first 0.1 s is inside a light one's bounds
+    config = RecognitionConfig(settle_s=0.5, handover_s=0.4, handback_s=0.1, recognize_light=False)
     state = initial_recognition_state()
     roll = np.zeros(6)
     roll[0] = 10.0 * config.transport_rates[0]

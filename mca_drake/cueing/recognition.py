@@ -18,13 +18,15 @@ recording, so each decision against a kind is final:
   and every other aircraft left them (light singles by 2-3.5x, fighters by 2-2.7x).
 - **light**: a light aircraft flies slowly, and a pull shows its speed: pitching at q with
   n g takes V = g (n - 1) / q, on the reference a_z / -w_y. Once the transport is ruled
-  out and the reference's pulls have been slow (below `light_pull_speed`) for
-  `light_pull_s` and twice as long as the fast ones, inside a light aircraft's roll and
-  yaw rates, surge and sideslip force, the light policy runs; leaving those bounds,
-  pulling fast for longer than slow, or fast pulls of more than half the slow pulls'
-  time ends it for good. (The median pull speeds of the
-  training and validation flights: light singles and Twin Otter 29-42 m/s, jet trainer
-  62-84, transports 70-101, fighters 85-146.)
+  out, inside a light aircraft's roll and yaw rates, surge and sideslip force, while the
+  reference's pulls so far (none, too) have been twice as long slow (below
+  `light_pull_speed`) as fast, the light policy runs (decision 0041: a light single's
+  calm climb stays inside a transport's bounds past the first 20 s, and pulls it has not
+  flown yet cannot tell it from a trainer's calm start); leaving those bounds, or pulling
+  fast for longer than slow (and `light_pull_s`), ends it for good, as it ends a named
+  light aircraft's. (The median pull speeds of the training and validation flights: light
+  singles and Twin Otter 29-42 m/s, jet trainer 62-84, transports 70-101, fighters
+  85-146.)
 - **ground**: a car corners with a lateral specific force that no aircraft in coordinated
   flight holds, without rolling, on a level road that never pulls g: smoothed, |f_y| above
   `ground_lateral`, |w_x| below `ground_roll_rate` and |a_z| below `ground_vertical`
@@ -134,13 +136,20 @@ class RecognitionConfig:
     # flights the light singles' and Twin Otter's pulls had median speeds of 29-42 m/s,
     # the jet trainer's 62-84, the transports' 70-101, the fighters' 85-146.
     light_pull_speed: float = 50.0
-    # The light policy runs once slow pulls have lasted this long (s) and this many times
-    # as long as the fast ones, and ends for good when they no longer are; fast pulls
-    # longer than this and than the slow ones rule a light aircraft out from the start.
+    # The light policy starts while the slow pulls have lasted this many times as long as
+    # the fast ones (and, with `light_needs_slow_pulls`, this long, s); fast pulls longer
+    # than this and than the slow ones rule a light aircraft out, and end its policy.
     light_pull_s: float = 3.0
     light_pull_ratio: float = 2.0
     # Whether a light aircraft is recognized (False: only transports and cars are).
     recognize_light: bool = True
+    # Whether the light policy waits for `light_pull_s` of slow pulls before it runs.
+    # False: it runs once the transport is ruled out, inside a light aircraft's bounds,
+    # while the pulls so far (none, too) have been `light_pull_ratio` times as long slow as
+    # fast: a light single's take-off and climb stay inside the transport's bounds for the
+    # first 20 s and longer, and waiting for its pulls kept the default for up to 38 s
+    # more (decision 0041).
+    light_needs_slow_pulls: bool = False
     # How long the reference must be watched before the transport or the light policy
     # takes over, s (the transport's or light aircraft's bounds held all along).
     settle_s: float = 20.0
@@ -274,7 +283,7 @@ def recognition_step(
     elif (
         (named or config.recognize_light)
         and not state[_NOT_LIGHT]
-        and (named or _slow_pulls(state, config))
+        and (named or policy == LIGHT or _slow_pulls(state, config))
     ):
         chosen = LIGHT
     else:
@@ -294,10 +303,13 @@ def recognition_step(
 
 
 def _slow_pulls(state, config: RecognitionConfig) -> bool:
-    """Whether the pulls so far were a light aircraft's: slow ones for `light_pull_s` at
-    least and `light_pull_ratio` times as long as the fast ones."""
+    """Whether the pulls so far were a light aircraft's, for the light policy to start:
+    `light_pull_ratio` times as long slow as fast (none at all, too), and with
+    `light_needs_slow_pulls` slow for `light_pull_s` at least."""
     slow, fast = state[_SLOW_PULLS], state[_FAST_PULLS]
-    return slow >= config.light_pull_s - 1e-9 and slow >= config.light_pull_ratio * fast
+    if slow < config.light_pull_ratio * fast:
+        return False
+    return not config.light_needs_slow_pulls or slow >= config.light_pull_s - 1e-9
 
 
 def policy_weights(state, config: RecognitionConfig) -> tuple[int, int, float]:
