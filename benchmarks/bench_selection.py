@@ -4,7 +4,7 @@ scripted pilot and by the human-operator pilot that nothing trains on.
 
     python benchmarks/bench_selection.py [--selections default,light,transport,ground,
         recognizer] [--seeds 2] [--nmpc] [--out-dir results/selection]
-        [--json benchmarks/results/selection.json]
+        [--json benchmarks/results/selection.json] [--keep-others]
 
 A selection (`selections`) names the shipped policy, the alternatives it was chosen over (the
 training recipe's earlier steps kept in tests/data, the policy that ran before it on that
@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 from pathlib import Path
 
 from bench_validation import FIRST_VALIDATION_SEED, report, run_flights
@@ -175,6 +176,12 @@ def main() -> None:
         help="cached flights (shared with bench_validation)",
     )
     parser.add_argument("--json", help="default benchmarks/results/selection.json")
+    parser.add_argument(
+        "--keep-others",
+        action="store_true",
+        help="keep the --json file's selections this run does not fly (its provenance "
+        "names the ones flown again)",
+    )
     args = parser.parse_args()
     wanted = args.selections.split(",")
     unknown = set(wanted) - set(names)
@@ -191,9 +198,34 @@ def main() -> None:
             figures[name]["pilots"][pilot] = run_selection(selection, pilot, args)
     out = args.json or default_result_path("selection.json")
     header = result_header(calibration) | {"seeds_per_vehicle": args.seeds}
+    if args.keep_others:
+        figures, header = kept_with(Path(out), figures, header, args.duration)
     atomic_write_json(
         out, {"provenance": header, "duration_s": args.duration, "selections": figures}
     )
+
+
+def kept_with(path: Path, figures: dict, header: dict, duration_s: float) -> tuple[dict, dict]:
+    """`figures` joined by the selections of the result file at `path` that they do not
+    hold, and `header` naming which were flown now and keeping the file's provenance for the
+    others. Raises SystemExit where the file is missing, unreadable or of another flight
+    duration (its figures would not compare)."""
+    try:
+        previous = json.loads(path.read_text())
+        kept = previous["selections"]
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise SystemExit(f"--keep-others: cannot read the selections of {path}: {error}") from error
+    if previous.get("duration_s") != duration_s:
+        raise SystemExit(
+            f"--keep-others: {path} holds {previous.get('duration_s')} s flights, this run "
+            f"{duration_s} s"
+        )
+    others = {name: value for name, value in kept.items() if name not in figures}
+    header = header | {
+        "flown_now": sorted(figures),
+        "kept": {"selections": sorted(others), "provenance": previous.get("provenance", {})},
+    }
+    return {**others, **figures}, header
 
 
 if __name__ == "__main__":

@@ -5,6 +5,7 @@ built by hand."""
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 
 import pytest
@@ -55,3 +56,21 @@ def test_the_shipped_policy_holds_unless_an_alternative_is_better_by_median(
     assert figures["holds"] is holds
     assert figures["beaten_by"] == ([] if holds else ["rival"])
     assert figures["flights"] == ["A4 700", "A4 701"]
+
+
+def test_keep_others_joins_the_files_other_selections_and_names_what_was_flown(tmp_path):
+    """The file's selections this run did not fly are kept with their provenance; the ones
+    flown replace theirs; a file of another flight duration, or none, is refused."""
+    bench = load_benchmark("bench_selection")
+    path = tmp_path / "selection.json"
+    old = {"provenance": {"date": "then"}, "duration_s": 300.0}
+    old["selections"] = {"light": {"holds": True}, "recognizer": {"holds": False}}
+    path.write_text(json.dumps(old))
+    figures, header = bench.kept_with(path, {"recognizer": {"holds": True}}, {"date": "now"}, 300)
+    assert figures == {"light": {"holds": True}, "recognizer": {"holds": True}}
+    assert header["flown_now"] == ["recognizer"] and header["date"] == "now"
+    assert header["kept"] == {"selections": ["light"], "provenance": {"date": "then"}}
+    with pytest.raises(SystemExit, match="120"):
+        bench.kept_with(path, {}, {}, 120.0)
+    with pytest.raises(SystemExit, match="cannot read"):
+        bench.kept_with(tmp_path / "none.json", {}, {}, 300.0)
