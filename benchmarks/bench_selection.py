@@ -220,12 +220,14 @@ def kept_with(path: Path, figures: dict, header: dict, duration_s: float) -> tup
             f"--keep-others: {path} holds {previous.get('duration_s')} s flights, this run "
             f"{duration_s} s"
         )
-    others = {name: value for name, value in kept.items() if name not in figures}
+    others = sorted(name for name in kept if name not in figures)
     header = header | {
         "flown_now": sorted(figures),
-        "kept": {"selections": sorted(others), "provenance": previous.get("provenance", {})},
+        "kept": {"selections": others, "provenance": previous.get("provenance", {})},
     }
-    return {**others, **figures}, header
+    # the file's order, then what it did not hold
+    joined = {name: figures.get(name, value) for name, value in kept.items()}
+    return joined | figures, header
 
 
 if __name__ == "__main__":

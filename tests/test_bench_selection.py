@@ -68,6 +68,11 @@ def test_keep_others_joins_the_files_other_selections_and_names_what_was_flown(t
     path.write_text(json.dumps(old))
     figures, header = bench.kept_with(path, {"recognizer": {"holds": True}}, {"date": "now"}, 300)
     assert figures == {"light": {"holds": True}, "recognizer": {"holds": True}}
+    assert list(bench.kept_with(path, {"new": {}, "light": {}}, {}, 300)[0]) == [
+        "light",
+        "recognizer",
+        "new",
+    ]
     assert header["flown_now"] == ["recognizer"] and header["date"] == "now"
     assert header["kept"] == {"selections": ["light"], "provenance": {"date": "then"}}
     with pytest.raises(SystemExit, match="120"):
