@@ -311,6 +311,62 @@ def test_the_dpc_blends_the_commands_of_the_two_policies_while_handing_over():
     assert dpc.policy_changes(context) == [(pytest.approx(config.settle_s), TRANSPORT)]
 
 
+def test_a_change_during_a_hand_over_goes_on_from_the_blend_it_reached():
+    """A transport ruled out while the transport policy is still taking over hands back
+    from the blend reached, not from the transport policy's command alone: the command
+    is u_d + (1 - w) w0 (u_t - u_d), w0 the transport's weight at the change and w the
+    hand-back's smoothstep, equal to the blend at the change (no step)."""
+    robot = load_platform("kr500")
+    n = robot.num_joints
+    rng = np.random.default_rng(11)
+    policies = tuple(_tiny_policy(rng, n) for _ in RECOGNIZED_POLICIES)
+    config = RecognitionConfig(settle_s=0.3, handover_s=0.4, handback_s=0.4, recognize_light=False)
+    calm = np.r_[0.5 * np.asarray(config.transport_rates), 0.4, 0.1, 0.2]
+    roll = calm.copy()
+    roll[0] = 10.0 * config.transport_rates[0]  # no transport's
+    x, y = np.zeros(2 * n), np.array([0.01, -0.02, 0.0, 0.1, 0.05, -0.1])
+    builder = DiagramBuilder()
+    dpc = builder.AddSystem(
+        DpcPolicy(policies[0], robot, DT, recognized=policies, recognition=config)
+    )
+    sources = {}
+    for port, value in (("reference", calm), ("state", x), ("inertial_output", y)):
+        sources[port] = builder.AddSystem(ConstantVectorSource(value))
+        builder.Connect(sources[port].get_output_port(), dpc.GetInputPort(port))
+    simulator = Simulator(builder.Build())
+    root = simulator.get_mutable_context()
+    context = dpc.GetMyContextFromRoot(root)
+    simulator.AdvanceTo(0.4)  # the transport policy a quarter into its hand-over
+    source = sources["reference"]
+    source.get_mutable_source_value(source.GetMyMutableContextFromRoot(root)).SetFromVector(roll)
+    u_d = PolicyInference(policies[0])(y, x, roll)[0]
+    u_t = PolicyInference(policies[TRANSPORT])(y, x, roll)[0]
+    commands = {}
+    for k in range(41, 100):
+        simulator.AdvanceTo(k * DT)
+        commands[k] = dpc.GetOutputPort("joint_acceleration").Eval(context).copy()
+    ((_, _), (back, policy)) = dpc.policy_changes(context)
+    assert policy == 0 and config.settle_s + 0.1 < back < config.settle_s + config.handover_s
+
+    def smoothstep(share: float) -> float:
+        share = min(max(share, 0.0), 1.0)
+        return 3 * share**2 - 2 * share**3
+
+    w0 = smoothstep((back - config.settle_s) / config.handover_s)
+    changed = round(back / DT)
+    assert 0.1 < w0 < 0.9
+    for k in range(changed, 100):
+        w = smoothstep((k * DT - back) / config.handback_s)
+        expected = u_d + (1.0 - w) * w0 * (u_t - u_d)
+        assert commands[k] == pytest.approx(expected, abs=1e-12), k
+    # the step before the change was the transport's blend: the change adds no step
+    before = u_d + smoothstep(((changed - 1) * DT - config.settle_s) / config.handover_s) * (
+        u_t - u_d
+    )
+    assert commands[changed - 1] == pytest.approx(before, abs=1e-12)
+    assert np.abs(commands[changed] - commands[changed - 1]).max() < 0.05 * np.abs(u_t - u_d).max()
+
+
 def test_an_unnamed_car_reference_runs_the_ground_policy_and_says_so():
     samples = np.zeros((600, 6))
     samples[:, 4] = 2.0

@@ -46,7 +46,10 @@ than by a policy that extrapolates.
 Every change of policy is handed over smoothly: the command blends from the old policy's
 to the new one's with a smoothstep weight (no step in the command, nor in its rate), over
 `handover_s`, and back to the default over the shorter `handback_s`: the evidence for a
-transport or a light aircraft ends in a manoeuvre their policies were not trained for.
+transport or a light aircraft ends in a manoeuvre their policies were not trained for. A
+change that comes while another hand-over is still under way blends from the blend that
+one had reached (`handover_origin`), not from its new policy alone: no step in the
+command, only its rate bends where the earlier blend's weight stops moving.
 """
 
 from __future__ import annotations
@@ -197,12 +200,16 @@ _PITCH, _VERTICAL, _SLOW_PULLS, _FAST_PULLS = range(14, 18)
 # the named vehicle's policy the state started in (0: none named, recognized from the
 # default)
 _NAMED = 18
+# where a change of policy during another's hand-over hands over from: the policy that hand-
+# over came from (-1: none, the change came after it ended) and the weight its successor had
+# then, so that the command goes on from the blend it had reached (no step)
+_OUTER, _OUTER_WEIGHT = 19, 20
 # then the changes of policy, (time s, index in RECOGNIZED_POLICIES) each, NaN where there
 # were fewer: each kind is taken at most once (leaving one rules it out) and a car's
 # comes last, so at most
 # default -> transport -> default -> light -> default -> ground
 MAX_CHANGES = 5
-_FIRST_CHANGE = 19
+_FIRST_CHANGE = 21
 RECOGNITION_STATE_SIZE = _FIRST_CHANGE + 2 * MAX_CHANGES
 
 
@@ -217,7 +224,8 @@ def initial_recognition_state(named: int = DEFAULT) -> list[float]:
             f"(or {RECOGNIZED_POLICIES[DEFAULT]}: none); got {named!r}"
         )
     state = [0.0] * RECOGNITION_STATE_SIZE
-    state[_PREVIOUS] = -1.0  # nothing to hand over from
+    state[_PREVIOUS] = state[_OUTER] = -1.0  # nothing to hand over from
+    state[_OUTER_WEIGHT] = 1.0
     state[_SINCE] = -math.inf
     state[_FIRST_CHANGE:] = [math.nan] * (2 * MAX_CHANGES)
     if named != DEFAULT:
@@ -295,6 +303,10 @@ def recognition_step(
         # light - default - light - default - light and on, past the change record)
         state[_NOT_LIGHT] = 1.0
     if chosen != policy:
+        # a change during a hand-over hands over from the blend reached, not from the
+        # policy taking over alone (whose command can differ from the blend by a step)
+        _, handing_from, weight = policy_weights(state, config)
+        state[_OUTER], state[_OUTER_WEIGHT] = float(handing_from), weight
         state[_PREVIOUS], state[_POLICY], state[_SINCE] = policy, chosen, now
         # the first free slot (MAX_CHANGES is the most the transitions allow)
         times = state[_FIRST_CHANGE::2]
@@ -324,6 +336,15 @@ def policy_weights(state, config: RecognitionConfig) -> tuple[int, int, float]:
         return policy, -1, 1.0
     share = max(share, 0.0)
     return policy, previous, share * share * (3.0 - 2.0 * share)
+
+
+def handover_origin(state) -> tuple[int, float]:
+    """Where the hand-over `policy_weights` describes blends from, when the change came
+    during an earlier hand-over: (the policy that one came from, the weight of its
+    successor then, the `previous` of `policy_weights`), the blend old + w (previous - old)
+    of their commands standing for the previous policy's alone; (-1, 1.0) otherwise. (A
+    third change within one hand-over blends from the second's blend without the first.)"""
+    return int(state[_OUTER]), float(state[_OUTER_WEIGHT])
 
 
 def recognition_final(state, config: RecognitionConfig) -> bool:
@@ -360,6 +381,7 @@ __all__ = [
     "RECOGNITION_STATE_SIZE",
     "RECOGNIZED_POLICIES",
     "RecognitionConfig",
+    "handover_origin",
     "initial_recognition_state",
     "policy_changes",
     "policy_weights",

@@ -20,6 +20,7 @@ from mca_drake.cueing.dpc import (
 from mca_drake.cueing.recognition import (
     RECOGNIZED_POLICIES,
     RecognitionConfig,
+    handover_origin,
     initial_recognition_state,
     policy_changes,
     policy_weights,
@@ -170,29 +171,33 @@ class DpcPolicy(LeafSystem):
             return []
         return policy_changes(context.get_discrete_state(self._recognition_index).value())
 
-    def _recognize(self, discrete, reference) -> tuple[int, int, float] | None:
-        """Steps the recognizer on the reference sample; its `policy_weights` (None for a DPC
-        that runs one policy)."""
+    def _recognize(self, discrete, reference) -> tuple | None:
+        """Steps the recognizer on the reference sample; its `policy_weights` and
+        `handover_origin` (None for a DPC that runs one policy)."""
         if self._inferences is None:
             return None
         state = discrete.get_value(self._recognition_index).tolist()
         if recognition_final(state, self._recognition):
-            return recognized_policy(state), -1, 1.0
+            return recognized_policy(state), -1, 1.0, (-1, 1.0)
         recognition_step(state, reference.tolist(), self._time_step, self._recognition)
         discrete.set_value(self._recognition_index, np.array(state))
-        return policy_weights(state, self._recognition)
+        return (*policy_weights(state, self._recognition), handover_origin(state))
 
     def _command(self, weights, y, x, reference, preview) -> list[float]:
         """The command for these inputs: the one policy's, or (with the recognizer's
         `weights`) the recognized one's, blended with the one it takes over from while the
-        hand-over lasts."""
+        hand-over lasts (with that one's own hand-over, where the change came during it)."""
         if weights is None:
             return self._inference.command(y, x, reference, preview)
-        policy, previous, weight = weights
+        policy, previous, weight, origin = weights
         u = self._inferences[policy].command(y, x, reference, preview)
         if previous < 0:
             return u
         old = self._inferences[previous].command(y, x, reference, preview)
+        outer, outer_weight = origin
+        if outer >= 0:  # the change came during a hand-over: from the blend it had reached
+            first = self._inferences[outer].command(y, x, reference, preview)
+            old = [a + outer_weight * (b - a) for a, b in zip(first, old, strict=True)]
         return [a + weight * (b - a) for a, b in zip(old, u, strict=True)]
 
     def _update(self, context: Context, discrete: DiscreteValues) -> None:
