@@ -207,9 +207,10 @@ def main() -> None:
 
 def kept_with(path: Path, figures: dict, header: dict, duration_s: float) -> tuple[dict, dict]:
     """`figures` joined by the selections of the result file at `path` that they do not
-    hold, and `header` naming which were flown now and keeping the file's provenance for the
-    others. Raises SystemExit where the file is missing, unreadable or of another flight
-    duration (its figures would not compare)."""
+    hold, and `header` naming which were flown now and, for each kept one, the provenance
+    of the run that flew it (the file's, or what the file itself kept: never nested).
+    Raises SystemExit where the file is missing, unreadable or of another flight duration
+    (its figures would not compare)."""
     try:
         previous = json.loads(path.read_text())
         kept = previous["selections"]
@@ -220,11 +221,13 @@ def kept_with(path: Path, figures: dict, header: dict, duration_s: float) -> tup
             f"--keep-others: {path} holds {previous.get('duration_s')} s flights, this run "
             f"{duration_s} s"
         )
-    others = sorted(name for name in kept if name not in figures)
-    header = header | {
-        "flown_now": sorted(figures),
-        "kept": {"selections": others, "provenance": previous.get("provenance", {})},
+    flown_then = dict(previous.get("provenance", {}))
+    kept_then = flown_then.pop("kept", {})
+    flown_then.pop("flown_now", None)
+    provenances = {
+        name: kept_then.get(name, flown_then) for name in sorted(kept) if name not in figures
     }
+    header = header | {"flown_now": sorted(figures), "kept": provenances}
     # the file's order, then what it did not hold
     joined = {name: figures.get(name, value) for name, value in kept.items()}
     return joined | figures, header

@@ -59,8 +59,9 @@ def test_the_shipped_policy_holds_unless_an_alternative_is_better_by_median(
 
 
 def test_keep_others_joins_the_files_other_selections_and_names_what_was_flown(tmp_path):
-    """The file's selections this run did not fly are kept with their provenance; the ones
-    flown replace theirs; a file of another flight duration, or none, is refused."""
+    """The file's selections this run did not fly are kept, each with the provenance of the
+    run that flew it, never nested however often --keep-others runs; the ones flown replace
+    theirs; a file of another flight duration, or none, is refused."""
     bench = load_benchmark("bench_selection")
     path = tmp_path / "selection.json"
     old = {"provenance": {"date": "then"}, "duration_s": 300.0}
@@ -68,13 +69,17 @@ def test_keep_others_joins_the_files_other_selections_and_names_what_was_flown(t
     path.write_text(json.dumps(old))
     figures, header = bench.kept_with(path, {"recognizer": {"holds": True}}, {"date": "now"}, 300)
     assert figures == {"light": {"holds": True}, "recognizer": {"holds": True}}
+    assert header["flown_now"] == ["recognizer"] and header["date"] == "now"
+    assert header["kept"] == {"light": {"date": "then"}}
     assert list(bench.kept_with(path, {"new": {}, "light": {}}, {}, 300)[0]) == [
         "light",
         "recognizer",
         "new",
     ]
-    assert header["flown_now"] == ["recognizer"] and header["date"] == "now"
-    assert header["kept"] == {"selections": ["light"], "provenance": {"date": "then"}}
+    # a second run keeps light's first provenance and recognizer's from the second run
+    path.write_text(json.dumps({"provenance": header, "duration_s": 300.0, "selections": figures}))
+    _, again = bench.kept_with(path, {"new": {}}, {"date": "later"}, 300)
+    assert again["kept"] == {"light": {"date": "then"}, "recognizer": {"date": "now"}}
     with pytest.raises(SystemExit, match="120"):
         bench.kept_with(path, {}, {}, 120.0)
     with pytest.raises(SystemExit, match="cannot read"):

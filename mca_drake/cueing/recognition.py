@@ -298,9 +298,10 @@ def recognition_step(
         chosen = DEFAULT
     if chosen != policy and policy == LIGHT:
         # leaving the light policy is a decision against a light aircraft, final as every
-        # other: pulls whose speeds swing about the ratio would otherwise hand the policy
-        # back and forth (two of six Twin Otter flights of the human-operator pilot went
-        # light - default - light - default - light and on, past the change record)
+        # other (it leaves on a light bound or fast pulls, which set this already, or for a
+        # car's evidence): no later slow pulls bring it back, so the change record cannot
+        # overflow (two of six Twin Otter flights of the human-operator pilot once went
+        # light - default - light - default - light and on)
         state[_NOT_LIGHT] = 1.0
     if chosen != policy:
         # a change during a hand-over hands over from the blend reached, not from the
