@@ -95,6 +95,10 @@ STYLES_FLAGS = (
 # with the tuned weights the policy trades their RMSE, which the PI counts in m/s^2, for the
 # correlation of rotation rates below the canals' thresholds (decision 0040).
 TRANSPORT_CHANNEL_WEIGHTS = "11.01,3.497,232.6,13.6,15.78,0.2642"
+# The transports' correlation weights per channel (w_x, w_y, w_z, f_x, f_y, a_z): heave's
+# halved. Inside a 10 s window a wide-body's slow heave looks like a cue to follow; chasing
+# it buys no heave correlation over the flight and tilts the forces (decision 0042).
+TRANSPORT_CORRELATION_CHANNELS = "1,1,1,1,1,0.5"
 STEPS = (
     ("step1", (*CURRICULUM, "--max-start-position", "0.6", "--max-epochs", "300")),
     (
@@ -152,6 +156,8 @@ STEPS = (
             "787-8",
             "--channel-weights",
             TRANSPORT_CHANNEL_WEIGHTS,
+            "--correlation-channels",
+            TRANSPORT_CORRELATION_CHANNELS,
         ),
     ),
     ("default_styles", ("--init-policy", "{step2}/policy.npz", *STYLES_FLAGS)),

@@ -90,7 +90,7 @@ def test_train_policy_flags_fill_the_training_config():
         owner = defaults if field in POLICY_FLAGS else defaults.train
         value = getattr(owner, field)
         if isinstance(value, tuple):
-            shown = ",".join(map(str, value))
+            shown = ",".join(f"{v:g}" if isinstance(v, float) else str(v) for v in value)
         elif isinstance(value, float):
             shown = f"{value:g}"
         else:

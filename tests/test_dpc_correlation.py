@@ -92,3 +92,38 @@ def test_the_objective_adds_the_weighted_correlation_term():
     for bad in (-0.1, float("nan")):
         with pytest.raises(ValueError, match="correlation_weight"):
             DpcTrainingConfig(correlation_weight=bad).validate()
+
+
+def test_the_correlation_term_weighs_each_channel_by_its_weight():
+    """With correlation_channel_weights c the term is sum_k c_k (1 - CC_k) of the same
+    rollout (Pearson's CC from numpy as the oracle); a zero weight drops its channel; six
+    finite weights >= 0 are required."""
+    torch.manual_seed(6)
+    T = 16
+    batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
+    policy = PolicyNetwork(KR500).eval()
+    off = dict(mirror_fraction=0.0, yaw_shift_fraction=0.0, time_stretch_fraction=0.0)
+    weights = (1.0, 0.5, 2.0, 1.0, 3.0, 0.0)
+    loss = {}
+    for name, channels in (("uniform", (1.0,) * 6), ("weighted", weights)):
+        config = DpcTrainingConfig(
+            **off, correlation_weight=0.5, correlation_channel_weights=channels, compile=False
+        )
+        with torch.no_grad():
+            loss[name] = float(dpc_objective(config, RolloutPlant(config, KR500))(policy, batch))
+    config = DpcTrainingConfig(**off, compile=False)
+    with torch.no_grad():
+        rollout = closed_loop_rollout(
+            policy, RolloutPlant(config, KR500), batch["X"][:, 0], batch["Y"][:, 0], batch["R"]
+        )
+    outputs, targets = rollout.Y.numpy(), batch["R"].numpy()
+    centred = lambda a: (a - a.mean(axis=1, keepdims=True)).reshape(-1, 6)  # noqa: E731
+    cc = np.array(
+        [np.corrcoef(centred(outputs)[:, k], centred(targets)[:, k])[0, 1] for k in range(6)]
+    )
+    misses = 1.0 - cc
+    expected = 0.5 * (np.dot(weights, misses) - misses.sum())
+    assert loss["weighted"] - loss["uniform"] == pytest.approx(expected, rel=1e-3, abs=1e-6)
+    for bad in ((1.0,) * 5, (1.0,) * 5 + (-1.0,), (1.0,) * 5 + (float("nan"),)):
+        with pytest.raises(ValueError, match="correlation_channel_weights"):
+            DpcTrainingConfig(correlation_channel_weights=bad).validate()

@@ -109,6 +109,9 @@ def test_each_shipped_or_kept_flight_policy_was_trained_with_its_recipe_step(ste
     else:
         wanted_weights = list(NmpcConfig().output_weights)
     assert weights == pytest.approx(wanted_weights, rel=1e-6)
+    correlation = flags.get("--correlation-channels", "1,1,1,1,1,1")
+    wanted_correlation = [float(w) for w in correlation.split(",")]
+    assert config.get("correlation_channel_weights", [1.0] * 6) == pytest.approx(wanted_correlation)
 
 
 def test_transport_channel_weights_are_the_nmpc_weights_with_forces_twice():

@@ -215,6 +215,13 @@ class DpcTrainingConfig:
     # gains the PI on the jet and unseen aircraft but drives the light aircraft's flights
     # into the joint limits (docs/decisions/0006-correlation-term-off-by-default.md).
     correlation_weight: float = 0.0
+    # Per-channel weights inside the correlation term (w_x, w_y, w_z, f_x, f_y, f_z):
+    # sum_k c_k (1 - CC_k), times `correlation_weight`. Within a 10 s window a wide-body's
+    # slow heave looks like a cue to follow; chasing it buys no heave correlation over a
+    # flight and tilts the specific forces the PI counts in m/s^2, so the transports'
+    # policy weighs f_z's by 0.5
+    # (docs/decisions/0042-the-transports-weigh-heave-correlation-less.md).
+    correlation_channel_weights: tuple[float, ...] = (1.0,) * 6
     # Weigh each window's tracking term by 1 / (L + floor), normalised to mean 1 over the
     # training windows, L the recorded MCA's (the dataset's NMPC's) weighted tracking cost of
     # the window without a_z (mean over steps of sum_k c_k (Y_k - target_k)^2); 0: every
@@ -338,6 +345,11 @@ class DpcTrainingConfig:
                 )
         elif len(weights) != 6 or not all(w >= 0 and w < float("inf") for w in weights):
             raise ValueError(f"tracking_channel_weights needs six finite numbers >= 0: {weights}")
+        cc_weights = self.correlation_channel_weights
+        if len(cc_weights) != 6 or not all(0 <= w < float("inf") for w in cc_weights):
+            raise ValueError(
+                f"correlation_channel_weights needs six finite numbers >= 0: {cc_weights}"
+            )
         if not isinstance(self.platform, str) or not self.platform:
             raise ValueError(f"platform must name a platform or its file; got {self.platform!r}")
         if self.initial_policy and not Path(self.initial_policy).is_file():

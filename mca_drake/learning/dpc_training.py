@@ -239,15 +239,16 @@ def dpc_loss_terms(
     targets: torch.Tensor,
     policy: PolicyNetwork,
     channel_weights: torch.Tensor | None = None,
-    correlation: bool = False,
+    correlation: bool | torch.Tensor = False,
     perception: TorchVestibularFilter | None = None,
     legs: LegLimits | None = None,
 ) -> dict[str, torch.Tensor]:
     """The loss terms (unweighted), each averaged over segments and steps; the tracking
     term's channels weighted by `channel_weights` if given (6, or per window (B, 1, 6) or
     (B, 1, 1)); with `perception`, the tracking term compares what the occupant perceives
-    (the vestibular model of y - Y over the rollout, from rest); with `correlation`, also
-    sum_k (1 - CC_k) of `pooled_correlation` (0 to 12); with `legs` (a legged platform's),
+    (the vestibular model of y - Y over the rollout, from rest); with `correlation` (True, or
+    six channel weights c_k), also sum_k c_k (1 - CC_k) of `pooled_correlation` (0 to 12 with
+    c_k = 1); with `legs` (a legged platform's),
     the limit term adds the legs' squared excess beyond their stroke and speed."""
     X_next = rollout.X[:, 1:]
     n = policy.joints
@@ -271,8 +272,11 @@ def dpc_loss_terms(
         "terminal_position": (rollout.X[:, -1, :n] ** 2).sum(-1).mean(),
         "terminal_velocity": (rollout.X[:, -1, n:] ** 2).sum(-1).mean(),
     }
-    if correlation:
-        terms["correlation"] = (1.0 - pooled_correlation(rollout.Y, targets)).sum()
+    if correlation is not False:
+        misses = 1.0 - pooled_correlation(rollout.Y, targets)
+        if isinstance(correlation, torch.Tensor):
+            misses = misses * correlation
+        terms["correlation"] = misses.sum()
     return terms
 
 
@@ -509,6 +513,7 @@ def dpc_objective(
         "correlation": config.correlation_weight,
     }
     key = target_array(config)
+    correlation_weights = torch.tensor(config.correlation_channel_weights)
     cells = {}
     perception = None
     if config.tracking_signals == "perceived":
@@ -548,7 +553,9 @@ def dpc_objective(
             targets,
             policy,
             weights_here,
-            correlation=config.correlation_weight > 0,
+            correlation=(
+                correlation_weights.to(targets) if config.correlation_weight > 0 else False
+            ),
             perception=perception,
             legs=plant.legs,
         )

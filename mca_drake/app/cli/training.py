@@ -52,6 +52,7 @@ POLICY_FLAGS = {
     "time_stretch_fraction": "",
     "time_stretch_max": "",
     "correlation_weight": "",
+    "correlation_channel_weights": "--correlation-channels",
     "achievable_cost_floor": "",
     "terminal_weight_horizon": "",
     "hidden": "",
