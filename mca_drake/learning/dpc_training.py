@@ -272,7 +272,7 @@ def dpc_loss_terms(
         "terminal_position": (rollout.X[:, -1, :n] ** 2).sum(-1).mean(),
         "terminal_velocity": (rollout.X[:, -1, n:] ** 2).sum(-1).mean(),
     }
-    if correlation is not False:
+    if isinstance(correlation, torch.Tensor) or correlation:
         misses = 1.0 - pooled_correlation(rollout.Y, targets)
         if isinstance(correlation, torch.Tensor):
             misses = misses * correlation
