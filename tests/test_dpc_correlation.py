@@ -65,24 +65,42 @@ def test_still_channels_score_as_the_pi_scores_them_and_keep_finite_gradients():
     assert torch.autograd.gradcheck(lambda o: pooled_correlation(o, targets), (moving,))
 
 
+# The objective's tests fly each batch as it is (no mirrored, turned or stretched windows).
+NO_AUGMENTATION = dict(mirror_fraction=0.0, yaw_shift_fraction=0.0, time_stretch_fraction=0.0)
+
+
+def _batch(seed: int, T: int = 16) -> dict[str, torch.Tensor]:
+    """Eight random windows of T steps (torch's global generator seeded with `seed`, which
+    the policy built next also draws from)."""
+    torch.manual_seed(seed)
+    return {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
+
+
+def _objective(policy: PolicyNetwork, batch: dict, **settings) -> float:
+    """The DPC objective of `batch` with these DpcTrainingConfig settings."""
+    config = DpcTrainingConfig(**NO_AUGMENTATION, compile=False, **settings)
+    with torch.no_grad():
+        return float(dpc_objective(config, RolloutPlant(config, KR500))(policy, batch))
+
+
+def _rollout(policy: PolicyNetwork, batch: dict):
+    """The closed-loop rollout the objective flies on `batch`."""
+    config = DpcTrainingConfig(**NO_AUGMENTATION, compile=False)
+    with torch.no_grad():
+        return closed_loop_rollout(
+            policy, RolloutPlant(config, KR500), batch["X"][:, 0], batch["Y"][:, 0], batch["R"]
+        )
+
+
 def test_the_objective_adds_the_weighted_correlation_term():
     """With correlation_weight w the objective is the tuned one plus w sum_k (1 - CC_k) of
     the same rollout; 0 leaves it as it was (and computes no term); a negative weight or
     NaN is refused."""
-    torch.manual_seed(5)
-    T = 16
-    batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
+    batch = _batch(5)
     policy = PolicyNetwork(KR500).eval()
-    off = dict(mirror_fraction=0.0, yaw_shift_fraction=0.0, time_stretch_fraction=0.0)
-    loss = {}
-    for weight in (0.0, 0.5):
-        config = DpcTrainingConfig(**off, correlation_weight=weight, compile=False)
-        with torch.no_grad():
-            loss[weight] = float(dpc_objective(config, RolloutPlant(config, KR500))(policy, batch))
-    config = DpcTrainingConfig(**off, compile=False)
-    plant = RolloutPlant(config, KR500)
+    loss = {w: _objective(policy, batch, correlation_weight=w) for w in (0.0, 0.5)}
+    rollout = _rollout(policy, batch)
     with torch.no_grad():
-        rollout = closed_loop_rollout(policy, plant, batch["X"][:, 0], batch["Y"][:, 0], batch["R"])
         terms = dpc_loss_terms(rollout, batch["R"], policy, correlation=True)
     assert "correlation" not in dpc_loss_terms(rollout, batch["R"], policy)
     expected = float((1.0 - pooled_correlation(rollout.Y, batch["R"])).sum())
@@ -98,24 +116,16 @@ def test_the_correlation_term_weighs_each_channel_by_its_weight():
     """With correlation_channel_weights c the term is sum_k c_k (1 - CC_k) of the same
     rollout (Pearson's CC from numpy as the oracle); a zero weight drops its channel; six
     finite weights >= 0 are required."""
-    torch.manual_seed(6)
-    T = 16
-    batch = {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
+    batch = _batch(6)
     policy = PolicyNetwork(KR500).eval()
-    off = dict(mirror_fraction=0.0, yaw_shift_fraction=0.0, time_stretch_fraction=0.0)
     weights = (1.0, 0.5, 2.0, 1.0, 3.0, 0.0)
-    loss = {}
-    for name, channels in (("uniform", (1.0,) * 6), ("weighted", weights)):
-        config = DpcTrainingConfig(
-            **off, correlation_weight=0.5, correlation_channel_weights=channels, compile=False
+    loss = {
+        name: _objective(
+            policy, batch, correlation_weight=0.5, correlation_channel_weights=channels
         )
-        with torch.no_grad():
-            loss[name] = float(dpc_objective(config, RolloutPlant(config, KR500))(policy, batch))
-    config = DpcTrainingConfig(**off, compile=False)
-    with torch.no_grad():
-        rollout = closed_loop_rollout(
-            policy, RolloutPlant(config, KR500), batch["X"][:, 0], batch["Y"][:, 0], batch["R"]
-        )
+        for name, channels in (("uniform", (1.0,) * 6), ("weighted", weights))
+    }
+    rollout = _rollout(policy, batch)
     outputs, targets = rollout.Y.numpy(), batch["R"].numpy()
     centred = lambda a: (a - a.mean(axis=1, keepdims=True)).reshape(-1, 6)  # noqa: E731
     cc = np.array(
