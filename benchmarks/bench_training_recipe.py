@@ -58,10 +58,12 @@ CURRICULUM = ("--horizons", "256,1024")
 # flights alone (decision 0020); their policy fine-tunes that at the long horizon on the
 # wide-body's flights by the scripted pilot and by pilots of drawn styles, ending on the
 # mean of its last 60 epochs (decision 0038), with the longitudinal and lateral forces
-# weighed twice the tuned NMPC's (decision 0040). The default policy is step 2
-# fine-tuned the same way on every training aircraft's flights by the scripted pilot and by
-# pilots of drawn styles (decision 0039); the light aircraft's policy is the default
-# fine-tuned the same way on the light aircraft's flights alone (decision 0040).
+# weighed twice the tuned NMPC's (decision 0040), heave's correlation halved (decision
+# 0042) and joints 2-6 pulled towards the NMPC's posture instead of washed out (decision
+# 0043). The default policy is step 2 fine-tuned the same way on every training aircraft's
+# flights by the scripted pilot and by pilots of drawn styles (decision 0039); the light
+# aircraft's policy is the default fine-tuned the same way on the light aircraft's flights
+# alone (decision 0040).
 FINE_TUNING_FLAGS = (
     "--correlation-weight",
     "1",
@@ -99,6 +101,10 @@ TRANSPORT_CHANNEL_WEIGHTS = "11.01,3.497,232.6,13.6,15.78,0.2642"
 # halved. Inside a 10 s window a wide-body's slow heave looks like a cue to follow; chasing
 # it buys no heave correlation over the flight and tilts the forces (decision 0042).
 TRANSPORT_CORRELATION_CHANNELS = "1,1,1,1,1,0.5"
+# The transports' pull of joints 2-6 towards the NMPC's posture, rad^-2, in place of their
+# washout (which the NMPC's posture carries): from poses of its own the policy renders a
+# wide-body's outputs over a window at the cost of its sustained forces (decision 0043).
+TRANSPORT_POSTURE_WEIGHT = "1"
 STEPS = (
     ("step1", (*CURRICULUM, "--max-start-position", "0.6", "--max-epochs", "300")),
     (
@@ -158,6 +164,10 @@ STEPS = (
             TRANSPORT_CHANNEL_WEIGHTS,
             "--correlation-channels",
             TRANSPORT_CORRELATION_CHANNELS,
+            "--washout-weight",
+            "0",
+            "--posture-weight",
+            TRANSPORT_POSTURE_WEIGHT,
         ),
     ),
     ("default_styles", ("--init-policy", "{step2}/policy.npz", *STYLES_FLAGS)),

@@ -5,20 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from dpc_batches import KR500, batch_rollout, objective_value, random_batch
 
-from mca_drake.learning.dpc_training import (
-    DpcTrainingConfig,
-    RolloutPlant,
-    closed_loop_rollout,
-    dpc_loss_terms,
-    dpc_objective,
-    pooled_correlation,
-)
+from mca_drake.learning.dpc_training import DpcTrainingConfig, dpc_loss_terms, pooled_correlation
 from mca_drake.learning.policy_network import PolicyNetwork
 from mca_drake.metrics import pearson_cc
-from mca_drake.platforms.files import load_platform
-
-KR500 = load_platform("kr500")
 
 
 def _windows(seed: int, shape=(5, 40, 6)) -> tuple[torch.Tensor, torch.Tensor]:
@@ -65,41 +56,14 @@ def test_still_channels_score_as_the_pi_scores_them_and_keep_finite_gradients():
     assert torch.autograd.gradcheck(lambda o: pooled_correlation(o, targets), (moving,))
 
 
-# The objective's tests fly each batch as it is (no mirrored, turned or stretched windows).
-NO_AUGMENTATION = dict(mirror_fraction=0.0, yaw_shift_fraction=0.0, time_stretch_fraction=0.0)
-
-
-def _batch(seed: int, T: int = 16) -> dict[str, torch.Tensor]:
-    """Eight random windows of T steps (torch's global generator seeded with `seed`, which
-    the policy built next also draws from)."""
-    torch.manual_seed(seed)
-    return {"X": 0.3 * torch.randn(8, T, 12), "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
-
-
-def _objective(policy: PolicyNetwork, batch: dict, **settings) -> float:
-    """The DPC objective of `batch` with these DpcTrainingConfig settings."""
-    config = DpcTrainingConfig(**NO_AUGMENTATION, compile=False, **settings)
-    with torch.no_grad():
-        return float(dpc_objective(config, RolloutPlant(config, KR500))(policy, batch))
-
-
-def _rollout(policy: PolicyNetwork, batch: dict):
-    """The closed-loop rollout the objective flies on `batch`."""
-    config = DpcTrainingConfig(**NO_AUGMENTATION, compile=False)
-    with torch.no_grad():
-        return closed_loop_rollout(
-            policy, RolloutPlant(config, KR500), batch["X"][:, 0], batch["Y"][:, 0], batch["R"]
-        )
-
-
 def test_the_objective_adds_the_weighted_correlation_term():
     """With correlation_weight w the objective is the tuned one plus w sum_k (1 - CC_k) of
     the same rollout; 0 leaves it as it was (and computes no term); a negative weight or
     NaN is refused."""
-    batch = _batch(5)
+    batch = random_batch(5)
     policy = PolicyNetwork(KR500).eval()
-    loss = {w: _objective(policy, batch, correlation_weight=w) for w in (0.0, 0.5)}
-    rollout = _rollout(policy, batch)
+    loss = {w: objective_value(policy, batch, correlation_weight=w) for w in (0.0, 0.5)}
+    rollout = batch_rollout(policy, batch)
     with torch.no_grad():
         terms = dpc_loss_terms(rollout, batch["R"], policy, correlation=True)
     assert "correlation" not in dpc_loss_terms(rollout, batch["R"], policy)
@@ -116,16 +80,16 @@ def test_the_correlation_term_weighs_each_channel_by_its_weight():
     """With correlation_channel_weights c the term is sum_k c_k (1 - CC_k) of the same
     rollout (Pearson's CC from numpy as the oracle); a zero weight drops its channel; six
     finite weights >= 0 are required."""
-    batch = _batch(6)
+    batch = random_batch(6)
     policy = PolicyNetwork(KR500).eval()
     weights = (1.0, 0.5, 2.0, 1.0, 3.0, 0.0)
     loss = {
-        name: _objective(
+        name: objective_value(
             policy, batch, correlation_weight=0.5, correlation_channel_weights=channels
         )
         for name, channels in (("uniform", (1.0,) * 6), ("weighted", weights))
     }
-    rollout = _rollout(policy, batch)
+    rollout = batch_rollout(policy, batch)
     outputs, targets = rollout.Y.numpy(), batch["R"].numpy()
     centred = lambda a: (a - a.mean(axis=1, keepdims=True)).reshape(-1, 6)  # noqa: E731
     cc = np.array(

@@ -112,6 +112,8 @@ def test_each_shipped_or_kept_flight_policy_was_trained_with_its_recipe_step(ste
     correlation = flags.get("--correlation-channels", "1,1,1,1,1,1")
     wanted_correlation = [float(w) for w in correlation.split(",")]
     assert config.get("correlation_channel_weights", [1.0] * 6) == pytest.approx(wanted_correlation)
+    posture = float(flags.get("--posture-weight", 0.0))
+    assert config.get("posture_weight", 0.0) == pytest.approx(posture)
 
 
 def test_transport_channel_weights_are_the_nmpc_weights_with_forces_twice():

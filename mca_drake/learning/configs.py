@@ -222,6 +222,14 @@ class DpcTrainingConfig:
     # policy weighs f_z's by 0.5
     # (docs/decisions/0042-the-transports-weigh-heave-correlation-less.md).
     correlation_channel_weights: tuple[float, ...] = (1.0,) * 6
+    # Weight of the posture term, rad^-2: the mean over steps of the squared distance of
+    # joints 2..n from where the dataset's MCA (the NMPC) held them at the same instant (the
+    # first joint, whose position no cue depends on, is left to the washouts). 0: no term.
+    # The NMPC renders a wide-body's sustained specific forces almost exactly from its
+    # posture; a policy free to fly any posture renders the same outputs over a 10 s window
+    # from poses that cost it the sustained forces later
+    # (docs/decisions/0043-the-transports-lean-towards-the-nmpc-posture.md).
+    posture_weight: float = 0.0
     # Weigh each window's tracking term by 1 / (L + floor), normalised to mean 1 over the
     # training windows, L the recorded MCA's (the dataset's NMPC's) weighted tracking cost of
     # the window without a_z (mean over steps of sum_k c_k (Y_k - target_k)^2); 0: every
@@ -365,6 +373,7 @@ class DpcTrainingConfig:
             "terminal_velocity_weight",
             "initial_state_noise",
             "correlation_weight",
+            "posture_weight",
             "achievable_cost_floor",
         ):
             value = getattr(self, name)

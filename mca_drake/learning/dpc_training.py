@@ -242,6 +242,7 @@ def dpc_loss_terms(
     correlation: bool | torch.Tensor = False,
     perception: TorchVestibularFilter | None = None,
     legs: LegLimits | None = None,
+    postures: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
     """The loss terms (unweighted), each averaged over segments and steps; the tracking
     term's channels weighted by `channel_weights` if given (6, or per window (B, 1, 6) or
@@ -249,7 +250,9 @@ def dpc_loss_terms(
     (the vestibular model of y - Y over the rollout, from rest); with `correlation` (True, or
     six channel weights c_k), also sum_k c_k (1 - CC_k) of `pooled_correlation` (0 to 12 with
     c_k = 1); with `legs` (a legged platform's),
-    the limit term adds the legs' squared excess beyond their stroke and speed."""
+    the limit term adds the legs' squared excess beyond their stroke and speed; with
+    `postures` (B, T, n: the dataset MCA's joint positions at the same steps), also the
+    posture term, the squared distance of joints 2..n from them (rad^2)."""
     X_next = rollout.X[:, 1:]
     n = policy.joints
     lower, upper = policy.lower[n:], policy.upper[n:]
@@ -272,6 +275,9 @@ def dpc_loss_terms(
         "terminal_position": (rollout.X[:, -1, :n] ** 2).sum(-1).mean(),
         "terminal_velocity": (rollout.X[:, -1, n:] ** 2).sum(-1).mean(),
     }
+    if postures is not None:
+        away = rollout.X[:, :-1, 1:n] - postures[..., 1:n]
+        terms["posture"] = (away**2).sum(-1).mean()
     if isinstance(correlation, torch.Tensor) or correlation:
         misses = 1.0 - pooled_correlation(rollout.Y, targets)
         if isinstance(correlation, torch.Tensor):
@@ -319,20 +325,25 @@ def mirror_some_windows(
     fraction: float,
     robot: SerialChain,
     previews: torch.Tensor | None = None,
+    postures: torch.Tensor | None = None,
 ):
     """(x0 (B, 2n), y0 (B, 6), targets (B, T, 6)) with a random `fraction` of the windows
     replaced by their mirror images (torch's global generator; see `mirror_fraction`);
     given forecast `previews` (B, T, 6 P), also those, mirrored channel by channel with
-    their windows, as a fourth element."""
+    their windows, as a further element; given the dataset MCA's joint positions
+    `postures` (B, T, n, `MCA_POSTURE`), those mirrored joint by joint as the last one."""
     chosen = torch.rand(x0.shape[0], 1, device=x0.device) < fraction
-    _, state_signs, channel_signs = mirror_signs(robot, x0.dtype, x0.device)
+    joint_signs, state_signs, channel_signs = mirror_signs(robot, x0.dtype, x0.device)
     x_signs = torch.where(chosen, state_signs, torch.ones_like(state_signs))
     y_signs = torch.where(chosen, channel_signs, torch.ones_like(channel_signs))
     mirrored = x0 * x_signs, y0 * y_signs, targets * y_signs[:, None]
-    if previews is None:
-        return mirrored
-    points = previews.shape[-1] // y_signs.shape[-1]
-    return (*mirrored, previews * y_signs.repeat(1, points)[:, None])
+    if previews is not None:
+        points = previews.shape[-1] // y_signs.shape[-1]
+        mirrored = (*mirrored, previews * y_signs.repeat(1, points)[:, None])
+    if postures is not None:
+        q_signs = torch.where(chosen, joint_signs, torch.ones_like(joint_signs))
+        mirrored = (*mirrored, postures * q_signs[:, None])
+    return mirrored
 
 
 def _symmetry_error(plant: RolloutPlant, map_x, map_u, map_y, samples: int = 64) -> float:
@@ -456,6 +467,10 @@ def tracking_channel_weights(config: DpcTrainingConfig, targets) -> torch.Tensor
 # The dataset array of the recorded MCA's squared tracking errors (`recorded_squared_errors`),
 # carried into every window as the other arrays are.
 RECORDED_ERRORS = "E"
+# The dataset MCA's joint positions at each step (J, n_p, n), the posture term's pull
+# (`DpcTrainingConfig.posture_weight`); windows started from the policy's own states keep
+# the MCA's.
+MCA_POSTURE = "P"
 
 
 def recorded_squared_errors(data: SegmentDataset, key: str) -> np.ndarray:
@@ -511,6 +526,7 @@ def dpc_objective(
         "terminal_position": config.terminal_position_weight,
         "terminal_velocity": config.terminal_velocity_weight,
         "correlation": config.correlation_weight,
+        "posture": config.posture_weight,
     }
     key = target_array(config)
     correlation_weights = torch.tensor(config.correlation_channel_weights)
@@ -526,21 +542,27 @@ def dpc_objective(
             cells[id(policy)] = torch.compile(cell) if config.compile else cell
         targets, x0, y0 = batch[key], batch["X"][:, 0], batch["Y"][:, 0]
         previews = batch.get(FORECAST_PREVIEW_ARRAY)  # a forecast preview's, where trained on
+        postures = batch.get(MCA_POSTURE) if config.posture_weight > 0 else None
         if policy.training and config.mirror_fraction > 0:
-            if previews is None:
-                x0, y0, targets = mirror_some_windows(
-                    x0, y0, targets, config.mirror_fraction, plant.robot
-                )
-            else:
-                x0, y0, targets, previews = mirror_some_windows(
-                    x0, y0, targets, config.mirror_fraction, plant.robot, previews
-                )
+            x0, y0, targets, *extras = mirror_some_windows(
+                x0, y0, targets, config.mirror_fraction, plant.robot, previews, postures
+            )
+            previews = extras.pop(0) if previews is not None else None
+            postures = extras.pop(0) if postures is not None else None
         if policy.training and config.yaw_shift_fraction > 0:
             x0 = shift_base_yaw(x0, config.yaw_shift_fraction, plant.q_min, plant.q_max)
         if policy.training and config.time_stretch_fraction > 0:
-            targets = stretch_some_targets(
-                targets, config.time_stretch_fraction, config.time_stretch_max
-            )
+            if postures is None:
+                targets = stretch_some_targets(
+                    targets, config.time_stretch_fraction, config.time_stretch_max
+                )
+            else:  # the MCA's posture slowed down with its window's targets
+                both = stretch_some_targets(
+                    torch.cat((targets, postures), dim=-1),
+                    config.time_stretch_fraction,
+                    config.time_stretch_max,
+                )
+                targets, postures = both.split((targets.shape[-1], postures.shape[-1]), -1)
         if policy.training and config.perturbed_fraction > 0:
             x0 = perturb_initial_states(x0, policy, config)
         rollout = closed_loop_rollout(policy, plant, x0, y0, targets, cells[id(policy)], previews)
@@ -558,6 +580,7 @@ def dpc_objective(
             ),
             perception=perception,
             legs=plant.legs,
+            postures=postures,
         )
         if config.terminal_weight_horizon > 0:
             scale = config.terminal_weight_horizon / targets.shape[1]
@@ -718,6 +741,8 @@ def train_policy(
         data = flights_of_vehicles(data, config.vehicles, dataset)
     if config.achievable_cost_floor > 0:
         data.arrays[RECORDED_ERRORS] = recorded_squared_errors(data, target_array(config))
+    if config.posture_weight > 0:
+        data.arrays[MCA_POSTURE] = data.arrays["X"][..., : robot.num_joints].copy()
     if config.preview_predictor:  # what the policy will read live, once for every segment
         data.arrays[FORECAST_PREVIEW_ARRAY] = forecast_preview_array(
             data, target_array(config), config.preview_predictor, config.preview_steps
@@ -786,6 +811,8 @@ def train_policy(
     if config.achievable_cost_floor > 0:
         achievable_cost_weights(splits, channel_weights, config.achievable_cost_floor)
         names += ("S",)
+    if config.posture_weight > 0:
+        names += (MCA_POSTURE,)
     trainer = CurriculumTrainer(
         policy,
         dpc_objective(config, plant, channel_weights),

@@ -53,6 +53,7 @@ POLICY_FLAGS = {
     "time_stretch_max": "",
     "correlation_weight": "",
     "correlation_channel_weights": "--correlation-channels",
+    "posture_weight": "",
     "achievable_cost_floor": "",
     "terminal_weight_horizon": "",
     "hidden": "",
