@@ -5,19 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from dpc_batches import KR500, batch_rollout, objective_value
 
-from mca_drake.learning.dpc_training import (
-    DpcTrainingConfig,
-    RolloutPlant,
-    closed_loop_rollout,
-    dpc_objective,
-)
+from mca_drake.learning.dpc_training import DpcTrainingConfig
 from mca_drake.learning.policy_network import PolicyNetwork
-from mca_drake.platforms.files import load_platform
-
-KR500 = load_platform("kr500")
-
-NO_AUGMENTATION = dict(mirror_fraction=0.0, yaw_shift_fraction=0.0, time_stretch_fraction=0.0)
 
 
 def test_the_objective_adds_the_base_joints_squared_angle():
@@ -30,16 +21,8 @@ def test_the_objective_adds_the_base_joints_squared_angle():
     x[:, :, :6] = 0.4 * torch.randn(8, 1, 6)  # starts away from neutral, base joint too
     batch = {"X": x, "Y": torch.randn(8, T, 6), "R": torch.randn(8, T, 6)}
     policy = PolicyNetwork(KR500).eval()
-    loss = {}
-    for weight in (0.0, 2.0):
-        config = DpcTrainingConfig(**NO_AUGMENTATION, base_washout_weight=weight, compile=False)
-        with torch.no_grad():
-            loss[weight] = float(dpc_objective(config, RolloutPlant(config, KR500))(policy, batch))
-    config = DpcTrainingConfig(**NO_AUGMENTATION, compile=False)
-    with torch.no_grad():
-        rollout = closed_loop_rollout(
-            policy, RolloutPlant(config, KR500), batch["X"][:, 0], batch["Y"][:, 0], batch["R"]
-        )
+    loss = {w: objective_value(policy, batch, base_washout_weight=w) for w in (0.0, 2.0)}
+    rollout = batch_rollout(policy, batch)
     q1 = rollout.X[:, :-1, 0].numpy().astype(float)  # the states the steps act from
     expected = float(np.mean(q1**2))
     assert expected > 1e-3
