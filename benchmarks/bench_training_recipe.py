@@ -75,6 +75,14 @@ FINE_TUNING_FLAGS = (
     "1.0",
 )
 STEP2_FLAGS = ("--init-policy", "{step1}/policy.npz", *FINE_TUNING_FLAGS)
+
+
+def with_value(flags: tuple[str, ...], flag: str, value: str) -> tuple[str, ...]:
+    """`flags` (flag, value pairs) with `flag`'s value replaced by `value`."""
+    at = flags.index(flag) + 1
+    return (*flags[:at], value, *flags[at + 1 :])
+
+
 # The steps that learn pilots of drawn styles: step 2's loss at the long horizon, 160 epochs
 # at a learning rate of 0.002 ending on the mean of the last 60 (decisions 0038, 0039).
 STYLES_FLAGS = (
@@ -157,15 +165,13 @@ STEPS = (
         (
             "--init-policy",
             "{transport}/policy.npz",
-            *STYLES_FLAGS,
+            *with_value(STYLES_FLAGS, "--washout-weight", "0"),
             "--vehicles",
             "787-8",
             "--channel-weights",
             TRANSPORT_CHANNEL_WEIGHTS,
             "--correlation-channels",
             TRANSPORT_CORRELATION_CHANNELS,
-            "--washout-weight",
-            "0",
             "--posture-weight",
             TRANSPORT_POSTURE_WEIGHT,
         ),
