@@ -224,7 +224,8 @@ class DpcTrainingConfig:
     correlation_channel_weights: tuple[float, ...] = (1.0,) * 6
     # Weight of the posture term, rad^-2: the mean over steps of the squared distance of
     # joints 2..n from where the dataset's MCA (the NMPC) held them at the same instant (the
-    # first joint, whose position no cue depends on, is left to the washouts). 0: no term.
+    # first joint, the KR500's base yaw or a rail's carriage, whose position no cue depends
+    # on, is left to the washouts). 0: no term.
     # The NMPC renders a wide-body's sustained specific forces almost exactly from its
     # posture; a policy free to fly any posture renders the same outputs over a 10 s window
     # from poses that cost it the sustained forces later

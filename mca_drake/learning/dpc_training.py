@@ -331,7 +331,7 @@ def mirror_some_windows(
     replaced by their mirror images (torch's global generator; see `mirror_fraction`);
     given forecast `previews` (B, T, 6 P), also those, mirrored channel by channel with
     their windows, as a further element; given the dataset MCA's joint positions
-    `postures` (B, T, n, `MCA_POSTURE`), those mirrored joint by joint as the last one."""
+    `postures` (B, T, n; `MCA_POSTURE`), those mirrored joint by joint as the last one."""
     chosen = torch.rand(x0.shape[0], 1, device=x0.device) < fraction
     joint_signs, state_signs, channel_signs = mirror_signs(robot, x0.dtype, x0.device)
     x_signs = torch.where(chosen, state_signs, torch.ones_like(state_signs))
