@@ -49,6 +49,9 @@ def test_the_posture_term_is_the_squared_distance_beyond_the_first_joint():
     for bad in (-0.1, float("nan")):
         with pytest.raises(ValueError, match="posture_weight"):
             DpcTrainingConfig(posture_weight=bad).validate()
+    del batch[MCA_POSTURE]  # a batch without the MCA's posture cannot price it
+    with pytest.raises(ValueError, match="joint positions"):
+        objective_value(policy, batch, posture_weight=0.7)
 
 
 def test_mirrored_windows_mirror_the_mca_posture_with_them(robot):

@@ -542,7 +542,14 @@ def dpc_objective(
             cells[id(policy)] = torch.compile(cell) if config.compile else cell
         targets, x0, y0 = batch[key], batch["X"][:, 0], batch["Y"][:, 0]
         previews = batch.get(FORECAST_PREVIEW_ARRAY)  # a forecast preview's, where trained on
-        postures = batch.get(MCA_POSTURE) if config.posture_weight > 0 else None
+        postures = None
+        if config.posture_weight > 0:
+            if MCA_POSTURE not in batch:
+                raise ValueError(
+                    f"posture_weight > 0 needs the dataset MCA's joint positions in each "
+                    f"batch ('{MCA_POSTURE}', as train_policy adds them)"
+                )
+            postures = batch[MCA_POSTURE]
         if policy.training and config.mirror_fraction > 0:
             x0, y0, targets, *extras = mirror_some_windows(
                 x0, y0, targets, config.mirror_fraction, plant.robot, previews, postures
